@@ -1,0 +1,16 @@
+"""rhi: redundant haptic interfaces — models, measures, design, control, simulation, analysis.
+
+Quick start::
+
+    import rhi
+    dev = rhi.device("rhi4")
+    J = dev.jacobian([0.125, 0.022, 0.298, 0.175])
+    rhi.metrics.effective_manipulability(J, [0, 1])   # 0.375 (thesis Table 3.1: 0.371)
+"""
+
+from rhi import errors, metrics
+from rhi.device import Device, available_devices, device, device_from_urdf
+from rhi.measure import measure
+
+__all__ = ["Device", "available_devices", "device", "device_from_urdf", "errors", "measure", "metrics"]
+__version__ = "0.1.0"

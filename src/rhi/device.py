@@ -138,6 +138,13 @@ class Device:
         """End-effector position in the world frame: (..., m) [m]."""
         return self._map(q, self._m_shape(), self._fk1)
 
+    def skeleton(self, q) -> np.ndarray:
+        """World positions of every chain joint then the end-effector, for drawing: (k, 3) [m] for q: (n,)."""
+        th = self.theta(self._q(q))
+        pin.framesForwardKinematics(self.model, self.data, th)
+        pts = [self.data.oMi[j].translation.copy() for j in range(1, self.model.njoints)]
+        return np.array(pts + [self.data.oMf[self._fid].translation.copy()])
+
     def jacobian(self, q) -> np.ndarray:
         """Task Jacobian ∂x/∂q in the world frame: (..., m, n)."""
         return self._map(q, (self.m, self.n), self._jac1)
@@ -170,15 +177,16 @@ class Device:
         q0,
         *,
         weights=None,
-        tol: float = 1e-10,
+        tol: float = 1e-9,
         max_iter: int = 200,
         k_null: float = 0.1,
     ) -> np.ndarray:
         """Inverse kinematics by the weighted pseudoinverse with a null-space term (thesis eq. 3.3–3.4).
 
         Iterates q ← q + J†(x − f(q)) + (I − J†J) q̇₀ with J† = Q⁻¹Jᵀ(JQ⁻¹Jᵀ)⁻¹ and
-        q̇₀ = −k_null (q − q_mid) pulling redundant joints towards mid-range. Steps
-        are clipped to the joint box.
+        q̇₀ = −k_null ∇h(q), h the normalised squared distance from the middle of every
+        finite joint range and linear joint inequality. Steps are clipped to the joint
+        box; the last iterations drop the null-space term to converge to `tol`.
 
         Args:
             x: (m,) target position [m].
@@ -204,21 +212,22 @@ class Device:
         if np.any(w <= 0):
             raise InvalidInput("weights: must be positive")
         Qinv = np.diag(1.0 / w)
-        finite = np.isfinite(self.q_min) & np.isfinite(self.q_max)
-        mid = np.where(finite, 0.5 * (self.q_min + self.q_max), q)
         q = np.clip(q, self.q_min, self.q_max)
         err = np.inf
-        for _ in range(max_iter):
+        for it in range(max_iter):
             e = x - self._fk1(self.theta(q))
             err = float(np.linalg.norm(e))
-            if err <= tol:
-                break
             J = self._jac1(self.theta(q))
             JQ = J @ Qinv
             Jp = JQ.T @ np.linalg.solve(JQ @ J.T + 1e-10 * np.eye(self.m), np.eye(self.m))
-            step = Jp @ e + (np.eye(self.n) - Jp @ J) @ (-k_null * (q - mid) * finite)
-            # limit the step to keep the linearisation valid
-            s = float(np.max(np.abs(step)))
+            # null-space centering during the first half, pure Newton steps to finish
+            null = np.zeros(self.n)
+            if it < max_iter // 2 and self.n > self.m:
+                null = -k_null * (np.eye(self.n) - Jp @ J) @ self._centering_gradient(q)
+            if err <= tol and np.max(np.abs(null), initial=0.0) < 1e-6:
+                break
+            step = Jp @ e + null
+            s = float(np.max(np.abs(step)))  # keep the linearisation valid
             q = np.clip(q + step * min(1.0, 0.5 / s) if s > 0 else q, self.q_min, self.q_max)
         if err > tol or not self.within_limits(q, 1e-9):
             raise Unreachable(
@@ -274,6 +283,17 @@ class Device:
         return f"Device({self.name!r}, n={self.n}, task={self.task_axes!r})"
 
     # ---------------------------------------------------------------- helpers
+    def _centering_gradient(self, q: np.ndarray) -> np.ndarray:
+        """∇h for h(q) = Σ ((q_i − mid_i)/range_i)² + Σ ((c_j q − mid_j)/range_j)² over finite limits."""
+        finite = np.isfinite(self.q_min) & np.isfinite(self.q_max)
+        rng = np.where(finite, self.q_max - self.q_min, 1.0)
+        g = np.where(finite, 2 * (q - 0.5 * (self.q_min + self.q_max)) / np.maximum(rng, 1e-9) ** 2, 0.0)
+        if self.linear_limits is not None:
+            L = self.linear_limits
+            r = np.maximum(L.upper - L.lower, 1e-9)
+            g = g + L.C.T @ (2 * (L.C @ q - 0.5 * (L.lower + L.upper)) / r**2)
+        return g
+
     def _q(self, q, name: str = "q") -> np.ndarray:
         return as_array(name, q, shape_tail=(self.n,))
 

@@ -1,0 +1,99 @@
+"""The `rhi` command: list devices, measure a configuration, reproduce the thesis."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        return [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by commas or spaces, got {text!r}") from None
+
+
+def _param(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    try:
+        return name, float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}") from None
+
+
+def _devices(args: argparse.Namespace) -> int:
+    from rhi.device import available_devices, device
+
+    print(f"{'name':<12} {'n':>2} {'task':<5} parameters")
+    for name in available_devices():
+        d = device(name)
+        params = ", ".join(f"{k}={v:g}" for k, v in d.params.items())
+        print(f"{name:<12} {d.n:>2} {d.task_axes:<5} {params}")
+    return 0
+
+
+def _measure(args: argparse.Namespace) -> int:
+    from rhi.device import device
+    from rhi.measure import measure
+
+    dev = device(args.device, **dict(args.param or []))
+    res = measure(dev, args.q, args.u)
+    if args.json:
+        print(json.dumps(res, indent=1))
+        return 0
+    for k, v in res.items():
+        if isinstance(v, list):
+            v = np.array2string(np.asarray(v), precision=5, suppress_small=True).replace("\n", "\n" + " " * 46)
+        elif isinstance(v, float):
+            v = f"{v:.6g}"
+        print(f"{k:<45} {v}")
+    return 0
+
+
+def _reproduce(args: argparse.Namespace) -> int:
+    from rhi.report.reproduce import reproduce
+
+    path, results = reproduce(args.out, only=args.only, quick=args.quick)
+    for res in results:
+        for table in res.tables:
+            print(f"\n{res.name}: {table.title}")
+            for r in table.rows:
+                th = "—" if r.thesis is None else f"{r.thesis:.4g}"
+                rel = "" if r.relative is None else f"({100 * r.relative:+.1f} %)"
+                print(f"  {r.quantity:<55} thesis {th:>9}   rhi {r.ours:>9.4g} {r.unit:<4} {rel}")
+    print(f"\nreport: {path}\nnumbers: {path.parent / 'results.json'}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `rhi` command."""
+    from rhi.errors import RhiError
+
+    p = argparse.ArgumentParser(prog="rhi", description=__doc__)
+    sub = p.add_subparsers(dest="command", required=True)
+    sub.add_parser("devices", help="list the bundled devices").set_defaults(func=_devices)
+    m = sub.add_parser("measure", help="print every measure of a device at a configuration")
+    m.add_argument("device")
+    m.add_argument("--q", type=_floats, required=True, help="configuration [rad], e.g. 0.125,0.022,0.298,0.175")
+    m.add_argument("--u", type=_floats, help="direction for directional measures, e.g. 0,1")
+    m.add_argument("--param", type=_param, action="append", help="design parameter NAME=VALUE, e.g. d2=0.1405")
+    m.add_argument("--json", action="store_true", help="print JSON")
+    m.set_defaults(func=_measure)
+    r = sub.add_parser("reproduce", help="reproduce the thesis's computational tables and figures into a report")
+    r.add_argument("--only", help="one chapter, e.g. ch3")
+    r.add_argument("--quick", action="store_true", help="reduced resolution (seconds)")
+    r.add_argument("--out", default="out", help="output directory (default: out)")
+    r.set_defaults(func=_reproduce)
+    args = p.parse_args(argv)
+    try:
+        return args.func(args)
+    except RhiError as exc:
+        print(f"rhi: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+"""Static redundancy resolution: the configuration a null-space controller converges to."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import LinearConstraint, NonlinearConstraint, minimize
+
+from rhi._validate import as_array
+from rhi.control.objectives import Objective
+from rhi.device import Device
+from rhi.errors import Unreachable
+
+
+def optimal_configuration(
+    device: Device,
+    x,
+    objective: Objective,
+    q0,
+    *,
+    tol: float = 1e-9,
+    max_iter: int = 200,
+) -> np.ndarray:
+    """Minimise ν(q) over the self-motion manifold f(q) = x within the joint limits.
+
+    This is the fixed point of gradient projection (thesis eq. 3.20–3.21) computed
+    directly with SciPy's SLSQP: equality constraint f(q) = x (analytic Jacobian),
+    joint box bounds and the device's linear joint inequalities.
+
+    Args:
+        device: redundant device.
+        x: (m,) end-effector position [m].
+        objective: secondary objective with `value` and `gradient`.
+        q0: (n,) starting configuration (need not satisfy f(q0) = x).
+
+    Returns:
+        q: (n,) optimal configuration.
+
+    Raises:
+        Unreachable: no configuration within the limits reaches x.
+    """
+    x = as_array("x", x, shape_tail=(device.m,))
+    q0 = device.ik(x, q0)  # feasible start (raises Unreachable)
+    cons = [
+        NonlinearConstraint(
+            lambda q: device.fk(q) - x, 0.0, 0.0, jac=lambda q: device.jacobian(q)
+        )
+    ]
+    if device.linear_limits is not None:
+        L = device.linear_limits
+        cons.append(LinearConstraint(L.C, L.lower, L.upper))
+    bounds = list(zip(device.q_min, device.q_max))
+    res = minimize(
+        lambda q: objective.value(device, q),
+        q0,
+        jac=lambda q: objective.gradient(device, q),
+        method="SLSQP",
+        bounds=bounds,
+        constraints=cons,
+        options={"maxiter": max_iter, "ftol": tol},
+    )
+    # the best feasible point found: SLSQP's answer projected back onto f(q) = x, or the start
+    try:
+        q = device.ik(x, np.clip(res.x, device.q_min, device.q_max))
+    except Unreachable:
+        return q0
+    return q if objective.value(device, q) <= objective.value(device, q0) else q0

@@ -1,0 +1,1 @@
+"""Thesis experiments, one module per chapter: functions that return `Result` objects (no plotting)."""

@@ -1,0 +1,197 @@
+"""Shared checks and numerical kernels of `rhi.metrics` (private).
+
+Conventions used throughout the subpackage:
+
+* A Jacobian ``J`` has shape ``(..., m, n)`` (``m`` task rows, ``n`` joints); leading
+  axes broadcast against the leading axes of every other batched argument.
+* A symmetric positive semi-definite matrix ``A`` of shape ``(..., m, m)`` stands for
+  the ellipsoid ``{x : x^T A^+ x <= 1}``; its semi-axes are ``sqrt(eig(A))``.
+* A matrix (or the whitened Jacobian of a weighted inverse) counts as singular when its
+  smallest singular value is at most ``SINGULAR_RTOL`` times its largest.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from rhi._validate import as_array, unit_vector
+from rhi.errors import InvalidInput, NotSPD, Singular
+
+FloatArray = NDArray[np.float64]
+
+#: Relative threshold below which a singular value counts as zero.
+SINGULAR_RTOL: float = 1e-12
+#: Relative tolerance of the symmetry check on matrices that must be symmetric.
+SYMMETRY_RTOL: float = 1e-9
+#: Components of a unit direction smaller than this along a lost ellipsoid axis are ignored.
+DIRECTION_ATOL: float = 1e-10
+
+
+def jacobian(name: str, J: ArrayLike) -> FloatArray:
+    """Return ``J`` as a finite float array of shape ``(..., m, n)`` with m, n >= 1."""
+    arr = as_array(name, J, ndim_min=2)
+    if arr.shape[-1] == 0 or arr.shape[-2] == 0:
+        raise InvalidInput(f"{name}: expected shape (..., m, n) with m, n >= 1, got {arr.shape}")
+    return arr
+
+
+def square(name: str, A: ArrayLike, size: int | None = None) -> FloatArray:
+    """Return ``A`` as a finite float array of shape ``(..., k, k)`` (``k == size`` if given)."""
+    arr = as_array(name, A, ndim_min=2)
+    k = arr.shape[-1]
+    if arr.shape[-2] != k or k == 0 or (size is not None and k != size):
+        want = "(..., k, k)" if size is None else f"(..., {size}, {size})"
+        raise InvalidInput(f"{name}: expected shape {want}, got {arr.shape}")
+    return arr
+
+
+def direction(name: str, u: ArrayLike, m: int) -> FloatArray:
+    """Return the direction(s) ``u`` of shape ``(..., m)`` normalised to unit length."""
+    return unit_vector(name, u, m)
+
+
+def positive(name: str, value: ArrayLike, *, shape_tail: tuple[int | None, ...] = ()) -> FloatArray:
+    """Return ``value`` as a finite float array whose entries are all > 0."""
+    arr = as_array(name, value, shape_tail=shape_tail)
+    if np.any(arr <= 0):
+        raise InvalidInput(f"{name}: every entry must be > 0, got min {float(np.min(arr))!r}")
+    return arr
+
+
+def _first_bad(mask: np.ndarray) -> str:
+    """Describe the first batch index where ``mask`` is True (for error messages)."""
+    idx = np.argwhere(np.atleast_1d(mask))
+    if mask.ndim == 0 or idx.size == 0:
+        return ""
+    return f" at batch index {tuple(int(i) for i in idx[0])}"
+
+
+def check_symmetric(name: str, A: FloatArray) -> None:
+    """Raise `NotSPD` naming ``name`` if ``A`` is not symmetric to `SYMMETRY_RTOL`."""
+    asym = np.max(np.abs(A - np.swapaxes(A, -1, -2)), axis=(-2, -1))
+    scale = np.max(np.abs(A), axis=(-2, -1))
+    bad = asym > SYMMETRY_RTOL * np.maximum(scale, np.finfo(float).tiny)
+    if np.any(bad):
+        raise NotSPD(f"{name}: not symmetric{_first_bad(bad)}")
+
+
+def cholesky(name: str, A: FloatArray) -> FloatArray:
+    """Lower Cholesky factor of the symmetric positive definite ``A``; `NotSPD` otherwise."""
+    check_symmetric(name, A)
+    A = 0.5 * (A + np.swapaxes(A, -1, -2))
+    try:
+        L = np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        raise NotSPD(f"{name}: not positive definite") from None
+    d = np.diagonal(L, axis1=-2, axis2=-1)
+    if not np.all(np.isfinite(L)) or np.any(d <= 0):
+        raise NotSPD(f"{name}: not positive definite")
+    return L
+
+
+def whiten(J: FloatArray, L: FloatArray | None) -> FloatArray:
+    """Return ``B = J L^{-T}`` so that ``B B^T = J Q^{-1} J^T`` for ``Q = L L^T`` (``J`` if no ``L``)."""
+    if L is None:
+        return J
+    return np.swapaxes(np.linalg.solve(L, np.swapaxes(J, -1, -2)), -1, -2)
+
+
+def full_row_rank_pinv(name: str, B: FloatArray) -> FloatArray:
+    """Moore-Penrose inverse ``B^T (B B^T)^{-1}`` of a full-row-rank ``B`` (..., m, n).
+
+    Raises:
+        Singular: ``B`` has fewer columns than rows or a singular value below
+            ``SINGULAR_RTOL`` times its largest one.
+    """
+    m, n = B.shape[-2:]
+    if n < m:
+        raise Singular(f"{name}: {m} rows but only {n} columns, so it cannot have full row rank")
+    U, s, Vt = np.linalg.svd(B, full_matrices=False)
+    bad = s[..., -1] <= SINGULAR_RTOL * s[..., 0]
+    if np.any(bad):
+        raise Singular(f"{name}: singular (rank < {m} rows){_first_bad(bad)}")
+    return np.swapaxes(Vt, -1, -2) @ (np.swapaxes(U, -1, -2) / s[..., :, None])
+
+
+def inverse_gram(name: str, B: FloatArray) -> FloatArray:
+    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), via its SVD."""
+    m, n = B.shape[-2:]
+    if n < m:
+        raise Singular(f"{name}: {m} rows but only {n} columns, so it cannot have full row rank")
+    U, s, _ = np.linalg.svd(B, full_matrices=False)
+    bad = s[..., -1] <= SINGULAR_RTOL * s[..., 0]
+    if np.any(bad):
+        raise Singular(f"{name}: singular (rank < {m} rows){_first_bad(bad)}")
+    out = (U / s[..., None, :] ** 2) @ np.swapaxes(U, -1, -2)
+    return 0.5 * (out + np.swapaxes(out, -1, -2))
+
+
+def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Semi-axes and directions of the ellipsoid ``B B^T`` (i.e. of ``{B x : |x| <= 1}``).
+
+    Returns:
+        ``(s, U)``: ``s`` (..., m) descending semi-axis lengths (zero-padded when the map
+        has fewer columns than rows) and ``U`` (..., m, m) orthonormal directions as columns.
+    """
+    m, n = B.shape[-2:]
+    U, s, _ = np.linalg.svd(B, full_matrices=True)
+    if n < m:
+        s = np.concatenate([s, np.zeros(s.shape[:-1] + (m - n,))], axis=-1)
+    return s, U
+
+
+def principal_axes_of_psd(name: str, A: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Semi-axes ``sqrt(eig(A))`` (descending) and eigenvectors of a symmetric PSD ``A``.
+
+    Raises:
+        NotSPD: ``A`` is not symmetric or has an eigenvalue below ``-SINGULAR_RTOL``
+            times its largest eigenvalue magnitude.
+    """
+    check_symmetric(name, A)
+    A = 0.5 * (A + np.swapaxes(A, -1, -2))
+    w, V = np.linalg.eigh(A)
+    scale = np.max(np.abs(w), axis=-1, keepdims=True)
+    if np.any(w < -SINGULAR_RTOL * np.maximum(scale, np.finfo(float).tiny)):
+        raise NotSPD(f"{name}: has a negative eigenvalue (not positive semi-definite)")
+    w = np.clip(w, 0.0, None)[..., ::-1]
+    V = V[..., ::-1]
+    return np.sqrt(w), V
+
+
+def radius_along(s: FloatArray, U: FloatArray, u: FloatArray) -> FloatArray:
+    """Radius ``(u^T A^{-1} u)^{-1/2}`` of the ellipsoid with semi-axes ``s`` along ``U``.
+
+    ``u`` (..., m) must be unit length. Axes whose length is at most ``SINGULAR_RTOL``
+    times the longest are *lost* (the ellipsoid is flat along them): the radius is 0
+    when ``u`` has a component larger than ``DIRECTION_ATOL`` along a lost axis (the
+    limit from nearby non-singular matrices) and that component is ignored otherwise.
+    A zero ellipsoid has radius 0 everywhere.
+    """
+    c = np.einsum("...ij,...i->...j", U, u)
+    smax = s[..., :1]
+    lost = s <= SINGULAR_RTOL * smax
+    blocked = np.any(lost & (np.abs(c) > DIRECTION_ATOL), axis=-1)
+    safe_s = np.where(lost, 1.0, s)
+    q = np.sum(np.where(lost, 0.0, (c / safe_s) ** 2), axis=-1)
+    with np.errstate(divide="ignore"):
+        r = np.where(q > 0, 1.0 / np.sqrt(np.where(q > 0, q, 1.0)), 0.0)
+    return np.where(blocked | (smax[..., 0] <= 0), 0.0, r)
+
+
+def inverse_norm(v: FloatArray, scale: FloatArray) -> FloatArray:
+    """``1 / |v|`` along the last axis, ``inf`` where ``|v| <= SINGULAR_RTOL * scale``."""
+    nv = np.linalg.norm(v, axis=-1)
+    zero = nv <= SINGULAR_RTOL * scale
+    with np.errstate(divide="ignore"):
+        return np.where(zero, np.inf, 1.0 / np.where(zero, 1.0, nv))
+
+
+def torque_weights(name: str, torque_max: ArrayLike | None, n: int) -> FloatArray | None:
+    """Return ``1 / torque_max`` of shape (..., n) (None stays None); limits must be > 0."""
+    if torque_max is None:
+        return None
+    t = positive(name, torque_max, shape_tail=(n,) if np.ndim(torque_max) >= 1 else ())
+    if t.ndim == 0:
+        t = np.broadcast_to(t, (n,))
+    return 1.0 / t

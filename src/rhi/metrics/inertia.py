@@ -1,0 +1,66 @@
+"""Apparent (Cartesian) inertia of a manipulator and its value along a direction."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from rhi.errors import InvalidInput
+from rhi.metrics._common import FloatArray, cholesky, direction, inverse_gram, inverse_norm, jacobian, square, whiten
+
+
+def _whitened_jacobian(J: ArrayLike, M: ArrayLike) -> FloatArray:
+    """Return ``B = J L⁻ᵀ`` with ``M = L Lᵀ``, so that ``B Bᵀ = J M⁻¹ Jᵀ``."""
+    J = jacobian("J", J)
+    M = square("M", M)
+    if M.shape[-1] != J.shape[-1]:
+        raise InvalidInput(f"M: expected shape (..., {J.shape[-1]}, {J.shape[-1]}) to match J, got {M.shape}")
+    try:
+        np.broadcast_shapes(J.shape[:-2], M.shape[:-2])
+    except ValueError:
+        raise InvalidInput(f"M: batch shape {M.shape[:-2]} does not broadcast with J's {J.shape[:-2]}") from None
+    return whiten(J, cholesky("M", M))
+
+
+def apparent_inertia(J: ArrayLike, M: ArrayLike) -> FloatArray:
+    """Apparent (end-effector) inertia ``M_x = (J M⁻¹ Jᵀ)⁻¹`` (thesis eq. 3.12).
+
+    Args:
+        J: (..., m, n) Jacobian [m/rad].
+        M: (..., n, n) joint-space inertia matrix [kg m²], symmetric positive definite.
+
+    Returns:
+        (..., m, m) symmetric positive definite Cartesian inertia [kg].
+
+    Raises:
+        InvalidInput: bad shapes or non-finite entries.
+        NotSPD: ``M`` is not symmetric positive definite.
+        Singular: ``J`` does not have full row rank.
+    """
+    return inverse_gram("J", _whitened_jacobian(J, M))
+
+
+def effective_inertia(J: ArrayLike, M: ArrayLike, u: ArrayLike) -> FloatArray:
+    """Effective apparent inertia ``Λ = (uᵀ M_x⁻¹ u)⁻¹ = (uᵀ J M⁻¹ Jᵀ u)⁻¹`` (thesis eq. 3.13).
+
+    The mass felt at the end-effector when pushing along ``u``; computed without
+    inverting ``M_x``, so it is defined at singular configurations too.
+
+    Args:
+        J: (..., m, n) Jacobian [m/rad].
+        M: (..., n, n) joint-space inertia matrix [kg m²], symmetric positive definite.
+        u: (..., m) direction; normalised internally, must be non-zero.
+
+    Returns:
+        (...,) Λ [kg]; ``inf`` where ``|L⁻¹Jᵀu| <= 1e-12 |L⁻¹Jᵀ|_F`` (``M = LLᵀ``), i.e.
+        where ``Jᵀu = 0``: a singular configuration that cannot accelerate along ``u``.
+
+    Raises:
+        InvalidInput: bad shapes, non-finite entries or zero-length ``u``.
+        NotSPD: ``M`` is not symmetric positive definite.
+    """
+    B = _whitened_jacobian(J, M)
+    u = direction("u", u, B.shape[-2])
+    v = np.einsum("...ij,...i->...j", B, u)
+    r = inverse_norm(v, np.linalg.norm(B, axis=(-2, -1)))
+    return r * r

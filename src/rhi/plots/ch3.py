@@ -1,0 +1,61 @@
+"""Figures of chapter 3 (Figs 3.6–3.8) from `rhi.experiments.ch3` results."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+
+from rhi.experiments.result import Result
+
+
+def workspaces(result: Result) -> Figure:
+    """Fig. 3.6: the workspaces of the RHI, PHANToM and Rehab and the experiment's start point."""
+    fig, ax = plt.subplots(figsize=(5, 5))
+    for pts, label, color in zip(result.arrays["workspaces"], ("RHI", "PHANToM", "Rehab"), ("C0", "C1", "C2")):
+        ax.plot(pts[:, 0], pts[:, 1], ".", ms=1, alpha=0.3, color=color, label=label)
+    ax.plot([0.49], [-0.22], "k*", ms=10, label="start (0.49, −0.22)")
+    ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal", title="Fig. 3.6 workspaces")
+    ax.legend(markerscale=8, loc="upper left")
+    return fig
+
+
+def _map(result: Result, key: str, title: str, label: str) -> Figure:
+    fig, ax = plt.subplots(figsize=(5.5, 4.5))
+    x, y, Z = result.arrays["x"], result.arrays["y"], result.arrays[key]
+    pc = ax.pcolormesh(x, y, np.ma.masked_invalid(Z), shading="nearest", cmap="viridis")
+    fig.colorbar(pc, ax=ax, label=label)
+    ax.plot([0.49, 0.49], [-0.22, -0.14], "r-", lw=2, label="experiment segment")
+    ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal", title=title)
+    ax.legend(loc="upper left")
+    return fig
+
+
+def lambda_ratio(result: Result) -> Figure:
+    """Fig. 3.7: Λ_RHI / Λ_PHANToM along u = [0, 1]."""
+    return _map(result, "lambda_ratio", "Fig. 3.7 effective apparent inertia ratio", "Λ_RHI / Λ_PHANToM")
+
+
+def rho_ratio(result: Result) -> Figure:
+    """Fig. 3.8: ρ_RHI / ρ_PHANToM along u = [0, 1]."""
+    return _map(result, "rho_ratio", "Fig. 3.8 effective manipulability ratio", "ρ_RHI / ρ_PHANToM")
+
+
+def configurations(result: Result) -> Figure:
+    """Table 3.1 set-up: the three interfaces at the two points with their velocity ellipses (scaled ×0.3)."""
+    from rhi.experiments.ch3 import POINTS, devices  # data access only
+
+    from rhi.plots.draw import chain, ellipse
+
+    devs = devices()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 5), sharey=True)
+    for i, ax in enumerate(axes):
+        for (nm, dev), color in zip(devs.items(), ("C0", "C1", "C2")):
+            q = result.arrays[f"q_opt_{i}"] if nm == "RHI" else result.arrays[f"q_{nm}_{i}"]
+            chain(ax, dev.skeleton(q)[:, :2], color=color, label=nm)
+            J = dev.jacobian(q)
+            ellipse(ax, POINTS[i], J @ J.T, scale=0.3, color=color, lw=1)
+        ax.set(xlabel="x [m]", aspect="equal", title=f"point {POINTS[i]}")
+    axes[0].set_ylabel("y [m]")
+    axes[0].legend()
+    return fig

@@ -1,0 +1,74 @@
+"""`rhi reproduce`: run every thesis experiment that exists and write the report."""
+
+from __future__ import annotations
+
+import dataclasses
+import platform
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+from rhi.experiments import ch3 as ex3
+from rhi.experiments.result import Result
+from rhi.plots import ch3 as pl3
+from rhi.report import write_report
+
+
+@dataclasses.dataclass(frozen=True)
+class Step:
+    """One experiment of the reproduction: how to run it (full and --quick) and draw it."""
+
+    chapter: str
+    run: Callable[..., Result]
+    full: dict
+    quick: dict
+    figures: dict[str, Callable[[Result], object]]
+    progress: bool = False
+
+
+STEPS: list[Step] = [
+    Step("ch3", ex3.table_3_1, {}, {}, {"configurations": pl3.configurations}),
+    Step("ch3", ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
+         {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
+]
+
+
+def chapters() -> list[str]:
+    """Chapters the reproduction covers."""
+    return sorted({s.chapter for s in STEPS})
+
+
+def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool = False) -> tuple[Path, list[Result]]:
+    """Run the experiments (all, or one chapter) and write out/report.html + out/results.json.
+
+    Args:
+        out: output directory.
+        only: chapter id such as "ch3".
+        quick: reduced resolution (seconds instead of minutes).
+    """
+    steps = [s for s in STEPS if only is None or s.chapter == only]
+    if not steps:
+        from rhi.errors import InvalidInput
+
+        raise InvalidInput(f"only: unknown chapter {only!r}; available: {', '.join(chapters())}")
+    done: list[tuple[str, Result, dict]] = []
+    t0 = time.perf_counter()
+    cols = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+            TimeElapsedColumn())
+    with Progress(*cols) as bar:
+        overall = bar.add_task("reproduction", total=len(steps))
+        for s in steps:
+            kwargs = dict(s.quick if quick else s.full)
+            if s.progress:
+                sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
+                kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
+            res = s.run(**kwargs)
+            figs = {name: draw(res) for name, draw in s.figures.items()}
+            done.append((s.chapter, res, figs))
+            bar.advance(overall)
+    meta = {"mode": "quick" if quick else "full", "chapters": only or ", ".join(chapters()),
+            "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version()}
+    path = write_report(done, out, meta=meta)
+    return path, [r for _, r, _ in done]
