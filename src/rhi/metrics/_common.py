@@ -46,8 +46,8 @@ def square(name: str, A: ArrayLike, size: int | None = None) -> FloatArray:
     return arr
 
 
-def direction(name: str, u: ArrayLike, m: int) -> FloatArray:
-    """Return the direction(s) ``u`` of shape ``(..., m)`` normalised to unit length."""
+def direction(name: str, u: ArrayLike, m: int | None) -> FloatArray:
+    """Return the direction(s) ``u`` of shape ``(..., m)`` (any m if None) normalised to unit length."""
     return unit_vector(name, u, m)
 
 

@@ -46,7 +46,8 @@ def _scaling(J: FloatArray, t: FloatArray, lo: FloatArray, hi: FloatArray) -> tu
     safe = np.where(pos | neg, t, 1.0)
     ratio = np.where(pos, hi / safe, np.where(neg, lo / safe, np.inf))
     f = np.min(ratio, axis=-1)
-    torque = np.where(np.isinf(f)[..., None], 0.0, f[..., None] * np.where(pos | neg, t, 0.0))
+    unbounded = np.isinf(f)
+    torque = np.where(unbounded, 0.0, f)[..., None] * np.where(pos | neg, t, 0.0)
     return f, torque
 
 

@@ -11,8 +11,9 @@ from rhi.metrics._common import FloatArray, jacobian, positive
 
 
 def joint_limit_penalty(q: ArrayLike, q_min: ArrayLike, q_max: ArrayLike, k_q: ArrayLike) -> FloatArray:
-    """Joint-wise penalty ``P_i = (1 − exp(−4k_q(q_i−q_min,i)(q_max,i−q_i)/(q_max,i−q_min,i)²)) / (1 − exp(−k_q))`` (thesis eq. 4.20).
+    """Joint-wise joint-limit penalty ``P_i`` (thesis eq. 4.20).
 
+    ``P_i = (1 − exp(−4 k_q (q_i − q_min,i)(q_max,i − q_i) / (q_max,i − q_min,i)²)) / (1 − exp(−k_q))``.
     ``P_i`` is 1 at the mid-range ``(q_min,i + q_max,i)/2`` and 0 at either limit; ``k_q``
     shapes the curve in between. Outside the limits the formula turns negative; the
     result is clipped to 0 there (a joint beyond its limit contributes no motion).
