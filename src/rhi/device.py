@@ -286,8 +286,8 @@ class Device:
     def _centering_gradient(self, q: np.ndarray) -> np.ndarray:
         """∇h for h(q) = Σ ((q_i − mid_i)/range_i)² + Σ ((c_j q − mid_j)/range_j)² over finite limits."""
         finite = np.isfinite(self.q_min) & np.isfinite(self.q_max)
-        rng = np.where(finite, self.q_max - self.q_min, 1.0)
-        g = np.where(finite, 2 * (q - 0.5 * (self.q_min + self.q_max)) / np.maximum(rng, 1e-9) ** 2, 0.0)
+        lo, hi = np.where(finite, self.q_min, 0.0), np.where(finite, self.q_max, 0.0)
+        g = np.where(finite, 2 * (q - 0.5 * (lo + hi)) / np.maximum(hi - lo, 1e-9) ** 2, 0.0)
         if self.linear_limits is not None:
             L = self.linear_limits
             r = np.maximum(L.upper - L.lower, 1e-9)

@@ -115,7 +115,7 @@ def dh_inertias() -> list[pin.Inertia]:
     """Kinova's link inertias expressed in the DH link frames (base_link: same frame)."""
     dh_frames = [pin.SE3.Identity()]
     M = pin.SE3.Identity()
-    for i, J in enumerate(joint_origins()[:7]):
+    for J in joint_origins()[:7]:
         M = M * J
         dh_frames.append(M)
     k_frames = [pin.SE3.Identity()]
@@ -200,17 +200,17 @@ def wmm_urdf() -> str:
         '<robot name="wmm">',
         '  <link name="world"/>',
         '  <joint name="base_x" type="prismatic">',
-        f'    <parent link="world"/><child link="base_x_link"/><origin xyz="0 0 0" rpy="0 0 0"/>',
+        '    <parent link="world"/><child link="base_x_link"/><origin xyz="0 0 0" rpy="0 0 0"/>',
         f'    <axis xyz="1 0 0"/><limit {lim}/>',
         "  </joint>",
         '  <link name="base_x_link"/>',
         '  <joint name="base_y" type="prismatic">',
-        f'    <parent link="base_x_link"/><child link="base_y_link"/><origin xyz="0 0 0" rpy="0 0 0"/>',
+        '    <parent link="base_x_link"/><child link="base_y_link"/><origin xyz="0 0 0" rpy="0 0 0"/>',
         f'    <axis xyz="0 1 0"/><limit {lim}/>',
         "  </joint>",
         '  <link name="base_y_link"/>',
         '  <joint name="base_yaw" type="revolute">',
-        f'    <parent link="base_y_link"/><child link="mobile_base"/><origin xyz="0 0 0" rpy="0 0 0"/>',
+        '    <parent link="base_y_link"/><child link="mobile_base"/><origin xyz="0 0 0" rpy="0 0 0"/>',
         f'    <axis xyz="0 0 1"/><limit lower="-{URDF_LIMIT}" upper="{URDF_LIMIT}" effort="1e6" velocity="1"/>',
         "  </joint>",
         f'  <link name="mobile_base"><inertial><origin xyz="0 0 {BASE_COM_Z}" rpy="0 0 0"/><mass value="{BASE_MASS}"/>'
