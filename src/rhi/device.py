@@ -302,6 +302,8 @@ class Device:
 
     def _map(self, q, shape: tuple[int, ...], fn: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
         th = self.theta(q)
+        if th.ndim == 1:
+            return fn(th)
         out = np.empty(th.shape[:-1] + shape)
         for idx in np.ndindex(th.shape[:-1]):
             out[idx] = fn(th[idx])
