@@ -168,3 +168,43 @@ def test_device_from_urdf_matches_bundled(rhi4):
     np.testing.assert_allclose(dev.fk(th), rhi4.fk([0.1, 0.2, 0.3, 0.4]), atol=1e-14)
     with pytest.raises(rhi.errors.ModelError, match="ee_frame"):
         rhi.device_from_urdf(path, ee_frame="nope")
+
+
+def test_mass_matrix_equals_kinetic_energy_by_hand(rhi4, rng):
+    """M from Pinocchio equals Σ m J_cᵀJ_c + I_zz J_ωᵀJ_ω with centre-of-mass kinematics written out by hand.
+
+    Inertial values are read from the URDF text (not through Pinocchio).
+    """
+    import xml.etree.ElementTree as ET
+
+    from rhi.device import MODELS
+
+    root = ET.parse(MODELS / "rhi4" / "rhi4.urdf").getroot()
+    body = {}
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is not None:
+            com_x = float(inertial.find("origin").get("xyz").split()[0])
+            body[link.get("name")] = (float(inertial.find("mass").get("value")), com_x,
+                                      float(inertial.find("inertia").get("izz")))
+    d1, d2, d3, d4 = D
+
+    def com_and_angle(q):
+        q1, q2, q3, q4 = q
+        e = lambda a: np.array([c(a), s(a)])  # noqa: E731
+        p2 = d1 * e(q1)
+        p3 = p2 + d2 * e(q2 - np.pi / 2)
+        p4 = p3 + d3 * e(q2 + q3)
+        frames = {"rehab_link1": (np.zeros(2), q1), "rehab_link2": (p2, q2 - np.pi / 2),
+                  "phantom_base": (p3, q2 - np.pi / 2), "phantom_link1": (p3, q2 + q3),
+                  "phantom_link2": (p4, q2 + q4 - np.pi / 2)}
+        return {k: (o + body[k][1] * e(a), a) for k, (o, a) in frames.items()}
+
+    assert set(body) == {"rehab_link1", "rehab_link2", "phantom_base", "phantom_link1", "phantom_link2"}
+    for q in random_q(rhi4, rng, 5):
+        M = np.zeros((4, 4))
+        for name, (mass, _, izz) in body.items():
+            Jc = fd_jacobian(lambda p: com_and_angle(p)[name][0], q)
+            Jw = fd_jacobian(lambda p: np.array(com_and_angle(p)[name][1]), q)
+            M += mass * Jc.T @ Jc + izz * np.outer(Jw, Jw)
+        np.testing.assert_allclose(rhi4.mass_matrix(q), M, atol=1e-9)
