@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 
 from rhi.experiments.result import Result
@@ -23,7 +24,10 @@ def workspaces(result: Result) -> Figure:
 def _map(result: Result, key: str, title: str, label: str) -> Figure:
     fig, ax = plt.subplots(figsize=(5.5, 4.5))
     x, y, Z = result.arrays["x"], result.arrays["y"], result.arrays[key]
-    pc = ax.pcolormesh(x, y, np.ma.masked_invalid(Z), shading="nearest", cmap="viridis")
+    Zm = np.ma.masked_invalid(Z)
+    lo, hi = float(Zm.min()), float(Zm.max())
+    norm = TwoSlopeNorm(1.0, min(lo, 0.999), max(hi, 1.001))  # ratio 1 (no advantage) is white
+    pc = ax.pcolormesh(x, y, Zm, shading="nearest", cmap="RdBu_r" if key == "lambda_ratio" else "RdBu", norm=norm)
     fig.colorbar(pc, ax=ax, label=label)
     ax.plot([0.49, 0.49], [-0.22, -0.14], "r-", lw=2, label="experiment segment")
     ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal", title=title)
