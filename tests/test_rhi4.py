@@ -173,8 +173,9 @@ def test_device_from_urdf_matches_bundled(rhi4):
 def test_mass_matrix_equals_kinetic_energy_by_hand(rhi4, rng):
     """M from Pinocchio equals Σ m J_cᵀJ_c + I_zz J_ωᵀJ_ω with centre-of-mass kinematics written out by hand.
 
-    Inertial values are read from the URDF text (not through Pinocchio).
+    Inertial values are read from the URDF text and the rotor inertias from device.toml (not through Pinocchio).
     """
+    import tomllib
     import xml.etree.ElementTree as ET
 
     from rhi.device import MODELS
@@ -202,7 +203,7 @@ def test_mass_matrix_equals_kinetic_energy_by_hand(rhi4, rng):
 
     assert set(body) == {"rehab_link1", "rehab_link2", "phantom_base", "phantom_link1", "phantom_link2"}
     for q in random_q(rhi4, rng, 5):
-        M = np.zeros((4, 4))
+        M = np.diag(tomllib.loads((MODELS / "rhi4" / "device.toml").read_text())["armature"])
         for name, (mass, _, izz) in body.items():
             Jc = fd_jacobian(lambda p: com_and_angle(p)[name][0], q)
             Jw = fd_jacobian(lambda p: np.array(com_and_angle(p)[name][1]), q)

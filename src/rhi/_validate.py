@@ -20,17 +20,16 @@ def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | Non
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
         raise InvalidInput(f"{name}: cannot be read as a float array ({exc})") from None
-    if arr.ndim < max(ndim_min, len(shape_tail)):
-        raise InvalidInput(
-            f"{name}: expected at least {max(ndim_min, len(shape_tail))} dimension(s), got shape {arr.shape}"
-        )
+    ndim = max(ndim_min, len(shape_tail))
+    if arr.ndim < ndim:
+        raise InvalidInput(f"{name}: expected at least {ndim} dimension(s), got shape {arr.shape}")
     if shape_tail:
         tail = arr.shape[arr.ndim - len(shape_tail):]
         for got, want in zip(tail, shape_tail):
             if want is not None and got != want:
                 want_s = "(..., " + ", ".join("*" if w is None else str(w) for w in shape_tail) + ")"
                 raise InvalidInput(f"{name}: expected shape {want_s}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise InvalidInput(f"{name}: contains NaN or inf")
     return arr
 
@@ -39,23 +38,23 @@ def limits_pair(name_min: str, lo, name_max: str, hi, n: int | None = None) -> t
     """Validate a (minimum, maximum) pair of limit vectors: finite, same shape, min <= max."""
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
-    if np.any(np.isnan(lo)) or np.any(np.isnan(hi)):
+    if np.isnan(lo).any() or np.isnan(hi).any():
         raise InvalidInput(f"{name_min}/{name_max}: contains NaN")
     if n is not None:
         lo = np.broadcast_to(lo, (n,)) if lo.ndim == 0 else lo
         hi = np.broadcast_to(hi, (n,)) if hi.ndim == 0 else hi
         if lo.shape[-1:] != (n,) or hi.shape[-1:] != (n,):
             raise InvalidInput(f"{name_min}/{name_max}: expected {n} entries, got shapes {lo.shape} and {hi.shape}")
-    bad = np.flatnonzero(np.broadcast_to(lo > hi, np.broadcast_shapes(lo.shape, hi.shape)).reshape(-1))
-    if bad.size:
-        raise InfeasibleLimits(f"{name_min} > {name_max} at index {int(bad[0])}")
+    bad = lo > hi
+    if bad.any():
+        raise InfeasibleLimits(f"{name_min} > {name_max} at index {int(np.flatnonzero(bad)[0])}")
     return lo, hi
 
 
 def unit_vector(name: str, u, m: int | None = None) -> np.ndarray:
     """Return `u` normalised along its last axis; raise if any vector has zero length."""
     u = as_array(name, u, ndim_min=1, shape_tail=(m,) if m else ())
-    norm = np.linalg.norm(u, axis=-1, keepdims=True)
-    if np.any(norm < 1e-12):
+    norm = np.sqrt((u * u).sum(axis=-1, keepdims=True))
+    if (norm < 1e-12).any():
         raise InvalidInput(f"{name}: zero-length direction vector")
     return u / norm

@@ -58,6 +58,7 @@ class Device:
         torque_min, torque_max: (n,) actuator limits [N m or N].
         linear_limits: optional joint inequalities.
         joint_names: (n,) names of the motor coordinates.
+        armature: (n,) rotor inertia reflected to each motor coordinate [kg m²], added to M(q).
         params: design parameters this device was built with.
     """
 
@@ -76,6 +77,7 @@ class Device:
         torque_max: np.ndarray | None = None,
         linear_limits: LinearLimits | None = None,
         joint_names: list[str] | None = None,
+        armature: np.ndarray | None = None,
         params: Mapping[str, float] | None = None,
     ) -> None:
         if model.nq != model.nv:
@@ -106,6 +108,9 @@ class Device:
         tmin = -tmax if torque_min is None else np.asarray(torque_min, dtype=float)
         self.torque_min, self.torque_max = limits_pair("torque_min", tmin, "torque_max", tmax, n)
         self.linear_limits = linear_limits
+        self.armature = np.zeros(n) if armature is None else np.asarray(armature, dtype=float)
+        if self.armature.shape != (n,) or np.any(self.armature < 0):
+            raise ModelError(f"armature: expected {n} non-negative values, got {self.armature}")
         self.params = dict(params or {})
 
     # ------------------------------------------------------------------ limits
@@ -154,7 +159,7 @@ class Device:
         return self._map(q, (self.m, self.n, self.n), self._djac1)
 
     def mass_matrix(self, q) -> np.ndarray:
-        """Joint-space inertia M(q) = Aᵀ M_θ A: (..., n, n) [kg m²]."""
+        """Joint-space inertia M(q) = Aᵀ M_θ A + diag(armature): (..., n, n) [kg m²]."""
         return self._map(q, (self.n, self.n), self._mass1)
 
     def coriolis(self, q, dq) -> np.ndarray:
@@ -180,61 +185,72 @@ class Device:
         tol: float = 1e-9,
         max_iter: int = 200,
         k_null: float = 0.1,
+        restarts: int = 8,
     ) -> np.ndarray:
         """Inverse kinematics by the weighted pseudoinverse with a null-space term (thesis eq. 3.3–3.4).
 
         Iterates q ← q + J†(x − f(q)) + (I − J†J) q̇₀ with J† = Q⁻¹Jᵀ(JQ⁻¹Jᵀ)⁻¹ and
         q̇₀ = −k_null ∇h(q), h the normalised squared distance from the middle of every
-        finite joint range and linear joint inequality. Steps are clipped to the joint
-        box; the last iterations drop the null-space term to converge to `tol`.
+        finite joint range and linear joint inequality. Joints held at a bound leave the
+        solve (active set); the last iterations drop the null-space term to converge to
+        `tol`. If the iteration from q0 ends in a local minimum, it restarts from seeded
+        configurations spread over the joint box.
 
         Args:
             x: (m,) target position [m].
             q0: (n,) initial configuration.
             weights: (n,) diagonal of Q (default ones).
             tol: position tolerance [m].
-            max_iter: iteration cap.
+            max_iter: iterations per start.
             k_null: null-space gain.
+            restarts: further starting points tried after q0.
 
         Returns:
             q: (n,) configuration within the joint limits with ‖f(q) − x‖ ≤ tol.
 
         Raises:
-            Unreachable: no solution within the limits was found from q0.
+            Unreachable: no solution within the limits was found from any start.
         """
         x = as_array("x", x, shape_tail=(self.m,))
         if x.ndim != 1:
             raise InvalidInput(f"x: expected shape ({self.m},), got {x.shape}; call ik per target")
-        q = self._q(q0, "q0").copy()
-        if q.ndim != 1:
-            raise InvalidInput(f"q0: expected shape ({self.n},), got {q.shape}")
+        q0 = self._q(q0, "q0")
+        if q0.ndim != 1:
+            raise InvalidInput(f"q0: expected shape ({self.n},), got {q0.shape}")
         w = np.ones(self.n) if weights is None else as_array("weights", weights, shape_tail=(self.n,))
         if np.any(w <= 0):
             raise InvalidInput("weights: must be positive")
         Qinv = np.diag(1.0 / w)
+        lo = np.where(np.isfinite(self.q_min), self.q_min, -np.pi)
+        hi = np.where(np.isfinite(self.q_max), self.q_max, np.pi)
+        starts = np.vstack([q0, np.random.default_rng(0).uniform(lo, hi, size=(restarts, self.n))])
+        best = np.inf
+        for start in starts:
+            q, err = self._ik_from(x, start, Qinv, tol, max_iter, k_null)
+            if err <= tol and self.within_limits(q, 1e-9):
+                return q
+            best = min(best, err)
+        raise Unreachable(
+            f"x: target {np.round(x, 5).tolist()} not reached within the joint limits of {self.name} "
+            f"from {len(starts)} starting configurations (best residual {best:.3g} m)"
+        )
+
+    def _ik_from(self, x, q, Qinv, tol, max_iter, k_null) -> tuple[np.ndarray, float]:
         q = np.clip(q, self.q_min, self.q_max)
         err = np.inf
         for it in range(max_iter):
             e = x - self._fk1(self.theta(q))
             err = float(np.linalg.norm(e))
-            J = self._jac1(self.theta(q))
-            JQ = J @ Qinv
-            Jp = JQ.T @ np.linalg.solve(JQ @ J.T + 1e-10 * np.eye(self.m), np.eye(self.m))
             # null-space centering during the first half, pure Newton steps to finish
-            null = np.zeros(self.n)
-            if it < max_iter // 2 and self.n > self.m:
-                null = -k_null * (np.eye(self.n) - Jp @ J) @ self._centering_gradient(q)
+            centering = it < max_iter // 2 and self.n > self.m
+            if err <= tol and not centering:
+                break
+            step, null = self._ik_step(self._jac1(self.theta(q)), e, Qinv, q, k_null if centering else 0.0)
             if err <= tol and np.max(np.abs(null), initial=0.0) < 1e-6:
                 break
-            step = Jp @ e + null
             s = float(np.max(np.abs(step)))  # keep the linearisation valid
             q = np.clip(q + step * min(1.0, 0.5 / s) if s > 0 else q, self.q_min, self.q_max)
-        if err > tol or not self.within_limits(q, 1e-9):
-            raise Unreachable(
-                f"x: target {np.round(x, 5).tolist()} not reached within the joint limits of {self.name} "
-                f"from q0 (residual {err:.3g} m)"
-            )
-        return q
+        return q, err
 
     # ---------------------------------------------------------------- locking
     def lock(self, values: Mapping[str | int, float] | None = None, *, name: str | None = None, **kw: float) -> Device:
@@ -276,6 +292,7 @@ class Device:
             torque_max=self.torque_max[free],
             linear_limits=lin,
             joint_names=[self.joint_names[i] for i in free],
+            armature=self.armature[free],
             params=self.params,
         )
 
@@ -283,6 +300,24 @@ class Device:
         return f"Device({self.name!r}, n={self.n}, task={self.task_axes!r})"
 
     # ---------------------------------------------------------------- helpers
+    def _ik_step(self, J, e, Qinv, q, k_null):
+        """One step of eq. 3.4 with joints blocked at a bound removed from the solve (active set).
+
+        Returns (step, null-space part), each (n,).
+        """
+        free = np.ones(self.n, dtype=bool)
+        for _ in range(self.n):
+            Jf = J * free
+            JQ = Jf @ Qinv
+            Jp = JQ.T @ np.linalg.solve(JQ @ Jf.T + 1e-10 * np.eye(self.m), np.eye(self.m))
+            null = -k_null * ((np.eye(self.n) - Jp @ Jf) @ self._centering_gradient(q)) * free
+            step = Jp @ e + null
+            blocked = free & (((q <= self.q_min) & (step < 0)) | ((q >= self.q_max) & (step > 0)))
+            if not blocked.any():
+                break
+            free &= ~blocked
+        return step, null
+
     def _centering_gradient(self, q: np.ndarray) -> np.ndarray:
         """∇h for h(q) = Σ ((q_i − mid_i)/range_i)² + Σ ((c_j q − mid_j)/range_j)² over finite limits."""
         finite = np.isfinite(self.q_min) & np.isfinite(self.q_max)
@@ -330,7 +365,7 @@ class Device:
     def _mass1(self, th: np.ndarray) -> np.ndarray:
         M = pin.crba(self.model, self.data, th)
         M = np.triu(M) + np.triu(M, 1).T
-        return self.A.T @ M @ self.A
+        return self.A.T @ M @ self.A + np.diag(self.armature)
 
 
 # ---------------------------------------------------------------------- loading
@@ -409,6 +444,7 @@ def _build(folder: Path, spec: dict, params: Mapping[str, float]) -> Device:
         torque_max=lim.get("torque_max"),
         linear_limits=lin,
         joint_names=spec.get("joint_names"),
+        armature=spec.get("armature"),
         params=values,
     )
 

@@ -27,6 +27,8 @@ SYMMETRY_RTOL: float = 1e-9
 #: Components of a unit direction smaller than this along a lost ellipsoid axis are ignored.
 DIRECTION_ATOL: float = 1e-10
 
+_TINY = np.finfo(float).tiny
+
 
 def jacobian(name: str, J: ArrayLike) -> FloatArray:
     """Return ``J`` as a finite float array of shape ``(..., m, n)`` with m, n >= 1."""
@@ -54,7 +56,7 @@ def direction(name: str, u: ArrayLike, m: int | None) -> FloatArray:
 def positive(name: str, value: ArrayLike, *, shape_tail: tuple[int | None, ...] = ()) -> FloatArray:
     """Return ``value`` as a finite float array whose entries are all > 0."""
     arr = as_array(name, value, shape_tail=shape_tail)
-    if np.any(arr <= 0):
+    if (arr <= 0).any():
         raise InvalidInput(f"{name}: every entry must be > 0, got min {float(np.min(arr))!r}")
     return arr
 
@@ -69,23 +71,22 @@ def _first_bad(mask: np.ndarray) -> str:
 
 def check_symmetric(name: str, A: FloatArray) -> None:
     """Raise `NotSPD` naming ``name`` if ``A`` is not symmetric to `SYMMETRY_RTOL`."""
-    asym = np.max(np.abs(A - np.swapaxes(A, -1, -2)), axis=(-2, -1))
-    scale = np.max(np.abs(A), axis=(-2, -1))
-    bad = asym > SYMMETRY_RTOL * np.maximum(scale, np.finfo(float).tiny)
-    if np.any(bad):
+    asym = abs(A - A.swapaxes(-1, -2)).max(axis=(-2, -1))
+    scale = abs(A).max(axis=(-2, -1))
+    bad = asym > SYMMETRY_RTOL * np.maximum(scale, _TINY)
+    if bad.any():
         raise NotSPD(f"{name}: not symmetric{_first_bad(bad)}")
 
 
 def cholesky(name: str, A: FloatArray) -> FloatArray:
     """Lower Cholesky factor of the symmetric positive definite ``A``; `NotSPD` otherwise."""
     check_symmetric(name, A)
-    A = 0.5 * (A + np.swapaxes(A, -1, -2))
+    A = 0.5 * (A + A.swapaxes(-1, -2))
     try:
         L = np.linalg.cholesky(A)
     except np.linalg.LinAlgError:
         raise NotSPD(f"{name}: not positive definite") from None
-    d = np.diagonal(L, axis1=-2, axis2=-1)
-    if not np.all(np.isfinite(L)) or np.any(d <= 0):
+    if not np.isfinite(L).all() or (L.diagonal(axis1=-2, axis2=-1) <= 0).any():
         raise NotSPD(f"{name}: not positive definite")
     return L
 
@@ -94,11 +95,16 @@ def whiten(J: FloatArray, L: FloatArray | None) -> FloatArray:
     """Return ``B = J L^{-T}`` so that ``B B^T = J Q^{-1} J^T`` for ``Q = L L^T`` (``J`` if no ``L``)."""
     if L is None:
         return J
-    return np.swapaxes(np.linalg.solve(L, np.swapaxes(J, -1, -2)), -1, -2)
+    return np.linalg.solve(L, J.swapaxes(-1, -2)).swapaxes(-1, -2)
 
 
-def full_row_rank_pinv(name: str, B: FloatArray) -> FloatArray:
-    """Moore-Penrose inverse ``B^T (B B^T)^{-1}`` of a full-row-rank ``B`` (..., m, n).
+def frobenius_norm(A: FloatArray) -> FloatArray:
+    """Frobenius norm over the last two axes of ``A`` (..., m, n)."""
+    return np.sqrt((A * A).sum(axis=(-2, -1)))
+
+
+def _full_row_rank_svd(name: str, B: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Thin SVD ``(U, s, Vt)`` of ``B`` (..., m, n), which must have full row rank.
 
     Raises:
         Singular: ``B`` has fewer columns than rows or a singular value below
@@ -109,22 +115,33 @@ def full_row_rank_pinv(name: str, B: FloatArray) -> FloatArray:
         raise Singular(f"{name}: {m} rows but only {n} columns, so it cannot have full row rank")
     U, s, Vt = np.linalg.svd(B, full_matrices=False)
     bad = s[..., -1] <= SINGULAR_RTOL * s[..., 0]
-    if np.any(bad):
+    if bad.any():
         raise Singular(f"{name}: singular (rank < {m} rows){_first_bad(bad)}")
-    return np.swapaxes(Vt, -1, -2) @ (np.swapaxes(U, -1, -2) / s[..., :, None])
+    return U, s, Vt
+
+
+def full_row_rank_pinv(name: str, B: FloatArray) -> FloatArray:
+    """Moore-Penrose inverse ``B^T (B B^T)^{-1}`` of a full-row-rank ``B`` (..., m, n); see `_full_row_rank_svd`."""
+    U, s, Vt = _full_row_rank_svd(name, B)
+    return Vt.swapaxes(-1, -2) @ (U.swapaxes(-1, -2) / s[..., :, None])
 
 
 def inverse_gram(name: str, B: FloatArray) -> FloatArray:
-    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), via its SVD."""
-    m, n = B.shape[-2:]
-    if n < m:
-        raise Singular(f"{name}: {m} rows but only {n} columns, so it cannot have full row rank")
-    U, s, _ = np.linalg.svd(B, full_matrices=False)
-    bad = s[..., -1] <= SINGULAR_RTOL * s[..., 0]
-    if np.any(bad):
-        raise Singular(f"{name}: singular (rank < {m} rows){_first_bad(bad)}")
-    out = (U / s[..., None, :] ** 2) @ np.swapaxes(U, -1, -2)
-    return 0.5 * (out + np.swapaxes(out, -1, -2))
+    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), via its SVD; see `_full_row_rank_svd`."""
+    U, s, _ = _full_row_rank_svd(name, B)
+    out = (U / s[..., None, :] ** 2) @ U.swapaxes(-1, -2)
+    return 0.5 * (out + out.swapaxes(-1, -2))
+
+
+def _pad_axes(s: FloatArray, m: int) -> FloatArray:
+    """Zero-pad the singular values ``s`` (..., k) of an (..., m, k) map to m semi-axes."""
+    k = s.shape[-1]
+    return s if k >= m else np.concatenate([s, np.zeros(s.shape[:-1] + (m - k,))], axis=-1)
+
+
+def singular_values(B: FloatArray) -> FloatArray:
+    """Semi-axis lengths (..., m) of the ellipsoid ``B B^T``: the singular values of ``B``, descending, zero-padded."""
+    return _pad_axes(np.linalg.svd(B, compute_uv=False), B.shape[-2])
 
 
 def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -134,11 +151,8 @@ def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
         ``(s, U)``: ``s`` (..., m) descending semi-axis lengths (zero-padded when the map
         has fewer columns than rows) and ``U`` (..., m, m) orthonormal directions as columns.
     """
-    m, n = B.shape[-2:]
     U, s, _ = np.linalg.svd(B, full_matrices=True)
-    if n < m:
-        s = np.concatenate([s, np.zeros(s.shape[:-1] + (m - n,))], axis=-1)
-    return s, U
+    return _pad_axes(s, B.shape[-2]), U
 
 
 def principal_axes_of_psd(name: str, A: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -149,10 +163,10 @@ def principal_axes_of_psd(name: str, A: FloatArray) -> tuple[FloatArray, FloatAr
             times its largest eigenvalue magnitude.
     """
     check_symmetric(name, A)
-    A = 0.5 * (A + np.swapaxes(A, -1, -2))
+    A = 0.5 * (A + A.swapaxes(-1, -2))
     w, V = np.linalg.eigh(A)
-    scale = np.max(np.abs(w), axis=-1, keepdims=True)
-    if np.any(w < -SINGULAR_RTOL * np.maximum(scale, np.finfo(float).tiny)):
+    scale = abs(w).max(axis=-1, keepdims=True)
+    if (w < -SINGULAR_RTOL * np.maximum(scale, _TINY)).any():
         raise NotSPD(f"{name}: has a negative eigenvalue (not positive semi-definite)")
     w = np.clip(w, 0.0, None)[..., ::-1]
     V = V[..., ::-1]
@@ -169,22 +183,19 @@ def radius_along(s: FloatArray, U: FloatArray, u: FloatArray) -> FloatArray:
     A zero ellipsoid has radius 0 everywhere.
     """
     c = np.einsum("...ij,...i->...j", U, u)
-    smax = s[..., :1]
-    lost = s <= SINGULAR_RTOL * smax
-    blocked = np.any(lost & (np.abs(c) > DIRECTION_ATOL), axis=-1)
-    safe_s = np.where(lost, 1.0, s)
-    q = np.sum(np.where(lost, 0.0, (c / safe_s) ** 2), axis=-1)
-    with np.errstate(divide="ignore"):
-        r = np.where(q > 0, 1.0 / np.sqrt(np.where(q > 0, q, 1.0)), 0.0)
-    return np.where(blocked | (smax[..., 0] <= 0), 0.0, r)
+    lost = s <= SINGULAR_RTOL * s[..., :1]  # all axes of a zero ellipsoid, so q = 0 below
+    blocked = (lost & (abs(c) > DIRECTION_ATOL)).any(axis=-1)
+    w = np.where(lost, 0.0, c / np.where(lost, 1.0, s))
+    q = (w * w).sum(axis=-1)
+    nonzero = (q > 0) & ~blocked
+    return np.where(nonzero, 1.0 / np.sqrt(np.where(nonzero, q, 1.0)), 0.0)
 
 
 def inverse_norm(v: FloatArray, scale: FloatArray) -> FloatArray:
     """``1 / |v|`` along the last axis, ``inf`` where ``|v| <= SINGULAR_RTOL * scale``."""
-    nv = np.linalg.norm(v, axis=-1)
+    nv = np.sqrt((v * v).sum(axis=-1))
     zero = nv <= SINGULAR_RTOL * scale
-    with np.errstate(divide="ignore"):
-        return np.where(zero, np.inf, 1.0 / np.where(zero, 1.0, nv))
+    return np.where(zero, np.inf, 1.0 / np.where(zero, 1.0, nv))
 
 
 def torque_weights(name: str, torque_max: ArrayLike | None, n: int) -> FloatArray | None:

@@ -13,12 +13,14 @@ from numpy.typing import ArrayLike
 from rhi.metrics._common import (
     FloatArray,
     direction,
+    frobenius_norm,
     inverse_gram,
     inverse_norm,
     jacobian,
     principal_axes_of_map,
     principal_axes_of_psd,
     radius_along,
+    singular_values,
     square,
     torque_weights,
 )
@@ -35,8 +37,8 @@ def velocity_ellipsoid(J: ArrayLike) -> FloatArray:
         velocities reachable with ``|q̇| <= 1`` rad/s.
     """
     J = jacobian("J", J)
-    A = J @ np.swapaxes(J, -1, -2)
-    return 0.5 * (A + np.swapaxes(A, -1, -2))
+    A = J @ J.swapaxes(-1, -2)
+    return 0.5 * (A + A.swapaxes(-1, -2))
 
 
 def effective_manipulability(J: ArrayLike, u: ArrayLike) -> FloatArray:
@@ -98,7 +100,7 @@ def reflected_friction(J: ArrayLike, u: ArrayLike) -> FloatArray:
     J = jacobian("J", J)
     u = direction("u", u, J.shape[-2])
     v = np.einsum("...ij,...i->...j", J, u)
-    return inverse_norm(v, np.linalg.norm(J, axis=(-2, -1)))
+    return inverse_norm(v, frobenius_norm(J))
 
 
 def manipulability(J: ArrayLike) -> FloatArray:
@@ -111,9 +113,7 @@ def manipulability(J: ArrayLike) -> FloatArray:
         (...,) μ >= 0 (product of the singular values of ``J``); 0 at a singularity and
         whenever ``n < m``.
     """
-    J = jacobian("J", J)
-    s, _ = principal_axes_of_map(J)
-    return np.prod(s, axis=-1)
+    return singular_values(jacobian("J", J)).prod(axis=-1)
 
 
 def isotropy(J: ArrayLike) -> FloatArray:
@@ -126,8 +126,7 @@ def isotropy(J: ArrayLike) -> FloatArray:
         (...,) value in [0, 1]; 1 for an isotropic ``J``, 0 at a singularity, when
         ``n < m`` and for ``J = 0``.
     """
-    J = jacobian("J", J)
-    s, _ = principal_axes_of_map(J)
+    s = singular_values(jacobian("J", J))
     smax = s[..., 0]
     return np.where(smax > 0, s[..., -1] / np.where(smax > 0, smax, 1.0), 0.0)
 
@@ -183,7 +182,7 @@ def directional_manipulability(J: ArrayLike, u: ArrayLike, torque_max: ArrayLike
     w = torque_weights("torque_max", torque_max, J.shape[-1])
     B = J * w[..., None, :]
     v = np.einsum("...ij,...i->...j", B, u)
-    return inverse_norm(v, np.linalg.norm(B, axis=(-2, -1)))
+    return inverse_norm(v, frobenius_norm(B))
 
 
 def ellipsoid_axes(A: ArrayLike) -> tuple[FloatArray, FloatArray]:

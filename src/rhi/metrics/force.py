@@ -10,7 +10,7 @@ from scipy.optimize import linprog
 
 from rhi._validate import as_array, limits_pair
 from rhi.errors import InfeasibleLimits, InvalidInput, RhiError
-from rhi.metrics._common import SINGULAR_RTOL, FloatArray, direction, jacobian
+from rhi.metrics._common import SINGULAR_RTOL, FloatArray, direction, frobenius_norm, jacobian
 from rhi.metrics.inverses import nullspace_projector
 
 Projector = Literal["dynamic", "kinematic"] | None
@@ -26,9 +26,9 @@ def _setup(
     lo, hi = limits_pair("torque_min", torque_min, "torque_max", torque_max, n)
     lo = as_array("torque_min", lo, shape_tail=(n,))
     hi = as_array("torque_max", hi, shape_tail=(n,))
-    if np.any(lo > 0):
+    if (lo > 0).any():
         raise InfeasibleLimits("torque_min: every entry must be <= 0 (zero torque must be admissible)")
-    if np.any(hi < 0):
+    if (hi < 0).any():
         raise InfeasibleLimits("torque_max: every entry must be >= 0 (zero torque must be admissible)")
     try:
         np.broadcast_shapes(J.shape[:-2], u.shape[:-1], lo.shape[:-1], hi.shape[:-1])
@@ -40,14 +40,14 @@ def _setup(
 
 def _scaling(J: FloatArray, t: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Closed-form largest ``f >= 0`` with ``lo <= f t <= hi``, and the torque ``f t``."""
-    eps = SINGULAR_RTOL * np.linalg.norm(J, axis=(-2, -1))[..., None]
+    eps = SINGULAR_RTOL * frobenius_norm(J)[..., None]
     pos = t > eps
     neg = t < -eps
-    safe = np.where(pos | neg, t, 1.0)
+    loaded = pos | neg
+    safe = np.where(loaded, t, 1.0)
     ratio = np.where(pos, hi / safe, np.where(neg, lo / safe, np.inf))
-    f = np.min(ratio, axis=-1)
-    unbounded = np.isinf(f)
-    torque = np.where(unbounded, 0.0, f)[..., None] * np.where(pos | neg, t, 0.0)
+    f = ratio.min(axis=-1)
+    torque = np.where(np.isinf(f), 0.0, f)[..., None] * np.where(loaded, t, 0.0)
     return f, torque
 
 

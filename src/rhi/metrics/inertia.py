@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from rhi.errors import InvalidInput
-from rhi.metrics._common import FloatArray, cholesky, direction, inverse_gram, inverse_norm, jacobian, square, whiten
+from rhi.metrics._common import FloatArray, cholesky, direction, frobenius_norm, inverse_gram, inverse_norm, jacobian, square, whiten
 
 
 def _whitened_jacobian(J: ArrayLike, M: ArrayLike) -> FloatArray:
@@ -62,5 +62,5 @@ def effective_inertia(J: ArrayLike, M: ArrayLike, u: ArrayLike) -> FloatArray:
     B = _whitened_jacobian(J, M)
     u = direction("u", u, B.shape[-2])
     v = np.einsum("...ij,...i->...j", B, u)
-    r = inverse_norm(v, np.linalg.norm(B, axis=(-2, -1)))
+    r = inverse_norm(v, frobenius_norm(B))
     return r * r
