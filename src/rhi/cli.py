@@ -54,8 +54,13 @@ def _measure(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from rhi.design.executors import configure
     from rhi.report.reproduce import reproduce
 
+    configure(executor=args.executor, address=args.address, workers=args.workers,
+              checkpoint_dir=str(Path(args.out) / "checkpoints"))
     path, results = reproduce(args.out, only=args.only, quick=args.quick)
     for res in results:
         for table in res.tables:
@@ -86,6 +91,10 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--only", help="one chapter, e.g. ch3")
     r.add_argument("--quick", action="store_true", help="reduced resolution (seconds)")
     r.add_argument("--out", default="out", help="output directory (default: out)")
+    r.add_argument("--executor", choices=("local", "serial", "ray"), default="local",
+                   help="where design evaluations run: local process pool (default), this process, or Ray")
+    r.add_argument("--address", help="Ray cluster address for --executor ray (default: start a local instance)")
+    r.add_argument("--workers", type=int, help="processes of the local pool (default: CPU count)")
     r.set_defaults(func=_reproduce)
     args = p.parse_args(argv)
     try:

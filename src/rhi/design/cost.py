@@ -1,0 +1,172 @@
+"""The design problem: evaluate a design D of the HI and the costs C1, C2 (thesis eqs. 4.23, 4.24).
+
+For a design (a mapping of parameter name → value) every slave workspace sample p is
+mapped into the HI's world frame, the HI's configuration there is found by IK, and
+GM_M, GC_M (eqs. 4.8, 4.10) of the HI and GM_T (eq. 4.18) of the pair are integrated
+over the samples with the joint-limit-penalized Jacobians (eqs. 4.19–4.20).
+
+Placement (the thesis's "rotation of the HI around the center of the slave workspace",
+§4.4): the HI's base is rotated by θz about the workspace centre c, and the centre
+corresponds to the HI's base-frame point (r0, 0, Z_PH). A slave point p is therefore
+the HI target ``w = (p − c) + Rz(θz)(r0, 0)`` in the HI's (yawed) world frame, at
+height Z_PH; ``J_M^2D = jacobian(q)[:2]`` is eq. 4.26 there, and velocities map 1:1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from rhi.design.indices import device_indices, penalize, teleoperation_index
+from rhi.design.kinematics import Solution
+from rhi.design.workspace import Workspace
+from rhi.device import MODELS
+from rhi.errors import InfeasibleLimits, InvalidInput, UnknownDevice, Unreachable
+
+#: Design parameters that are link lengths (must be > 0).
+LENGTHS = ("l1", "l2", "l3", "d1", "d2", "d3", "d4")
+
+
+def declared_bounds(name: str) -> dict[str, tuple[float, float]]:
+    """The parameter bounds a device declares in its device.toml: {name: (min, max)} [m or rad]."""
+    path = MODELS / name / "device.toml"
+    if not path.is_file():
+        raise UnknownDevice(f"name: unknown device {name!r}")
+    spec = tomllib.loads(path.read_text())
+    return {k: (float(v["min"]), float(v["max"])) for k, v in spec.get("parameters", {}).items()
+            if "min" in v and "max" in v}
+
+
+def check_bounds(bounds: Mapping[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+    """Validate design bounds {name: (lower, upper)}.
+
+    Raises:
+        InvalidInput: empty bounds, a non-finite bound, or a link length whose lower bound is <= 0.
+        InfeasibleLimits: a lower bound above its upper bound.
+    """
+    if not bounds:
+        raise InvalidInput("bounds: no design parameter to optimise")
+    out = {}
+    for k, b in bounds.items():
+        try:
+            lo, hi = (float(v) for v in b)
+        except (TypeError, ValueError):
+            raise InvalidInput(f"bounds[{k!r}]: expected (lower, upper), got {b!r}") from None
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise InvalidInput(f"bounds[{k!r}]: must be finite, got ({lo}, {hi})")
+        if lo > hi:
+            raise InfeasibleLimits(f"bounds[{k!r}]: lower bound {lo} > upper bound {hi}")
+        if k in LENGTHS and lo <= 0:
+            raise InvalidInput(f"bounds[{k!r}]: a link length must be > 0, got lower bound {lo}")
+        out[k] = (lo, hi)
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class DesignProblem:
+    """Everything needed to score a design, picklable so executors can ship it to workers.
+
+    Attributes:
+        master: HI kinematic model (`Phantom3Master` or `DeviceMaster`).
+        workspace: slave workspace samples (slave base frame).
+        slave: IK solution of the slave at the samples (J: (N, 2, n_S)).
+        center: (2,) workspace centre c in the slave frame [m] (rotation centre of θz).
+        r0: distance of c from the HI's yaw axis [m], or "auto": the middle of the radial interval the HI
+            reaches on its working plane for this design (`Phantom3Master.radial_range`), i.e. the
+            centre of the HI's planar workspace is put on the centre of the slave workspace.
+        bounds: {parameter: (lower, upper)} of the optimised parameters D.
+        fixed: parameters held constant.
+        k_q: joint-limit penalty shape (eq. 4.20), None for no penalty.
+        K1, K2: weights of eqs. 4.23–4.24.
+    """
+
+    master: object
+    workspace: Workspace
+    slave: Solution
+    center: tuple[float, float]
+    r0: float | str
+    bounds: dict[str, tuple[float, float]]
+    fixed: dict[str, float] = dataclasses.field(default_factory=dict)
+    k_q: float | None = 1.0
+    K1: float = 1.0
+    K2: float = 10.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "bounds", check_bounds(self.bounds))
+        for k, v in self.fixed.items():
+            if k in LENGTHS and not v > 0:
+                raise InvalidInput(f"fixed[{k!r}]: a link length must be > 0, got {v}")
+        if self.r0 != "auto" and not (isinstance(self.r0, (int, float)) and np.isfinite(self.r0)):
+            raise InvalidInput(f"r0: expected a distance [m] or 'auto', got {self.r0!r}")
+        if not self.slave.ok.any():
+            raise Unreachable("workspace: the slave's inverse kinematics failed at every workspace sample")
+
+    @property
+    def names(self) -> list[str]:
+        """Names of the optimised parameters, in the order of a design vector."""
+        return list(self.bounds)
+
+    def params(self, x: Sequence[float]) -> dict[str, float]:
+        """Full parameter mapping of design vector x."""
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        if x.shape != (len(self.bounds),):
+            raise InvalidInput(f"x: expected {len(self.bounds)} values ({', '.join(self.names)}), got shape {x.shape}")
+        return {**self.fixed, **dict(zip(self.names, map(float, x)))}
+
+    def targets(self, params: Mapping[str, float]) -> np.ndarray:
+        """HI world targets (N, 2) [m] of the workspace samples under placement θz (module docstring)."""
+        tz = float(params.get("theta_z", 0.0))
+        off = self.offset(params) * np.array([np.cos(tz), np.sin(tz)])
+        return self.workspace.points - np.asarray(self.center) + off
+
+    def offset(self, params: Mapping[str, float]) -> float:
+        """r0 of this design [m]."""
+        if self.r0 == "auto":
+            lo, hi = self.master.radial_range(params)
+            return 0.5 * (lo + hi)
+        return float(self.r0)
+
+    def solve(self, x: Sequence[float]) -> Solution:
+        """HI IK solution at every workspace sample for design x."""
+        p = self.params(x)
+        return self.master.solve(p, self.targets(p))
+
+
+def evaluate(problem: DesignProblem, x: Sequence[float]) -> dict[str, float]:
+    """Indices and costs of design x.
+
+    Returns:
+        {"GM_M", "GC_M", "GM_T", "coverage", "C1", "C2"}; C1 = K1 GC_M + K2 GM_M (eq. 4.23),
+        C2 = K1 GC_M + K2 GM_T (eq. 4.24). A design that reaches no sample scores 0
+        everywhere with coverage 0 (the optimiser must be able to visit it).
+    """
+    sol = problem.solve(x)
+    ok = sol.ok & problem.slave.ok
+    if not ok.any():
+        return {"GM_M": 0.0, "GC_M": 0.0, "GM_T": 0.0, "coverage": 0.0, "C1": 0.0, "C2": 0.0}
+    w = problem.workspace.weights
+    Jm = penalize(sol.J, sol.q, sol.q_min, sol.q_max, problem.k_q)
+    Js = penalize(problem.slave.J, problem.slave.q, problem.slave.q_min, problem.slave.q_max, problem.k_q)
+    d = device_indices(Jm, ok, w)
+    gmt = teleoperation_index(Jm, Js, ok, w)
+    return {"GM_M": d["GM"], "GC_M": d["GC"], "GM_T": gmt, "coverage": d["coverage"],
+            "C1": problem.K1 * d["GC"] + problem.K2 * d["GM"], "C2": problem.K1 * d["GC"] + problem.K2 * gmt}
+
+
+def evaluate_strict(problem: DesignProblem, x: Sequence[float]) -> dict[str, float]:
+    """`evaluate`, but raise `Unreachable` when the HI reaches no workspace sample."""
+    sol = problem.solve(x)
+    if not (sol.ok & problem.slave.ok).any():
+        raise Unreachable(f"workspace: the HI's inverse kinematics failed at every workspace sample for design "
+                          f"{problem.params(x)}")
+    return evaluate(problem, x)
+
+
+def cost(problem: DesignProblem, x: Sequence[float], which: str = "C2") -> float:
+    """−C (to minimise) of design x, which = "C1" or "C2"."""
+    if which not in ("C1", "C2"):
+        raise InvalidInput(f"which: expected 'C1' or 'C2', got {which!r}")
+    return -evaluate(problem, x)[which]

@@ -1,0 +1,183 @@
+"""Planar kinematics of a haptic interface (master) and a slave for the design problem.
+
+A master model takes design parameters and world targets and returns the IK
+configuration, the task-frame Jacobian ``J_M^2D`` (eq. 4.26) and whether each target
+was reached. Two models share that interface:
+
+* `DeviceMaster`: any bundled device (`rhi.device(name, **params)`), IK by
+  `Device.ik` warm-started from the previous (neighbouring) sample, ``J = jacobian(q)[:2]``.
+* `Phantom3Master`: the closed form of eq. 4.25b for ``phantom3`` (vectorised; the
+  elbow branch is unique because the parallelogram limit keeps θ2 − θ3 + 90° in
+  [35°, 145°]). Tests check it against `DeviceMaster("phantom3")`.
+
+`slave_jacobians` solves the slave once per workspace (the slave does not change with D).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+
+import numpy as np
+
+from rhi.device import Device, device
+from rhi.errors import InvalidInput, Unreachable
+
+
+@dataclasses.dataclass(frozen=True)
+class Solution:
+    """IK of a batch of targets. q: (N, n) [rad]; J: (N, 2, n) planar task Jacobian; ok: (N,) bool."""
+
+    q: np.ndarray
+    J: np.ndarray
+    ok: np.ndarray
+    q_min: np.ndarray
+    q_max: np.ndarray
+
+
+def _solve_device(dev: Device, targets: np.ndarray, q0: np.ndarray) -> Solution:
+    """IK of each target (N, m) with warm start from the last solved neighbour."""
+    n = len(targets)
+    q = np.zeros((n, dev.n))
+    ok = np.zeros(n, dtype=bool)
+    guess = np.asarray(q0, dtype=float)
+    for k, x in enumerate(targets):
+        try:
+            q[k] = dev.ik(x, guess, restarts=2, max_iter=60, tol=1e-9)
+            ok[k] = True
+            guess = q[k]
+        except Unreachable:
+            q[k] = guess
+    J = dev.jacobian(q)[:, :2, :]
+    return Solution(q, J, ok, dev.q_min, dev.q_max)
+
+
+@dataclasses.dataclass(frozen=True)
+class DeviceMaster:
+    """A bundled device as the design's master; the working plane height is the parameter `plane` (if any).
+
+    Attributes:
+        name: bundled device name.
+        plane: name of the parameter that sets the height of the working plane (``z_ph`` for
+            phantom3), or None for a planar device.
+        q0: (n,) initial IK guess [rad] (None: mid-range).
+    """
+
+    name: str = "phantom3"
+    plane: str | None = "z_ph"
+    q0: tuple[float, ...] | None = None
+
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        """Declared parameter bounds of the device (device.toml) [m or rad]."""
+        from rhi.design.cost import declared_bounds
+
+        return declared_bounds(self.name)
+
+    def solve(self, params: Mapping[str, float], targets: np.ndarray) -> Solution:
+        """IK at world targets (N, 2) [m] on the working plane; ``J[:, :2]`` is eq. 4.26's J_M^2D."""
+        dev = device(self.name, **params)
+        if self.plane is not None:
+            z = dev.params.get(self.plane, 0.0)
+            targets = np.column_stack([targets, np.full(len(targets), z)])
+        q0 = np.array(self.q0) if self.q0 is not None else 0.5 * (np.clip(dev.q_min, -np.pi, None)
+                                                                   + np.clip(dev.q_max, None, np.pi))
+        return _solve_device(dev, targets, q0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Phantom3Master:
+    """Closed-form planar kinematics of phantom3 (eq. 4.25b) on the plane z = Z_PH, rotated by θz (eq. 4.26).
+
+    Forward kinematics in the HI base frame: x = c1(l1c2 + l2s3), y = s1(l1c2 + l2s3),
+    z = l1s2 − l2c3 (models/phantom3/README.md). Joint limits are read from the bundled
+    device (including the parallelogram limit −55° <= θ2 − θ3 <= 55°).
+
+    Attributes:
+        l1: first link [m] (0.21 m, models/phantom3/README.md).
+    """
+
+    l1: float = 0.21
+    name: str = "phantom3"
+
+    def bounds(self) -> dict[str, tuple[float, float]]:
+        """Declared parameter bounds of phantom3 (eq. 4.27; Z_PH derived, see its README) [m or rad]."""
+        from rhi.design.cost import declared_bounds
+
+        return declared_bounds(self.name)
+
+    def _limits(self) -> tuple[np.ndarray, np.ndarray, float, float]:
+        return _phantom3_limits()
+
+    def radial_range(self, params: Mapping[str, float], n: int = 2001) -> tuple[float, float]:
+        """(min, max) horizontal distance from the yaw axis reachable on the plane z = z_ph within the limits [m].
+
+        Solves z_ph = l1 s2 − l2 c3 for θ3 on a grid of n values of θ2 (both elbow branches)
+        and keeps the joint-feasible solutions; (0, 0) if the plane is out of reach.
+        """
+        l1, l2 = self.l1, float(params.get("l2", 0.165))
+        z = float(params.get("z_ph", 0.0539))
+        q_min, q_max, lo, hi = self._limits()
+        th2 = np.linspace(q_min[1], q_max[1], n)
+        c3 = (l1 * np.sin(th2) - z) / l2
+        valid = np.abs(c3) <= 1
+        r = []
+        for sgn in (1.0, -1.0):
+            th3 = sgn * np.arccos(np.clip(c3, -1, 1))
+            ok = valid & (th3 >= q_min[2]) & (th3 <= q_max[2]) & (th2 - th3 >= lo) & (th2 - th3 <= hi)
+            r.append((l1 * np.cos(th2) + l2 * np.sin(th3))[ok])
+        r = np.concatenate(r)
+        r = r[r > 0]
+        return (float(r.min()), float(r.max())) if r.size else (0.0, 0.0)
+
+    def solve(self, params: Mapping[str, float], targets: np.ndarray) -> Solution:
+        """IK at world targets (N, 2) [m] on the plane z = z_ph; J: (N, 2, 3) = [[cz, −sz, 0], [sz, cz, 0]] J_PH."""
+        l1 = self.l1
+        l2 = float(params.get("l2", 0.165))
+        tz = float(params.get("theta_z", 0.0))
+        z = float(params.get("z_ph", 0.0539))
+        if l2 <= 0 or l1 <= 0:
+            raise InvalidInput(f"l2: link lengths must be positive, got l1={l1}, l2={l2}")
+        q_min, q_max, lin_lo, lin_hi = self._limits()
+        cz, sz = np.cos(tz), np.sin(tz)
+        t = np.asarray(targets, dtype=float)
+        xb = cz * t[:, 0] + sz * t[:, 1]  # world -> HI base frame (inverse yaw)
+        yb = -sz * t[:, 0] + cz * t[:, 1]
+        th1 = np.arctan2(yb, xb)
+        r = np.hypot(xb, yb)
+        d2 = r**2 + z**2
+        cd = (d2 - l1**2 - l2**2) / (2 * l1 * l2)
+        reach = np.abs(cd) <= 1.0
+        delta = np.arccos(np.clip(cd, -1.0, 1.0))  # α − β = θ2 − θ3 + 90° in [0, π]
+        alpha = np.arctan2(z, r) - np.arctan2(-l2 * np.sin(delta), l1 + l2 * np.cos(delta))
+        th2 = alpha
+        th3 = alpha - delta + np.pi / 2
+        q = np.stack([th1, th2, th3], -1)
+        tol = 1e-9
+        ok = reach & np.all((q >= q_min - tol) & (q <= q_max + tol), axis=-1)
+        lin = th2 - th3
+        ok &= (lin >= lin_lo - tol) & (lin <= lin_hi + tol)
+        s1, c1, s2, c2, s3, c3 = np.sin(th1), np.cos(th1), np.sin(th2), np.cos(th2), np.sin(th3), np.cos(th3)
+        a = l1 * c2 + l2 * s3
+        J = np.empty((len(t), 2, 3))
+        # eq. 4.25b rows x, y
+        j0 = np.stack([-s1 * a, -l1 * c1 * s2, l2 * c1 * c3], -1)
+        j1 = np.stack([c1 * a, -l1 * s1 * s2, l2 * c3 * s1], -1)
+        J[:, 0] = cz * j0 - sz * j1  # eq. 4.26
+        J[:, 1] = sz * j0 + cz * j1
+        return Solution(q, J, ok, q_min, q_max)
+
+
+_LIMITS_CACHE: dict[str, tuple] = {}
+
+
+def _phantom3_limits() -> tuple[np.ndarray, np.ndarray, float, float]:
+    if "phantom3" not in _LIMITS_CACHE:
+        dev = device("phantom3")
+        L = dev.linear_limits
+        _LIMITS_CACHE["phantom3"] = (dev.q_min, dev.q_max, float(L.lower[0]), float(L.upper[0]))
+    return _LIMITS_CACHE["phantom3"]
+
+
+def slave_solution(name: str, points: np.ndarray, q0) -> Solution:
+    """IK of the slave at the workspace samples (N, 2) [m] in its base frame, warm-started along the samples."""
+    return _solve_device(device(name), np.asarray(points, dtype=float), np.asarray(q0, dtype=float))

@@ -1,0 +1,152 @@
+"""rhi.design: global indices against closed forms, IK models, bounds errors, executors, resume."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from rhi.design import (
+    DesignProblem,
+    DeviceMaster,
+    EvalCache,
+    Phantom3Master,
+    PoolExecutor,
+    SerialExecutor,
+    annulus,
+    check_bounds,
+    device_indices,
+    evaluate,
+    evaluate_strict,
+    optimize,
+    rectangle,
+    slave_solution,
+    sweep,
+)
+from rhi.errors import InfeasibleLimits, InvalidInput, Unreachable
+from rhi.experiments import ch4
+
+L1, L2 = 0.3, 0.2
+
+
+def _two_r(points: np.ndarray) -> np.ndarray:
+    """Jacobians (N, 2, 2) of a 2R arm (links L1, L2, elbow-up) at the points (N, 2) [m]."""
+    r2 = np.sum(points**2, axis=1)
+    c2 = np.clip((r2 - L1**2 - L2**2) / (2 * L1 * L2), -1, 1)
+    t2 = np.arccos(c2)
+    t1 = np.arctan2(points[:, 1], points[:, 0]) - np.arctan2(L2 * np.sin(t2), L1 + L2 * c2)
+    s1, c1, s12, c12 = np.sin(t1), np.cos(t1), np.sin(t1 + t2), np.cos(t1 + t2)
+    return np.stack([np.stack([-L1 * s1 - L2 * s12, -L2 * s12], -1), np.stack([L1 * c1 + L2 * c12, L2 * c12], -1)], -2)
+
+
+def test_gm_of_2r_arm_over_its_annulus_matches_closed_form():
+    # μ = l1 l2 |sin θ2|; over the full annulus |l1 − l2| <= r <= l1 + l2, GM = π l1 l2 / 4.
+    ws = annulus((0.0, 0.0), abs(L1 - L2), L1 + L2, density=200)
+    gm = device_indices(_two_r(ws.points), np.ones(len(ws), bool), ws.weights)["GM"]
+    assert gm == pytest.approx(np.pi * L1 * L2 / 4, rel=2e-3)
+
+
+@pytest.mark.parametrize("kind", ["grid", "sobol"])
+def test_gm_and_gc_match_direct_numerical_integration(kind):
+    r_in, r_out = 0.15, 0.45
+    ws = annulus((0.0, 0.0), r_in, r_out, density=150, kind=kind)
+    got = device_indices(_two_r(ws.points), np.ones(len(ws), bool), ws.weights)
+
+    def local(r, which):
+        J = _two_r(np.array([[r, 0.0]]))[0]
+        s = np.linalg.svd(J, compute_uv=False)
+        return s.prod() if which == "GM" else s[-1] / s[0]
+
+    area = np.pi * (r_out**2 - r_in**2)
+    for which in ("GM", "GC"):  # μ and 1/κ depend on r only: ∫_W v dW = ∫ v(r) 2πr dr
+        want = integrate.quad(lambda r: local(r, which) * 2 * np.pi * r, r_in, r_out, epsabs=1e-12)[0] / area
+        assert got[which] == pytest.approx(want, rel=2e-3 if kind == "grid" else 1e-2)
+
+
+def test_indices_converge_as_density_doubles():
+    a = evaluate(ch4.problem("theta_z", density=50), [0.1])
+    b = evaluate(ch4.problem("theta_z", density=100), [0.1])
+    for k in ("GM_M", "GC_M", "GM_T"):
+        assert b[k] == pytest.approx(a[k], rel=0.01)
+
+
+def test_closed_form_phantom3_matches_device_ik():
+    ws = rectangle((0.40, 0.45), (-0.05, 0.05), density=40)
+    slave = slave_solution("rehab_slave", ws.points, ch4.SLAVE_Q0)
+    x = [0.25, 0.3, -0.1]
+    fast = DesignProblem(Phantom3Master(), ws, slave, (0.424, 0), 0.3, ch4.BOUNDS)
+    slow = dataclasses.replace(fast, master=DeviceMaster("phantom3"))
+    a, b = fast.solve(x), slow.solve(x)
+    assert a.ok.all() and b.ok.all()
+    np.testing.assert_allclose(a.q, b.q, atol=1e-6)
+    np.testing.assert_allclose(a.J, b.J, atol=1e-9)
+    ea, eb = evaluate(fast, x), evaluate(slow, x)
+    for k in ea:
+        assert ea[k] == pytest.approx(eb[k], rel=1e-6)
+
+
+def test_bad_bounds_raise_clear_errors():
+    with pytest.raises(InfeasibleLimits, match="theta_z"):
+        check_bounds({"theta_z": (1.0, -1.0)})
+    with pytest.raises(InvalidInput, match="link length"):
+        check_bounds({"l2": (0.0, 0.3)})
+    with pytest.raises(InvalidInput, match="link length"):
+        ch4.problem("full").__class__(Phantom3Master(), ch4.problem("theta_z", density=20).workspace,
+                                      ch4.problem("theta_z", density=20).slave, (0.424, 0), "auto",
+                                      {"l2": (-0.1, 0.2)})
+    with pytest.raises(InfeasibleLimits):
+        rectangle((0.5, 0.3), (-0.1, 0.1))
+
+
+def test_workspace_out_of_reach_raises():
+    far = rectangle((3.0, 3.2), (-0.1, 0.1), density=20)
+    with pytest.raises(Unreachable, match="slave"):
+        DesignProblem(Phantom3Master(), far, slave_solution("rehab_slave", far.points, ch4.SLAVE_Q0), (3.1, 0),
+                      "auto", {"theta_z": (-1, 1)})
+    prob = ch4.problem("theta_z", density=20)
+    high = dataclasses.replace(prob, fixed={"l2": 0.165, "z_ph": 0.19})  # plane above the HI's reach
+    with pytest.raises(Unreachable, match="every workspace sample"):
+        evaluate_strict(high, [0.0])
+    with pytest.raises(Unreachable):
+        device_indices(np.zeros((3, 2, 2)), np.zeros(3, bool), np.ones(3))
+
+
+def test_pool_equals_serial_and_resume(tmp_path):
+    prob = ch4.problem("theta_z", density=30)
+    xs = [[t] for t in np.linspace(-1.5, 1.5, 12)]
+    ref = sweep(prob, xs, executor=SerialExecutor())
+    with PoolExecutor(2) as ex:
+        assert sweep(prob, xs, executor=ex) == ref
+    # interrupted after the first batch, then resumed from the checkpoint
+    path = tmp_path / "ck.json"
+
+    def stop(done, total):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        sweep(prob, xs, checkpoint=str(path), batch=4, progress=stop)
+    assert len(EvalCache(path, "sweep|" + __import__("rhi.design.optimize", fromlist=["_tag"])._tag(prob, ""))) == 4
+    assert sweep(prob, xs, checkpoint=str(path), batch=4) == ref
+
+
+def test_optimizer_is_seeded_and_resumes(tmp_path):
+    prob = ch4.problem("theta_z", density=30)
+    a = optimize(prob, "C2", seed=1, maxiter=8, checkpoint=str(tmp_path / "o.json"))
+    b = optimize(prob, "C2", seed=1, maxiter=8, checkpoint=str(tmp_path / "o.json"))
+    np.testing.assert_array_equal(a.x, b.x)
+    assert a.values == b.values and a.evaluations == b.evaluations
+
+
+def test_ray_matches_local_pool():
+    pytest.importorskip("ray")
+    from rhi.design import RayExecutor
+
+    prob = ch4.problem("theta_z", density=30)
+    xs = [[t] for t in np.linspace(-1.5, 1.5, 8)]
+    with PoolExecutor(2) as ex:
+        ref = sweep(prob, xs, executor=ex)
+    with RayExecutor(workers=2) as ex:
+        got = sweep(prob, xs, executor=ex)
+    assert got == ref
