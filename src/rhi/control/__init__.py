@@ -1,5 +1,67 @@
-"""Control: secondary objectives (cost + analytic gradient) for null-space redundancy resolution."""
+"""Control: objectives (cost + analytic gradient), primary laws, saturation handling, the null-space controller."""
 
-from rhi.control.objectives import Objective, VMEMatching
+from rhi.control.controller import (
+    ControllerConfig,
+    ControllerState,
+    FMESchedule,
+    NullSpaceController,
+    ObjectiveTerm,
+    output_force,
+)
+from rhi.control.objectives import (
+    EllipsoidMatching,
+    FMEMatching,
+    Manipulability,
+    Objective,
+    VMEMatching,
+    desired_fme_free,
+    desired_fme_stiff,
+    fme_shape,
+)
+from rhi.control.primary import ForceRendering, PrimaryLaw, SpringPalpation
+from rhi.control.saturation import (
+    Allocation,
+    TransitionConfig,
+    TransitionState,
+    allocate_lp,
+    allocate_none,
+    allocate_scaling,
+    ascm,
+    aso_volume,
+    hysteresis,
+    null_basis,
+    tertiary,
+    transition_step,
+)
 
-__all__ = ["Objective", "VMEMatching"]
+__all__ = [
+    "Allocation",
+    "ControllerConfig",
+    "ControllerState",
+    "EllipsoidMatching",
+    "FMEMatching",
+    "FMESchedule",
+    "ForceRendering",
+    "Manipulability",
+    "NullSpaceController",
+    "Objective",
+    "ObjectiveTerm",
+    "PrimaryLaw",
+    "SpringPalpation",
+    "TransitionConfig",
+    "TransitionState",
+    "VMEMatching",
+    "allocate_lp",
+    "allocate_none",
+    "allocate_scaling",
+    "ascm",
+    "aso_volume",
+    "desired_fme_free",
+    "desired_fme_stiff",
+    "fme_shape",
+    "hysteresis",
+    "null_basis",
+    "output_force",
+    "tertiary",
+    "transition_step",
+]

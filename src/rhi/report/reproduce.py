@@ -11,8 +11,12 @@ from pathlib import Path
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from rhi.experiments import ch3 as ex3
+from rhi.experiments import ch4 as ex4
+from rhi.experiments import ch7 as ex7
 from rhi.experiments.result import Result
 from rhi.plots import ch3 as pl3
+from rhi.plots import ch4 as pl4
+from rhi.plots import ch7 as pl7
 from rhi.report import write_report
 
 
@@ -32,6 +36,15 @@ STEPS: list[Step] = [
     Step("ch3", ex3.table_3_1, {}, {}, {"configurations": pl3.configurations}),
     Step("ch3", ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
          {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
+    Step("ch4", ex4.theta_z_design, {"density": 100.0}, {"density": 40.0, "step_deg": 5.0, "maxiter": 20},
+         {"fig4_4": pl4.fig4_4, "theta_sweep": pl4.theta_sweep}, progress=True),
+    Step("ch4", ex4.full_design, {"density": 100.0}, {"density": 40.0, "maxiter": 15, "popsize": 8},
+         {"fig4_5": pl4.fig4_5, "fig4_6": pl4.fig4_6, "fig4_7": pl4.fig4_7}, progress=True),
+    Step("ch4", ex4.sensitivity, {"density": 100.0}, {"density": 40.0, "densities": (20.0, 40.0, 80.0), "maxiter": 10},
+         {"convergence": pl4.convergence}, progress=True),
+    Step("ch7", ex7.example_3dof, {"steps": 401}, {"steps": 101}, {"fig7_1": pl7.example_3dof}),
+    Step("ch7", ex7.deficiency_map, {"resolution": 31}, {"resolution": 9}, {"fig7_5": pl7.deficiency_map},
+         progress=True),
 ]
 
 
