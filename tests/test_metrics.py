@@ -298,6 +298,17 @@ def test_force_ellipsoid_errors():
         rm.directional_manipulability(J, [np.nan, 1.0], 1.0)
 
 
+def test_finite_check_accepts_huge_entries_and_rejects_nan_and_inf():
+    J = np.array([[1e200, 0.0, 0.0], [0.0, 1e200, 0.0]])  # squares overflow, entries are finite
+    assert rm.isotropy(J) == 1.0
+    for bad in (np.inf, -np.inf, np.nan):
+        J_bad = J.copy()
+        J_bad[1, 2] = bad
+        with pytest.raises(InvalidInput, match="J: contains NaN or inf"):
+            rm.isotropy(J_bad)
+        with pytest.raises(InvalidInput, match="u: contains NaN or inf"):
+            rm.effective_manipulability(J, [1.0, bad])
+
 def test_pycapacity_agrees_on_ellipsoid_radii(rng):
     robot = pytest.importorskip("pycapacity.robot")
     J = rng.normal(size=(3, 5))

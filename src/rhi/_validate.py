@@ -2,9 +2,17 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rhi.errors import InfeasibleLimits, InvalidInput
+
+
+def all_finite(arr: np.ndarray) -> bool:
+    """Whether every entry of the float array `arr` is finite."""
+    # The sum of squares is finite iff every entry is, unless huge entries overflow it: then check one by one.
+    return math.isfinite(np.vdot(arr, arr)) or bool(np.isfinite(arr).all())
 
 
 def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | None, ...] = ()) -> np.ndarray:
@@ -29,7 +37,7 @@ def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | Non
             if want is not None and got != want:
                 want_s = "(..., " + ", ".join("*" if w is None else str(w) for w in shape_tail) + ")"
                 raise InvalidInput(f"{name}: expected shape {want_s}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+    if not all_finite(arr):
         raise InvalidInput(f"{name}: contains NaN or inf")
     return arr
 

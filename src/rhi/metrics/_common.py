@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from rhi._validate import as_array, unit_vector
+from rhi._validate import all_finite, as_array, unit_vector
 from rhi.errors import InvalidInput, NotSPD, Singular
 
 FloatArray = NDArray[np.float64]
@@ -86,7 +86,7 @@ def cholesky(name: str, A: FloatArray) -> FloatArray:
         L = np.linalg.cholesky(A)
     except np.linalg.LinAlgError:
         raise NotSPD(f"{name}: not positive definite") from None
-    if not np.isfinite(L).all() or (L.diagonal(axis1=-2, axis2=-1) <= 0).any():
+    if not all_finite(L) or (L.diagonal(axis1=-2, axis2=-1) <= 0).any():
         raise NotSPD(f"{name}: not positive definite")
     return L
 
@@ -121,13 +121,13 @@ def _full_row_rank_svd(name: str, B: FloatArray) -> tuple[FloatArray, FloatArray
 
 
 def full_row_rank_pinv(name: str, B: FloatArray) -> FloatArray:
-    """Moore-Penrose inverse ``B^T (B B^T)^{-1}`` of a full-row-rank ``B`` (..., m, n); see `_full_row_rank_svd`."""
+    """Moore-Penrose inverse ``B^T (B B^T)^{-1}`` of a full-row-rank ``B`` (raises as `_full_row_rank_svd`)."""
     U, s, Vt = _full_row_rank_svd(name, B)
     return Vt.swapaxes(-1, -2) @ (U.swapaxes(-1, -2) / s[..., :, None])
 
 
 def inverse_gram(name: str, B: FloatArray) -> FloatArray:
-    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), via its SVD; see `_full_row_rank_svd`."""
+    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), via its SVD (raises as `_full_row_rank_svd`)."""
     U, s, _ = _full_row_rank_svd(name, B)
     out = (U / s[..., None, :] ** 2) @ U.swapaxes(-1, -2)
     return 0.5 * (out + out.swapaxes(-1, -2))
@@ -140,7 +140,7 @@ def _pad_axes(s: FloatArray, m: int) -> FloatArray:
 
 
 def singular_values(B: FloatArray) -> FloatArray:
-    """Semi-axis lengths (..., m) of the ellipsoid ``B B^T``: the singular values of ``B``, descending, zero-padded."""
+    """Descending semi-axis lengths (..., m) of the ellipsoid ``B B^T``, as in `principal_axes_of_map`."""
     return _pad_axes(np.linalg.svd(B, compute_uv=False), B.shape[-2])
 
 
@@ -183,9 +183,9 @@ def radius_along(s: FloatArray, U: FloatArray, u: FloatArray) -> FloatArray:
     A zero ellipsoid has radius 0 everywhere.
     """
     c = np.einsum("...ij,...i->...j", U, u)
-    lost = s <= SINGULAR_RTOL * s[..., :1]  # all axes of a zero ellipsoid, so q = 0 below
+    lost = s <= SINGULAR_RTOL * s[..., :1]  # every axis of a zero ellipsoid: q = 0, radius 0
     blocked = (lost & (abs(c) > DIRECTION_ATOL)).any(axis=-1)
-    w = np.where(lost, 0.0, c / np.where(lost, 1.0, s))
+    w = c / np.where(lost, np.inf, s)  # 0 along lost axes
     q = (w * w).sum(axis=-1)
     nonzero = (q > 0) & ~blocked
     return np.where(nonzero, 1.0 / np.sqrt(np.where(nonzero, q, 1.0)), 0.0)

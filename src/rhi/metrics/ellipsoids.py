@@ -127,8 +127,8 @@ def isotropy(J: ArrayLike) -> FloatArray:
         ``n < m`` and for ``J = 0``.
     """
     s = singular_values(jacobian("J", J))
-    smax = s[..., 0]
-    return np.where(smax > 0, s[..., -1] / np.where(smax > 0, smax, 1.0), 0.0)
+    nonzero = s[..., 0] > 0
+    return np.where(nonzero, s[..., -1] / np.where(nonzero, s[..., 0], 1.0), 0.0)
 
 
 def force_ellipsoid(J: ArrayLike, torque_max: ArrayLike | None = None) -> FloatArray:

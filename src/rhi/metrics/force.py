@@ -42,10 +42,8 @@ def _scaling(J: FloatArray, t: FloatArray, lo: FloatArray, hi: FloatArray) -> tu
     """Closed-form largest ``f >= 0`` with ``lo <= f t <= hi``, and the torque ``f t``."""
     eps = SINGULAR_RTOL * frobenius_norm(J)[..., None]
     pos = t > eps
-    neg = t < -eps
-    loaded = pos | neg
-    safe = np.where(loaded, t, 1.0)
-    ratio = np.where(pos, hi / safe, np.where(neg, lo / safe, np.inf))
+    loaded = pos | (t < -eps)
+    ratio = np.where(loaded, np.where(pos, hi, lo) / np.where(loaded, t, 1.0), np.inf)
     f = ratio.min(axis=-1)
     torque = np.where(np.isinf(f), 0.0, f)[..., None] * np.where(loaded, t, 0.0)
     return f, torque

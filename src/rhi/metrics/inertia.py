@@ -6,7 +6,17 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from rhi.errors import InvalidInput
-from rhi.metrics._common import FloatArray, cholesky, direction, frobenius_norm, inverse_gram, inverse_norm, jacobian, square, whiten
+from rhi.metrics._common import (
+    FloatArray,
+    cholesky,
+    direction,
+    frobenius_norm,
+    inverse_gram,
+    inverse_norm,
+    jacobian,
+    square,
+    whiten,
+)
 
 
 def _whitened_jacobian(J: ArrayLike, M: ArrayLike) -> FloatArray:
