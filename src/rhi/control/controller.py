@@ -43,6 +43,7 @@ from rhi.control.saturation import (
 )
 from rhi.device import Device
 from rhi.errors import InvalidInput
+from rhi.metrics import dynamic_pinv, nullspace_projector, weighted_pinv
 
 Saturation = Literal["none", "scaling", "ascm", "lp"]
 
@@ -241,7 +242,6 @@ class NullSpaceController:
             s.transition, s.omega = transition_step(s.transition, t, s.V, cfg.fme.distance, tr)
 
         # allocation within the torque box
-        JpT = np.linalg.pinv(J).T if M is None else _dyn_pinv_T(J, M)  # J⁺ᵀ or J#ᵀ: (m, n)
         Z = null_basis(J, M)
         if cfg.saturation == "ascm":
             al = ascm(a, b, Z, self.lo, self.hi)
@@ -263,7 +263,7 @@ class NullSpaceController:
                 tau_to = tau_to - term.gain * np.asarray(term.objective.gradient(dev, q), dtype=float)
         if not np.all(np.isfinite(tau_to)):
             return self._stop(f"non-finite null-space objective torque at t={t}")
-        N = np.eye(dev.n) - J.T @ JpT
+        N = nullspace_projector(J, M)
         delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, self.lo, self.hi, N)
         tau = np.clip(al.tau + delta, self.lo, self.hi)
 
@@ -276,15 +276,9 @@ class NullSpaceController:
         return self.state.alpha, self.state.beta
 
 
-def _dyn_pinv_T(J: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """J#ᵀ = (J M⁻¹ Jᵀ)⁻¹ J M⁻¹: (m, n)."""
-    JMi = np.linalg.solve(M, J.T).T
-    return np.linalg.solve(JMi @ J.T, JMi)
-
-
 def output_force(J: np.ndarray, tau: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
     """Task-space force produced by joint torques, J#ᵀ τ (dynamic) or J⁺ᵀ τ (kinematic) [N]: (m,)."""
-    return (np.linalg.pinv(J).T if M is None else _dyn_pinv_T(J, M)) @ tau
+    return (weighted_pinv(J) if M is None else dynamic_pinv(J, M)).T @ tau
 
 
 __all__ = [

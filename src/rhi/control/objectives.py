@@ -61,19 +61,14 @@ class VMEMatching:
 
 
 def _spd(name: str, A) -> np.ndarray:
-    """Validate a symmetric positive definite matrix; raise NotSPD/InvalidInput naming `name`."""
-    from rhi._validate import as_array
-    from rhi.errors import InvalidInput, NotSPD
+    """Validate one symmetric positive definite (m, m) matrix; raise NotSPD/InvalidInput naming `name`."""
+    from rhi.errors import InvalidInput
+    from rhi.metrics._common import cholesky, square
 
-    A = as_array(name, A, ndim_min=2)
-    if A.ndim != 2 or A.shape[0] != A.shape[1]:
+    A = square(name, A)
+    if A.ndim != 2:
         raise InvalidInput(f"{name}: expected a square (m, m) matrix, got shape {A.shape}")
-    if not np.allclose(A, A.T, rtol=1e-9, atol=1e-12 * max(1.0, float(np.abs(A).max()))):
-        raise NotSPD(f"{name}: matrix is not symmetric")
-    try:
-        np.linalg.cholesky(A)
-    except np.linalg.LinAlgError:
-        raise NotSPD(f"{name}: matrix is not positive definite (eigenvalues {np.linalg.eigvalsh(A).round(6).tolist()})") from None
+    cholesky(name, A)
     return A
 
 
