@@ -1,0 +1,143 @@
+"""Environments: force fields of the end-effector position and velocity.
+
+An environment maps the handle's position x: (..., m) [m] and velocity ẋ: (..., m) [m/s]
+to the force it exerts on the handle, (..., m) [N]. The same objects serve as *virtual*
+environments (the haptic rendering computes F_e from the measured position and the
+controller renders it through `sensors["force"]`) and as *physical* ones (applied to the
+plant's handle directly, like the 8 cm stop of §3.5).
+
+Stiffness ranges of the thesis: 50 N/m (soft brain tissue, §3.5) … 2000 N/m (bone-like,
+ch. 6); the palpation experiments use K_e = 1000 N/m.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from rhi._validate import as_array, unit_vector
+from rhi.errors import InvalidInput
+
+
+def _gain(name: str, v: float) -> float:
+    v = float(v)
+    if not np.isfinite(v) or v < 0:
+        raise InvalidInput(f"{name}: must be finite and >= 0, got {v!r}")
+    return v
+
+
+@dataclasses.dataclass(frozen=True)
+class Wall:
+    """A one-sided spring–damper along `normal`: F = −(K d + B ḋ) n while d = nᵀ(x − point) > 0.
+
+    Attributes:
+        point: (m,) surface point [m] (the palpation start X₀).
+        normal: (m,) direction *into* the environment (normalised).
+        stiffness: K_e [N/m].
+        damping: B_e [N s/m] (acts only while pushing in; a wall never pulls).
+    """
+
+    point: np.ndarray
+    normal: np.ndarray
+    stiffness: float
+    damping: float = 0.0
+
+    def __post_init__(self) -> None:
+        p = as_array("point", self.point, ndim_min=1)
+        object.__setattr__(self, "point", p)
+        object.__setattr__(self, "normal", unit_vector("normal", self.normal, p.shape[-1]))
+        object.__setattr__(self, "stiffness", _gain("stiffness", self.stiffness))
+        object.__setattr__(self, "damping", _gain("damping", self.damping))
+
+    def force(self, x, xdot) -> np.ndarray:
+        d = (np.asarray(x) - self.point) @ self.normal
+        dd = np.asarray(xdot) @ self.normal
+        push = np.where(d > 0, self.stiffness * d + self.damping * dd, 0.0)
+        return -np.maximum(push, 0.0)[..., None] * self.normal
+
+
+def stop(point, normal, *, stiffness: float = 2.0e4, damping: float = 50.0) -> Wall:
+    """A rigid physical stop (§3.5: the 8 cm stop of the palpation box): a very stiff wall."""
+    return Wall(point, normal, stiffness, damping)
+
+
+@dataclasses.dataclass(frozen=True)
+class Spring:
+    """A two-sided spring–damper to a point, optionally only along a direction u:
+    F = −K P (x − point) − B P ẋ with P = u uᵀ (or I).
+
+    Attributes:
+        point: (m,) rest point [m].
+        stiffness: K [N/m].
+        damping: B [N s/m].
+        direction: (m,) u, or None for every direction.
+    """
+
+    point: np.ndarray
+    stiffness: float
+    damping: float = 0.0
+    direction: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        p = as_array("point", self.point, ndim_min=1)
+        object.__setattr__(self, "point", p)
+        object.__setattr__(self, "stiffness", _gain("stiffness", self.stiffness))
+        object.__setattr__(self, "damping", _gain("damping", self.damping))
+        m = p.shape[-1]
+        P = np.eye(m) if self.direction is None else np.outer(*(2 * [unit_vector("direction", self.direction, m)]))
+        object.__setattr__(self, "_P", P)
+
+    def force(self, x, xdot) -> np.ndarray:
+        return -(self.stiffness * (np.asarray(x) - self.point) + self.damping * np.asarray(xdot)) @ self._P
+
+
+@dataclasses.dataclass(frozen=True)
+class Fixture:
+    """A virtual fixture keeping the hand on the line through `point` along `direction` (§3.5):
+    F = −(I − u uᵀ)(K (x − point) + B ẋ).
+
+    Attributes:
+        point: (m,) a point of the line [m].
+        direction: (m,) u, the allowed direction.
+        stiffness: K [N/m].
+        damping: B [N s/m].
+    """
+
+    point: np.ndarray
+    direction: np.ndarray
+    stiffness: float = 1000.0
+    damping: float = 5.0
+
+    def __post_init__(self) -> None:
+        p = as_array("point", self.point, ndim_min=1)
+        object.__setattr__(self, "point", p)
+        u = unit_vector("direction", self.direction, p.shape[-1])
+        object.__setattr__(self, "direction", u)
+        object.__setattr__(self, "stiffness", _gain("stiffness", self.stiffness))
+        object.__setattr__(self, "damping", _gain("damping", self.damping))
+        object.__setattr__(self, "_P", np.eye(p.shape[-1]) - np.outer(u, u))
+
+    def force(self, x, xdot) -> np.ndarray:
+        return -(self.stiffness * (np.asarray(x) - self.point) + self.damping * np.asarray(xdot)) @ self._P
+
+
+@dataclasses.dataclass(frozen=True)
+class Compose:
+    """The sum of several environments."""
+
+    parts: tuple
+
+    def force(self, x, xdot) -> np.ndarray:
+        F = 0.0
+        for p in self.parts:
+            F = F + p.force(x, xdot)
+        return np.broadcast_to(F, np.shape(x)).copy() if np.ndim(F) == 0 else F
+
+
+def compose(*parts) -> Compose:
+    """Sum of environments (e.g. a wall plus a fixture)."""
+    for i, p in enumerate(parts):
+        if not callable(getattr(p, "force", None)):
+            raise InvalidInput(f"parts[{i}]: {type(p).__name__} has no force(x, xdot) method")
+    return Compose(tuple(parts))

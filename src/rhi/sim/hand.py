@@ -1,0 +1,151 @@
+"""The simulated user: a hand that holds the handle and moves it along a reference path.
+
+`Hand` is a Cartesian impedance (PD) between the handle and a reference point that moves
+along a `Path`, F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) [N], optionally saturated at the force
+a person comfortably applies. `PushForce` is the constant external force of the system
+identification experiments (§3.5, §6.4). The simulation loop logs F_h, ẋ and the user's
+work W = ∫ F_hᵀ ẋ dt (eq. 5.15).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from rhi._validate import as_array, unit_vector
+from rhi.errors import InvalidInput, Unreachable
+
+
+@dataclasses.dataclass(frozen=True)
+class Path:
+    """A polyline through `points` travelled at constant `speed`, starting at `start` [s],
+    then held at its last point. A single point is a hold.
+
+    Attributes:
+        points: (k, m) waypoints [m].
+        speed: path speed [m/s].
+        start: time the motion starts [s].
+    """
+
+    points: np.ndarray
+    speed: float = 0.0
+    start: float = 0.0
+
+    def __post_init__(self) -> None:
+        P = as_array("points", self.points, ndim_min=1)
+        P = P[None] if P.ndim == 1 else P
+        if P.ndim != 2:
+            raise InvalidInput(f"points: expected (k, m) waypoints, got shape {P.shape}")
+        if len(P) > 1 and (not np.isfinite(self.speed) or self.speed <= 0):
+            raise InvalidInput(f"speed: must be > 0 [m/s] for a path of {len(P)} points, got {self.speed!r}")
+        object.__setattr__(self, "points", P)
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        object.__setattr__(self, "_s", np.concatenate([[0.0], np.cumsum(seg)]))
+
+    @property
+    def length(self) -> float:
+        """Path length [m]."""
+        return float(self._s[-1])
+
+    @property
+    def duration(self) -> float:
+        """Time to travel the path [s] (excluding `start`)."""
+        return self.length / self.speed if self.length > 0 else 0.0
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Reference position (m,) [m] and velocity (m,) [m/s] at time t [s]."""
+        P, s = self.points, self._s
+        if len(P) == 1 or t <= self.start:
+            return P[0].copy(), np.zeros(P.shape[1])
+        d = (t - self.start) * self.speed
+        if d >= s[-1]:
+            return P[-1].copy(), np.zeros(P.shape[1])
+        i = min(int(np.searchsorted(s, d, side="right")) - 1, len(P) - 2)
+        u = (P[i + 1] - P[i]) / (s[i + 1] - s[i])
+        return P[i] + (d - s[i]) * u, self.speed * u
+
+    def sample(self, step: float) -> np.ndarray:
+        """Points along the path every `step` metres: (k, m) [m]."""
+        d = np.append(np.arange(0.0, self.length, step), self.length)
+        return np.array([self(self.start + di / self.speed)[0] for di in d]) if self.length > 0 else self.points.copy()
+
+
+def w_path(center, *, width: float = 0.08, height: float = 0.04, speed: float = 0.02) -> Path:
+    """The W-shaped trajectory of §5.4 (Fig. 5.5) centred at `center` (m,) [m], 2 cm/s by default.
+
+    Four strokes across `width` [m] with peaks `height` [m] apart along the second axis.
+    """
+    c = as_array("center", center, ndim_min=1)
+    xs = c[0] + width * np.linspace(-0.5, 0.5, 5)
+    ys = c[1] + height * np.array([0.5, -0.5, 0.5, -0.5, 0.5])
+    return Path(np.column_stack([xs, ys] + ([np.full(5, c[2])] if c.shape[0] > 2 else [])), speed)
+
+
+@dataclasses.dataclass(frozen=True)
+class Hand:
+    """A hand tracking a path with a Cartesian impedance.
+
+    Attributes:
+        path: the reference motion.
+        stiffness: K_h [N/m] (a relaxed grasp: a few hundred N/m).
+        damping: B_h [N s/m].
+        max_force: saturation of |F_h| [N] (None: unbounded).
+    """
+
+    path: Path
+    stiffness: float = 300.0
+    damping: float = 10.0
+    max_force: float | None = 20.0
+
+    def __post_init__(self) -> None:
+        for f in ("stiffness", "damping"):
+            v = getattr(self, f)
+            if not np.isfinite(v) or v < 0:
+                raise InvalidInput(f"{f}: must be finite and >= 0, got {v!r}")
+        if self.max_force is not None and not self.max_force > 0:
+            raise InvalidInput(f"max_force: must be > 0 [N] or None, got {self.max_force!r}")
+
+    def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+        """F_h: (m,) [N] the hand applies to the handle at position x (m,) [m], velocity ẋ (m,) [m/s]."""
+        xr, vr = self.path(t)
+        F = self.stiffness * (xr - x) + self.damping * (vr - xdot)
+        if self.max_force is not None:
+            nf = float(np.linalg.norm(F))
+            if nf > self.max_force:
+                F *= self.max_force / nf
+        return F
+
+
+@dataclasses.dataclass(frozen=True)
+class PushForce:
+    """A constant force of `magnitude` [N] along `direction` from time `start` [s] (sysid, §3.5/§6.4)."""
+
+    direction: np.ndarray
+    magnitude: float
+    start: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "direction", unit_vector("direction", self.direction))
+        if not np.isfinite(self.magnitude):
+            raise InvalidInput(f"magnitude: must be finite, got {self.magnitude!r}")
+
+    def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+        return self.magnitude * self.direction if t >= self.start else np.zeros_like(self.direction)
+
+
+def check_path_in_workspace(device, path: Path, *, q0=None, step: float = 0.005) -> np.ndarray:
+    """IK along the path (every `step` [m]); raises `Unreachable` naming the first point outside the
+    device's workspace. Returns the joint path (k, n) [rad]."""
+    if q0 is None:
+        lo, hi = device.joint_limits
+        q0 = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
+    qs, q = [], q0
+    for i, x in enumerate(path.sample(step)):
+        try:
+            q = device.ik(x, q0=q)
+        except Unreachable:
+            raise Unreachable(f"path: point {i} at {np.round(x, 4).tolist()} m is outside the workspace of "
+                              f"{device.name}") from None
+        qs.append(q)
+    return np.array(qs)

@@ -1,0 +1,163 @@
+"""`Plant`: a device simulated in MuJoCo — torque-controlled motors, encoders, a 6-axis F/T sensor.
+
+The plant is generated from the device description (`rhi.sim.mjcf`), so the controller's
+Pinocchio model and the plant agree unless a study changes one of them (model mismatch:
+pass a different `Device` or friction to the plant than to the controller). A controller
+only ever sees `q`, `dq` and `ft()`; `x`, `xdot` and the MuJoCo structures are the
+simulation's ground truth for logging and tests.
+"""
+
+from __future__ import annotations
+
+import tomllib
+
+import mujoco
+import numpy as np
+
+from rhi.device import MODELS, Device
+from rhi.errors import InvalidInput, ModelError
+from rhi.sim.mjcf import PlantFriction, build_mjcf
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def device_friction(device: Device) -> PlantFriction:
+    """The motor friction declared in the device's `device.toml` [plant] table (zeros if none).
+
+    Devices derived by locking (`base = "rhi4"`) take their free motors' values from the base.
+    """
+    path = MODELS / device.name / "device.toml"
+    if not path.is_file():
+        return PlantFriction.zero(device.n)
+    spec = tomllib.loads(path.read_text())
+    names = spec.get("joint_names")
+    if "base" in spec:
+        base = tomllib.loads((MODELS / spec["base"] / "device.toml").read_text())
+        spec, names = base, base.get("joint_names")
+    plant = spec.get("plant", {})
+    out = {}
+    for f in ("damping", "frictionloss"):
+        v = np.asarray(plant.get(f, np.zeros(len(names or device.joint_names))), dtype=float)
+        if names is not None and len(names) != device.n:
+            v = np.array([v[names.index(j)] for j in device.joint_names])
+        out[f] = v
+    return PlantFriction(**out).check(device.n)
+
+
+class Plant:
+    """A device in MuJoCo.
+
+    Args:
+        device: the device to simulate.
+        friction: motor friction; "device" (default): the device's `[plant]` values; None: frictionless.
+        timestep: physics step [s] (the control period is a multiple of it).
+        handle_mass: mass of the handle between the F/T sensor and the hand [kg].
+
+    Attributes:
+        model, data: the MuJoCo model and data (ground truth; controllers must not read them).
+        n: number of motors; m: task dimension.
+    """
+
+    def __init__(self, device: Device, *, friction: PlantFriction | str | None = "device",
+                 timestep: float = 5e-4, handle_mass: float = 1e-3) -> None:
+        if isinstance(friction, str):
+            if friction != "device":
+                raise InvalidInput(f"friction: expected 'device', a PlantFriction or None, got {friction!r}")
+            friction = device_friction(device)
+        self.device = device
+        self.friction = (friction or PlantFriction.zero(device.n)).check(device.n)
+        self.xml = build_mjcf(device, self.friction, timestep=timestep, handle_mass=handle_mass)
+        try:
+            self.model = mujoco.MjModel.from_xml_string(self.xml)
+        except ValueError as exc:
+            raise ModelError(f"device: MuJoCo rejected the plant of {device.name}: {exc}") from None
+        self.data = mujoco.MjData(self.model)
+        self.n, self.m = device.n, device.m
+        self._rows = [_AXES[a] for a in device.task_axes]
+        moving = np.any(device.A != 0, axis=1)
+        self._A, self._b = device.A[moving], device.b[moving]
+        self._const = np.linalg.pinv(self._A) @ self._b
+        self._body = self.model.body("handle").id
+        self._site = self.model.site("handle").id
+        f, t = self.model.sensor("ft_force"), self.model.sensor("ft_torque")
+        self._ft = (slice(f.adr[0], f.adr[0] + 3), slice(t.adr[0], t.adr[0] + 3))
+        self._jac = np.zeros((3, self.model.nv))
+        self._weight = self.model.body_mass[self._body] * self.model.opt.gravity
+        self.timestep = float(self.model.opt.timestep)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q, dq=None) -> None:
+        """Place the device at motor angles q: (n,) [rad] with velocities dq: (n,) [rad/s]."""
+        q = np.asarray(q, dtype=float)
+        dq = np.zeros(self.n) if dq is None else np.asarray(dq, dtype=float)
+        if q.shape != (self.n,) or dq.shape != (self.n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
+            raise InvalidInput(f"q/dq: expected {self.n} finite values each, got {q.tolist()} and {dq.tolist()}")
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = self._A @ q + self._b
+        self.data.qvel[:] = self._A @ dq
+        mujoco.mj_forward(self.model, self.data)
+
+    @property
+    def time(self) -> float:
+        """Simulated time [s]."""
+        return float(self.data.time)
+
+    @property
+    def q(self) -> np.ndarray:
+        """Motor encoders: (n,) [rad]."""
+        return self.data.ten_length[: self.n] - self._const
+
+    @property
+    def dq(self) -> np.ndarray:
+        """Motor velocities: (n,) [rad/s]."""
+        return self.data.ten_velocity[: self.n].copy()
+
+    def ft(self) -> np.ndarray:
+        """The handle's 6-axis F/T sensor in world axes, tared (the handle's weight removed):
+        (6,) force [N] and torque [N m] the hand applies to the device."""
+        R = self.data.site_xmat[self._site].reshape(3, 3)
+        s = self.data.sensordata
+        return np.concatenate([-(R @ s[self._ft[0]]) - self._weight, -(R @ s[self._ft[1]])])
+
+    # ----------------------------------------------------------- ground truth
+    @property
+    def x(self) -> np.ndarray:
+        """True handle position on the task axes: (m,) [m]."""
+        return self.data.site_xpos[self._site][self._rows].copy()
+
+    @property
+    def xdot(self) -> np.ndarray:
+        """True handle velocity on the task axes: (m,) [m/s]."""
+        return (self.site_jacobian() @ self.data.qvel)[self._rows]
+
+    def site_jacobian(self) -> np.ndarray:
+        """Translational Jacobian of the handle w.r.t. the chain velocities: (3, nv)."""
+        mujoco.mj_jacSite(self.model, self.data, self._jac, None, self._site)
+        return self._jac
+
+    def motor_jacobian(self) -> np.ndarray:
+        """Task Jacobian in motor coordinates, from MuJoCo: (m, n)."""
+        return self.site_jacobian()[self._rows] @ self._A
+
+    def motor_mass_matrix(self) -> np.ndarray:
+        """Inertia in motor coordinates Aᵀ M_θ A (tendon armature included), from MuJoCo: (n, n) [kg m²]."""
+        M = np.zeros((self.model.nv, self.model.nv))
+        mujoco.mj_fullM(self.model, self.data, M)
+        return self._A.T @ M @ self._A
+
+    # ------------------------------------------------------------------- step
+    def apply(self, tau, force=None) -> None:
+        """Set the motor torques τ: (n,) [N m] (MuJoCo clips them to the torque limits) and the
+        external force on the handle, (m,) on the task axes [N] (None: zero)."""
+        self.data.ctrl[:] = tau
+        f = self.data.xfrc_applied[self._body]
+        f[:] = 0.0
+        if force is not None:
+            f[self._rows] = force
+
+    def step(self, steps: int = 1) -> None:
+        """Advance the physics by `steps` timesteps."""
+        for _ in range(steps):
+            mujoco.mj_step(self.model, self.data)
+        if self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
+            raise ModelError(f"plant: MuJoCo reported unstable accelerations at t={self.time:.4f} s")
