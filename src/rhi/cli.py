@@ -1,4 +1,4 @@
-"""The `rhi` command: list devices, measure a configuration, reproduce the thesis."""
+"""The `rhi` command: list devices, measure a configuration, run one experiment, reproduce the thesis."""
 
 from __future__ import annotations
 
@@ -57,11 +57,15 @@ def _reproduce(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from rhi.design.executors import configure
-    from rhi.report.reproduce import reproduce
+    from rhi.report.reproduce import experiments, reproduce
 
+    if getattr(args, "list", False) or (args.command == "experiment" and not args.name):
+        print("\n".join(experiments()))
+        return 0
     configure(executor=args.executor, address=args.address, workers=args.workers,
               checkpoint_dir=str(Path(args.out) / "checkpoints"))
-    path, results = reproduce(args.out, only=args.only, quick=args.quick)
+    name = getattr(args, "name", None)
+    path, results = reproduce(args.out, only=getattr(args, "only", None), quick=args.quick, experiment=name)
     for res in results:
         for table in res.tables:
             print(f"\n{res.name}: {table.title}")
@@ -89,13 +93,17 @@ def main(argv: list[str] | None = None) -> int:
     m.set_defaults(func=_measure)
     r = sub.add_parser("reproduce", help="reproduce the thesis's computational tables and figures into a report")
     r.add_argument("--only", help="one chapter, e.g. ch3")
-    r.add_argument("--quick", action="store_true", help="reduced resolution (seconds)")
-    r.add_argument("--out", default="out", help="output directory (default: out)")
-    r.add_argument("--executor", choices=("local", "serial", "ray"), default="local",
-                   help="where design evaluations run: local process pool (default), this process, or Ray")
-    r.add_argument("--address", help="Ray cluster address for --executor ray (default: start a local instance)")
-    r.add_argument("--workers", type=int, help="processes of the local pool (default: CPU count)")
-    r.set_defaults(func=_reproduce)
+    e = sub.add_parser("experiment", help="run one experiment: PNG figures, CSV/JSON numbers, thesis beside ours")
+    e.add_argument("name", nargs="?", help="experiment id, e.g. ch7.example_3dof (none: list them)")
+    e.add_argument("--list", action="store_true", help="list the experiments")
+    for q in (r, e):
+        q.add_argument("--quick", action="store_true", help="reduced resolution (seconds)")
+        q.add_argument("--out", default="out", help="output directory (default: out)")
+        q.add_argument("--executor", choices=("local", "serial", "ray"), default="local",
+                       help="where design evaluations run: local process pool (default), this process, or Ray")
+        q.add_argument("--address", help="Ray cluster address for --executor ray (default: start a local instance)")
+        q.add_argument("--workers", type=int, help="processes of the local pool (default: CPU count)")
+        q.set_defaults(func=_reproduce)
     args = p.parse_args(argv)
     try:
         return args.func(args)

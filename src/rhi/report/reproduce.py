@@ -31,6 +31,11 @@ class Step:
     figures: dict[str, Callable[[Result], object]]
     progress: bool = False
 
+    @property
+    def name(self) -> str:
+        """Experiment id, e.g. "ch7.example_3dof"."""
+        return f"{self.chapter}.{self.run.__name__}"
+
 
 STEPS: list[Step] = [
     Step("ch3", ex3.table_3_1, {}, {}, {"configurations": pl3.configurations}),
@@ -53,19 +58,30 @@ def chapters() -> list[str]:
     return sorted({s.chapter for s in STEPS})
 
 
-def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool = False) -> tuple[Path, list[Result]]:
-    """Run the experiments (all, or one chapter) and write out/report.html + out/results.json.
+def experiments() -> list[str]:
+    """Ids of the experiments, e.g. "ch7.example_3dof"."""
+    return [s.name for s in STEPS]
+
+
+def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool = False,
+              experiment: str | None = None) -> tuple[Path, list[Result]]:
+    """Run the experiments (all, one chapter or one experiment) and write out/report.html + out/results.json.
 
     Args:
         out: output directory.
         only: chapter id such as "ch3".
         quick: reduced resolution (seconds instead of minutes).
+        experiment: one experiment id such as "ch7.example_3dof" (or its function name).
     """
+    from rhi.errors import InvalidInput
+
     steps = [s for s in STEPS if only is None or s.chapter == only]
     if not steps:
-        from rhi.errors import InvalidInput
-
         raise InvalidInput(f"only: unknown chapter {only!r}; available: {', '.join(chapters())}")
+    if experiment is not None:
+        steps = [s for s in steps if experiment in (s.name, s.run.__name__)]
+        if not steps:
+            raise InvalidInput(f"experiment: unknown experiment {experiment!r}; available: {', '.join(experiments())}")
     done: list[tuple[str, Result, dict]] = []
     t0 = time.perf_counter()
     cols = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
