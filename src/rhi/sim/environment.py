@@ -51,7 +51,12 @@ class Wall:
         object.__setattr__(self, "damping", _gain("damping", self.damping))
 
     def force(self, x, xdot) -> np.ndarray:
-        d = (np.asarray(x) - self.point) @ self.normal
+        x = np.asarray(x)
+        if x.ndim == 1:  # one point: the simulation loop's case, kept cheap
+            d = float((x - self.point) @ self.normal)
+            push = self.stiffness * d + self.damping * float(np.asarray(xdot) @ self.normal) if d > 0 else 0.0
+            return -max(push, 0.0) * self.normal
+        d = (x - self.point) @ self.normal
         dd = np.asarray(xdot) @ self.normal
         push = np.where(d > 0, self.stiffness * d + self.damping * dd, 0.0)
         return -np.maximum(push, 0.0)[..., None] * self.normal

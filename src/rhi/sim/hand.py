@@ -10,6 +10,7 @@ work W = ∫ F_hᵀ ẋ dt (eq. 5.15).
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -41,7 +42,8 @@ class Path:
             raise InvalidInput(f"speed: must be > 0 [m/s] for a path of {len(P)} points, got {self.speed!r}")
         object.__setattr__(self, "points", P)
         seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
-        object.__setattr__(self, "_s", np.concatenate([[0.0], np.cumsum(seg)]))
+        object.__setattr__(self, "_s", np.concatenate([[0.0], np.cumsum(seg)]).tolist())
+        object.__setattr__(self, "_u", np.diff(P, axis=0) / np.where(seg > 0, seg, 1.0)[:, None])
 
     @property
     def length(self) -> float:
@@ -61,8 +63,10 @@ class Path:
         d = (t - self.start) * self.speed
         if d >= s[-1]:
             return P[-1].copy(), np.zeros(P.shape[1])
-        i = min(int(np.searchsorted(s, d, side="right")) - 1, len(P) - 2)
-        u = (P[i + 1] - P[i]) / (s[i + 1] - s[i])
+        i = 0
+        while s[i + 1] <= d:
+            i += 1
+        u = self._u[i]
         return P[i] + (d - s[i]) * u, self.speed * u
 
     def sample(self, step: float) -> np.ndarray:
@@ -111,7 +115,7 @@ class Hand:
         xr, vr = self.path(t)
         F = self.stiffness * (xr - x) + self.damping * (vr - xdot)
         if self.max_force is not None:
-            nf = float(np.linalg.norm(F))
+            nf = math.sqrt(float(F @ F))
             if nf > self.max_force:
                 F *= self.max_force / nf
         return F

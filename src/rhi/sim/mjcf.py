@@ -94,7 +94,8 @@ def build_mjcf(device: Device, friction: PlantFriction | None = None, *, timeste
 
     Returns:
         The MJCF document. Names: tendons "motor{k}" (k = 0..n−1), actuators "motor{k}",
-        site "handle", sensors "ft_force" / "ft_torque" (handle frame, hand → device).
+        site "handle", sensors "ft_force" / "ft_torque" (handle frame, hand → device), "handle_pos" /
+        "handle_vel" (world frame).
     """
     if not np.isfinite(timestep) or timestep <= 0:
         raise InvalidInput(f"timestep: must be > 0 [s], got {timestep!r}")
@@ -184,5 +185,7 @@ def build_mjcf(device: Device, friction: PlantFriction | None = None, *, timeste
     sensors = ET.SubElement(root, "sensor")
     ET.SubElement(sensors, "force", name="ft_force", site="handle")
     ET.SubElement(sensors, "torque", name="ft_torque", site="handle")
+    ET.SubElement(sensors, "framepos", name="handle_pos", objtype="site", objname="handle")
+    ET.SubElement(sensors, "framelinvel", name="handle_vel", objtype="site", objname="handle")
     ET.indent(root)
     return ET.tostring(root, encoding="unicode")

@@ -79,8 +79,10 @@ class Plant:
         self._const = np.linalg.pinv(self._A) @ self._b
         self._body = self.model.body("handle").id
         self._site = self.model.site("handle").id
-        f, t = self.model.sensor("ft_force"), self.model.sensor("ft_torque")
-        self._ft = (slice(f.adr[0], f.adr[0] + 3), slice(t.adr[0], t.adr[0] + 3))
+        adr = {k: int(self.model.sensor(k).adr[0]) for k in ("ft_force", "ft_torque", "handle_pos", "handle_vel")}
+        self._ft = (slice(adr["ft_force"], adr["ft_force"] + 3), slice(adr["ft_torque"], adr["ft_torque"] + 3))
+        self._pos = np.array(self._rows) + adr["handle_pos"]
+        self._vel = np.array(self._rows) + adr["handle_vel"]
         self._jac = np.zeros((3, self.model.nv))
         self._weight = self.model.body_mass[self._body] * self.model.opt.gravity
         self.timestep = float(self.model.opt.timestep)
@@ -95,7 +97,7 @@ class Plant:
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:] = self._A @ q + self._b
         self.data.qvel[:] = self._A @ dq
-        mujoco.mj_forward(self.model, self.data)
+        mujoco.mj_forward(self.model, self.data)  # every stage, so that `step` may start with mj_step2
 
     @property
     def time(self) -> float:
@@ -123,12 +125,12 @@ class Plant:
     @property
     def x(self) -> np.ndarray:
         """True handle position on the task axes: (m,) [m]."""
-        return self.data.site_xpos[self._site][self._rows].copy()
+        return self.data.sensordata[self._pos]
 
     @property
     def xdot(self) -> np.ndarray:
         """True handle velocity on the task axes: (m,) [m/s]."""
-        return (self.site_jacobian() @ self.data.qvel)[self._rows]
+        return self.data.sensordata[self._vel]
 
     def site_jacobian(self) -> np.ndarray:
         """Translational Jacobian of the handle w.r.t. the chain velocities: (3, nv)."""
@@ -156,8 +158,15 @@ class Plant:
             f[self._rows] = force
 
     def step(self, steps: int = 1) -> None:
-        """Advance the physics by `steps` timesteps."""
+        """Advance the physics by `steps` timesteps.
+
+        Each step is `mj_step2` (accelerations, the F/T sensor, integration) followed by `mj_step1`
+        (positions and velocities of the new state), so `q`, `dq`, `x`, `xdot` always describe the
+        current state and forces set by `apply` may depend on it; `ft()` is the force of the last step.
+        """
+        m, d = self.model, self.data
         for _ in range(steps):
-            mujoco.mj_step(self.model, self.data)
-        if self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
+            mujoco.mj_step2(m, d)
+            mujoco.mj_step1(m, d)
+        if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
             raise ModelError(f"plant: MuJoCo reported unstable accelerations at t={self.time:.4f} s")
