@@ -10,10 +10,14 @@ from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from rhi.experiments import appa as exa
+from rhi.experiments import appb as exb
 from rhi.experiments import ch3 as ex3
 from rhi.experiments import ch4 as ex4
 from rhi.experiments import ch7 as ex7
 from rhi.experiments.result import Result
+from rhi.plots import appa as pla
+from rhi.plots import appb as plb
 from rhi.plots import ch3 as pl3
 from rhi.plots import ch4 as pl4
 from rhi.plots import ch7 as pl7
@@ -50,6 +54,12 @@ STEPS: list[Step] = [
     Step("ch7", ex7.example_3dof, {"steps": 401}, {"steps": 101}, {"fig7_1": pl7.example_3dof}),
     Step("ch7", ex7.deficiency_map, {"resolution": 31}, {"resolution": 9}, {"fig7_5": pl7.deficiency_map},
          progress=True),
+    Step("appa", exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
+         progress=True),
+    Step("appa", exa.dm_enhancement, {}, {"t_long": 20.0}, {"fig_a9": pla.dm_enhancement}, progress=True),
+    Step("appb", exb.singularity, {}, {"duration": 16.0, "dt": 0.01}, {"fig_b7": plb.singularity}, progress=True),
+    Step("appb", exb.tracking, {}, {"duration": 24.0, "dt": 0.01},
+         {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True),
 ]
 
 
