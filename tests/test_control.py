@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import random_q
+from conftest import fd_jacobian, random_q
 
 import rhi
 from rhi.control import (
@@ -15,6 +15,8 @@ from rhi.control import (
     FMEMatching,
     FMESchedule,
     ForceRendering,
+    ImpedanceControl,
+    JointFriction,
     Manipulability,
     NullSpaceController,
     ObjectiveTerm,
@@ -24,18 +26,24 @@ from rhi.control import (
     VMEMatching,
     allocate_lp,
     ascm,
+    ascm_projector,
     aso_volume,
+    basis_from_projector,
     desired_fme_free,
     desired_fme_stiff,
     fme_shape,
+    gradient_function,
     hysteresis,
     null_basis,
+    null_projector,
     output_force,
+    tertiary_projector,
     tertiary,
     transition_step,
 )
-from rhi.errors import InfeasibleLimits, InvalidInput, NotSPD
-from rhi.metrics import dynamic_pinv, force_ellipsoid, max_force
+from rhi.control.saturation import _ascm_fast
+from rhi.errors import InfeasibleLimits, InvalidInput, NotSPD, Singular
+from rhi.metrics import apparent_inertia, dynamic_pinv, force_ellipsoid, max_force, nullspace_projector
 
 
 @pytest.fixture(scope="module")
@@ -264,23 +272,36 @@ def _controller(dev, **kw):
     return NullSpaceController(dev, ControllerConfig(**cfg))
 
 
-def test_controller_limits_and_task_force(rhi4, rng):
-    c = _controller(rhi4)
-    lo, hi = rhi4.torque_limits
-    for k, q in enumerate(random_q(rhi4, rng, 300)):
-        J = rhi4.jacobian(q)
-        if np.linalg.svd(J, compute_uv=False)[-1] < 1e-3:
+@pytest.mark.parametrize("name", ["rhi4", "planar3r"])
+def test_controller_limits_and_task_force(name, rng):
+    """ASCM on: 1,000 seeded random forces and configurations, no torque leaves its limit,
+    and the null-space objectives leave the task force α F + μ unchanged (eq. 7.9)."""
+    dev = rhi.device(name)
+    c = _controller(dev)
+    lo, hi = dev.torque_limits
+    ticks, worst, saturated, clipped = 0, 0.0, 0, 0
+    for k, q in enumerate(random_q(dev, rng, 1400)):
+        kin = dev.terms(q, rng.normal(size=dev.n))
+        if np.linalg.svd(kin.J, compute_uv=False)[-1] < 1e-3:
             continue
-        dq = rng.normal(size=4)
         F = rng.normal(size=2) * rng.uniform(0, 40)
-        tau = c.step(k * 1e-3, q, dq, {"force": F})
+        tau = c.step(k * 1e-3, q, kin.dq, {"force": F})
         assert np.all(tau <= hi + 1e-12) and np.all(tau >= lo - 1e-12)
         s = c.state
         assert 0.0 <= s.V <= 1.0 and 0.0 <= s.alpha <= 1.0 and 0.0 <= s.beta <= 1.0
-        # the null-space objectives never change the task force: J#ᵀτ = α F − B_d ẋ
-        F_out = output_force(J, tau, rhi4.mass_matrix(q))
-        np.testing.assert_allclose(F_out, s.alpha * F - 0.01 * (J @ dq), atol=1e-8)
-    assert not c.state.stopped
+        # J#ᵀτ = α F − B ẋ + C_x ẋ + G_x: what the primary law asked for, whatever the null space does
+        if not s.clipped:  # μ alone inside the box (else nothing can render it and τ is clipped)
+            F_out = output_force(kin.J, tau, kin.M)
+            mu = -0.01 * kin.xdot + kin.Cx @ kin.xdot + kin.Gx
+            worst = max(worst, float(np.abs(F_out - (s.alpha * F + mu)).max()))
+        clipped += s.clipped
+        saturated += bool(s.saturated.any())
+        ticks += 1
+        if ticks == 1000:
+            break
+    assert ticks == 1000 and not c.state.stopped
+    assert saturated > 100 and clipped < 50  # the limits were exercised
+    assert worst < 1e-9
 
 
 def test_controller_nan_sensor_stops_safely(rhi4):
@@ -289,13 +310,43 @@ def test_controller_nan_sensor_stops_safely(rhi4):
     assert np.any(c.step(0.0, q, np.zeros(4), {"force": np.array([0.0, -2.0])}) != 0)
     tau = c.step(0.001, q, np.zeros(4), {"force": np.array([np.nan, 1.0])})
     np.testing.assert_array_equal(tau, 0.0)
-    assert c.state.stopped and "force" in c.state.fault
+    assert c.state.stopped and "force" in c.state.fault and "t=0.001" in c.state.fault
     # latched: zero torque afterwards even with good readings
     np.testing.assert_array_equal(c.step(0.002, q, np.zeros(4), {"force": np.array([0.0, 1.0])}), 0.0)
     c.reset()
-    tau = c.step(0.0, q, np.array([np.inf, 0, 0, 0]), {"force": np.array([0.0, 1.0])})
+    c.step(0.0, q, np.zeros(4), {"force": np.array([0.0, 1.0])})
+    tau = c.step(0.001, q, np.array([np.inf, 0, 0, 0]), {"force": np.array([0.0, 1.0])})
     np.testing.assert_array_equal(tau, 0.0)
     assert "dq" in c.state.fault
+
+
+def test_controller_nan_before_start_is_bad_input(rhi4):
+    """A non-finite reading on the very first tick is bad input (the loop never started): it raises."""
+    c = _controller(rhi4)
+    q = np.array([0.3, 0.5, 0.2, 0.4])
+    with pytest.raises(InvalidInput, match=r"sensors\['force'\]"):
+        c.step(0.0, q, np.zeros(4), {"force": np.array([np.nan, 1.0])})
+    with pytest.raises(InvalidInput, match="q: non-finite"):
+        c.step(0.0, np.array([0.3, np.nan, 0.2, 0.4]), np.zeros(4), {"force": np.zeros(2)})
+    assert not c.state.stopped
+    with pytest.raises(InvalidInput, match=r"sensors\['force'\]: expected shape \(2,\)"):
+        c.step(0.0, q, np.zeros(4), {"force": np.zeros(3)})
+    with pytest.raises(InvalidInput, match=r"sensors\['force'\]: expected a vector"):
+        c.step(0.0, q, np.zeros(4), {"force": 1.0})
+    imp = _controller(rhi4, primary=ImpedanceControl(damping=0.1, inertia=np.eye(2)))
+    with pytest.raises(InvalidInput, match=r"sensors\['ft'\]: expected a \(6,\) wrench"):
+        imp.step(0.0, q, np.zeros(4), {"ft": np.zeros(3)})
+
+
+def test_controller_singular_configuration_stops_safely():
+    """Fully stretched planar 3R (rank-deficient J) mid-run: zero torque and a reason, no exception."""
+    dev = rhi.device("planar3r")
+    c = NullSpaceController(dev, ControllerConfig(ForceRendering(), objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.1),)))
+    q = np.array([0.3, -0.4, 0.2])
+    c.step(0.0, q, np.zeros(3), {"force": np.zeros(2)})
+    tau = c.step(0.001, np.zeros(3), np.zeros(3), {"force": np.array([1.0, 0.0])})
+    np.testing.assert_array_equal(tau, 0.0)
+    assert c.state.stopped and "t=0.001" in c.state.fault
 
 
 def test_controller_bad_input(rhi4):
@@ -307,38 +358,69 @@ def test_controller_bad_input(rhi4):
         _controller(rhi4, torque_min=-np.ones(4), torque_max=np.array([1.0, np.nan, 1, 1]))
     with pytest.raises(NotSPD, match="stiff"):
         FMESchedule(np.eye(2), np.array([[1.0, 0.0], [0.0, -2.0]]))
+    with pytest.raises(NotSPD, match="free"):
+        FMESchedule(np.array([[1.0, 2.0], [2.0, 1.0]]), np.eye(2))
     with pytest.raises(InvalidInput, match="damping"):
         _controller(rhi4, damping=float("nan"))
     with pytest.raises(InvalidInput, match="saturation"):
         _controller(rhi4, saturation="magic")
+    with pytest.raises(InvalidInput, match="implementation"):
+        _controller(rhi4, implementation="turbo")
     with pytest.raises(InvalidInput, match="gain"):
         ObjectiveTerm(Manipulability(), -1.0)
     with pytest.raises(InvalidInput, match="x0"):
         SpringPalpation(1000.0, (np.nan, 0.0))
+    with pytest.raises(InvalidInput, match="x0"):  # checked against the device at construction
+        _controller(rhi4, primary=SpringPalpation(1000.0, (0.5, 0.1, 0.0)))
+    with pytest.raises(NotSPD, match="inertia"):
+        ImpedanceControl(inertia=np.diag([0.1, -0.1]))
+    with pytest.raises(InvalidInput, match="inertia"):
+        _controller(rhi4, primary=ImpedanceControl(inertia=np.eye(3)))
+    with pytest.raises(InvalidInput, match="damping"):
+        ForceRendering(damping=-np.eye(2))
+    with pytest.raises(InvalidInput, match="coulomb"):
+        JointFriction(coulomb=[-0.1, 0.0, 0.0, 0.0])
+    with pytest.raises(InvalidInput, match="viscous"):
+        _controller(rhi4, primary=ForceRendering(friction=JointFriction(viscous=np.ones(3))))
+    with pytest.raises(InvalidInput, match="beta"):
+        VMEMatching((0.0, 1.0), beta=-1.0)
     c = _controller(rhi4)
     with pytest.raises(InvalidInput, match="sensors"):
         c.step(0.0, np.zeros(4), np.zeros(4), {})
+    with pytest.raises(InvalidInput, match="q/dq"):
+        c.step(0.0, np.zeros(3), np.zeros(4), {"force": np.zeros(2)})
 
 
 def test_controller_switches_fme_under_load(rhi4):
-    """A hard contact drains the ASO and moves Ω from free (1) towards stiff (0), continuously."""
+    """A hard contact drains the ASO and moves Ω from free (1) towards stiff (0), continuously;
+    the desired FME changes by at most π dt / (2ρ) per tick (eqs. 6.16–6.19)."""
     c = _controller(rhi4)
+    fme = c.config.fme
     q = np.array([0.3, 0.5, 0.2, 0.4])
-    oms = []
-    for k in range(700):
-        c.step(k * 1e-3, q, np.zeros(4), {"force": np.array([0.0, -30.0])})
+    dt = 1e-3
+    oms, Ms = [], []
+    for k in range(1400):
+        F = np.array([0.0, -30.0]) if k < 700 else np.array([0.0, -0.5])  # contact, then released
+        c.step(k * dt, q, np.zeros(4), {"force": F})
         oms.append(c.state.omega)
-    assert oms[0] == 1.0 and oms[1] < 1.0 and oms[-1] == 0.0
-    assert np.max(np.abs(np.diff(oms))) < 0.01
+        Ms.append(fme.desired(c.state.omega))
+    assert oms[0] == 1.0 and oms[1] < 1.0 and oms[699] == 0.0 and oms[-1] == 1.0
+    steps = [float(np.linalg.norm(b - a)) for a, b in zip(Ms, Ms[1:])]
+    bound = np.pi * dt / (2 * fme.transition.rho)
+    assert max(steps) <= bound * (1 + 1e-9)
+    assert max(steps) > 0.5 * bound  # the bound is attained, not vacuous
 
 
-def test_spring_palpation_law():
-    law = SpringPalpation(1000.0, (0.5, 0.1), normal=(0.0, 1.0), damping=0.01)
-    F, Fx = law.forces(0.0, np.array([0.5, 0.105]), np.array([0.0, 0.1]), {})
-    np.testing.assert_allclose(F, [0.0, -5.0])
-    np.testing.assert_allclose(Fx, [0.0, -0.001])
-    F, _ = law.forces(0.0, np.array([0.5, 0.09]), np.zeros(2), {})
-    np.testing.assert_allclose(F, 0.0)
+def test_spring_palpation_law(rhi4):
+    law = SpringPalpation(1000.0, (0.5, 0.1), normal=(0.0, 1.0), damping=0.01, coriolis=False, gravity=False)
+    np.testing.assert_allclose(law.spring(np.array([0.5, 0.105])), [0.0, -5.0])
+    np.testing.assert_allclose(law.spring(np.array([0.5, 0.09])), 0.0)
+    kin = rhi4.terms(np.array([0.3, 0.5, 0.2, 0.4]), np.array([0.1, -0.2, 0.3, 0.0]))
+    F, Fx = law.forces(0.0, kin, {})
+    np.testing.assert_allclose(F, law.spring(kin.x))
+    np.testing.assert_allclose(Fx, -0.01 * kin.xdot)
+    law2 = SpringPalpation(1000.0, (0.5, 0.1), normal=(0.0, 1.0), damping=0.01)  # eq. 7.20: + C_x ẋ
+    np.testing.assert_allclose(law2.forces(0.0, kin, {})[1], -0.01 * kin.xdot + kin.Cx @ kin.xdot, atol=1e-12)
 
 
 @pytest.mark.parametrize("method", ["none", "scaling", "lp"])
@@ -349,3 +431,263 @@ def test_controller_other_allocations_stay_in_limits(method, planar3r, rng):
     for k, q in enumerate(random_q(planar3r, rng, 50)):
         tau = c.step(k * 1e-3, q, rng.normal(size=3), {"force": rng.normal(size=2) * 20})
         assert np.all(tau <= hi + 1e-12) and np.all(tau >= lo - 1e-12)
+
+
+# ------------------------------------------------------------------ device terms, task-space dynamics
+@pytest.mark.parametrize("name", rhi.available_devices())
+def test_device_terms_equal_per_call_methods(name, rng):
+    """Device.terms (one Pinocchio pass, closed-form ∂J/∂q) equals fk/jacobian/jacobian_derivative/..."""
+    dev = rhi.device(name)
+    for q in random_q(dev, rng, 5):
+        dq = rng.normal(size=dev.n)
+        kin = dev.terms(q, dq)
+        np.testing.assert_allclose(kin.x, dev.fk(q), atol=1e-12)
+        np.testing.assert_allclose(kin.J, dev.jacobian(q), atol=1e-12)
+        np.testing.assert_allclose(kin.dJ, dev.jacobian_derivative(q), atol=1e-12)
+        np.testing.assert_allclose(kin.M, dev.mass_matrix(q), atol=1e-12)
+        np.testing.assert_allclose(kin.g, dev.gravity(q), atol=1e-12)
+        np.testing.assert_allclose(kin.C, dev.coriolis(q, dq), atol=1e-12)
+        np.testing.assert_allclose(kin.Jdot, np.einsum("ijk,k->ij", dev.jacobian_derivative(q), dq), atol=1e-12)
+    # ∂J/∂q also against finite differences of the Jacobian (not only against Pinocchio's time variation)
+    q = random_q(dev, rng, 1)[0]
+    np.testing.assert_allclose(dev.terms(q).dJ, fd_jacobian(dev.jacobian, q), atol=1e-7)
+
+
+def test_device_terms_bad_input(rhi4):
+    with pytest.raises(InvalidInput, match="q"):
+        rhi4.terms([0.0, np.nan, 0.0, 0.0])
+    with pytest.raises(InvalidInput, match="dq"):
+        rhi4.terms(np.zeros(4), np.zeros(3))
+    with pytest.raises(InvalidInput, match="dq"):
+        rhi4.terms(np.zeros(4)).xdot
+
+
+@pytest.mark.parametrize("name", ["rhi4", "planar3r", "gen3"])
+def test_cartesian_dynamics_terms(name, rng):
+    """M_x, J#, N against rhi.metrics; Ṁ_x = C_x + C_xᵀ along q̇ (finite differences of M_x);
+    G_x = J#ᵀ g; and the task-space dynamics identity M_x ẍ + C_x ẋ + G_x = F of eq. 5.2 for
+    τ = JᵀF with no self-motion (q̇ = J# ẋ), ẍ from forward dynamics and J̇ by finite differences."""
+    dev = rhi.device(name)
+    h = 1e-6
+    for q in random_q(dev, rng, 8):
+        J = dev.jacobian(q)
+        if np.linalg.svd(J, compute_uv=False)[-1] < 0.05:
+            continue
+        dq = rng.normal(size=dev.n)
+        kin = dev.terms(q, dq)
+        np.testing.assert_allclose(kin.Lambda, apparent_inertia(J, kin.M), rtol=1e-9)
+        np.testing.assert_allclose(kin.Jsharp, dynamic_pinv(J, kin.M), rtol=1e-8, atol=1e-10)
+        np.testing.assert_allclose(kin.N, nullspace_projector(J, kin.M), atol=1e-9)
+        np.testing.assert_allclose(kin.Gx, kin.Jsharp.T @ kin.g, atol=1e-12)
+        Lam = lambda qq: apparent_inertia(dev.jacobian(qq), dev.mass_matrix(qq))  # noqa: E731
+        dLam = (Lam(q + h * dq) - Lam(q - h * dq)) / (2 * h)
+        np.testing.assert_allclose(kin.Cx + kin.Cx.T, dLam, atol=1e-6 * (1 + np.abs(dLam).max()))
+        # eq. 5.2 with q̇ = J# ẋ (the end-effector dynamics describe motion without self-motion)
+        xdot = rng.normal(size=dev.m) * 0.3
+        v = kin.Jsharp @ xdot
+        k2 = dev.terms(q, v)
+        F = rng.normal(size=dev.m)
+        qdd = np.linalg.solve(k2.M, J.T @ F - k2.C @ v - k2.g)
+        Jdot = (dev.jacobian(q + h * v) - dev.jacobian(q - h * v)) / (2 * h)
+        xdd = Jdot @ v + J @ qdd
+        lhs = k2.Lambda @ xdd + k2.Cx @ xdot + k2.Gx
+        np.testing.assert_allclose(lhs, F, atol=1e-6 * (1 + np.abs(F).max()))
+
+
+def _closed_loop_xdd(dev, q, xdot, tau, F_hand, friction=None):
+    """ẍ of the joint dynamics M q̈ + C q̇ + g + F_q = τ + Jᵀ F_h (eq. 5.1) at q̇ = J# ẋ; J̇ by finite differences."""
+    kin = dev.terms(q, np.zeros(dev.n))
+    v = kin.Jsharp @ xdot
+    k2 = dev.terms(q, v)
+    Fq = 0.0 if friction is None else friction.torque(v)
+    qdd = np.linalg.solve(k2.M, tau + k2.J.T @ F_hand - k2.C @ v - k2.g - Fq)
+    h = 1e-6
+    Jdot = (dev.jacobian(q + h * v) - dev.jacobian(q - h * v)) / (2 * h)
+    return k2, Jdot @ v + k2.J @ qdd
+
+
+@pytest.mark.parametrize("name", ["rhi4", "gen3"])
+def test_impedance_control_renders_null_stiffness_impedance(name, rng):
+    """Eq. 5.4 closes the loop to M_x^d ẍ + B^d ẋ = F_h (eq. 5.5); with M_x^d = M_x it is eq. 5.6."""
+    dev = rhi.device(name)
+    m = dev.m
+    B = np.diag(rng.uniform(0.5, 2.0, m))
+    Md = np.diag(rng.uniform(0.3, 1.0, m))
+    fr = JointFriction(viscous=rng.uniform(0, 0.05, dev.n), coulomb=rng.uniform(0, 0.02, dev.n), velocity_scale=0.05)
+    laws = {"5.4": ImpedanceControl(damping=B, inertia=Md, friction=fr), "5.6": ImpedanceControl(damping=B, friction=fr)}
+    assert laws["5.6"].required_sensors() == () and laws["5.4"].required_sensors() == ("ft",)
+    for q in random_q(dev, rng, 6):
+        if np.linalg.svd(dev.jacobian(q), compute_uv=False)[-1] < 0.05:
+            continue
+        xdot = rng.normal(size=m) * 0.2
+        Fh = rng.normal(size=m) * 3
+        for eq, law in laws.items():
+            kin = dev.terms(q, dev.terms(q).Jsharp @ xdot)
+            F_r, F_m = law.forces(0.0, kin, {"ft": Fh})
+            np.testing.assert_array_equal(F_r, 0.0)
+            # the handle's 6-axis F/T reading (world axes) gives the same law
+            wrench = np.zeros(6)
+            wrench[[ "xyz".index(a) for a in dev.task_axes]] = Fh
+            wrench[3:] = rng.normal(size=3)
+            np.testing.assert_allclose(law.forces(0.0, kin, {"ft": wrench})[1], F_m, atol=1e-12)
+            k2, xdd = _closed_loop_xdd(dev, q, xdot, kin.J.T @ F_m, Fh, fr)
+            Mdes = Md if eq == "5.4" else k2.Lambda
+            np.testing.assert_allclose(Mdes @ xdd + B @ xdot, Fh, atol=1e-5 * (1 + np.abs(Fh).max()), err_msg=eq)
+
+
+def test_force_rendering_closed_loop(rng):
+    """Eq. 7.2 gives M_x ẍ + B^d ẋ = F_h − F_e (eq. 7.3) for a non-planar device (gravity, Coriolis)."""
+    dev = rhi.device("gen3")
+    law = ForceRendering(damping=0.7)
+    for q in random_q(dev, rng, 4):
+        if np.linalg.svd(dev.jacobian(q), compute_uv=False)[-1] < 0.05:
+            continue
+        xdot = rng.normal(size=3) * 0.2
+        render = rng.normal(size=3) * 4  # −F_e
+        Fh = rng.normal(size=3)
+        kin = dev.terms(q, dev.terms(q).Jsharp @ xdot)
+        F_r, F_x = law.forces(0.0, kin, {"force": render})
+        k2, xdd = _closed_loop_xdd(dev, q, xdot, kin.J.T @ (F_r + F_x), Fh)
+        np.testing.assert_allclose(k2.Lambda @ xdd + 0.7 * xdot, Fh + render, atol=1e-5 * (1 + np.abs(render).max()))
+        # without compensation the Coriolis and gravity terms show up
+        bare = ForceRendering(damping=0.7, coriolis=False, gravity=False)
+        _, xdd2 = _closed_loop_xdd(dev, q, xdot, kin.J.T @ sum(bare.forces(0.0, kin, {"force": render})), Fh)
+        assert np.abs(k2.Lambda @ xdd2 + 0.7 * xdot - Fh - render).max() > 1e-3
+
+
+def test_controller_null_space_gravity(rng):
+    """Law G_x + controller (I − JᵀJ#ᵀ) g compensate the whole gravity torque g(q)."""
+    dev = rhi.device("gen3")
+    c = NullSpaceController(dev, ControllerConfig(ImpedanceControl(coriolis=False), damping=0.0, saturation="none"))
+    for k, q in enumerate(random_q(dev, rng, 5)):
+        tau = c.step(k * 1e-3, q, np.zeros(dev.n))
+        np.testing.assert_allclose(tau, np.clip(dev.gravity(q), *dev.torque_limits), atol=1e-9)
+
+
+# ------------------------------------------------------------------ fast path == reference
+def _tick_cases(dev, rng, count):
+    """Seeded random ticks: configurations, velocities and forces from free motion to far beyond the limits."""
+    out = []
+    for q in random_q(dev, rng, 3 * count):
+        if np.linalg.svd(dev.jacobian(q), compute_uv=False)[-1] < 1e-2:
+            continue
+        out.append((q, rng.normal(size=dev.n) * 0.5, rng.normal(size=dev.m) * rng.choice([0.5, 5.0, 40.0])))
+        if len(out) == count:
+            break
+    return out
+
+
+@pytest.mark.parametrize(
+    "name,saturation,projector,law",
+    [("rhi4", "ascm", "dynamic", "render"), ("rhi4", "ascm", "kinematic", "render"),
+     ("planar3r", "ascm", "dynamic", "render"), ("rhi4", "scaling", "dynamic", "render"),
+     ("rhi4", "none", "dynamic", "render"), ("rhi4", "lp", "dynamic", "render"),
+     ("rhi4", "ascm", "dynamic", "impedance")],
+)
+def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
+    """The fast tick (one Pinocchio pass, projector ASCM) equals the reference composition to 1e-10."""
+    dev = rhi.device(name)
+    K, z = fme_shape(dev.jacobian(np.array([0.3, 0.5, 0.2, 0.4])[: dev.n]), dev.torque_max)
+    friction = JointFriction(viscous=0.01, coulomb=0.005)
+    primary = (ForceRendering(damping=0.01, friction=friction) if law == "render" else
+               ImpedanceControl(damping=0.5, inertia=np.diag([0.2, 0.3]), friction=friction))
+    kw = dict(
+        primary=primary,
+        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.5), ObjectiveTerm(Manipulability(log=True), 0.05)),
+        fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z), gain=20.0),
+        saturation=saturation, projector=projector,
+    )
+    fast = NullSpaceController(dev, ControllerConfig(**kw))
+    ref = NullSpaceController(dev, ControllerConfig(**kw, implementation="reference"))
+    cases = _tick_cases(dev, rng, 60 if saturation == "lp" else 250)
+    held = 0
+    for k, (q, dq, F) in enumerate(cases):
+        t = k * 1e-3
+        sensors = {"force": F, "ft": np.concatenate([F, [0.0], rng.normal(size=3)])}
+        a = fast.step(t, q, dq, sensors)
+        b = ref.step(t, q, dq, sensors)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-10, err_msg=f"tick {k}")
+        sf, sr = fast.state, ref.state
+        for attr in ("V", "omega", "alpha", "beta"):
+            assert getattr(sf, attr) == pytest.approx(getattr(sr, attr), abs=1e-10), (k, attr)
+        np.testing.assert_array_equal(sf.saturated, sr.saturated)
+        held += bool(sf.saturated.any())
+    assert not fast.state.stopped and not ref.state.stopped
+    if saturation in ("ascm", "scaling") and law == "render":
+        assert held > len(cases) // 5  # saturation exercised
+
+
+def test_ascm_projector_equals_ascm(rng):
+    """Projector-form ASCM = basis-form ASCM, both on its fast path and where it hands an
+    ill-conditioned held set (σ_min(Z_S) < 0.01) to the basis form."""
+    handed_over = fast = 0
+    for name in ("rhi4", "planar3r"):
+        dev = rhi.device(name)
+        lo, hi = dev.torque_limits
+        for q, J, M in _cases(dev, rng, 300):
+            F = rng.normal(size=dev.m) * rng.uniform(0.5, 60.0)
+            b = J.T @ (0.1 * rng.normal(size=dev.m))
+            Z = null_basis(J, M)
+            P = null_projector(J, M)
+            np.testing.assert_allclose(P, Z @ Z.T, atol=1e-12)
+            ref, new = ascm(J.T @ F, b, Z, lo, hi), ascm_projector(J.T @ F, b, P, lo, hi)
+            if ref.saturated.any():
+                quick = _ascm_fast(J.T @ F, b, P, lo.tolist(), hi.tolist(), dev.n - dev.m)
+                handed_over += quick is None
+                fast += quick is not None
+            np.testing.assert_allclose(new.tau, ref.tau, atol=1e-10)
+            np.testing.assert_allclose(new.tau_null, ref.tau_null, atol=1e-10)
+            assert new.alpha == pytest.approx(ref.alpha, abs=1e-10)
+            np.testing.assert_array_equal(new.saturated, ref.saturated)
+            assert np.all(new.tau <= hi + 1e-12) and np.all(new.tau >= lo - 1e-12)
+            # the held torque lies in the null space: no task force
+            assert np.abs(dynamic_pinv(J, M).T @ new.tau_null).max() < 1e-9
+    assert fast > 100 and handed_over > 5  # both paths exercised
+
+
+@pytest.mark.parametrize("name", ["rhi4", "gen3"])
+def test_gradient_at_equals_gradient(name, rng):
+    dev = rhi.device(name)
+    m = dev.m
+    objectives = [
+        VMEMatching(tuple(np.eye(m)[1])),
+        EllipsoidMatching(np.diag(np.linspace(0.02, 0.05, m))),
+        EllipsoidMatching(np.diag(np.linspace(0.02, 0.05, m)), H=np.roll(np.eye(m), 1, axis=0)),
+        Manipulability(),
+        FMEMatching(desired_fme_stiff(np.eye(m)[0], 100.0, 3.0), dev.torque_max),
+    ]
+    for q in random_q(dev, rng, 4):
+        kin = dev.terms(q)
+        for obj in objectives:
+            np.testing.assert_allclose(obj.gradient_at(kin), obj.gradient(dev, q), rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(gradient_function(obj, dev)(kin), obj.gradient(dev, q), rtol=1e-9, atol=1e-12)
+    # an objective with only the two-method protocol is wrapped, not special-cased
+    class Plain:
+        def value(self, device, q):
+            return float(q @ q)
+
+        def gradient(self, device, q):
+            return 2 * q
+
+    q = random_q(dev, rng, 1)[0]
+    np.testing.assert_allclose(gradient_function(Plain(), dev)(dev.terms(q)), 2 * q)
+
+
+def test_projector_forms(rng, rhi4):
+    """null_projector = Z Zᵀ, basis_from_projector spans it, tertiary_projector = tertiary; singular J raises."""
+    lo, hi = rhi4.torque_limits
+    for q, J, M in _cases(rhi4, rng, 100):
+        Z = null_basis(J, M)
+        P = null_projector(J, M)
+        np.testing.assert_allclose(P, Z @ Z.T, atol=1e-12)
+        Zp = basis_from_projector(P)
+        np.testing.assert_allclose(Zp @ Zp.T, P, atol=1e-12)
+        al = ascm(J.T @ (rng.normal(size=2) * 30), np.zeros(4), Z, lo, hi)
+        N = nullspace_projector(J, M)
+        tau_to = rng.normal(size=4) * 5
+        d1, b1 = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
+        d2, b2 = tertiary_projector(al.tau, al.saturated, P, tau_to, lo, hi, N)
+        np.testing.assert_allclose(d2, d1, atol=1e-10)
+        assert b2 == pytest.approx(b1, abs=1e-10)
+    with pytest.raises(Singular, match="J"):
+        null_projector(np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0]]))

@@ -15,6 +15,8 @@ non-redundant halves of the 4-DoF RHI are made. All public methods take
 from __future__ import annotations
 
 import dataclasses
+import math
+import re
 import tomllib
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -27,6 +29,211 @@ from rhi.errors import InvalidInput, ModelError, UnknownDevice, Unreachable
 
 MODELS = Path(__file__).parent / "models"
 _AXES = {"x": 0, "y": 1, "z": 2}
+# one-DoF joints whose kinematic Hessian has the closed form used by `Device.terms`
+_ONE_DOF_JOINT = re.compile(r"JointModel(R[XYZ]|P[XYZ]|RevoluteUnaligned|PrismaticUnaligned|Helical\w*)$")
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
+
+
+_EYE: dict[int, np.ndarray] = {}
+
+
+class _lazy:
+    """Compute an attribute on first access and store it on the instance.
+
+    functools.cached_property without the per-access lock it takes on Python 3.11
+    (several µs per attribute, too much inside a 1 kHz control tick).
+    """
+
+    def __init__(self, fn: Callable) -> None:
+        self.fn = fn
+        self.name = fn.__name__
+        self.__doc__ = fn.__doc__
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        value = obj.__dict__[self.name] = self.fn(obj)
+        return value
+
+
+def eye(n: int) -> np.ndarray:
+    """The (n, n) identity, cached and read-only (use it in expressions such as ``eye(n) − X``)."""
+    eye_n = _EYE.get(n)
+    if eye_n is None:
+        eye_n = _EYE[n] = np.eye(n)
+        eye_n.flags.writeable = False
+    return eye_n
+
+
+try:  # the gufunc behind np.linalg.inv, without its Python-level checks (~3 µs per call)
+    from numpy.linalg import _umath_linalg
+
+    _umath_linalg.inv(np.eye(2), signature="d->d")
+
+    def _inv(A: np.ndarray) -> np.ndarray:
+        return _umath_linalg.inv(A, signature="d->d")
+
+except (ImportError, AttributeError, TypeError):  # pragma: no cover - other NumPy builds
+    _inv = np.linalg.inv
+
+
+def inv_small(A: np.ndarray) -> np.ndarray:
+    """Inverse of a small square float matrix: closed form for 2 × 2, LAPACK otherwise.
+
+    Args:
+        A: (k, k) non-singular matrix.
+
+    Returns:
+        (k, k) inverse.
+
+    Raises:
+        numpy.linalg.LinAlgError: a 2 × 2 A is singular (larger ones give non-finite entries).
+    """
+    if A.shape == (2, 2):
+        (a, b), (c, d) = A.tolist()
+        det = a * d - b * c
+        if det != 0.0 and math.isfinite(det):
+            return np.array([[d / det, -b / det], [-c / det, a / det]])
+        return np.linalg.inv(A)  # raises LinAlgError
+    return _inv(A)
+
+
+@dataclasses.dataclass(frozen=True)
+class _FastMaps:
+    rows: slice | np.ndarray
+    offset: bool
+    identity: bool
+    At: np.ndarray
+    armature: np.ndarray
+    tril: tuple[np.ndarray, np.ndarray]
+    crba_symmetric: bool
+    hessian: np.ndarray | None
+    dJ_shape: tuple[int, int, int]
+
+
+class DeviceTerms:
+    """Kinematic and dynamic terms of a device at one state (q, q̇), computed together (`Device.terms`).
+
+    The per-tick snapshot a controller and its primary law read: eager attributes come
+    from one Pinocchio pass; the Cartesian (task-space) dynamics of thesis eq. 5.2 / 7.1
+    are computed on first access and cached.
+
+    Attributes:
+        device: the device these terms belong to.
+        q: (n,) joint positions [rad or m].
+        dq: (n,) joint velocities [rad/s], or None (velocity terms then raise InvalidInput).
+        x: (m,) end-effector position [m].
+        J: (m, n) task Jacobian ∂x/∂q [m/rad].
+        dJ: (m, n, n) ∂J/∂q with [i, j, k] = ∂J_ij/∂q_k [m/rad²].
+        M: (n, n) joint-space inertia M_q incl. armature [kg m²].
+        g: (n,) gravity torque G_q [N m].
+
+    Computed on first access (cached): ``xdot`` ẋ = J q̇ (m,) [m/s]; ``Jdot`` J̇ (m, n);
+    ``C`` C_q(q, q̇) (n, n); ``Minv`` M_q⁻¹; ``JMinv`` J M_q⁻¹ (m, n); ``Lambda`` M_x (m, m)
+    [kg]; ``Jsharp`` J# (n, m); ``N`` I − JᵀJ#ᵀ (n, n); ``Cx`` C_x (m, m) [N s/m]; ``Gx`` G_x
+    (m,) [N]. The snapshot is read-only by convention: do not modify its arrays.
+    """
+
+    def __init__(
+        self,
+        device: Device,
+        q: np.ndarray,
+        dq: np.ndarray | None,
+        *,
+        x: np.ndarray,
+        J: np.ndarray,
+        dJ: np.ndarray,
+        M: np.ndarray,
+        g: np.ndarray,
+        theta: np.ndarray | None = None,
+    ) -> None:
+        self.device = device
+        self.q, self.dq, self.x, self.J, self.dJ, self.M, self.g = q, dq, x, J, dJ, M, g
+        self._theta = theta
+
+    def _need_dq(self, what: str) -> np.ndarray:
+        if self.dq is None:
+            raise InvalidInput(f"dq: {what} needs the joint velocity; call Device.terms(q, dq)")
+        return self.dq
+
+    @_lazy
+    def xdot(self) -> np.ndarray:
+        """(m,) end-effector velocity ẋ = J q̇ [m/s] (eq. 6.1)."""
+        return self.J.dot(self._need_dq("xdot"))
+
+    @_lazy
+    def Jdot(self) -> np.ndarray:
+        """(m, n) time derivative J̇ = Σ_k ∂J/∂q_k q̇_k [m/(rad s)]."""
+        return self.dJ.dot(self._need_dq("Jdot"))
+
+    @_lazy
+    def C(self) -> np.ndarray:
+        """(n, n) joint Coriolis/centrifugal matrix C_q(q, q̇) (Ṁ − 2C skew-symmetric); C q̇ [N m]."""
+        dq = self._need_dq("C")
+        if self._theta is None:
+            return self.device.coriolis(self.q, dq)
+        return self.device._coriolis1(self._theta, dq)
+
+    def _cartesian(self) -> None:
+        """Compute M_q⁻¹, J M_q⁻¹, M_x and J# together (one call on first access of any)."""
+        d = self.__dict__
+        Minv = d["Minv"] = _inv(self.M)
+        JMinv = d["JMinv"] = self.J.dot(Minv)
+        Lam = d["Lambda"] = inv_small(JMinv.dot(self.J.T))
+        d["Jsharp"] = JMinv.T.dot(Lam)
+
+    @_lazy
+    def Minv(self) -> np.ndarray:
+        """(n, n) M_q⁻¹ [1/(kg m²)] (M_q is positive definite for any physical model)."""
+        self._cartesian()
+        return self.__dict__["Minv"]
+
+    @_lazy
+    def JMinv(self) -> np.ndarray:
+        """(m, n) J M_q⁻¹."""
+        self._cartesian()
+        return self.__dict__["JMinv"]
+
+    @_lazy
+    def Lambda(self) -> np.ndarray:
+        """(m, m) apparent (end-effector) inertia M_x = (J M_q⁻¹ Jᵀ)⁻¹ [kg] (eqs. 5.2, 7.1)."""
+        self._cartesian()
+        return self.__dict__["Lambda"]
+
+    @_lazy
+    def Jsharp(self) -> np.ndarray:
+        """(n, m) dynamically consistent inverse J# = M_q⁻¹ Jᵀ (J M_q⁻¹ Jᵀ)⁻¹ (eq. 5.3)."""
+        self._cartesian()
+        return self.__dict__["Jsharp"]
+
+    @_lazy
+    def N(self) -> np.ndarray:
+        """(n, n) dynamically consistent torque null-space projector I − Jᵀ J#ᵀ (eqs. 3.20, 5.9, 7.5)."""
+        return eye(self.J.shape[1]) - self.J.T.dot(self.Jsharp.T)
+
+    @_lazy
+    def Cx(self) -> np.ndarray:
+        """(m, m) end-effector Coriolis/centrifugal matrix C_x = M_x (J M_q⁻¹ C_q − J̇) J# (eqs. 5.2, 7.1).
+
+        With the Christoffel C_q of Pinocchio, Ṁ_x = C_x + C_xᵀ along any q̇.
+        """
+        return self.Lambda.dot(self.JMinv.dot(self.C) - self.Jdot).dot(self.Jsharp)
+
+    @_lazy
+    def Gx(self) -> np.ndarray:
+        """(m,) gravity force reflected at the end-effector G_x = J#ᵀ G_q [N] (eqs. 5.2, 7.1)."""
+        g = self.g
+        if g.dot(g) == 0.0:  # planar devices: no projection needed
+            return np.zeros(self.J.shape[0])
+        return self.Jsharp.T.dot(g)
+
+    def __repr__(self) -> str:
+        return f"DeviceTerms({self.device.name!r}, q={np.round(self.q, 4).tolist()})"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,6 +327,11 @@ class Device:
         return self.q_min, self.q_max
 
     @property
+    def task_rows(self) -> list[int]:
+        """World-axis indices (0: x, 1: y, 2: z) of the task coordinates, e.g. [0, 1] for "xy"."""
+        return list(self._rows)
+
+    @property
     def torque_limits(self) -> tuple[np.ndarray, np.ndarray]:
         """(torque_min, torque_max), each (n,) [N m]."""
         return self.torque_min, self.torque_max
@@ -175,6 +387,121 @@ class Device:
     def gravity(self, q) -> np.ndarray:
         """Gravity torque g(q) = Aᵀ g_θ: (..., n) [N m]."""
         return self._map(q, (self.n,), lambda th: self.A.T @ pin.computeGeneralizedGravity(self.model, self.data, th))
+
+    def terms(self, q, dq=None, *, check: bool = True) -> DeviceTerms:
+        """Every kinematic and dynamic term of one state from a single Pinocchio pass.
+
+        One `computeJointJacobians` (forward kinematics + joint Jacobians), the frame
+        Jacobian, `crba` and `computeGeneralizedGravity`; ∂J/∂q follows in closed form
+        from the 6-D frame Jacobian (∂J_j/∂θ_k = ω_k × J_j when joint k supports joint j,
+        ω_j × J_k otherwise; one-DoF joints). Equal to `fk`, `jacobian`,
+        `jacobian_derivative`, `mass_matrix` and `gravity` called one by one, several
+        times faster. The task-space dynamics (M_x, J#, C_x, G_x) are computed on demand.
+
+        Args:
+            q: (n,) joint positions [rad or m].
+            dq: (n,) joint velocities [rad/s], or None.
+            check: validate shape and finiteness (a controller that already did passes False).
+
+        Returns:
+            The terms snapshot.
+
+        Raises:
+            InvalidInput: wrong shape or non-finite values (with check=True).
+        """
+        if check:
+            q = self._q(q)
+            if q.ndim != 1:
+                raise InvalidInput(f"q: expected shape ({self.n},), got {q.shape}; call terms per configuration")
+            if dq is not None:
+                dq = self._q(dq, "dq")
+                if dq.shape != q.shape:
+                    raise InvalidInput(f"dq: expected shape ({self.n},), got {dq.shape}")
+        model, data, fid = self.model, self.data, self._fid
+        fast = self._fast_maps
+        th = self.A.dot(q)
+        if fast.offset:
+            th += self.b
+        pin.computeJointJacobians(model, data, th)
+        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        x = data.oMf[fid].translation[fast.rows].copy()
+        Mt = pin.crba(model, data, th)
+        if not fast.crba_symmetric:
+            il = fast.tril
+            Mt[il] = Mt.T[il]  # this Pinocchio fills only the upper triangle
+        gt = pin.computeGeneralizedGravity(model, data, th)
+        if fast.identity:
+            J = J6[fast.rows].copy()
+            M = Mt + fast.armature
+            g = gt.copy()
+        else:
+            At = fast.At
+            J = J6[fast.rows].dot(self.A)
+            M = At.dot(Mt).dot(self.A) + fast.armature
+            g = At.dot(gt)
+        if fast.hessian is None:
+            dJ = self._djac1(th)
+        else:
+            # ∂J/∂q is bilinear in the angular (ω) and linear (v) columns of the 6-D frame Jacobian
+            W = J6[3:].reshape(-1, 1)
+            dJ = fast.hessian.dot((W * J6[:3].reshape(1, -1)).reshape(-1)).reshape(fast.dJ_shape)
+        return DeviceTerms(self, q, dq, x=x, J=J, dJ=dJ, M=M, g=g, theta=th)
+
+    @_lazy
+    def _fast_maps(self) -> _FastMaps:
+        """Constant maps and flags of `terms`, built on first use."""
+        model, A = self.model, self.A
+        nt, n, m = model.nv, self.n, self.m
+        rows = self._rows
+        rows_idx = slice(rows[0], rows[-1] + 1) if rows == list(range(rows[0], rows[-1] + 1)) else np.array(rows)
+        data = model.createData()
+        th = np.random.default_rng(0).uniform(-1.0, 1.0, nt)
+        Mt = pin.crba(model, data, th)
+        hessian = None
+        mask = self._hessian_mask()
+        if mask is not None:
+            # dJ[i, a, c] = Σ_{p,x,r,y} K[(i,a,c), (p,x), (r,y)] ω[p, x] v[r, y], from ∂J_j/∂θ_k = ω_k × v_j if k
+            # supports j, else ω_j × v_k (one-DoF joints), and J_q = J_θ A
+            eps = _LEVI_CIVITA[rows]  # (m, 3, 3): [i, p, r]
+            Mk = mask.astype(float)
+            # S[a, c, x, y] = A[y, a] A[x, c] mask[y, x] + A[x, a] A[y, c] (1 − mask[x, y])
+            S = np.einsum("ya,xc,yx->acxy", A, A, Mk) + np.einsum("xa,yc,xy->acxy", A, A, 1.0 - Mk)
+            K = np.einsum("ipr,acxy->iacpxry", eps, S)
+            hessian = np.ascontiguousarray(K.reshape(m * n * n, 3 * nt * 3 * nt))
+        return _FastMaps(
+            rows=rows_idx,
+            offset=bool(np.any(self.b != 0)),
+            identity=A.shape == (nt, nt) and bool(np.array_equal(A, np.eye(nt))),
+            At=np.ascontiguousarray(A.T),
+            armature=np.diag(self.armature),
+            tril=np.tril_indices(nt, -1),
+            crba_symmetric=bool(np.array_equal(Mt, Mt.T)) and bool(np.any(np.tril(Mt, -1) != 0) or nt == 1),
+            hessian=hessian,
+            dJ_shape=(m, n, n),
+        )
+
+    def _hessian_mask(self) -> np.ndarray | None:
+        """(nθ, nθ) bool, [j, k]: joint k supports joint j (or is j); None if a joint is not one-DoF."""
+        model = self.model
+        if model.njoints - 1 != model.nv:
+            return None
+        vidx = {}
+        for jid in range(1, model.njoints):
+            jm = model.joints[jid]
+            if jm.nv != 1 or jm.nq != 1 or not _ONE_DOF_JOINT.match(jm.shortname()):
+                return None
+            vidx[jid] = jm.idx_v
+        mask = np.zeros((model.nv, model.nv), bool)
+        for jid, j in vidx.items():
+            for kid in model.supports[jid]:
+                if kid in vidx:
+                    mask[j, vidx[kid]] = True
+        return mask
+
+    def _coriolis1(self, th: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        A = self.A
+        C = pin.computeCoriolisMatrix(self.model, self.data, th, A.dot(dq))
+        return self._fast_maps.At.dot(C).dot(A)
 
     def ik(
         self,

@@ -17,8 +17,16 @@ from rhi.control.objectives import (
     desired_fme_free,
     desired_fme_stiff,
     fme_shape,
+    gradient_function,
 )
-from rhi.control.primary import ForceRendering, PrimaryLaw, SpringPalpation
+from rhi.control.primary import (
+    ForceRendering,
+    ImpedanceControl,
+    JointFriction,
+    PrimaryLaw,
+    SpringPalpation,
+    task_compensation,
+)
 from rhi.control.saturation import (
     Allocation,
     TransitionConfig,
@@ -27,10 +35,14 @@ from rhi.control.saturation import (
     allocate_none,
     allocate_scaling,
     ascm,
+    ascm_projector,
     aso_volume,
+    basis_from_projector,
     hysteresis,
     null_basis,
+    null_projector,
     tertiary,
+    tertiary_projector,
     transition_step,
 )
 
@@ -42,6 +54,8 @@ __all__ = [
     "FMEMatching",
     "FMESchedule",
     "ForceRendering",
+    "ImpedanceControl",
+    "JointFriction",
     "Manipulability",
     "NullSpaceController",
     "Objective",
@@ -55,13 +69,19 @@ __all__ = [
     "allocate_none",
     "allocate_scaling",
     "ascm",
+    "ascm_projector",
     "aso_volume",
+    "basis_from_projector",
     "desired_fme_free",
     "desired_fme_stiff",
     "fme_shape",
+    "gradient_function",
     "hysteresis",
     "null_basis",
+    "null_projector",
     "output_force",
+    "task_compensation",
     "tertiary",
+    "tertiary_projector",
     "transition_step",
 ]

@@ -2,18 +2,29 @@
 
 One tick (`NullSpaceController.step`) computes, from the joint sensors and the sensor dict:
 
-1. the primary task-space force (F_render, F_extra) and τ_m = Jᵀ(F_render + F_extra) + g(q)
-   (eqs. 6.5, 7.2–7.4);
-2. the actuator saturation observer V of τ_m (eq. 6.14) and, when a desired-FME schedule
+1. the device terms at (q, q̇) (`Device.terms`: x, J, ∂J/∂q, M, g and, on demand, the
+   task-space dynamics M_x, J#, C_x, G_x of eq. 5.2);
+2. the primary task-space force (F_render, F_extra) and τ_m = Jᵀ(F_render + F_extra)
+   (eqs. 5.4–5.7, 6.5, 7.2–7.4), plus the null-space part (I − JᵀJ#ᵀ) g of the gravity
+   torque (the task-space part G_x is the primary law's);
+3. the actuator saturation observer V of τ_m (eq. 6.14) and, when a desired-FME schedule
    is configured, the hysteresis and cosine transition Ω (eqs. 6.15–6.19) giving
    M_des = Ω M_Free + (1 − Ω) M_Stiff for the FME-matching objective (eq. 6.10);
-3. the allocation of τ_m within the torque box: none / simple scaling / ASCM (Algorithm 1) /
+4. the allocation of τ_m within the torque box: none / simple scaling / ASCM (Algorithm 1) /
    LP optimum, with force scaling α (eq. 7.9);
-4. the objective torque τ_to = −Σ β_i ∂ν_i/∂q − k_D q̇ (eqs. 3.20–3.21, 6.6, 7.17), projected
-   into the null space of the task and of ASCM and scaled by the β of Algorithm 2 (eq. 7.16).
+5. the objective torque τ_to = −Σ β_i ∂ν_i/∂q − k_D q̇ (eqs. 3.20–3.21, 5.9–5.10, 6.6, 7.17),
+   projected into the null space of the task and of ASCM and scaled by the β of
+   Algorithm 2 (eq. 7.16).
 
-Torques never leave the torque box. Non-finite sensor values stop the controller (zero
-torque, latched) and record why in the state.
+Torques never leave the torque box. Non-finite readings stop the controller (zero
+torque, latched) and record why in the state; on the very first tick after
+construction or `reset` they are bad input instead and raise InvalidInput.
+
+Two implementations compute the same tick: ``implementation="fast"`` (the default: one
+Pinocchio pass, projector-form ASCM, no SVD, no per-call validation) and
+``"reference"`` (per-call Device methods, `null_basis` SVD, `ascm`/`tertiary` on the
+orthonormal basis, `rhi.metrics` projectors) — the readable composition of the
+equations, kept as the oracle the fast path is tested against.
 """
 
 from __future__ import annotations
@@ -25,7 +36,7 @@ from typing import Literal
 
 import numpy as np
 
-from rhi.control.objectives import FMEMatching, Objective, _spd
+from rhi.control.objectives import FMEMatching, Objective, _spd, gradient_function
 from rhi.control.primary import PrimaryLaw
 from rhi.control.saturation import (
     Allocation,
@@ -34,18 +45,27 @@ from rhi.control.saturation import (
     allocate_lp,
     allocate_none,
     allocate_scaling,
+    _ascm_fast,
+    _null_projector_rows,
+    _tertiary_fast,
     ascm,
     aso_volume,
     check_torque_limits,
     null_basis,
+    null_projector,
     tertiary,
     transition_step,
 )
-from rhi.device import Device
-from rhi.errors import InvalidInput
+from rhi.device import Device, DeviceTerms
+from rhi.errors import InvalidInput, Singular
 from rhi.metrics import dynamic_pinv, nullspace_projector, weighted_pinv
 
 Saturation = Literal["none", "scaling", "ascm", "lp"]
+
+
+def _finite(v: np.ndarray) -> bool:
+    """Whether every entry of the float array v is finite (one dot product; exact check on overflow)."""
+    return math.isfinite(v.dot(v)) or bool(np.isfinite(v).all())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,14 +105,19 @@ class FMESchedule:
             raise InvalidInput(f"gain: must be finite and >= 0, got {self.gain!r}")
         object.__setattr__(self, "free", free)
         object.__setattr__(self, "stiff", stiff)
+        object.__setattr__(self, "_distance", float(np.linalg.norm(free - stiff)))
 
     @property
     def distance(self) -> float:
         """‖M_Free − M_Stiff‖_F (eq. 6.19)."""
-        return float(np.linalg.norm(self.free - self.stiff))
+        return self._distance
 
     def desired(self, omega: float) -> np.ndarray:
         """Ω M_Free + (1 − Ω) M_Stiff (eq. 6.16)."""
+        if omega == 1.0:
+            return self.free
+        if omega == 0.0:
+            return self.stiff
         return omega * self.free + (1.0 - omega) * self.stiff
 
 
@@ -101,15 +126,17 @@ class ControllerConfig:
     """Everything the controller needs besides the device.
 
     Attributes:
-        primary: the task-space law.
+        primary: the task-space law (e.g. `ImpedanceControl`, `ForceRendering`, `SpringPalpation`).
         objectives: null-space objectives with step sizes (τ_to = −Σ gain ∂ν/∂q).
         fme: optional ASO-switched FME matching (adds FMEMatching(M_des(t)) to the objectives).
         damping: null-space joint damping k_D [N m s/rad] (eqs. 3.20, 6.6).
         saturation: "none" | "scaling" | "ascm" | "lp".
         projector: "dynamic" (J# = M⁻¹Jᵀ(JM⁻¹Jᵀ)⁻¹) or "kinematic" (J⁺).
         torque_min, torque_max: (n,) limits [N m]; None: the device's.
-        gravity_compensation: add g(q) to τ_m.
+        gravity_compensation: add the null-space part (I − JᵀJ#ᵀ) g(q) of the gravity torque;
+            with a primary law that compensates G_x (eqs. 5.4, 7.2) the whole g(q) is compensated.
         aso_shape: S of eq. 6.14 when no FME schedule is given.
+        implementation: "fast" (default) or "reference" (the slow oracle; same torques).
     """
 
     primary: PrimaryLaw
@@ -122,6 +149,7 @@ class ControllerConfig:
     torque_max: np.ndarray | None = None
     gravity_compensation: bool = True
     aso_shape: float = 50.0
+    implementation: Literal["fast", "reference"] = "fast"
 
 
 @dataclasses.dataclass
@@ -136,6 +164,8 @@ class ControllerState:
         alpha: force scaling of the last tick.
         beta: tertiary scaling of the last tick.
         saturated: (n,) joints ASCM held at a limit.
+        clipped: the unscaled torque b (damping, compensation, gravity) alone left the box, so
+            the last torque was clipped and the task force is not α F_render + F_extra.
         tau: (n,) last commanded torque [N m].
         stopped: latched safe stop (zero torque).
         fault: why it stopped.
@@ -149,6 +179,7 @@ class ControllerState:
     alpha: float = 1.0
     beta: float = 0.0
     saturated: np.ndarray | None = None
+    clipped: bool = False
     tau: np.ndarray | None = None
     stopped: bool = False
     fault: str | None = None
@@ -172,6 +203,8 @@ class NullSpaceController:
             raise InvalidInput(f"saturation: expected 'none', 'scaling', 'ascm' or 'lp', got {config.saturation!r}")
         if config.projector not in ("dynamic", "kinematic"):
             raise InvalidInput(f"projector: expected 'dynamic' or 'kinematic', got {config.projector!r}")
+        if config.implementation not in ("fast", "reference"):
+            raise InvalidInput(f"implementation: expected 'fast' or 'reference', got {config.implementation!r}")
         if not np.isfinite(config.damping) or config.damping < 0:
             raise InvalidInput(f"damping: must be finite and >= 0, got {config.damping!r}")
         if not np.isfinite(config.aso_shape) or config.aso_shape <= 0:
@@ -181,11 +214,27 @@ class NullSpaceController:
         self.lo, self.hi = check_torque_limits(lo, hi, device.n)
         if config.fme is not None and config.fme.free.shape != (device.m, device.m):
             raise InvalidInput(f"fme: desired FMEs must be ({device.m}, {device.m}), got {config.fme.free.shape}")
+        check = getattr(config.primary, "check", None)
+        if callable(check):
+            check(device)
         self.device = device
         self.config = config
         self._fme = None if config.fme is None else FMEMatching(config.fme.free, self.hi)
         self.state = state or ControllerState()
         self._sensors = tuple(config.primary.required_sensors())
+        self._n, self._m = device.n, device.m
+        self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
+        self._aso_S = config.fme.transition.S if config.fme is not None else config.aso_shape
+        self._fast = config.implementation == "fast"
+        self._dynamic = config.projector == "dynamic"
+        self._grads = []
+        for term in config.objectives:
+            if term.gain > 0:
+                obj = term.objective
+                fn = gradient_function(obj, device) if self._fast else (
+                    lambda kin, obj=obj: np.asarray(obj.gradient(device, kin.q), dtype=float)
+                )
+                self._grads.append((float(term.gain), fn))
 
     def reset(self) -> None:
         """Fresh state (clears a safe stop)."""
@@ -194,8 +243,14 @@ class NullSpaceController:
     def _stop(self, why: str) -> np.ndarray:
         s = self.state
         s.stopped, s.fault = True, why
-        s.tau = np.zeros(self.device.n)
+        s.tau = np.zeros(self._n)
         return s.tau
+
+    def _bad_reading(self, why: str) -> np.ndarray:
+        """Bad input before the loop started (raise); a fault while running (safe stop)."""
+        if self.state.ticks == 0:
+            raise InvalidInput(why + " (first tick: check the sensor pipeline)")
+        return self._stop(why)
 
     def step(self, t: float, q, dq, sensors: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """One control tick.
@@ -204,72 +259,146 @@ class NullSpaceController:
             t: time [s].
             q: (n,) joint positions [rad].
             dq: (n,) joint velocities [rad/s].
-            sensors: named readings the primary law needs (e.g. "force": (m,) [N]).
+            sensors: named readings the primary law needs (e.g. "force": (m,) [N], "ft": (6,) [N, N m]);
+                others are ignored.
 
         Returns:
             τ: (n,) joint torques [N m], within [torque_min, torque_max]; zeros after a safe stop.
+
+        Raises:
+            InvalidInput: wrong shapes, a missing sensor, or non-finite readings on the first tick.
+                (Non-finite readings later, and singular configurations, stop the controller instead.)
         """
         s = self.state
-        dev, cfg = self.device, self.config
+        n = self._n
         if s.stopped:
-            return np.zeros(dev.n)
-        sensors = sensors or {}
+            return np.zeros(n)
         q = np.asarray(q, dtype=float)
         dq = np.asarray(dq, dtype=float)
-        if q.shape != (dev.n,) or dq.shape != (dev.n,):
-            raise InvalidInput(f"q/dq: expected shape ({dev.n},), got {q.shape} and {dq.shape}")
-        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and math.isfinite(t)):
-            return self._stop(f"non-finite joint reading at t={t}: q={q.tolist()}, dq={dq.tolist()}")
-        for name in self._sensors:
-            if name not in sensors:
-                raise InvalidInput(f"sensors: missing {name!r} required by the primary law")
-            if not np.all(np.isfinite(np.asarray(sensors[name], dtype=float))):
-                return self._stop(f"non-finite sensor {name!r} at t={t}: {np.asarray(sensors[name]).tolist()}")
+        if q.shape != (n,) or dq.shape != (n,):
+            raise InvalidInput(f"q/dq: expected shape ({n},), got {q.shape} and {dq.shape}")
+        if not _finite(q):
+            return self._bad_reading(f"q: non-finite joint position at t={t}: {q.tolist()}")
+        if not _finite(dq):
+            return self._bad_reading(f"dq: non-finite joint velocity at t={t}: {dq.tolist()}")
+        if not math.isfinite(t):
+            return self._bad_reading(f"t: non-finite time {t}")
+        if self._sensors:
+            if sensors is None:
+                sensors = {}
+            for name in self._sensors:
+                if name not in sensors:
+                    raise InvalidInput(f"sensors: missing {name!r} required by the primary law")
+                v = np.asarray(sensors[name], dtype=float)
+                if v.ndim != 1:
+                    raise InvalidInput(f"sensors[{name!r}]: expected a vector, got shape {v.shape}")
+                if not _finite(v):
+                    return self._bad_reading(f"sensors[{name!r}]: non-finite reading at t={t}: {v.tolist()}")
+        try:
+            return self._tick(t, q, dq, sensors or {})
+        except (np.linalg.LinAlgError, Singular) as exc:
+            return self._stop(f"numerical failure at t={t} (singular configuration?): {exc}")
 
-        J = dev.jacobian(q)
-        x = dev.fk(q)
-        M = dev.mass_matrix(q) if cfg.projector == "dynamic" else None
-        F_r, F_x = cfg.primary.forces(t, x, J @ dq, sensors)
-        a = J.T @ F_r
-        b = J.T @ F_x
-        if cfg.gravity_compensation:
-            b = b + dev.gravity(q)
+    def terms(self, q: np.ndarray, dq: np.ndarray) -> DeviceTerms:
+        """The device terms the tick uses: one Pinocchio pass (fast) or per-call Device methods (reference)."""
+        dev = self.device
+        if self._fast:
+            return dev.terms(q, dq, check=False)
+        return DeviceTerms(
+            dev, q, dq,
+            x=dev.fk(q), J=dev.jacobian(q), dJ=dev.jacobian_derivative(q), M=dev.mass_matrix(q), g=dev.gravity(q),
+        )
+
+    def _tick(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: Mapping[str, np.ndarray]) -> np.ndarray:
+        s, cfg = self.state, self.config
+        lo, hi = self.lo, self.hi
+        kin = self.terms(q, dq)
+        F_r, F_x = cfg.primary.forces(t, kin, sensors)
+        Jt = kin.J.T
+        a = Jt.dot(F_r)
+        b = Jt.dot(F_x)
+        g = kin.g
+        if cfg.gravity_compensation and g.dot(g) != 0.0:
+            b = b + (g - Jt.dot(kin.Gx))  # (I − JᵀJ#ᵀ) g: the part G_x leaves out
+        tau_m = a + b
 
         # ASO and desired-FME transition
-        tr = cfg.fme.transition if cfg.fme is not None else None
-        s.V = aso_volume(a + b, self.lo, self.hi, tr.S if tr else cfg.aso_shape)
-        if cfg.fme is not None:
-            s.transition, s.omega = transition_step(s.transition, t, s.V, cfg.fme.distance, tr)
+        s.V = aso_volume(tau_m, self._lo_l, self._hi_l, self._aso_S)
+        fme = cfg.fme
+        if fme is not None:
+            s.transition, s.omega = transition_step(s.transition, t, s.V, fme.distance, fme.transition)
 
-        # allocation within the torque box
-        Z = null_basis(J, M)
-        if cfg.saturation == "ascm":
-            al = ascm(a, b, Z, self.lo, self.hi)
-        elif cfg.saturation == "lp":
-            al = allocate_lp(a, b, Z, self.lo, self.hi)
-        elif cfg.saturation == "scaling":
-            al = allocate_scaling(a, b, self.lo, self.hi)
-        else:
-            al = allocate_none(a, b, self.lo, self.hi)
-
-        # null-space objectives (tertiary, in the null space of the task and of ASCM)
+        # allocation within the torque box, then the null-space objectives (tertiary)
         tau_to = -cfg.damping * dq
-        dJ = None
-        if cfg.fme is not None and cfg.fme.gain > 0:
-            dJ = dev.jacobian_derivative(q)
-            tau_to = tau_to - cfg.fme.gain * self._fme.gradient_from(J, dJ, cfg.fme.desired(s.omega))
-        for term in cfg.objectives:
-            if term.gain > 0:
-                tau_to = tau_to - term.gain * np.asarray(term.objective.gradient(dev, q), dtype=float)
-        if not np.all(np.isfinite(tau_to)):
-            return self._stop(f"non-finite null-space objective torque at t={t}")
-        N = nullspace_projector(J, M)
-        delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, self.lo, self.hi, N)
-        tau = np.clip(al.tau + delta, self.lo, self.hi)
+        if fme is not None and fme.gain > 0:
+            tau_to = tau_to - fme.gain * self._fme.gradient_from(kin.J, kin.dJ, fme.desired(s.omega))
+        for gain, fn in self._grads:
+            tau_to = tau_to - gain * fn(kin)
+        if self._fast:
+            al, delta, beta = self._allocate_fast(a, b, tau_m, s.V, tau_to, kin)
+        else:
+            al, delta, beta = self._allocate_reference(a, b, tau_to, kin)
+        tau = np.minimum(np.maximum(al.tau + delta if beta else al.tau, lo), hi)
+        if not _finite(tau):  # e.g. a non-finite objective gradient at a singular configuration
+            return self._stop(f"non-finite torque at t={t} (singular configuration?): {tau.tolist()}")
 
-        s.t, s.alpha, s.beta, s.saturated, s.tau = t, al.alpha, beta, al.saturated, tau
+        s.t, s.alpha, s.beta, s.saturated, s.clipped, s.tau = t, al.alpha, beta, al.saturated, al.clipped, tau
         s.ticks += 1
         return tau
+
+    def _allocate_reference(self, a, b, tau_to, kin: DeviceTerms) -> tuple[Allocation, np.ndarray, float]:
+        cfg, lo, hi = self.config, self.lo, self.hi
+        M = kin.M if self._dynamic else None
+        Z = null_basis(kin.J, M)
+        if cfg.saturation == "ascm":
+            al = ascm(a, b, Z, lo, hi)
+        elif cfg.saturation == "lp":
+            al = allocate_lp(a, b, Z, lo, hi)
+        elif cfg.saturation == "scaling":
+            al = allocate_scaling(a, b, lo, hi)
+        else:
+            al = allocate_none(a, b, lo, hi)
+        N = nullspace_projector(kin.J, M)
+        delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
+        return al, delta, beta
+
+    def _allocate_fast(self, a, b, tau_m, V, tau_to, kin: DeviceTerms) -> tuple[Allocation, np.ndarray, float]:
+        cfg, lo, hi, n = self.config, self.lo, self.hi, self._n
+        r = n - self._m
+        P = Z = None
+        if self._dynamic:
+            Jt = kin.J.T
+            Ntau = tau_to - Jt.dot(kin.Jsharp.T.dot(tau_to))  # (I − JᵀJ#ᵀ) τ_to
+        else:
+            P = null_projector(kin.J)  # = I − JᵀJ⁺ᵀ, the kinematic N
+            Ntau = P.dot(tau_to)
+        sat = cfg.saturation
+        if V > 0.0 and sat in ("ascm", "lp"):  # τ_m strictly inside the box: kept as it is (Algorithm 1, line 6)
+            al = Allocation(tau_m, 1.0, np.zeros(n, bool), np.zeros(n), sat)
+        elif sat == "ascm":
+            if P is None:
+                P = _null_projector_rows(kin.JMinv)
+            al = _ascm_fast(a, b, P, self._lo_l, self._hi_l, r)
+            if al is None:  # ill-conditioned held set: the basis form, as the reference
+                Z = self._null_basis(kin)
+                al = ascm(a, b, Z, lo, hi)
+        elif sat == "lp":
+            Z = self._null_basis(kin)
+            al = allocate_lp(a, b, Z, lo, hi)
+        elif sat == "scaling":
+            al = allocate_scaling(a, b, lo, hi)
+        else:
+            al = allocate_none(a, b, lo, hi)
+        if P is None and al.saturated.any():
+            P = _null_projector_rows(kin.JMinv)
+        res = _tertiary_fast(al.tau, al.saturated, P, tau_to, Ntau, self._lo_l, self._hi_l, r)
+        if res is None:
+            N = kin.N if self._dynamic else null_projector(kin.J)
+            res = tertiary(al.tau, al.saturated, self._null_basis(kin) if Z is None else Z, tau_to, lo, hi, N)
+        return al, res[0], res[1]
+
+    def _null_basis(self, kin: DeviceTerms) -> np.ndarray:
+        return null_basis(kin.J, kin.M if self._dynamic else None)
 
     def last_allocation(self) -> tuple[float, float]:
         """(α, β) of the last tick."""

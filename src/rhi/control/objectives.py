@@ -1,22 +1,34 @@
 """Secondary objectives ν(q) with analytic gradients (gradient projection, thesis eq. 3.21).
 
 An objective provides `value(device, q)` and `gradient(device, q)`; controllers and
-configuration optimisers compose objectives without special-casing them.
+configuration optimisers compose objectives without special-casing them. The bundled
+objectives also provide `gradient_at(terms)`, the same gradient from a `DeviceTerms`
+snapshot a controller already holds (J and ∂J/∂q from one Pinocchio pass); a
+controller wraps objectives without it once, at construction (`gradient_function`).
+
+Every JBLD gradient below uses ∂ν/∂q_k = Σ_ij (Y)_ij ∂J_ij/∂q_k for an (m, n) matrix Y,
+evaluated as one product ``Y.ravel() @ dJ.reshape(m n, n)``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Protocol
 
 import numpy as np
 
-from rhi.device import Device
+from rhi.device import Device, DeviceTerms, inv_small
+from rhi.errors import Singular
 from rhi.metrics import desired_vme, jbld
 
 
 class Objective(Protocol):
-    """A scalar cost ν(q) to decrease in the null space of the primary task."""
+    """A scalar cost ν(q) to decrease in the null space of the primary task.
+
+    Optionally also ``gradient_at(terms: DeviceTerms) -> (n,)``: the same gradient from the
+    controller's per-tick snapshot (see `gradient_function`).
+    """
 
     def value(self, device: Device, q: np.ndarray) -> float:
         """ν(q) for q: (n,)."""
@@ -25,6 +37,19 @@ class Objective(Protocol):
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """∂ν/∂q: (n,)."""
         ...
+
+
+def _contract(Y: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+    """Σ_ij Y_ij ∂J_ij/∂q_k: (n,) for Y: (m, n) and dJ: (m, n, n)."""
+    return Y.reshape(-1).dot(dJ.reshape(-1, dJ.shape[-1]))
+
+
+def gradient_function(objective: Objective, device: Device):
+    """A callable terms -> ∂ν/∂q: `objective.gradient_at` when it has one, else `objective.gradient(device, terms.q)`."""
+    fast = getattr(objective, "gradient_at", None)
+    if callable(fast):
+        return fast
+    return lambda terms: np.asarray(objective.gradient(device, terms.q), dtype=float)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,28 +61,53 @@ class VMEMatching:
 
     Attributes:
         u: (m,) desired direction of motion (normalised internally).
-        beta: minor-axis scale β of M_des (thesis: 0.01).
+        beta: minor-axis scale β of M_des (thesis: 0.01), > 0.
     """
 
     u: tuple[float, ...]
     beta: float = 0.01
+    _desired: np.ndarray = dataclasses.field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_desired", desired_vme(np.asarray(self.u, dtype=float), self.beta))
 
     def desired(self) -> np.ndarray:
         """M_des: (m, m)."""
-        return desired_vme(np.asarray(self.u, dtype=float), self.beta)
+        return self._desired.copy()
 
     def value(self, device: Device, q: np.ndarray) -> float:
         J = device.jacobian(q)
-        return float(jbld(self.desired(), J @ J.T))
+        return float(jbld(self._desired, J @ J.T))
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """∂ν/∂q_k = tr((½ M̄⁻¹ − ½ M⁻¹) ∂M/∂q_k), M = JJᵀ, M̄ = (M_des + M)/2, ∂M = ∂J Jᵀ + J ∂Jᵀ."""
-        J = device.jacobian(q)
-        dJ = device.jacobian_derivative(q)  # (m, n, n): [i, j, k] = ∂J_ij/∂q_k
-        M = J @ J.T
-        G = 0.5 * (np.linalg.inv(0.5 * (self.desired() + M)) - np.linalg.inv(M))
-        # tr(G (dJ_k Jᵀ + J dJ_kᵀ)) = 2 tr(G dJ_k Jᵀ) since G is symmetric
-        return 2.0 * np.einsum("ab,ajk,bj->k", G, dJ, J)
+        return _jbld_velocity_gradient(self._desired, device.jacobian(q), device.jacobian_derivative(q))
+
+    def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
+        """`gradient` from a terms snapshot: (n,)."""
+        return _jbld_velocity_gradient(self._desired, terms.J, terms.dJ)
+
+
+def _inv2(a: float, b: float, c: float, d: float) -> tuple[float, float, float, float]:
+    """Entries of the inverse of [[a, b], [c, d]] (Python floats; raises on a singular matrix)."""
+    det = a * d - b * c
+    if det == 0.0 or not math.isfinite(det):
+        raise Singular(f"matrix [[{a}, {b}], [{c}, {d}]] is singular")
+    return d / det, -b / det, -c / det, a / det
+
+
+def _jbld_velocity_gradient(D: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+    """∂/∂q of JBLD(D, JJᵀ): 2 Σ (G J)_ij ∂J_ij/∂q_k with G = ½((D + JJᵀ)/2)⁻¹ − ½(JJᵀ)⁻¹ (symmetric)."""
+    M = J.dot(J.T)
+    if M.shape == (2, 2):  # the planar case on Python floats: fewer array operations
+        (m11, m12), (m21, m22) = M.tolist()
+        (d11, d12), (d21, d22) = D.tolist()
+        a11, a12, a21, a22 = _inv2(0.5 * (d11 + m11), 0.5 * (d12 + m12), 0.5 * (d21 + m21), 0.5 * (d22 + m22))
+        b11, b12, b21, b22 = _inv2(m11, m12, m21, m22)
+        G = np.array([[a11 - b11, a12 - b12], [a21 - b21, a22 - b22]])
+    else:
+        G = inv_small(0.5 * (D + M)) - inv_small(M)
+    return _contract(G.dot(J), dJ)
 
 
 def _spd(name: str, A) -> np.ndarray:
@@ -141,6 +191,7 @@ class FMEMatching:
         if not np.all(np.isfinite(t)) or np.any(t <= 0):
             raise InvalidInput(f"torque_max: every torque limit must be finite and > 0, got {t.tolist()}")
         object.__setattr__(self, "torque_max", t)
+        object.__setattr__(self, "_w2", np.atleast_1d(t**-2.0))
 
     def with_desired(self, desired) -> FMEMatching:
         """The same objective with another desired FME (e.g. during a transition, eq. 6.16)."""
@@ -158,6 +209,10 @@ class FMEMatching:
         """∂ν/∂q_k = −2 tr(H ∂J_k W² Jᵀ), H = M̂ G M̂, G = ½(M̄⁻¹ − M̂⁻¹), M̄ = (M̂ + M_des)/2."""
         return self.gradient_from(device.jacobian(q), device.jacobian_derivative(q))
 
+    def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
+        """`gradient` from a terms snapshot: (n,)."""
+        return self.gradient_from(terms.J, terms.dJ)
+
     def gradient_from(self, J: np.ndarray, dJ: np.ndarray, desired: np.ndarray | None = None) -> np.ndarray:
         """Gradient from J: (m, n) and ∂J/∂q: (m, n, n) (for controllers that already hold them).
 
@@ -165,12 +220,28 @@ class FMEMatching:
         matrices, eq. 6.16, inside the controller's loop).
         """
         D = self.desired if desired is None else desired
-        w2 = np.broadcast_to(self.torque_max, (J.shape[-1],)) ** -2.0
-        A = (J * w2) @ J.T  # M̂⁻¹
-        Mh = np.linalg.inv(A)
-        G = 0.5 * (np.linalg.inv(0.5 * (Mh + D)) - A)
-        H = Mh @ G @ Mh
-        return -2.0 * np.einsum("ab,bjk,aj->k", H, dJ, J * w2)
+        w2 = self._w2
+        if w2.shape[0] != J.shape[-1]:
+            w2 = np.broadcast_to(self.torque_max, (J.shape[-1],)) ** -2.0
+        Jw = J * w2
+        A = Jw.dot(J.T)  # M̂⁻¹
+        if A.shape == (2, 2):  # the planar case on Python floats: fewer array operations
+            (a11, a12), (a21, a22) = A.tolist()
+            (d11, d12), (d21, d22) = D.tolist()
+            h11, h12, h21, h22 = _inv2(a11, a12, a21, a22)  # M̂
+            n11, n12, n21, n22 = _inv2(0.5 * (h11 + d11), 0.5 * (h12 + d12), 0.5 * (h21 + d21), 0.5 * (h22 + d22))
+            g11, g12, g21, g22 = 0.5 * (n11 - a11), 0.5 * (n12 - a12), 0.5 * (n21 - a21), 0.5 * (n22 - a22)
+            # H = M̂ G M̂; Y = Hᵀ (J W²)
+            t11, t12 = h11 * g11 + h12 * g21, h11 * g12 + h12 * g22
+            t21, t22 = h21 * g11 + h22 * g21, h21 * g12 + h22 * g22
+            H11, H12 = t11 * h11 + t12 * h21, t11 * h12 + t12 * h22
+            H21, H22 = t21 * h11 + t22 * h21, t21 * h12 + t22 * h22
+            Y = np.array([[-2.0 * H11, -2.0 * H21], [-2.0 * H12, -2.0 * H22]]).dot(Jw)
+            return _contract(Y, dJ)
+        Mh = inv_small(A)
+        G = 0.5 * (inv_small(0.5 * (Mh + D)) - A)
+        H = Mh.dot(G).dot(Mh)
+        return -2.0 * _contract(H.T.dot(Jw), dJ)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -203,13 +274,20 @@ class EllipsoidMatching:
         return float(jbld(self.desired, J @ J.T))
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
-        J = self._J(device.jacobian(q))
-        dJ = device.jacobian_derivative(q)
-        if self.H is not None:
-            dJ = np.einsum("ab,bjk->ajk", self.H, dJ)
-        M = J @ J.T
-        G = 0.5 * (np.linalg.inv(0.5 * (self.desired + M)) - np.linalg.inv(M))
-        return 2.0 * np.einsum("ab,ajk,bj->k", G, dJ, J)
+        """∂ν/∂q_k = 2 tr(G ∂(HJ)_k (HJ)ᵀ), G = ½ M̄⁻¹ − ½ M⁻¹ (as `VMEMatching` with J → HJ)."""
+        return self._gradient(device.jacobian(q), device.jacobian_derivative(q))
+
+    def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
+        """`gradient` from a terms snapshot: (n,)."""
+        return self._gradient(terms.J, terms.dJ)
+
+    def _gradient(self, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+        if self.H is None:
+            return _jbld_velocity_gradient(self.desired, J, dJ)
+        HJ = self.H.dot(J)
+        M = HJ.dot(HJ.T)
+        G = inv_small(0.5 * (self.desired + M)) - inv_small(M)
+        return _contract(self.H.T.dot(G).dot(HJ), dJ)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -229,8 +307,13 @@ class Manipulability:
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """∂(log μ)/∂q_k = tr((JJᵀ)⁻¹ ∂J_k Jᵀ); ∂μ/∂q_k = μ ∂(log μ)/∂q_k."""
-        J = device.jacobian(q)
-        dJ = device.jacobian_derivative(q)
-        A = J @ J.T
-        g = np.einsum("ab,bjk,aj->k", np.linalg.inv(A), dJ, J)
+        return self._gradient(device.jacobian(q), device.jacobian_derivative(q))
+
+    def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
+        """`gradient` from a terms snapshot: (n,)."""
+        return self._gradient(terms.J, terms.dJ)
+
+    def _gradient(self, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+        A = J.dot(J.T)
+        g = _contract(inv_small(A).T.dot(J), dJ)
         return -g if self.log else -np.sqrt(np.linalg.det(A)) * g

@@ -1,9 +1,15 @@
 """Primary (task-space) control laws: the force the device renders to the user's hand.
 
-A primary law returns two task-space forces ``(F_render, F_extra)`` [N]: ``F_render`` is
-the rendered environment force, which saturation handling may scale by α (eq. 7.9);
-``F_extra`` (damping, compensation terms, the μ of eq. 7.9) is never scaled. The joint
-torque is ``τ_m = Jᵀ(α F_render + F_extra)`` (eqs. 6.5, 7.4).
+A primary law reads the per-tick `DeviceTerms` snapshot (x, ẋ, J, M_x, C_x, G_x, J#, …
+of the device at (q, q̇), see `rhi.device.Device.terms`) and the sensor readings, and
+returns two task-space forces ``(F_render, F_extra)`` [N]: ``F_render`` is the rendered
+environment force, which saturation handling may scale by α (eq. 7.9); ``F_extra`` (the
+μ of eq. 7.9: damping and the Coriolis, gravity and friction compensation
+``C_x ẋ + G_x + F_x`` of eqs. 5.4, 7.2) is never scaled. The joint torque is
+``τ_m = Jᵀ(α F_render + F_extra)`` (eqs. 5.7, 6.5, 7.4).
+
+Sign convention: every force here is the force the device applies to the user's hand,
+in the world task axes of the device (``Device.task_axes``).
 """
 
 from __future__ import annotations
@@ -15,17 +21,20 @@ from typing import Protocol
 import numpy as np
 
 from rhi._validate import as_array
+from rhi.device import Device, DeviceTerms
 from rhi.errors import InvalidInput
 
 
 class PrimaryLaw(Protocol):
-    """A task-space control law F_m (thesis eqs. 6.5, 7.2)."""
+    """A task-space control law F_m (thesis eqs. 5.4, 6.5, 7.2)."""
 
     def forces(
-        self, t: float, x: np.ndarray, xdot: np.ndarray, sensors: Mapping[str, np.ndarray]
+        self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]
     ) -> tuple[np.ndarray, np.ndarray]:
-        """(F_render, F_extra), each (m,) [N], from the end-effector position x (m,) [m],
-        its velocity ẋ (m,) [m/s] and the sensor readings."""
+        """(F_render, F_extra), each (m,) [N], at time t [s] from the device terms and the sensors.
+
+        The controller has checked that every sensor of `required_sensors` is present and finite.
+        """
         ...
 
     def required_sensors(self) -> tuple[str, ...]:
@@ -33,7 +42,7 @@ class PrimaryLaw(Protocol):
         ...
 
 
-def _damping(name: str, B, m: int | None = None) -> np.ndarray:
+def _damping(name: str, B) -> np.ndarray:
     B = as_array(name, B)
     if B.ndim == 0:
         if B < 0:
@@ -46,54 +55,235 @@ def _damping(name: str, B, m: int | None = None) -> np.ndarray:
     return B
 
 
-@dataclasses.dataclass(frozen=True)
-class ForceRendering:
-    """Render a measured/virtual environment force: F_m = F_e − B_d ẋ (thesis eq. 7.2 without C_x, G_x, F_x).
+def _check_task_matrix(name: str, A: np.ndarray, m: int) -> None:
+    if A.ndim == 2 and A.shape != (m, m):
+        raise InvalidInput(f"{name}: expected a scalar or a ({m}, {m}) matrix for this device, got shape {A.shape}")
 
-    ``sensors["force"]`` is the force the device should apply to the user's hand [N]
-    (the thesis's desired force feedback; eq. 7.2 writes it as −F_e with F_e the wrench
-    the device applies to the environment). Coriolis, gravity and friction compensation
-    of eq. 7.2 are left to the controller's joint-space gravity term or omitted.
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class JointFriction:
+    """Model of the joint friction torques F_q(q̇) the controller compensates (thesis eq. 5.1's F_q).
+
+    F_q = b ⊙ q̇ + f_c ⊙ tanh(q̇ / v_s): viscous plus Coulomb friction, the sign function
+    smoothed over |q̇| ≲ v_s so the compensation stays continuous through zero velocity.
+    Its end-effector reflection is F_x = J#ᵀ F_q (eq. 5.2).
 
     Attributes:
-        damping: B_d, scalar or (m, m) PSD [N s/m] (thesis §7.5: 0.01).
+        viscous: b, scalar or (n,) [N m s/rad], >= 0.
+        coulomb: f_c, scalar or (n,) [N m], >= 0.
+        velocity_scale: v_s [rad/s], > 0.
+    """
+
+    viscous: float | np.ndarray = 0.0
+    coulomb: float | np.ndarray = 0.0
+    velocity_scale: float = 0.01
+
+    def __post_init__(self) -> None:
+        for name in ("viscous", "coulomb"):
+            v = as_array(name, getattr(self, name))
+            if v.ndim > 1 or np.any(v < 0):
+                raise InvalidInput(f"{name}: expected a scalar or an (n,) vector, each >= 0, got {v.tolist()}")
+            object.__setattr__(self, name, v)
+        if not np.isfinite(self.velocity_scale) or self.velocity_scale <= 0:
+            raise InvalidInput(f"velocity_scale: must be finite and > 0, got {self.velocity_scale!r}")
+
+    def check(self, n: int) -> None:
+        """Raise InvalidInput unless the parameters fit a device with n joints."""
+        for name in ("viscous", "coulomb"):
+            v = getattr(self, name)
+            if v.ndim == 1 and v.shape != (n,):
+                raise InvalidInput(f"{name}: expected a scalar or ({n},) values for this device, got shape {v.shape}")
+
+    def torque(self, dq: np.ndarray) -> np.ndarray:
+        """F_q(q̇): (n,) [N m] for dq: (n,) [rad/s]."""
+        return self.viscous * dq + self.coulomb * np.tanh(dq / self.velocity_scale)
+
+
+def task_compensation(
+    kin: DeviceTerms, *, coriolis: bool = True, gravity: bool = True, friction: JointFriction | None = None
+) -> np.ndarray | None:
+    """Model-based compensation C_x ẋ + G_x + F_x of the end-effector dynamics (thesis eqs. 5.2, 5.4, 7.2).
+
+    C_x = M_x (J M_q⁻¹ C_q − J̇) J#, G_x = J#ᵀ G_q and F_x = J#ᵀ F_q(q̇) (eq. 5.2).
+
+    Args:
+        kin: the device terms at (q, q̇).
+        coriolis: include C_x ẋ.
+        gravity: include G_x.
+        friction: joint friction model for F_x, or None.
+
+    Returns:
+        (m,) force [N], or None when every term is off.
+    """
+    out = None
+    if coriolis:
+        out = kin.Cx.dot(kin.xdot)
+    if gravity and kin.g.dot(kin.g) != 0.0:
+        out = kin.Gx if out is None else out + kin.Gx
+    if friction is not None:
+        f = kin.Jsharp.T.dot(friction.torque(kin.dq))
+        out = f if out is None else out + f
+    return out
+
+
+def _minus_damping(B: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+    return -(B.dot(xdot) if B.ndim else B * xdot)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Compensated:
+    """Behaviour shared by the laws with damping B^d and the compensation terms of eqs. 5.4 / 7.2."""
+
+    def _extra(self, kin: DeviceTerms) -> np.ndarray:
+        """−B^d ẋ + C_x ẋ + G_x + F_x: (m,) [N]."""
+        c = task_compensation(kin, coriolis=self.coriolis, gravity=self.gravity, friction=self.friction)
+        B, xdot = self.damping, kin.xdot
+        Bx = B.dot(xdot) if B.ndim else B * xdot
+        return -Bx if c is None else c - Bx
+
+    def _check_common(self, device: Device) -> None:
+        _check_task_matrix("damping", self.damping, device.m)
+        if self.friction is not None:
+            self.friction.check(device.n)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ImpedanceControl(_Compensated):
+    """Impedance control with null stiffness: the master renders M_x^d ẍ + B^d ẋ = F_h (thesis eqs. 5.4–5.7).
+
+    With ``inertia=None`` the desired inertia is the device's own apparent inertia
+    (M_x^d = M_x, the thesis's choice) and eq. 5.4 reduces to eq. 5.6,
+    ``F_m = −B^d ẋ + C_x ẋ + G_x + F_x``: free motion with damping, no force sensor needed.
+    With a desired inertia M_x^d, eq. 5.4 reads the user's hand force F_h from the
+    handle sensor: ``F_m = M_x (M_x^d)⁻¹ (F_h − B^d ẋ) − F_h + C_x ẋ + G_x + F_x``.
+    The joint torque is τ_m = Jᵀ F_m (eq. 5.7). Nothing is rendered (F_render = 0).
+
+    Attributes:
+        damping: B^d, scalar or (m, m) PSD [N s/m].
+        inertia: M_x^d, (m, m) SPD [kg], or None for M_x^d = M_x (eq. 5.6).
+        coriolis: compensate C_x ẋ.
+        gravity: compensate G_x.
+        friction: joint friction model for F_x, or None (not compensated, thesis §7.5).
+        sensor: name of the hand-force reading F_h (only with `inertia`): the handle's F/T
+            sensor, (6,) force [N] and torque [N m] the hand applies, in world axes (`rhi.sim`'s
+            "ft"), or an (m,) force on the task axes [N].
+    """
+
+    damping: float | np.ndarray = 0.0
+    inertia: np.ndarray | None = None
+    coriolis: bool = True
+    gravity: bool = True
+    friction: JointFriction | None = None
+    sensor: str = "ft"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "damping", _damping("damping", self.damping))
+        if self.inertia is not None:
+            from rhi.control.objectives import _spd
+
+            Md = _spd("inertia", self.inertia)
+            object.__setattr__(self, "inertia", Md)
+            object.__setattr__(self, "_inertia_inv", np.linalg.inv(Md))
+
+    def check(self, device: Device) -> None:
+        """Raise InvalidInput unless the parameters fit `device`."""
+        self._check_common(device)
+        if self.inertia is not None:
+            _check_task_matrix("inertia", self.inertia, device.m)
+
+    def required_sensors(self) -> tuple[str, ...]:
+        return () if self.inertia is None else (self.sensor,)
+
+    def hand_force(self, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]) -> np.ndarray:
+        """F_h: (m,) [N] from the sensor reading, a (6,) world-axes wrench [N, N m] or an (m,) task force."""
+        v = np.asarray(sensors[self.sensor], dtype=float)
+        m = kin.J.shape[0]
+        if v.shape == (6,):
+            return v[:3][kin.device.task_rows]
+        if v.shape != (m,):
+            raise InvalidInput(f"sensors[{self.sensor!r}]: expected a (6,) wrench or an ({m},) force, got shape {v.shape}")
+        return v
+
+    def forces(self, t, kin, sensors):
+        if self.inertia is None:
+            return self._zeros(kin), self._extra(kin)  # eq. 5.6
+        # eq. 5.4: M_x (M_x^d)⁻¹ (F_h − B^d ẋ) − F_h + C_x ẋ + G_x + F_x
+        Fh = self.hand_force(kin, sensors)
+        F = kin.Lambda.dot(self._inertia_inv.dot(Fh + _minus_damping(self.damping, kin.xdot))) - Fh
+        c = task_compensation(kin, coriolis=self.coriolis, gravity=self.gravity, friction=self.friction)
+        return self._zeros(kin), (F if c is None else F + c)
+
+    @staticmethod
+    def _zeros(kin: DeviceTerms) -> np.ndarray:
+        return np.zeros(kin.J.shape[0])
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class ForceRendering(_Compensated):
+    """Render a measured/virtual environment force (thesis eq. 7.2): F_m = −F_e − B^d ẋ + C_x ẋ + G_x + F_x.
+
+    ``sensors["force"]`` is −F_e, the force the device should apply to the user's hand
+    [N] (eq. 7.2's F_e is the wrench the environment applies). With the compensation
+    terms on, the device's end-effector dynamics become M_x ẍ + B^d ẋ = F_h − F_e
+    (eq. 7.3). Only the rendered force is scaled by ASCM's α (eq. 7.9).
+
+    Attributes:
+        damping: B^d, scalar or (m, m) PSD [N s/m] (thesis §7.5: 0.01).
         gain: scale of the rendered force.
+        coriolis: compensate C_x ẋ.
+        gravity: compensate G_x.
+        friction: joint friction model for F_x, or None (not compensated, thesis §7.5).
     """
 
     damping: float | np.ndarray = 0.0
     gain: float = 1.0
+    coriolis: bool = True
+    gravity: bool = True
+    friction: JointFriction | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "damping", _damping("damping", self.damping))
         if not np.isfinite(self.gain):
             raise InvalidInput(f"gain: must be finite, got {self.gain!r}")
 
+    def check(self, device: Device) -> None:
+        """Raise InvalidInput unless the parameters fit `device`."""
+        self._check_common(device)
+
     def required_sensors(self) -> tuple[str, ...]:
         return ("force",)
 
-    def forces(self, t, x, xdot, sensors):
-        F = self.gain * np.asarray(sensors["force"], dtype=float)
-        return F, -(self.damping @ xdot if np.ndim(self.damping) else self.damping * xdot)
+    def forces(self, t, kin, sensors):
+        F = np.asarray(sensors["force"], dtype=float)
+        if F.shape != kin.x.shape:
+            raise InvalidInput(f"sensors['force']: expected shape {kin.x.shape}, got {F.shape}")
+        return (F if self.gain == 1.0 else self.gain * F), self._extra(kin)
 
 
-@dataclasses.dataclass(frozen=True)
-class SpringPalpation:
-    """A virtual spring wall: F_m = K_e δX − B_d ẋ with δX = x0 − x (thesis eqs. 6.21, 7.20).
+@dataclasses.dataclass(frozen=True, eq=False)
+class SpringPalpation(_Compensated):
+    """A virtual spring wall: F_m = K_e δX − B^d ẋ + C_x ẋ + G_x (+ F_x), δX = X₀ − x (thesis eqs. 6.21, 7.20).
 
-    The spring pushes the hand back towards the start point x0 once it has moved along
+    The spring pushes the hand back towards the start point X₀ once it has moved along
     ``normal`` (the contact direction); with ``normal=None`` it acts in every direction.
+    The spring force is the rendered (α-scaled) part. Eq. 6.21 is the spring alone
+    (``damping=0, coriolis=False, gravity=False``); eq. 7.20 adds −B^d ẋ + C_x ẋ.
 
     Attributes:
         stiffness: K_e [N/m] (thesis: 1000).
         x0: (m,) start point X₀ [m].
         normal: (m,) direction into the environment, or None.
-        damping: B_d scalar or (m, m) [N s/m].
+        damping: B^d scalar or (m, m) [N s/m].
+        coriolis, gravity, friction: compensation terms as in `ForceRendering`.
     """
 
     stiffness: float
     x0: tuple[float, ...]
     normal: tuple[float, ...] | None = None
     damping: float | np.ndarray = 0.0
+    coriolis: bool = True
+    gravity: bool = True
+    friction: JointFriction | None = None
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.stiffness) or self.stiffness < 0:
@@ -101,19 +291,29 @@ class SpringPalpation:
         object.__setattr__(self, "x0", as_array("x0", self.x0, ndim_min=1))
         if self.normal is not None:
             nrm = as_array("normal", self.normal, ndim_min=1)
+            if nrm.shape != self.x0.shape:
+                raise InvalidInput(f"normal: expected shape {self.x0.shape} like x0, got {nrm.shape}")
             if np.linalg.norm(nrm) < 1e-12:
                 raise InvalidInput("normal: zero-length direction vector")
             object.__setattr__(self, "normal", nrm / np.linalg.norm(nrm))
         object.__setattr__(self, "damping", _damping("damping", self.damping))
 
+    def check(self, device: Device) -> None:
+        """Raise InvalidInput unless the parameters fit `device`."""
+        if self.x0.shape != (device.m,):
+            raise InvalidInput(f"x0: expected shape ({device.m},) for this device, got {self.x0.shape}")
+        self._check_common(device)
+
     def required_sensors(self) -> tuple[str, ...]:
         return ()
 
-    def forces(self, t, x, xdot, sensors):
+    def spring(self, x: np.ndarray) -> np.ndarray:
+        """K_e δX: (m,) [N] at the end-effector position x: (m,) [m]."""
         dx = x - self.x0
         if self.normal is None:
-            F = -self.stiffness * dx
-        else:
-            depth = float(self.normal @ dx)
-            F = -self.stiffness * max(depth, 0.0) * self.normal
-        return F, -(self.damping @ xdot if np.ndim(self.damping) else self.damping * xdot)
+            return -self.stiffness * dx
+        depth = float(self.normal.dot(dx))
+        return -self.stiffness * max(depth, 0.0) * self.normal
+
+    def forces(self, t, kin, sensors):
+        return self.spring(kin.x), self._extra(kin)

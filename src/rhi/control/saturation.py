@@ -11,20 +11,34 @@ scaled (damping, gravity), and ``Z`` (n, n−m) an orthonormal basis of the rang
 torque null-space projector ``N = I − Jᵀ J#ᵀ`` (eq. 7.5), i.e. of the torques with
 ``J#ᵀ τ = 0``. ``N τ_N = Z y`` for ``τ_N = Z y``, so every allocation below produces the
 task-space force ``J#ᵀ τ = J#ᵀ(α a + b)`` exactly.
+
+The ``*_projector`` variants (`ascm_projector`, `tertiary_projector`) compute the same
+allocation from the orthogonal projector ``P = Z Zᵀ`` onto those torques, which a
+controller gets from J and M⁻¹ by two small products instead of an SVD: the least-norm
+null-space torque that puts the joints 𝒮 at ``r`` is ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from operator import mul
 
 import numpy as np
 from scipy.optimize import linprog
 
 from rhi._validate import as_array
-from rhi.errors import InfeasibleLimits, InvalidInput
+from rhi.device import eye
+from rhi.errors import InfeasibleLimits, InvalidInput, Singular
 
 _TOL = 1e-12
+# Z_𝒮 counts as rank-deficient (ASCM cannot hold the joints 𝒮) when its smallest singular value is
+# below this; Z is orthonormal, so the threshold is relative.
+RANK_TOL = 1e-9
+# The projector form solves with P[𝒮, 𝒮] = Z_𝒮 Z_𝒮ᵀ, whose condition number is cond(Z_𝒮)²: it is used
+# only while the smallest eigenvalue λ of P[𝒮, 𝒮] exceeds this (σ_min(Z_𝒮) > 0.01), where a held
+# torque r is accurate to ~ε r / λ < 1e-11 N m per N m, and hands over to the basis form otherwise.
+_FAST_TOL = 1e-4
 
 
 # ------------------------------------------------------------------ limits, bases
@@ -64,22 +78,95 @@ def null_basis(J: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
     return Vt[m:].T.copy()
 
 
-def scaling_alpha(p: np.ndarray, c: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> float | None:
-    """Largest α in [0, 1] with ``lo <= α p + c <= hi``; None when no α in [0, 1] is feasible."""
+def null_projector(J: np.ndarray, M: np.ndarray | None = None, *, JMinv: np.ndarray | None = None) -> np.ndarray:
+    """Orthogonal projector P = Z Zᵀ (n, n) onto range(I − Jᵀ J#ᵀ) = null(J M⁻¹) (kinematic: null(J)).
+
+    ``P = I − Q Qᵀ`` with Q an orthonormal basis of the rows of ``A = J M⁻¹`` (or J), by
+    Gram–Schmidt with re-orthogonalisation (accurate to rounding whatever cond(A)): the
+    subspace of `null_basis` without an SVD.
+
+    Args:
+        J: (m, n) Jacobian, full row rank.
+        M: (n, n) joint-space inertia [kg m²] for the dynamically consistent J#, or None.
+        JMinv: (m, n) J M⁻¹ if already known (then M is not used).
+
+    Raises:
+        Singular: J does not have full row rank.
+    """
+    A = JMinv if JMinv is not None else (J if M is None else np.linalg.solve(M, J.T).T)
+    Q = []
+    for i in range(A.shape[0]):
+        v = A[i]
+        scale = math.sqrt(v.dot(v))
+        for _ in range(2):  # CGS2: twice is enough
+            for qv in Q:
+                v = v - qv.dot(v) * qv
+        nv = math.sqrt(v.dot(v))
+        if not nv > 1e-12 * scale:
+            raise Singular(f"J: rank-deficient Jacobian (row {i} depends on the others)")
+        Q.append(v / nv)
+    Q = np.array(Q)
+    return eye(A.shape[1]) - Q.T.dot(Q)
+
+
+def _null_projector_rows(A: np.ndarray) -> list[list[float]]:
+    """`null_projector` from A = J M⁻¹ (m, n) as a list of rows (CGS2 on Python floats; fewer array calls)."""
+    Q: list[list[float]] = []
+    for a in A.tolist():
+        scale = math.sqrt(sum(map(mul, a, a)))
+        v = a
+        for _ in range(2):
+            for qv in Q:
+                c = sum(map(mul, qv, v))
+                v = [y - c * x for x, y in zip(qv, v)]
+        nv = math.sqrt(sum(map(mul, v, v)))
+        if not nv > 1e-12 * scale:
+            raise Singular("J: rank-deficient Jacobian")
+        Q.append([x / nv for x in v])
+    Qa = np.array(Q)
+    return (eye(A.shape[1]) - Qa.T.dot(Qa)).tolist()
+
+
+def basis_from_projector(P: np.ndarray, rank: int | None = None) -> np.ndarray:
+    """An orthonormal basis Z (n, r) of the range of an orthogonal projector P (eigenvectors of eigenvalue 1)."""
+    w, V = np.linalg.eigh(0.5 * (P + P.T))
+    r = int(round(float(np.trace(P)))) if rank is None else rank
+    return V[:, w.size - r:]
+
+
+def _as_list(v) -> list[float]:
+    if isinstance(v, list):
+        return v
+    return v.tolist() if isinstance(v, np.ndarray) else np.asarray(v, dtype=float).tolist()
+
+
+def scaling_alpha(p, c, lo, hi) -> float | None:
+    """Largest α in [0, 1] with ``lo <= α p + c <= hi``; None when no α in [0, 1] is feasible.
+
+    Args:
+        p, c, lo, hi: (k,) arrays or lists.
+    """
+    return _scaling_alpha(_as_list(p), _as_list(c), _as_list(lo), _as_list(hi))
+
+
+def _scaling_alpha(p: list[float], c: list[float], lo: list[float], hi: list[float]) -> float | None:
     a_lo, a_hi = 0.0, 1.0
-    tol = 1e-12 * (1.0 + np.abs(p) + np.abs(c))
-    for pi, ci, l, h, t in zip(p, c, lo, hi, tol):
-        if abs(pi) <= t:
+    for pi, ci, l, h in zip(p, c, lo, hi):
+        api = abs(pi)
+        if api <= 1e-12 * (1.0 + api + abs(ci)):
             if ci > h + 1e-12 or ci < l - 1e-12:
                 return None
             continue
         r1, r2 = (l - ci) / pi, (h - ci) / pi
         if r1 > r2:
             r1, r2 = r2, r1
-        a_lo, a_hi = max(a_lo, r1), min(a_hi, r2)
+        if r1 > a_lo:
+            a_lo = r1
+        if r2 < a_hi:
+            a_hi = r2
     if a_lo > a_hi + 1e-12:
         return None
-    return max(a_hi, 0.0)
+    return a_hi if a_hi > 0.0 else 0.0
 
 
 # ---------------------------------------------------------------------- ASO
@@ -95,13 +182,13 @@ def aso_volume(tau, torque_min, torque_max, S: float = 50.0) -> float:
         torque_min, torque_max: (n,) limits [N m], min < max.
         S: shape factor S > 0 (Fig. 6.6 uses 50).
     """
-    tau = np.asarray(tau, dtype=float)
-    lo = np.asarray(torque_min, dtype=float)
-    hi = np.asarray(torque_max, dtype=float)
-    if np.any(tau >= hi) or np.any(tau <= lo):
-        return 0.0
-    n = tau.size
-    prod = float(np.prod((hi - tau) * (tau - lo) / (hi - lo) ** 2))  # = (−1)ⁿ Π(...) with each factor > 0
+    prod = 1.0  # = (−1)ⁿ Π(...) with each factor > 0 inside the box
+    n = 0
+    for t, lo, hi in zip(_as_list(tau), _as_list(torque_min), _as_list(torque_max)):
+        if t >= hi or t <= lo:
+            return 0.0
+        prod *= (hi - t) * (t - lo) / (hi - lo) ** 2
+        n += 1
     v = -math.expm1(-S * prod) / -math.expm1(-S / 4.0**n)
     return min(max(v, 0.0), 1.0)
 
@@ -260,7 +347,8 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
     relative to its limit), holds it at that limit (𝒮_kk = 1, τ_s,k = T_max/min,k) and moves
     the excess to the unsaturated joints through the least-norm null-space torque
     ``Z y`` with ``(a + b + Z y)_𝒮 = τ_s`` (eq. 7.8). When holding one more joint leaves
-    no null-space torque that can do so (``Z_𝒮`` rank-deficient; with the kinematic
+    no null-space torque that can do so (``Z_𝒮`` rank-deficient: smallest singular value
+    below `RANK_TOL`; with the kinematic
     projector this is the thesis's test ``rank(J(I − 𝒮)) < m``), the rendered force is
     scaled by the largest α with all joints in the box, the held joints staying at their
     limits (eq. 7.9, Algorithm 1 lines 16–24; α is taken over every joint, not only joint k,
@@ -292,7 +380,7 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
         ts2 = ts.copy()
         ts2[k] = hi[k] if tau[k] > hi[k] else lo[k]
         cnt = int(S2.sum())
-        if cnt > r or np.linalg.matrix_rank(Z[S2], tol=1e-9) < cnt:
+        if cnt > r or np.linalg.matrix_rank(Z[S2], tol=RANK_TOL) < cnt:
             break
         S, ts = S2, ts2
     # infeasible: scale the rendered force with the joints of S held at their limits
@@ -307,6 +395,113 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
             return Allocation(tau, alpha, S, tau - alpha * a - b, "ascm")
     res = allocate_scaling(a, b, lo, hi)
     return dataclasses.replace(res, method="ascm")
+
+
+def _well_conditioned(P: list[list[float]], S: list[int]) -> bool:
+    """Whether P[S, S] = Z_S Z_Sᵀ has smallest eigenvalue > _FAST_TOL (lists)."""
+    if len(S) == 1:
+        return P[S[0]][S[0]] > _FAST_TOL
+    if len(S) == 2:
+        j, k = S
+        a, b, d = P[j][j], P[j][k], P[k][k]
+        return 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b) > _FAST_TOL
+    PSS = np.array([[P[i][j] for j in S] for i in S])
+    return bool(np.linalg.eigvalsh(0.5 * (PSS + PSS.T))[0] > _FAST_TOL)
+
+
+def _held_torque(P: list[list[float]], S: list[int], r: list[float]) -> list[float]:
+    """Least-norm null-space torque with entries r on the joints S: P[:, S] P[S, S]⁻¹ r (lists)."""
+    if len(S) == 1:
+        j = S[0]
+        y = r[0] / P[j][j]
+        return [Pi[j] * y for Pi in P]
+    if len(S) == 2:
+        j, k = S
+        a, b, c, d = P[j][j], P[j][k], P[k][j], P[k][k]
+        det = a * d - b * c
+        y0, y1 = (d * r[0] - b * r[1]) / det, (a * r[1] - c * r[0]) / det
+        return [Pi[j] * y0 + Pi[k] * y1 for Pi in P]
+    y = np.linalg.solve(np.array([[P[i][j] for j in S] for i in S]), np.array(r)).tolist()
+    return [sum(Pi[j] * yj for j, yj in zip(S, y)) for Pi in P]
+
+
+def _ascm_fast(a, b, P, lo_l: list[float], hi_l: list[float], r: int) -> Allocation | None:
+    """`ascm` in projector form on Python floats; None when a held set makes P[S, S] ill-conditioned.
+
+    P: (n, n) array or list of rows.
+    """
+    n = a.shape[0]
+    a_l, b_l = a.tolist(), b.tolist()
+    base = [x + y for x, y in zip(a_l, b_l)]
+    Pl = P if isinstance(P, list) else P.tolist()
+    S: list[int] = []
+    ts: dict[int, float] = {}
+    tl, d = base, [0.0] * n
+    for _ in range(n + 1):
+        if S:
+            d = _held_torque(Pl, S, [ts[j] - base[j] for j in S])
+            tl = [x + y for x, y in zip(base, d)]
+        k, worst = -1, _TOL
+        for i in range(n):
+            if i in ts:
+                continue
+            o = max(tl[i] - hi_l[i], lo_l[i] - tl[i]) / (hi_l[i] - lo_l[i])
+            if o > worst:
+                k, worst = i, o
+        if k < 0:
+            sat = np.zeros(n, bool)
+            sat[S] = True
+            return Allocation(np.array(tl), 1.0, sat, np.array(d), "ascm")
+        S2 = sorted(S + [k])
+        if len(S2) > r:
+            break
+        if not _well_conditioned(Pl, S2):
+            return None  # the rank test and the solve need the basis form
+        S = S2
+        ts[k] = hi_l[k] if tl[k] > hi_l[k] else lo_l[k]
+    if S:
+        # τ(α) = α p + c with the joints S held at ts: p = a − P_S P_SS⁻¹ a_S, c = b + P_S P_SS⁻¹ (ts − b_S);
+        # the last held torque d = P_S P_SS⁻¹ (ts − a_S − b_S) gives c = b + d + (a − p)
+        ha = _held_torque(Pl, S, [a_l[j] for j in S])
+        p = [x - y for x, y in zip(a_l, ha)]
+        c = [x + y + z for x, y, z in zip(b_l, d, ha)]
+        free = [i for i in range(n) if i not in ts]
+        alpha = _scaling_alpha([p[i] for i in free], [c[i] for i in free], [lo_l[i] for i in free], [hi_l[i] for i in free])
+        if alpha is not None:
+            tl = [min(max(alpha * pi + ci, l), h) for pi, ci, l, h in zip(p, c, lo_l, hi_l)]
+            null = [t - alpha * x - y for t, x, y in zip(tl, a_l, b_l)]
+            sat = np.zeros(n, bool)
+            sat[S] = True
+            return Allocation(np.array(tl), alpha, sat, np.array(null), "ascm")
+    res = allocate_scaling(a, b, np.array(lo_l), np.array(hi_l))
+    return dataclasses.replace(res, method="ascm")
+
+
+def ascm_projector(a, b, P, lo, hi, *, rank: int | None = None) -> Allocation:
+    """ASCM (thesis Algorithm 1) from the null-space projector P = Z Zᵀ: the allocation of `ascm`.
+
+    Same iteration as `ascm` (most overloaded joint first, least-norm null-space torque,
+    α-scaling when ``Z_𝒮`` would lose rank), with the least-norm torque written
+    ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` and the few-joint algebra on Python floats: for a controller
+    tick, where P comes from `null_projector` instead of an SVD. Because P[𝒮, 𝒮] squares
+    the condition number of Z_𝒮, a held set with σ_min(Z_𝒮) < 0.01 is handed to `ascm`
+    with a basis of P (the same allocation, computed accurately).
+
+    Args:
+        a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
+        b: (n,) unscaled torque [N m].
+        P: (n, n) orthogonal projector onto the null-space torques (`null_projector`).
+        lo, hi: (n,) torque limits [N m].
+        rank: n − m, the rank of P (default: its rounded trace).
+
+    Returns:
+        The allocation; equal to ``ascm(a, b, Z, lo, hi)`` for any orthonormal Z with Z Zᵀ = P.
+    """
+    r = int(round(float(np.trace(P)))) if rank is None else rank
+    res = _ascm_fast(a, b, P, _as_list(lo), _as_list(hi), r)
+    if res is None:
+        res = ascm(a, b, basis_from_projector(P, r), np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
+    return res
 
 
 def allocate_lp(a, b, Z, lo, hi) -> Allocation:
@@ -345,7 +540,8 @@ def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> 
     The objective torque is projected by N (eq. 3.20; orthogonally onto range(Z) if N is
     None), then onto the torques that leave the held joints 𝒮 unchanged, and scaled by
     the largest β <= 1 that keeps every joint in the box (Algorithm 2). β = 0 when no
-    redundancy is left after ASCM.
+    redundancy is left after ASCM (fewer than m + 1 joints free), or when the projected
+    torque is negligible (every entry below 1e-12 (1 + max|τ_to|) N m).
 
     Args:
         tau: (n,) torque from the allocation [N m], within the box.
@@ -358,16 +554,68 @@ def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> 
     Returns:
         (β δ (n,) [N m] to add to tau, β).
     """
+    n, r = Z.shape
+    if n - int(np.count_nonzero(saturated)) <= n - r:  # no redundancy left (Algorithm 2, line 2)
+        return np.zeros_like(tau), 0.0
     c = Z.T @ (tau_to if N is None else N @ tau_to)
     if saturated.any():
         ZS = Z[saturated]
         c = c - np.linalg.pinv(ZS) @ (ZS @ c)
     delta = Z @ c
-    if not np.any(np.abs(delta) > 1e-15):
+    if not np.any(np.abs(delta) > _negligible(tau_to)):
         return np.zeros_like(tau), 0.0
     beta = scaling_alpha(delta, np.clip(tau, lo, hi), lo, hi)
     beta = 0.0 if beta is None else beta
     return beta * delta, beta
+
+
+def _negligible(tau_to) -> float:
+    """Null-space torques below this [N m] are rounding noise of the projections."""
+    return 1e-12 * (1.0 + max(map(abs, _as_list(tau_to))))
+
+
+def _tertiary_fast(tau, saturated, P, tau_to, Ntau_to, lo_l, hi_l, rank: int) -> tuple[np.ndarray, float] | None:
+    """`tertiary` in projector form; None when P[S, S] is ill-conditioned (use the basis form)."""
+    n = tau.shape[0]
+    dl = Ntau_to.tolist()
+    S = [i for i, v in enumerate(saturated.tolist()) if v]
+    if S:
+        if n - len(S) <= n - rank:  # no redundancy left (Algorithm 2, line 2)
+            return np.zeros(n), 0.0
+        Pl = P if isinstance(P, list) else P.tolist()
+        if not _well_conditioned(Pl, S):
+            return None
+        dl = [x - y for x, y in zip(dl, _held_torque(Pl, S, [dl[j] for j in S]))]
+    tiny = _negligible(tau_to)
+    if max(map(abs, dl)) <= tiny:
+        return np.zeros(n), 0.0
+    tc = [min(max(t, l), h) for t, l, h in zip(tau.tolist(), lo_l, hi_l)]
+    beta = _scaling_alpha(dl, tc, lo_l, hi_l)
+    if beta is None:
+        return np.zeros(n), 0.0
+    return np.array([beta * v for v in dl]), beta
+
+
+def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """`tertiary` from the projector P = Z Zᵀ instead of a basis (same result).
+
+    Args:
+        tau: (n,) torque from the allocation [N m], within the box.
+        saturated: (n,) bool, ASCM's 𝒮.
+        P: (n, n) orthogonal projector onto the null-space torques (`null_projector`).
+        tau_to: (n,) tertiary torque τ_to [N m].
+        lo, hi: (n,) torque limits [N m].
+        N: (n, n) torque null-space projector I − JᵀJ#ᵀ, or None (then P).
+
+    Returns:
+        (β δ (n,) [N m] to add to tau, β).
+    """
+    r = int(round(float(np.trace(P))))
+    Ntau = (P if N is None else N).dot(tau_to)
+    res = _tertiary_fast(tau, saturated, P, tau_to, Ntau, _as_list(lo), _as_list(hi), r)
+    if res is None:
+        res = tertiary(tau, saturated, basis_from_projector(P, r), tau_to, np.asarray(lo), np.asarray(hi), N)
+    return res
 
 
 def force_capability(
