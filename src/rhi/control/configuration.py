@@ -39,7 +39,8 @@ def optimal_configuration(
         Unreachable: no configuration within the limits reaches x.
     """
     x = as_array("x", x, shape_tail=(device.m,))
-    q0 = device.ik(x, q0)  # feasible start (raises Unreachable)
+    # feasible start nearest q0: no joint-centring term, which would move the start along the self-motion
+    q0 = device.ik(x, q0, k_null=0.0)  # raises Unreachable
     cons = [
         NonlinearConstraint(
             lambda q: device.fk(q) - x, 0.0, 0.0, jac=lambda q: device.jacobian(q)
@@ -60,7 +61,7 @@ def optimal_configuration(
     )
     # the best feasible point found: SLSQP's answer projected back onto f(q) = x, or the start
     try:
-        q = device.ik(x, np.clip(res.x, device.q_min, device.q_max))
+        q = device.ik(x, np.clip(res.x, device.q_min, device.q_max), k_null=0.0, restarts=0)
     except Unreachable:
         return q0
     return q if objective.value(device, q) <= objective.value(device, q0) else q0
