@@ -13,14 +13,22 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rhi.experiments import appa as exa
 from rhi.experiments import appb as exb
 from rhi.experiments import ch3 as ex3
+from rhi.experiments import ch3_control as ex3c
 from rhi.experiments import ch4 as ex4
+from rhi.experiments import ch6 as ex6
 from rhi.experiments import ch7 as ex7
+from rhi.experiments import ch7_palpation as ex7p
+from rhi.experiments import perception as exp
 from rhi.experiments.result import Result
 from rhi.plots import appa as pla
 from rhi.plots import appb as plb
 from rhi.plots import ch3 as pl3
+from rhi.plots import ch3_control as pl3c
 from rhi.plots import ch4 as pl4
+from rhi.plots import ch6 as pl6
 from rhi.plots import ch7 as pl7
+from rhi.plots import ch7_palpation as pl7p
+from rhi.plots import perception as plp
 from rhi.report import write_report
 
 
@@ -45,15 +53,39 @@ STEPS: list[Step] = [
     Step("ch3", ex3.table_3_1, {}, {}, {"configurations": pl3.configurations}),
     Step("ch3", ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
          {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
+    Step("ch3", ex3c.nullspace_configurations, {}, {"duration": 4.0, "starts": ("rehab",), "hard_stops": False},
+         {"fig_ch3_control": pl3c.convergence, "ch3_control_configurations": pl3c.configurations,
+          "ch3_control_drift": pl3c.drift_hist}, progress=True),
+    Step("ch3", exp.sysid_table_3_2, {}, {"trials": 4}, {"table3_2": plp.sysid_fit}, progress=True),
+    Step("ch3", exp.psychophysics, {},
+         {"subjects": 4, "repetitions": 6, "comparison_percent": (-35.0, -15.0, 0.0, 15.0, 35.0), "durations": (0.7, 1.4),
+          "overdispersion": False},
+         {"fig3_9": plp.psychometric_curves, "fig3_10": plp.wf_jnd_boxes, "perceived_stiffness": plp.perceived_stiffness},
+         progress=True),
     Step("ch4", ex4.theta_z_design, {"density": 100.0}, {"density": 40.0, "step_deg": 5.0, "maxiter": 20},
          {"fig4_4": pl4.fig4_4, "theta_sweep": pl4.theta_sweep}, progress=True),
     Step("ch4", ex4.full_design, {"density": 100.0}, {"density": 40.0, "maxiter": 15, "popsize": 8},
          {"fig4_5": pl4.fig4_5, "fig4_6": pl4.fig4_6, "fig4_7": pl4.fig4_7}, progress=True),
     Step("ch4", ex4.sensitivity, {"density": 100.0}, {"density": 40.0, "densities": (20.0, 40.0, 80.0), "maxiter": 10},
          {"convergence": pl4.convergence}, progress=True),
+    Step("ch6", ex6.example_3dof, {"steps": 201}, {"steps": 101},
+         {"fig6_3": pl6.example_3dof, "fig6_4": pl6.configurations_3dof}),
+    Step("ch6", ex6.palpation, {}, {"settle": 0.2, "depth": 0.012, "speed": 0.02, "hold": 0.1}, {"fig6_9": pl6.palpation},
+         progress=True),
+    Step("ch6", exp.sysid_table_6_1, {}, {"trials": 4}, {"table6_1": plp.sysid_fit}, progress=True),
+    Step("ch6", ex6.transition, {},
+         {"settle": 0.2, "depth": 0.015, "speed": 0.03, "hold": 0.3, "release": 0.7, "compare_beta": None},
+         {"fig6_11": pl6.transition}, progress=True),
+    Step("ch6", ex6.fmax_ratio_map, {"resolution": 25}, {"resolution": 7, "starts": 1}, {"fig6_10": pl6.fmax_ratio_map},
+         progress=True),
     Step("ch7", ex7.example_3dof, {"steps": 401}, {"steps": 101}, {"fig7_1": pl7.example_3dof}),
     Step("ch7", ex7.deficiency_map, {"resolution": 31}, {"resolution": 9}, {"fig7_5": pl7.deficiency_map},
          progress=True),
+    Step("ch7", ex7p.palpation, {},
+         {"start": "optimum", "settle": 0.5, "depth": 0.03, "speed": 0.03,
+          "cases": (("none", "dynamic"), ("ascm", "dynamic"), ("lp", "dynamic"))},
+         {"fig7_6": pl7p.fig7_6, "fig7_6_force_penetration": pl7p.force_penetration,
+          "ch7_palpation_settling": pl7p.settling}, progress=True),
     Step("appa", exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
          progress=True),
     Step("appa", exa.dm_enhancement, {}, {"t_long": 20.0}, {"fig_a9": pla.dm_enhancement}, progress=True),
