@@ -126,8 +126,8 @@ def simulate(
         q, dq = plant.q, plant.dq
         ft = plant.ft()
         if virtual is not None:
-            xc = dev.fk(q)
-            F_env = virtual.force(xc, dev.jacobian(q) @ dq)
+            kin = dev.terms(q, dq, check=False)
+            F_env = virtual.force(kin.x, kin.xdot)
         else:
             F_env = zero_m
         tau = np.asarray(controller.step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
