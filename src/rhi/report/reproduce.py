@@ -15,6 +15,7 @@ from rhi.experiments import appb as exb
 from rhi.experiments import ch3 as ex3
 from rhi.experiments import ch3_control as ex3c
 from rhi.experiments import ch4 as ex4
+from rhi.experiments import ch5 as ex5
 from rhi.experiments import ch6 as ex6
 from rhi.experiments import ch7 as ex7
 from rhi.experiments import ch7_palpation as ex7p
@@ -25,6 +26,7 @@ from rhi.plots import appb as plb
 from rhi.plots import ch3 as pl3
 from rhi.plots import ch3_control as pl3c
 from rhi.plots import ch4 as pl4
+from rhi.plots import ch5 as pl5
 from rhi.plots import ch6 as pl6
 from rhi.plots import ch7 as pl7
 from rhi.plots import ch7_palpation as pl7p
@@ -68,6 +70,11 @@ STEPS: list[Step] = [
          {"fig4_5": pl4.fig4_5, "fig4_6": pl4.fig4_6, "fig4_7": pl4.fig4_7}, progress=True),
     Step("ch4", ex4.sensitivity, {"density": 100.0}, {"density": 40.0, "densities": (20.0, 40.0, 80.0), "maxiter": 10},
          {"convergence": pl4.convergence}, progress=True),
+    Step("ch5", ex5.fixed_point, {}, {"duration": 6.0, "variants": False},
+         {"fig5_3": pl5.fig5_3, "fig5_3_convergence": pl5.fixed_point_convergence}, progress=True),
+    Step("ch5", ex5.workspaces, {}, {"samples": 8000, "area_samples": 50000}, {"fig5_4": pl5.fig5_4}),
+    Step("ch5", ex5.w_trajectory, {}, {"scale": 0.15},
+         {"fig5_5": pl5.fig5_5, "fig5_6": pl5.fig5_6, "tme_along_w": pl5.tme_along_w}, progress=True),
     Step("ch6", ex6.example_3dof, {"steps": 201}, {"steps": 101},
          {"fig6_3": pl6.example_3dof, "fig6_4": pl6.configurations_3dof}),
     Step("ch6", ex6.palpation, {}, {"settle": 0.2, "depth": 0.012, "speed": 0.02, "hold": 0.1}, {"fig6_9": pl6.palpation},
