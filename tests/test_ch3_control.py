@@ -32,14 +32,14 @@ def _row(res, start):
 
 
 def test_barrier_gradient_matches_finite_differences(rhi4, rng):
-    bar = ex.JointLimitBarrier(rhi4)
+    bar = ex.BARRIER
     checked = 0
     for q in random_q(rhi4, rng, 400):
         # move one joint to within the barrier's margin of one of its bounds
         k = rng.integers(rhi4.n)
         bound = (rhi4.q_min if rng.random() < 0.5 else rhi4.q_max)[k]
         q[k] = bound + np.sign(0.5 * (rhi4.q_min[k] + rhi4.q_max[k]) - bound) * rng.uniform(0.05, 0.95) * bar.margin
-        d = bar.distances(q)
+        d = bar.distances(rhi4, q)
         if not rhi4.within_limits(q) or d.min() < 0.05 * bar.margin or np.any(np.abs(d - bar.margin) < 1e-5):
             continue
         fd = fd_jacobian(lambda v: np.array(bar.value(rhi4, v)), q, eps=1e-7)
@@ -53,9 +53,9 @@ def test_barrier_gradient_matches_finite_differences(rhi4, rng):
 
 
 def test_barrier_is_zero_away_from_the_limits(rhi4):
-    bar = ex.JointLimitBarrier(rhi4)
+    bar = ex.BARRIER
     q = np.full(4, 0.5)
-    assert rhi4.within_limits(q) and np.min(bar.distances(q)) > bar.margin
+    assert rhi4.within_limits(q) and np.min(bar.distances(rhi4, q)) > bar.margin
     assert bar.value(rhi4, q) == 0.0
     assert np.all(bar.gradient(rhi4, q) == 0.0)
     # near q2's lower limit (0 rad) the barrier pushes q2 up: its gradient is negative
@@ -111,9 +111,9 @@ def test_joint_stops_push_the_hand(short, rhi4):
     """Eq. 3.21 alone drives q into its stops; the reaction moves the handle more than the barrier run."""
     a = short.arrays
     assert np.max(a["p0_rehab_stops_drift"]) > 3 * np.max(a["p0_rehab_barrier_drift"])
-    bar = ex.JointLimitBarrier(rhi4)
-    assert np.min(bar.distances(a["p0_rehab_stops_q_end"])) < math.radians(0.5)
-    assert np.min(bar.distances(a["p0_rehab_barrier_q_end"])) > math.radians(0.5)
+    bar = ex.BARRIER
+    assert np.min(bar.distances(rhi4, a["p0_rehab_stops_q_end"])) < math.radians(0.5)
+    assert np.min(bar.distances(rhi4, a["p0_rehab_barrier_q_end"])) > math.radians(0.5)
 
 
 def test_result_serialises_and_figures_draw(short):
@@ -139,5 +139,3 @@ def test_bad_input(rhi4):
         ex.nullspace_configurations(1.0, starts=("sideways",))
     with pytest.raises(InvalidInput, match="points"):
         ex.nullspace_configurations(1.0, points=[(0.1, 0.2, 0.3)])
-    with pytest.raises(InvalidInput, match="margin"):
-        ex.JointLimitBarrier(rhi4, margin=-1.0)

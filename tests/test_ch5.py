@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from conftest import random_q
 
-from rhi.control import Manipulability
+from rhi.control import Manipulability, TMIMatching
+from rhi.control.objectives import _penalty
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments import ch5
 from rhi.metrics import jbld, joint_limit_penalty, penalized_jacobian
@@ -41,15 +42,15 @@ def test_penalty_and_its_derivative(devs, rng):
     dev = devs["RHI"]
     for q in random_q(dev, rng, 5):
         for k in (1.0, 10.0):
-            p, dp = ch5._penalty(q, dev.q_min, dev.q_max, k)
+            p, dp = _penalty(q, dev.q_min, dev.q_max, k)
             np.testing.assert_allclose(p, joint_limit_penalty(q, dev.q_min, dev.q_max, k), rtol=1e-12, atol=1e-15)
-            fd = [(ch5._penalty(q + 1e-6 * e, dev.q_min, dev.q_max, k)[0]
-                   - ch5._penalty(q - 1e-6 * e, dev.q_min, dev.q_max, k)[0])[i] / 2e-6 for i, e in enumerate(np.eye(4))]
+            fd = [(_penalty(q + 1e-6 * e, dev.q_min, dev.q_max, k)[0]
+                   - _penalty(q - 1e-6 * e, dev.q_min, dev.q_max, k)[0])[i] / 2e-6 for i, e in enumerate(np.eye(4))]
             np.testing.assert_allclose(dp, fd, rtol=1e-6, atol=1e-8)
     # outside the limits: clipped to 0 with zero slope; no finite limits: 1
-    p, dp = ch5._penalty(dev.q_min - 0.1, dev.q_min, dev.q_max, 10.0)
+    p, dp = _penalty(dev.q_min - 0.1, dev.q_min, dev.q_max, 10.0)
     assert np.all(p == 0) and np.all(dp == 0)
-    p, dp = ch5._penalty(np.zeros(2), np.full(2, -np.inf), np.full(2, np.inf), 10.0)
+    p, dp = _penalty(np.zeros(2), np.full(2, -np.inf), np.full(2, np.inf), 10.0)
     assert np.all(p == 1) and np.all(dp == 0)
 
 
@@ -60,7 +61,7 @@ def test_tmi_objective_value_and_gradient(devs, rng, k_q, pen_slave, rot):
     rhi, slave = devs["RHI"], devs["slave"]
     qs = slave.ik((0.5, 0.0), ch5.SLAVE_SEED)
     H = None if rot == 0 else np.array([[np.cos(rot), -np.sin(rot)], [np.sin(rot), np.cos(rot)]])
-    obj = ch5.TMIMatching(slave, qs, k_q=k_q, penalize_slave=pen_slave, H=H)
+    obj = TMIMatching(slave, qs, k_q=k_q, penalize_slave=pen_slave, H=H)
     for q in random_q(rhi, rng, 4):
         J = rhi.jacobian(q)
         Js = slave.jacobian(qs)
@@ -79,7 +80,7 @@ def test_tmi_objective_value_and_gradient(devs, rng, k_q, pen_slave, rot):
 def test_tmi_objective_reads_the_slave_encoders(devs):
     rhi, slave = devs["RHI"], devs["slave"]
     state = {"q": slave.ik((0.5, 0.0), ch5.SLAVE_SEED)}
-    obj = ch5.TMIMatching(slave, lambda: state["q"])
+    obj = TMIMatching(slave, lambda: state["q"], k_q=ch5.K_Q)
     v0 = obj.value(rhi, ch5.Q_FIXED)
     state["q"] = slave.ik((0.45, -0.2), ch5.SLAVE_SEED)
     assert obj.value(rhi, ch5.Q_FIXED) != pytest.approx(v0)  # not a stale cache
@@ -90,8 +91,8 @@ def test_tmi_objective_reads_the_slave_encoders(devs):
 
 def test_penalized_manipulability(devs, rng):
     rhi = devs["RHI"]
-    plain, literal = ch5.PenalizedManipulability(None), Manipulability(log=True)
-    pen = ch5.PenalizedManipulability(10.0)
+    plain, literal = Manipulability(log=True, k_q=None), Manipulability(log=True)
+    pen = Manipulability(log=True, k_q=10.0)
     for q in random_q(rhi, rng, 4):
         assert plain.value(rhi, q) == pytest.approx(literal.value(rhi, q), rel=1e-12)
         np.testing.assert_allclose(plain.gradient(rhi, q), literal.gradient(rhi, q), rtol=1e-9, atol=1e-12)
@@ -102,11 +103,11 @@ def test_penalized_manipulability(devs, rng):
 def test_objectives_reject_bad_input(devs):
     slave = devs["slave"]
     with pytest.raises(InvalidInput, match="k_q"):
-        ch5.TMIMatching(slave, np.zeros(2), k_q=0.0)
+        TMIMatching(slave, np.zeros(2), k_q=0.0)
     with pytest.raises(InvalidInput, match="slave_q"):
-        ch5.TMIMatching(slave, np.zeros(3))
+        TMIMatching(slave, np.zeros(3))
     with pytest.raises(InvalidInput, match="k_q"):
-        ch5.PenalizedManipulability(-1.0)
+        Manipulability(log=True, k_q=-1.0)
 
 
 def test_fixed_point_controller_increases_tme(fixed, devs):

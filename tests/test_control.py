@@ -17,6 +17,7 @@ from rhi.control import (
     ForceRendering,
     ImpedanceControl,
     JointFriction,
+    JointLimitBarrier,
     Manipulability,
     NullSpaceController,
     ObjectiveTerm,
@@ -24,6 +25,7 @@ from rhi.control import (
     TransitionConfig,
     TransitionState,
     VMEMatching,
+    WeightedSum,
     allocate_lp,
     ascm,
     ascm_projector,
@@ -85,6 +87,8 @@ def test_objective_gradients_match_finite_differences(name, rng):
         EllipsoidMatching(np.diag([0.03, 0.01]), H=np.array([[0.0, 1.0], [-1.0, 0.0]])),
         Manipulability(),
         Manipulability(log=True),
+        Manipulability(k_q=10.0),
+        Manipulability(log=True, k_q=1.0),
         VMEMatching((0.0, 1.0)),
     ]
     for q in random_q(dev, rng, 6):
@@ -114,6 +118,94 @@ def test_objective_bad_input():
         FMEMatching(np.eye(2), [1.0, -1.0])
     with pytest.raises(InvalidInput, match="mu"):
         fme_shape(np.eye(2), 1.0, mu=0.0)
+    with pytest.raises(InvalidInput, match="k_q"):
+        Manipulability(k_q=0.0)
+
+
+def _near_limits(dev, rng, margin, count):
+    """Configurations within the limits with one joint inside `margin` of one of its bounds."""
+    out = []
+    for q in random_q(dev, rng, 4 * count):
+        k = rng.integers(dev.n)
+        bound = (dev.q_min if rng.random() < 0.5 else dev.q_max)[k]
+        q[k] = bound + np.sign(0.5 * (dev.q_min[k] + dev.q_max[k]) - bound) * rng.uniform(0.1, 0.9) * margin
+        if dev.within_limits(q):
+            out.append(q)
+    return out[:count]
+
+
+@pytest.mark.parametrize("kind", ["quadratic", "inverse"])
+def test_joint_limit_barrier_gradient_matches_finite_differences(kind, rhi4, rng):
+    bar = JointLimitBarrier(0.2, weight=3.0, kind=kind)
+    checked = 0
+    for q in _near_limits(rhi4, rng, bar.margin, 40):
+        d = bar.distances(rhi4, q)
+        if d.min() < 0.05 * bar.margin or np.any(np.abs(d - bar.margin) < 1e-4):
+            continue  # FD across the kink at d = δ or too close to the pole of the inverse barrier
+        g = bar.gradient(rhi4, q)
+        assert np.abs(g).max() > 0  # active here
+        fd = _fd(bar, rhi4, q, h=1e-7)
+        np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-6 * (1 + np.abs(g).max()))
+        np.testing.assert_array_equal(bar.gradient_at(rhi4.terms(q)), g)
+        checked += 1
+    assert checked >= 15
+
+
+@pytest.mark.parametrize("kind", ["quadratic", "inverse"])
+def test_joint_limit_barrier_zero_inside_and_pushes_away(kind, rhi4):
+    bar = JointLimitBarrier(0.2, kind=kind)
+    mid = np.full(4, 0.5)  # > 0.2 rad from every box and linear limit
+    assert np.min(bar.distances(rhi4, mid)) > bar.margin
+    assert bar.value(rhi4, mid) == 0.0 and np.all(bar.gradient(rhi4, mid) == 0.0)
+    for past in (0.05, -0.01):  # inside the margin, and past q4's lower limit (a plant's soft stop)
+        q = mid.copy()
+        q[3] = rhi4.q_min[3] + past
+        assert bar.value(rhi4, q) > 0 and -bar.gradient(rhi4, q)[3] > 0
+        assert np.isfinite(bar.value(rhi4, q))
+    # the weight scales value and gradient
+    q = mid.copy()
+    q[3] = rhi4.q_min[3] + 0.05
+    heavy = JointLimitBarrier(0.2, weight=4.0, kind=kind)
+    assert heavy.value(rhi4, q) == pytest.approx(4.0 * bar.value(rhi4, q), rel=1e-12)
+    np.testing.assert_allclose(heavy.gradient(rhi4, q), 4.0 * bar.gradient(rhi4, q), rtol=1e-12)
+
+
+def test_joint_limit_barrier_shapes():
+    """One limit at distance d: ½ w (δ − d)² (quadratic), w (δ/d − 1)² (inverse)."""
+    dev = rhi.device("planar3r")
+    k = int(np.flatnonzero(np.isfinite(dev.q_min))[0])
+    q = 0.5 * (dev.q_min + dev.q_max)
+    q = np.where(np.isfinite(q), q, 0.0)
+    q[k] = dev.q_min[k] + 0.05
+    if np.sum(JointLimitBarrier(0.1).distances(dev, q) < 0.1) != 1:
+        pytest.skip("planar3r: more than one limit within the margin at the test configuration")
+    assert JointLimitBarrier(0.1, weight=2.0).value(dev, q) == pytest.approx(0.5 * 2.0 * 0.05**2, rel=1e-9)
+    assert JointLimitBarrier(0.1, weight=2.0, kind="inverse").value(dev, q) == pytest.approx(2.0 * 1.0, rel=1e-9)
+
+
+def test_weighted_sum_value_and_gradient(rhi4, rng):
+    a, b = VMEMatching((0.0, 1.0)), JointLimitBarrier(0.2)
+    ws = WeightedSum([ObjectiveTerm(a, 2.0), ObjectiveTerm(b, 0.5)])
+    assert isinstance(ws.terms, tuple)
+    for q in _near_limits(rhi4, rng, 0.2, 6):
+        assert ws.value(rhi4, q) == pytest.approx(2.0 * a.value(rhi4, q) + 0.5 * b.value(rhi4, q), rel=1e-12)
+        g = ws.gradient(rhi4, q)
+        np.testing.assert_allclose(g, 2.0 * a.gradient(rhi4, q) + 0.5 * b.gradient(rhi4, q), rtol=1e-12)
+        d = b.distances(rhi4, q)
+        if np.all(np.abs(d - b.margin) > 1e-4) and np.linalg.svd(rhi4.jacobian(q), compute_uv=False)[-1] > 0.05:
+            fd = _fd(ws, rhi4, q)
+            np.testing.assert_allclose(g, fd, atol=1e-6 * (1 + np.abs(fd).max()))
+
+
+def test_joint_limit_barrier_bad_input():
+    with pytest.raises(InvalidInput, match="margin"):
+        JointLimitBarrier(0.0)
+    with pytest.raises(InvalidInput, match="margin"):
+        JointLimitBarrier(float("nan"))
+    with pytest.raises(InvalidInput, match="weight"):
+        JointLimitBarrier(0.1, weight=-1.0)
+    with pytest.raises(InvalidInput, match="kind"):
+        JointLimitBarrier(0.1, kind="log")
 
 
 # ------------------------------------------------------------------ ASO, hysteresis, transition
@@ -654,6 +746,8 @@ def test_gradient_at_equals_gradient(name, rng):
         EllipsoidMatching(np.diag(np.linspace(0.02, 0.05, m))),
         EllipsoidMatching(np.diag(np.linspace(0.02, 0.05, m)), H=np.roll(np.eye(m), 1, axis=0)),
         Manipulability(),
+        Manipulability(log=True, k_q=10.0),
+        JointLimitBarrier(0.3, kind="inverse"),
         FMEMatching(desired_fme_stiff(np.eye(m)[0], 100.0, 3.0), dev.torque_max),
     ]
     for q in random_q(dev, rng, 4):

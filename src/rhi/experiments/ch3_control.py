@@ -27,8 +27,8 @@ What the thesis leaves open and we chose (every value is an argument):
   limits of §5.4 (q2 = 0° together with q4 = 80° or q4 = −20°). The controller of
   eqs. 3.20–3.21 alone then pushes the motors into their stops; a stop's reaction torque
   is not in the null space, so the hand is pushed by a few newtons and the handle
-  drifts by about a millimetre. The main runs therefore add `JointLimitBarrier` (a
-  barrier that is zero more than 5° away from every limit) as a second null-space
+  drifts by about a millimetre. The main runs therefore add `BARRIER` (a `rhi.control.JointLimitBarrier`,
+  an inverse barrier that is zero more than 5° away from every limit) as a second null-space
   objective, and the runs "eq. 3.21 alone" show what the stops do. The static optimum is
   computed for both objectives.
 
@@ -51,14 +51,21 @@ Why our numbers differ from the thesis's:
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.control import ControllerConfig, ForceRendering, NullSpaceController, ObjectiveTerm, VMEMatching
+from rhi.control import (
+    ControllerConfig,
+    ForceRendering,
+    JointLimitBarrier,
+    NullSpaceController,
+    ObjectiveTerm,
+    VMEMatching,
+    WeightedSum,
+)
 from rhi.control.configuration import optimal_configuration
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
@@ -84,81 +91,13 @@ DECIMATE = 10
 STARTS = ("rehab", "thesis")
 
 
-class JointLimitBarrier:
-    """Barrier keeping the joints off their range limits: a null-space objective (protocol of `rhi.control`).
-
-    ν_lim(q) = w Σ_r (δ/d_r − 1)² over every limit r with d_r = distance of q to it
-    (box limits q_min ≤ q ≤ q_max and linear limits lower ≤ C q ≤ upper) and d_r < δ;
-    zero farther than δ from every limit, so minima of another objective away from the
-    limits are unchanged. Continuously differentiable; d_r is floored at 10⁻³ δ so the
-    value stays finite if a plant penetrates a soft stop.
-
-    Not a thesis equation: the thesis's chapter 7 assumes no joint is at its range limit;
-    this objective enforces that assumption in simulation.
-
-    Args:
-        device: the device whose joint limits to keep off.
-        margin: δ, distance from a limit where the barrier starts [rad] (> 0).
-        weight: w, scale of ν_lim (same units as the JBLD, dimensionless) (> 0).
-
-    Raises:
-        InvalidInput: margin or weight not finite and positive.
-    """
-
-    def __init__(self, device: Device, margin: float = LIMIT_MARGIN, weight: float = LIMIT_WEIGHT) -> None:
-        for name, v in (("margin", margin), ("weight", weight)):
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
-        rows, lo, hi = [np.eye(device.n)], [device.q_min], [device.q_max]
-        if device.linear_limits is not None:
-            L = device.linear_limits
-            rows.append(np.asarray(L.C, dtype=float))
-            lo.append(np.asarray(L.lower, dtype=float))
-            hi.append(np.asarray(L.upper, dtype=float))
-        C, lower, upper = np.vstack(rows), np.concatenate(lo), np.concatenate(hi)
-        keep = np.isfinite(lower) | np.isfinite(upper)
-        self.C, self.lower, self.upper = C[keep], lower[keep], upper[keep]
-        self.margin, self.weight = float(margin), float(weight)
-
-    def distances(self, q: np.ndarray) -> np.ndarray:
-        """Distances (2k,) of q: (n,) to every lower then every upper limit [rad] (inf where unlimited)."""
-        c = self.C @ q
-        return np.concatenate([c - self.lower, self.upper - c])
-
-    def value(self, device: Device, q: np.ndarray) -> float:
-        """ν_lim(q) for q: (n,) [rad]."""
-        d = self.distances(np.asarray(q, dtype=float))
-        a = d < self.margin
-        r = self.margin / np.maximum(d[a], 1e-3 * self.margin)
-        return float(self.weight * np.sum((r - 1.0) ** 2))
-
-    def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
-        """∂ν_lim/∂q: (n,) [1/rad]."""
-        d = self.distances(np.asarray(q, dtype=float))
-        a = d < self.margin
-        g = np.zeros_like(d)
-        dd = np.maximum(d[a], 1e-3 * self.margin)
-        r = self.margin / dd
-        g[a] = -2.0 * self.weight * (r - 1.0) * r / dd  # ∂/∂d of w (δ/d − 1)²
-        k = len(self.lower)
-        return self.C.T @ (g[:k] - g[k:])  # ∂d_lo/∂q = C, ∂d_hi/∂q = −C
-
-    def gradient_at(self, terms) -> np.ndarray:
-        """`gradient` from a `DeviceTerms` snapshot (the controller's fast path)."""
-        return self.gradient(terms.device, terms.q)
+#: The joint-limit barrier of the main runs (an inverse barrier, δ = 5°, w = 0.01).
+BARRIER = JointLimitBarrier(LIMIT_MARGIN, LIMIT_WEIGHT, kind="inverse")
 
 
-@dataclasses.dataclass(frozen=True)
-class SumObjective:
-    """The sum of objectives (for the static optimum of what the controller minimises)."""
-
-    parts: tuple
-
-    def value(self, device: Device, q: np.ndarray) -> float:
-        return float(sum(p.value(device, q) for p in self.parts))
-
-    def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
-        return np.sum([np.asarray(p.gradient(device, q), dtype=float) for p in self.parts], axis=0)
+def with_barrier(objective) -> WeightedSum:
+    """ν + ν_lim with `BARRIER`: the cost the limit-aware controller minimises (equal steps α), for its static optimum."""
+    return WeightedSum((ObjectiveTerm(objective, 1.0), ObjectiveTerm(BARRIER, 1.0)))
 
 
 def start_configuration(dev: Device, x, which: str) -> np.ndarray:
@@ -192,12 +131,12 @@ def controller(dev: Device, *, gain: float = GAIN, damping: float = NULL_DAMPING
         dev: the device model.
         gain: α of eq. 3.21.
         damping: k_D of eq. 3.20 [N m s/rad].
-        limits: add `JointLimitBarrier` with the same step α.
+        limits: add `BARRIER` with the same step α.
         beta: β of eq. 3.23.
     """
     terms = [ObjectiveTerm(VMEMatching(tuple(U), beta), gain)]
     if limits:
-        terms.append(ObjectiveTerm(JointLimitBarrier(dev), gain))
+        terms.append(ObjectiveTerm(BARRIER, gain))
     cfg = ControllerConfig(primary=ForceRendering(damping=0.0), objectives=terms, damping=damping, saturation="none")
     return NullSpaceController(dev, cfg)
 
@@ -322,7 +261,6 @@ def nullspace_configurations(
         raise InvalidInput("points: give at least one point")
     dev = device("rhi4")
     vme = VMEMatching(tuple(U), BETA)
-    barrier = JointLimitBarrier(dev)
     plan = [(i, s, True) for i in range(len(pts)) for s in starts]
     if hard_stops:
         plan += [(i, starts[0], False) for i in range(len(pts))]
@@ -336,7 +274,7 @@ def nullspace_configurations(
         ctrl = controller(dev, gain=gain, damping=damping, limits=lim)
         cb = None if progress is None else (lambda k, n, off=r * ticks: progress(off + k, total))
         log = hold_run(dev, x, q0, ctrl, duration=duration, progress=cb)
-        obj = SumObjective((vme, barrier)) if lim else vme
+        obj = with_barrier(vme) if lim else vme
         summ = _run_summary(dev, x, log, vme, obj, gain)
         summ["q0"] = q0
         summaries[i, s, lim] = summ
@@ -378,7 +316,7 @@ def nullspace_configurations(
         ]
         for s in starts:
             sm = summaries[i, s, True]
-            q_p = local_optimum(dev, x, SumObjective((vme, barrier)), sm["q"])
+            q_p = local_optimum(dev, x, with_barrier(vme), sm["q"])
             arrays[f"p{i}_{s}_barrier_q_polished"] = q_p
             lbl = f"at {where} from the {s} start"
             conv_rows += [
@@ -410,7 +348,7 @@ def nullspace_configurations(
                 Row(f"max handle drift {lbl}", DRIFT_LIMIT * 1e3, sm["drift_max"] * 1e3, "mm",
                     "stops' reaction torques leave the null space and push the hand"),
                 Row(f"limits within 0.5° of (or beyond) at the end {lbl}", None,
-                    float(np.sum(barrier.distances(sm["q"]) < math.radians(0.5))), ""),
+                    float(np.sum(BARRIER.distances(dev, sm["q"]) < math.radians(0.5))), ""),
             ]
             for k in range(dev.n):
                 stop_rows.append(Row(f"q{k + 1} {lbl}", None, float(sm["q"][k]), "rad"))

@@ -24,7 +24,7 @@ Set-up and the choices the thesis leaves open (each fixed before comparing with 
   limits; driven against the plant's limit stops its null-space torque no longer stays in
   the null space (the stop's reaction force is not in it) and pushes the handle with up to
   ~12 N in free space. The simulated controller therefore adds a joint-limit barrier to the
-  null-space cost (`JointLimitBarrier`: ½ Σ max(0, δ − d)² over the distances d to every box
+  null-space cost (`BARRIER`, a quadratic `rhi.control.JointLimitBarrier`: ½ Σ max(0, δ − d)² over the distances d to every box
   and linear limit, δ = 0.1 rad, gain 100 N m/rad), and the static optimum minimises the
   same sum ν_FME + (100/β) ν_lim, so simulation and statics describe one configuration.
 - **Palpation** (§6.4, eq. 6.21, K_e = 1000 N/m from X₀ = [0.5, 0.1] m along u = [0, 1]):
@@ -64,7 +64,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import weakref
 from collections.abc import Callable
 
 import numpy as np
@@ -74,10 +73,12 @@ from rhi.control import (
     ControllerConfig,
     FMEMatching,
     FMESchedule,
+    JointLimitBarrier,
     NullSpaceController,
     ObjectiveTerm,
     SpringPalpation,
     TransitionConfig,
+    WeightedSum,
     desired_fme_free,
     desired_fme_stiff,
     fme_shape,
@@ -129,79 +130,8 @@ CASES = ("free", "stiff")
 
 
 # --------------------------------------------------------------------------- objectives
-_LIMIT_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-@dataclasses.dataclass(frozen=True)
-class JointLimitBarrier:
-    """ν_lim(q) = ½ Σ max(0, δ − d_i(q))² over the distances d_i to every joint limit.
-
-    d collects q − q_min, q_max − q (finite box limits) and C q − lower, upper − C q (the
-    device's linear limits). Zero farther than δ from every limit; its negative gradient
-    pushes away from a limit that is closer than δ. Not in the thesis: see the module
-    docstring for why the simulated rhi4 controller needs it.
-
-    Attributes:
-        margin: δ [rad], > 0.
-    """
-
-    margin: float = LIMIT_MARGIN
-
-    def __post_init__(self) -> None:
-        if not np.isfinite(self.margin) or self.margin <= 0:
-            raise InvalidInput(f"margin: must be finite and > 0 [rad], got {self.margin!r}")
-
-    @staticmethod
-    def _rows(dev: Device) -> tuple[np.ndarray, np.ndarray]:
-        """(G, h) with d = G q − h: (k, n), (k,); built once per device."""
-        cached = _LIMIT_ROWS.get(dev)
-        if cached is not None:
-            return cached
-        n = dev.n
-        rows, offs = [], []
-        for i in range(n):
-            if np.isfinite(dev.q_min[i]):
-                rows.append(np.eye(n)[i])
-                offs.append(dev.q_min[i])
-            if np.isfinite(dev.q_max[i]):
-                rows.append(-np.eye(n)[i])
-                offs.append(-dev.q_max[i])
-        L = dev.linear_limits
-        if L is not None:
-            for c, lo, hi in zip(np.asarray(L.C), np.asarray(L.lower), np.asarray(L.upper)):
-                rows += [c, -c]
-                offs += [lo, -hi]
-        out = (np.array(rows, dtype=float).reshape(-1, n), np.array(offs, dtype=float))
-        _LIMIT_ROWS[dev] = out
-        return out
-
-    def value(self, device: Device, q: np.ndarray) -> float:
-        G, h = self._rows(device)
-        p = np.maximum(0.0, self.margin - (G @ np.asarray(q, dtype=float) - h))
-        return float(0.5 * p @ p)
-
-    def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
-        """∂ν_lim/∂q = −Gᵀ max(0, δ − d): (n,)."""
-        G, h = self._rows(device)
-        p = np.maximum(0.0, self.margin - (G @ np.asarray(q, dtype=float) - h))
-        return -(G.T @ p)
-
-
-@dataclasses.dataclass(frozen=True)
-class WeightedSum:
-    """Σ gain_i ν_i: the cost whose negative gradient the null-space controller follows (eq. 6.6).
-
-    Attributes:
-        terms: the controller's objective terms.
-    """
-
-    terms: tuple[ObjectiveTerm, ...]
-
-    def value(self, device: Device, q: np.ndarray) -> float:
-        return float(sum(t.gain * t.objective.value(device, q) for t in self.terms))
-
-    def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
-        return sum(t.gain * np.asarray(t.objective.gradient(device, q), dtype=float) for t in self.terms)
+#: The joint-limit barrier of the simulated controller: ½ Σ max(0, δ − d)², δ = `LIMIT_MARGIN`.
+BARRIER = JointLimitBarrier(LIMIT_MARGIN)
 
 
 def controller_terms(desired: np.ndarray, torque_max: np.ndarray, *, limits: bool = True,
@@ -209,7 +139,7 @@ def controller_terms(desired: np.ndarray, torque_max: np.ndarray, *, limits: boo
     """The null-space terms of the rhi4 palpation controller: FME matching (β, thesis: 20) and the limit barrier."""
     terms = [ObjectiveTerm(FMEMatching(desired, torque_max), beta)]
     if limits:
-        terms.append(ObjectiveTerm(JointLimitBarrier(), LIMIT_GAIN))
+        terms.append(ObjectiveTerm(BARRIER, LIMIT_GAIN))
     return tuple(terms)
 
 
@@ -424,7 +354,7 @@ def _palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FME
     if desired is not None:
         terms = controller_terms(desired, dev.torque_max, limits=limits, beta=beta)
     else:
-        terms = (ObjectiveTerm(JointLimitBarrier(), LIMIT_GAIN),) if limits else ()
+        terms = (ObjectiveTerm(BARRIER, LIMIT_GAIN),) if limits else ()
     cfg = ControllerConfig(primary=law, objectives=terms, fme=schedule, damping=K_D, saturation="scaling",
                            projector="dynamic", aso_shape=ASO_S)
     return NullSpaceController(dev, cfg)

@@ -57,17 +57,24 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.control import ControllerConfig, EllipsoidMatching, ForceRendering, NullSpaceController, ObjectiveTerm
+from rhi.control import (
+    ControllerConfig,
+    EllipsoidMatching,
+    ForceRendering,
+    JointLimitBarrier,
+    NullSpaceController,
+    ObjectiveTerm,
+)
 from rhi.control.saturation import force_capability
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch3_control import (
+    BARRIER,
     GAIN,
     NULL_DAMPING,
-    JointLimitBarrier,
-    SumObjective,
     local_optimum,
     start_configuration,
+    with_barrier,
 )
 from rhi.experiments.result import Result, Row, Table
 from rhi.sim import Hand, Path, Plant, Wall, simulate
@@ -127,7 +134,7 @@ def palpation_controller(dev: Device, saturation: str, projector: str = "dynamic
         damping: null-space joint damping k_D [N m s/rad].
     """
     lo = -np.asarray(TORQUE_MAX)
-    terms = [ObjectiveTerm(EllipsoidMatching(np.array(M_DES)), gain), ObjectiveTerm(JointLimitBarrier(dev), gain)]
+    terms = [ObjectiveTerm(EllipsoidMatching(np.array(M_DES)), gain), ObjectiveTerm(BARRIER, gain)]
     cfg = ControllerConfig(primary=ForceRendering(damping=B_D), objectives=terms, damping=damping,
                            saturation=saturation, projector=projector, torque_min=lo, torque_max=np.asarray(TORQUE_MAX))
     return NullSpaceController(dev, cfg)
@@ -147,7 +154,7 @@ def _case_metrics(dev: Device, log, saturated: np.ndarray, saturation: str, x0: 
     pen = (log.x - x0) @ u
     k_sat = _first(saturated.any(axis=1))  # first joint at a torque limit
     k_full = k_sat if saturation == "none" else _first(log.alpha < 1.0 - 1e-9)  # first tick not rendering in full
-    at_lim = np.array([np.min(barrier.distances(q)) < AT_LIMIT for q in log.q])
+    at_lim = np.array([np.min(barrier.distances(dev, q)) < AT_LIMIT for q in log.q])
     k_lim = _first(at_lim)
     N = len(F)
     tail = log.t >= log.t[-1] - 0.2
@@ -231,7 +238,6 @@ def palpation(
     x0, u = as_array("X0", X0), as_array("U", U)
     hi = np.asarray(TORQUE_MAX)
     lo = -hi
-    barrier = JointLimitBarrier(dev)
     vme = EllipsoidMatching(np.array(M_DES))
     push = depth / speed
     t_start = 0.1
@@ -242,7 +248,7 @@ def palpation(
     # 1. settle: the hand holds X0, the tertiary objective sets the contact configuration
     q_start = start_configuration(dev, x0, "rehab")
     if start == "optimum":
-        q_start = local_optimum(dev, x0, SumObjective((vme, barrier)), q_start)
+        q_start = local_optimum(dev, x0, with_barrier(vme), q_start)
     plant = Plant(dev)
     plant.reset(q_start)
     ctrl = palpation_controller(dev, "ascm", gain=gain, damping=damping)
@@ -277,7 +283,7 @@ def palpation(
         off = settle_ticks + r * case_ticks
         cb = None if progress is None else (lambda k, n, off=off: progress(off + k, total))
         log = simulate(plant, rec, duration=t_start + push + hold, hand=hand, virtual=wall, progress=cb)
-        m = _case_metrics(dev, log, np.array(rec.saturated), sat, x0, u, lo, hi, barrier)
+        m = _case_metrics(dev, log, np.array(rec.saturated), sat, x0, u, lo, hi, BARRIER)
         results[sat, proj] = m
         key = f"{sat}_{proj}"
         for k, v in m["series"].items():
@@ -330,7 +336,7 @@ def palpation(
         Row("static ASCM shortfall from the LP optimum (kinematic J⁺)", None,
             100.0 * (1.0 - cap["ascm_kinematic"] / cap["lp_kinematic"]), "%"),
     ]
-    q_opt = local_optimum(dev, x0, SumObjective((vme, barrier)), q_c)
+    q_opt = local_optimum(dev, x0, with_barrier(vme), q_c)
     arrays["q_optimum"] = q_opt
     settle_rows = [
         Row("ν (eq. 7.18) before → after the settle phase", None, float(arrays["settle_nu"][-1]), "",

@@ -108,6 +108,7 @@ import numpy as np
 
 from rhi.analysis import psychophysics as pp
 from rhi.analysis.sysid import Record, SysidResult, identify
+from rhi.control import WeightedSum
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Result, Row, Table
@@ -543,7 +544,7 @@ def ch6_configurations(starts: int = 3) -> dict[str, np.ndarray]:
     _, _, Mf, Ms = ch6.desired_fmes(dev, np.array(U), ch6.Q_HOME)
     out = {}
     for case, Md in (("free", Mf), ("stiff", Ms)):
-        obj = ch6.WeightedSum(ch6.controller_terms(Md, dev.torque_max))
+        obj = WeightedSum(ch6.controller_terms(Md, dev.torque_max))
         out[case] = ch6.best_match(dev, np.array(X_CH6), obj, starts=starts)
     return out
 
@@ -606,7 +607,7 @@ def sysid_table_6_1(
     lo, hi = dev.torque_limits
     rows, arrays, cases = [], {"forces": forces, "u": u, "x": x}, {}
     for k, case in enumerate(ch6.CASES):
-        obj = ch6.WeightedSum(ch6.controller_terms(desired[case], hi))
+        obj = WeightedSum(ch6.controller_terms(desired[case], hi))
         q_start = ch6.match_fme(dev, x_start, obj, q_point[case])
         factory = _ch6_controller(dev, desired[case]) if controller == "nullspace" else None
         cb = None if progress is None else (lambda i, n, k=k: progress(k * len(forces) + i, 2 * len(forces)))
