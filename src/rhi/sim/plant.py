@@ -86,6 +86,10 @@ class Plant:
         self._jac = np.zeros((3, self.model.nv))
         self._weight = self.model.body_mass[self._body] * self.model.opt.gravity
         self.timestep = float(self.model.opt.timestep)
+        # views into MjData's persistent buffers, for a cheap `apply`/`step` in the 1 kHz loop
+        self._ctrl = self.data.ctrl
+        self._xfrc = self.data.xfrc_applied[self._body]
+        self._badqacc = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
 
     # ------------------------------------------------------------------ state
     def reset(self, q, dq=None) -> None:
@@ -151,8 +155,8 @@ class Plant:
     def apply(self, tau, force=None) -> None:
         """Set the motor torques τ: (n,) [N m] (MuJoCo clips them to the torque limits) and the
         external force on the handle, (m,) on the task axes [N] (None: zero)."""
-        self.data.ctrl[:] = tau
-        f = self.data.xfrc_applied[self._body]
+        self._ctrl[:] = tau
+        f = self._xfrc
         f[:] = 0.0
         if force is not None:
             f[self._rows] = force
@@ -168,5 +172,5 @@ class Plant:
         for _ in range(steps):
             mujoco.mj_step2(m, d)
             mujoco.mj_step1(m, d)
-        if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number:
+        if self._badqacc.number:
             raise ModelError(f"plant: MuJoCo reported unstable accelerations at t={self.time:.4f} s")
