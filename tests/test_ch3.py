@@ -9,6 +9,7 @@ import pytest
 from conftest import fd_jacobian, random_q
 
 from rhi.control import VMEMatching
+from rhi.errors import Unreachable
 from rhi.experiments import ch3
 from rhi.report.reproduce import reproduce
 
@@ -46,12 +47,39 @@ def test_ratio_maps_remark_I_holds():
     assert np.nanmin(r) >= 1.0
 
 
+def test_ratio_maps_serial_equals_local_pool():
+    from rhi.design import PoolExecutor
+
+    ticks = []
+    a = ch3.ratio_maps(resolution=5, workers=1, progress=lambda k, n: ticks.append((k, n)))
+    with PoolExecutor(2) as ex:
+        b = ch3.ratio_maps(resolution=5, executor=ex)
+    assert np.isfinite(a.arrays["rho_ratio"]).sum() >= 3
+    for k in ("rho_ratio", "lambda_ratio"):
+        np.testing.assert_array_equal(a.arrays[k], b.arrays[k])  # bit for bit, NaNs in the same places
+    # progress counts grid points, one tick per finished row
+    assert ticks == [(5 * (j + 1), 25) for j in range(5)]
+
+
+def test_workspace_screen_keeps_every_reachable_point(rng):
+    ph = ch3.devices()["PHANToM"]
+    q = rng.uniform(ph.q_min, ph.q_max, size=(4000, 2))
+    q = q[ph.within_limits(q)]
+    assert len(q) > 1000
+    assert ch3.maybe_reachable(ph, ph.fk(q)).all()  # no reachable point is screened out
+    # and it does screen: the far corners of the ratio-map grid are out of reach
+    far = np.array([[0.25, 0.05], [0.70, 0.05], [0.0, 0.0]])
+    assert not ch3.maybe_reachable(ph, far).any()
+    with pytest.raises(Unreachable):
+        ph.ik(far[0], np.array([0.5, 0.3]), restarts=2)
+
+
 def test_reproduce_writes_report(tmp_path):
     path, results = reproduce(tmp_path, only="ch3", quick=True)
     assert path.exists() and (tmp_path / "figures").is_dir()
     data = json.loads((tmp_path / "results.json").read_text())
     names = [r["name"] for r in data["results"]]
-    assert names == ["ch3.table_3_1", "ch3.ratio_maps"]
+    assert names[:2] == ["ch3.table_3_1", "ch3.ratio_maps"]  # other ch3 steps follow (rhi.report.reproduce)
     assert any(p.suffix == ".png" for p in (tmp_path / "figures").iterdir())
     with pytest.raises(Exception, match="only"):
         reproduce(tmp_path, only="ch99")

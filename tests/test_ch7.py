@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rhi.errors import InvalidInput
 from rhi.experiments import ch7
 
 
@@ -51,6 +52,21 @@ def test_fig7_5_deficiency_map_reduced():
     assert np.all(a["pd"][ok] >= -1e-9)  # ASCM is never worse than scaling (thesis Fig. 7.5)
     assert np.all(a["f_ascm"][ok] <= a["f_lp"][ok] * (1 + 1e-7))
     assert np.all(a["pd_lp"][ok] >= a["pd"][ok] - 1e-9)
+
+
+def test_deficiency_map_serial_equals_local_pool():
+    from rhi.design import PoolExecutor
+
+    ticks = []
+    a = ch7.deficiency_map(resolution=4, workers=1, progress=lambda k, n: ticks.append((k, n)))
+    with PoolExecutor(2) as ex:
+        b = ch7.deficiency_map(resolution=4, executor=ex)
+    assert np.isfinite(a.arrays["pd"]).sum() >= 4
+    for k in ("pd", "pd_lp", "f_wo", "f_ascm", "f_lp"):
+        np.testing.assert_array_equal(a.arrays[k], b.arrays[k])  # bit for bit, NaNs in the same places
+    assert ticks == [(4 * (j + 1), 16) for j in range(4)]
+    with pytest.raises(InvalidInput, match="projector"):
+        ch7.deficiency_map(resolution=3, projector="kinematik", workers=1)
 
 
 def test_ch7_figures_draw(fig71):

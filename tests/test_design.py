@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -98,6 +99,13 @@ def test_bad_bounds_raise_clear_errors():
                                       {"l2": (-0.1, 0.2)})
     with pytest.raises(InfeasibleLimits):
         rectangle((0.5, 0.3), (-0.1, 0.1))
+    with pytest.raises(InvalidInput, match="finite"):
+        check_bounds({"z_ph": (-np.inf, 0.1)})
+    prob = ch4.problem("theta_z", density=20)
+    with pytest.raises(InvalidInput, match=r"fixed\['l2'\].*link length"):
+        dataclasses.replace(prob, fixed={"l2": 0.0, "z_ph": 0.0539})
+    with pytest.raises(InvalidInput, match="l2"):
+        Phantom3Master().solve({"l2": -0.1}, np.zeros((1, 2)))
 
 
 def test_workspace_out_of_reach_raises():
@@ -111,6 +119,10 @@ def test_workspace_out_of_reach_raises():
         evaluate_strict(high, [0.0])
     with pytest.raises(Unreachable):
         device_indices(np.zeros((3, 2, 2)), np.zeros(3, bool), np.ones(3))
+    # the optimiser refuses to return an "optimum" that reaches nothing: every Z_PH in the bounds is above reach
+    out_of_reach = dataclasses.replace(prob, bounds={"z_ph": (0.5, 0.6)}, fixed={"l2": 0.165, "theta_z": 0.0})
+    with pytest.raises(Unreachable, match="no design within the bounds"):
+        optimize(out_of_reach, "C2", maxiter=2, popsize=4, refine=False)
 
 
 def test_pool_equals_serial_and_resume(tmp_path):
@@ -131,6 +143,19 @@ def test_pool_equals_serial_and_resume(tmp_path):
     assert sweep(prob, xs, checkpoint=str(path), batch=4) == ref
 
 
+def test_optimizer_gives_the_same_optimum_on_the_pool():
+    prob = ch4.problem("full", density=20)
+    a = optimize(prob, "C2", seed=3, maxiter=4, popsize=5)
+    with PoolExecutor(2) as ex:
+        b = optimize(prob, "C2", seed=3, maxiter=4, popsize=5, executor=ex)
+    np.testing.assert_array_equal(a.x, b.x)
+    assert a.values == b.values and a.evaluations == b.evaluations
+    # the refinement polishes up to `starts` distinct regions and keeps the best: never worse than DE's optimum
+    assert a.values["C2"] >= evaluate(prob, a.x_global)["C2"]
+    with pytest.raises(InvalidInput, match="starts"):
+        optimize(prob, "C2", starts=0)
+
+
 def test_optimizer_is_seeded_and_resumes(tmp_path):
     prob = ch4.problem("theta_z", density=30)
     a = optimize(prob, "C2", seed=1, maxiter=8, checkpoint=str(tmp_path / "o.json"))
@@ -139,9 +164,34 @@ def test_optimizer_is_seeded_and_resumes(tmp_path):
     assert a.values == b.values and a.evaluations == b.evaluations
 
 
+def test_parallel_map_runs_anywhere_in_order_with_progress():
+    from rhi.design.executors import parallel_map
+
+    prob = ch4.problem("theta_z", density=20)
+    xs = [np.array([t]) for t in np.linspace(-1.5, 1.5, 5)]
+    ref = [evaluate(prob, x) for x in xs]
+    fn = functools.partial(evaluate, prob)
+    for kw in ({"executor": "serial"}, {"workers": 1}, {"executor": SerialExecutor()}):
+        ticks = []
+        assert parallel_map(fn, xs, progress=lambda k, n: ticks.append((k, n)), units=[2] * 5, **kw) == ref
+        assert ticks == [(2 * (i + 1), 10) for i in range(5)]
+    with PoolExecutor(2) as ex:
+        assert parallel_map(fn, xs, executor=ex) == ref
+        assert list(ex.imap(fn, xs)) == ref
+    with pytest.raises(InvalidInput, match="units"):
+        parallel_map(fn, xs, workers=1, units=[1])
+    with pytest.raises(InvalidInput, match="workers"):
+        parallel_map(fn, xs, workers=0)
+    with pytest.raises(InvalidInput, match="executor"):
+        parallel_map(fn, xs, executor="threads")
+    with pytest.raises(InvalidInput, match="executor"):
+        parallel_map(fn, xs, executor=object())
+
+
 def test_ray_matches_local_pool():
     pytest.importorskip("ray")
     from rhi.design import RayExecutor
+    from rhi.design.executors import parallel_map
 
     prob = ch4.problem("theta_z", density=30)
     xs = [[t] for t in np.linspace(-1.5, 1.5, 8)]
@@ -149,4 +199,6 @@ def test_ray_matches_local_pool():
         ref = sweep(prob, xs, executor=ex)
     with RayExecutor(workers=2) as ex:
         got = sweep(prob, xs, executor=ex)
+        streamed = parallel_map(functools.partial(evaluate, prob), [np.array(x) for x in xs], executor=ex)
     assert got == ref
+    assert streamed == ref

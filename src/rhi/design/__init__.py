@@ -5,13 +5,13 @@
 * `kinematics`: HI models (closed-form phantom3, any bundled device) and the slave's IK.
 * `cost`: `DesignProblem`, `evaluate`, C1 and C2 (eqs. 4.23, 4.24), bound checks.
 * `optimize`: seeded differential evolution + Nelder–Mead refinement, `sweep`.
-* `executors`: serial, local process pool, Ray — one ``map`` interface.
+* `executors`: serial, local process pool, Ray — one ``map``/``imap`` interface; `parallel_map` for maps.
 * `checkpoint`: resumable evaluation cache.
 """
 
 from rhi.design.checkpoint import EvalCache
 from rhi.design.cost import DesignProblem, check_bounds, cost, declared_bounds, evaluate, evaluate_strict
-from rhi.design.executors import PoolExecutor, RayExecutor, SerialExecutor, make_executor
+from rhi.design.executors import PoolExecutor, RayExecutor, SerialExecutor, make_executor, parallel_map, using
 from rhi.design.indices import device_indices, penalize, teleoperation_index
 from rhi.design.kinematics import DeviceMaster, Phantom3Master, Solution, slave_solution
 from rhi.design.optimize import Optimum, optimize, sweep
@@ -20,6 +20,6 @@ from rhi.design.workspace import Workspace, annulus, rectangle
 __all__ = [
     "DesignProblem", "DeviceMaster", "EvalCache", "Optimum", "Phantom3Master", "PoolExecutor", "RayExecutor",
     "SerialExecutor", "Solution", "Workspace", "annulus", "check_bounds", "cost", "declared_bounds",
-    "device_indices", "evaluate", "evaluate_strict", "make_executor", "optimize", "penalize", "rectangle",
-    "slave_solution", "sweep", "teleoperation_index",
+    "device_indices", "evaluate", "evaluate_strict", "make_executor", "optimize", "parallel_map", "penalize",
+    "rectangle", "slave_solution", "sweep", "teleoperation_index", "using",
 ]

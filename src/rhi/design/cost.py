@@ -103,6 +103,9 @@ class DesignProblem:
             raise InvalidInput(f"r0: expected a distance [m] or 'auto', got {self.r0!r}")
         if not self.slave.ok.any():
             raise Unreachable("workspace: the slave's inverse kinematics failed at every workspace sample")
+        # the slave does not change with D: its penalized Jacobians are computed once per problem
+        object.__setattr__(self, "_slave_Jq", penalize(self.slave.J, self.slave.q, self.slave.q_min,
+                                                       self.slave.q_max, self.k_q))
 
     @property
     def names(self) -> list[str]:
@@ -149,7 +152,7 @@ def evaluate(problem: DesignProblem, x: Sequence[float]) -> dict[str, float]:
         return {"GM_M": 0.0, "GC_M": 0.0, "GM_T": 0.0, "coverage": 0.0, "C1": 0.0, "C2": 0.0}
     w = problem.workspace.weights
     Jm = penalize(sol.J, sol.q, sol.q_min, sol.q_max, problem.k_q)
-    Js = penalize(problem.slave.J, problem.slave.q, problem.slave.q_min, problem.slave.q_max, problem.k_q)
+    Js = problem._slave_Jq
     d = device_indices(Jm, ok, w)
     gmt = teleoperation_index(Jm, Js, ok, w)
     return {"GM_M": d["GM"], "GC_M": d["GC"], "GM_T": gmt, "coverage": d["coverage"],

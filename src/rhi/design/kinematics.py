@@ -16,6 +16,7 @@ was reached. Two models share that interface:
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 
 import numpy as np
@@ -112,22 +113,11 @@ class Phantom3Master:
         """(min, max) horizontal distance from the yaw axis reachable on the plane z = z_ph within the limits [m].
 
         Solves z_ph = l1 s2 − l2 c3 for θ3 on a grid of n values of θ2 (both elbow branches)
-        and keeps the joint-feasible solutions; (0, 0) if the plane is out of reach.
+        and keeps the joint-feasible solutions; (0, 0) if the plane is out of reach. Memoised
+        on (l1, l2, z_ph, n): a θz-only design evaluates it once.
         """
-        l1, l2 = self.l1, float(params.get("l2", 0.165))
-        z = float(params.get("z_ph", 0.0539))
-        q_min, q_max, lo, hi = self._limits()
-        th2 = np.linspace(q_min[1], q_max[1], n)
-        c3 = (l1 * np.sin(th2) - z) / l2
-        valid = np.abs(c3) <= 1
-        r = []
-        for sgn in (1.0, -1.0):
-            th3 = sgn * np.arccos(np.clip(c3, -1, 1))
-            ok = valid & (th3 >= q_min[2]) & (th3 <= q_max[2]) & (th2 - th3 >= lo) & (th2 - th3 <= hi)
-            r.append((l1 * np.cos(th2) + l2 * np.sin(th3))[ok])
-        r = np.concatenate(r)
-        r = r[r > 0]
-        return (float(r.min()), float(r.max())) if r.size else (0.0, 0.0)
+        return _radial_range(float(self.l1), float(params.get("l2", 0.165)), float(params.get("z_ph", 0.0539)),
+                             int(n))
 
     def solve(self, params: Mapping[str, float], targets: np.ndarray) -> Solution:
         """IK at world targets (N, 2) [m] on the plane z = z_ph; J: (N, 2, 3) = [[cz, −sz, 0], [sz, cz, 0]] J_PH."""
@@ -168,6 +158,22 @@ class Phantom3Master:
 
 
 _LIMITS_CACHE: dict[str, tuple] = {}
+
+
+@functools.lru_cache(maxsize=4096)
+def _radial_range(l1: float, l2: float, z: float, n: int) -> tuple[float, float]:
+    q_min, q_max, lo, hi = _phantom3_limits()
+    th2 = np.linspace(q_min[1], q_max[1], n)
+    c3 = (l1 * np.sin(th2) - z) / l2
+    valid = np.abs(c3) <= 1
+    r = []
+    for sgn in (1.0, -1.0):
+        th3 = sgn * np.arccos(np.clip(c3, -1, 1))
+        ok = valid & (th3 >= q_min[2]) & (th3 <= q_max[2]) & (th2 - th3 >= lo) & (th2 - th3 <= hi)
+        r.append((l1 * np.cos(th2) + l2 * np.sin(th3))[ok])
+    r = np.concatenate(r)
+    r = r[r > 0]
+    return (float(r.min()), float(r.max())) if r.size else (0.0, 0.0)
 
 
 def _phantom3_limits() -> tuple[np.ndarray, np.ndarray, float, float]:

@@ -17,7 +17,7 @@ from scipy.optimize import differential_evolution, minimize
 from rhi.design.checkpoint import EvalCache
 from rhi.design.cost import DesignProblem, evaluate
 from rhi.design.executors import SerialExecutor
-from rhi.errors import InvalidInput
+from rhi.errors import InvalidInput, Unreachable
 
 Progress = Callable[[int, int], None]
 
@@ -32,7 +32,7 @@ class Optimum:
         params: {name: value} of the optimum (plus the fixed parameters).
         values: indices and costs at the optimum (`evaluate`).
         x_global: (d,) best design of differential evolution before refinement.
-        evaluations: number of distinct designs evaluated.
+        evaluations: designs evaluated (distinct DE designs plus the Nelder–Mead evaluations).
         history: (k,) best cost after each DE generation.
     """
 
@@ -72,6 +72,36 @@ def sweep(
     return out
 
 
+def _nelder_mead(problem: DesignProblem, which: str, x0: np.ndarray) -> dict:
+    """Bounded Nelder–Mead from x0 on −C (initial simplex: 5 % of each range); {"x", "fun", "nfev"}."""
+    bounds = list(problem.bounds.values())
+    d = len(bounds)
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
+    x0 = np.clip(np.asarray(x0, dtype=float), lo, hi)
+    step = 0.05 * (hi - lo)
+    simplex = np.vstack([x0] + [np.clip(x0 + np.eye(d)[i] * step[i] * (1 if x0[i] + step[i] <= hi[i] else -1), lo, hi)
+                                for i in range(d)])
+    loc = minimize(lambda x: -evaluate(problem, np.clip(x, lo, hi))[which], x0, method="Nelder-Mead", bounds=bounds,
+                   options={"initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-8, "maxfev": 200 * d})
+    return {"x": [float(v) for v in np.clip(loc.x, lo, hi)], "fun": float(loc.fun), "nfev": int(loc.nfev)}
+
+
+def _starts(xs: np.ndarray, fs: np.ndarray, lo: np.ndarray, hi: np.ndarray, k: int, separation: float) -> list:
+    """Up to k of the evaluated designs xs (n, d), best (lowest f) first, pairwise ≥ separation apart.
+
+    Distances are ∞-norms in the unit box (each parameter scaled by its range).
+    """
+    u = (xs - lo) / np.where(hi > lo, hi - lo, 1.0)
+    chosen: list[int] = []
+    for i in np.argsort(fs, kind="stable"):
+        if len(chosen) == k:
+            break
+        if all(np.max(np.abs(u[i] - u[j])) >= separation for j in chosen):
+            chosen.append(int(i))
+    return [xs[i] for i in chosen]
+
+
 def optimize(
     problem: DesignProblem,
     which: str = "C2",
@@ -81,31 +111,56 @@ def optimize(
     popsize: int = 15,
     maxiter: int = 60,
     tol: float = 1e-7,
+    strategy: str = "rand1bin",
     refine: bool = True,
+    starts: int = 4,
+    separation: float = 0.1,
     checkpoint: str | None = None,
     progress: Progress | None = None,
 ) -> Optimum:
     """Maximise C1 or C2 over the problem's bounds.
 
+    Differential evolution (seeded, Sobol' initial population, deferred updating so each
+    generation is one executor batch) explores the box; then bounded Nelder–Mead polishes
+    the best evaluated design *and* the best evaluated designs of up to ``starts − 1``
+    other regions (each at least ``separation`` of every range away from the ones already
+    chosen), one start per executor task, and the best polished design wins. The extra
+    starts matter: the C2 landscape of §4.4 has two basins whose optima differ by < 1 %
+    (a short-l2, high-GC one and an l2 = 0.365 m, high-GM_T one), and DE's population can
+    collapse into the worse one (rhi.experiments.ch4, `full_design` notes).
+
     Args:
         problem: the design problem.
         which: "C1" (eq. 4.23) or "C2" (eq. 4.24).
-        executor: evaluates each DE generation (default serial).
+        executor: evaluates each DE generation and the refinement starts (default serial).
         seed: seed of differential evolution (results are reproducible bit for bit).
-        popsize, maxiter, tol: differential-evolution settings (SciPy's meaning).
-        refine: polish the DE optimum with bounded Nelder–Mead (serial).
+        popsize, maxiter, tol, strategy: differential-evolution settings (SciPy's meaning).
+        refine: polish with bounded Nelder–Mead.
+        starts: number of Nelder–Mead starts (1: the DE optimum only).
+        separation: minimum distance between starts, as a fraction of each parameter's range (∞-norm).
         checkpoint: JSON file of finished evaluations; re-running resumes from it.
         progress: ``progress(done, total)`` after each batch of evaluations.
+
+    Raises:
+        InvalidInput: ``which`` is not "C1" or "C2", or ``starts`` < 1.
+        Unreachable: no design the optimiser visited reaches a single workspace sample.
     """
     if which not in ("C1", "C2"):
         raise InvalidInput(f"which: expected 'C1' or 'C2', got {which!r}")
+    if not isinstance(starts, (int, np.integer)) or starts < 1:
+        raise InvalidInput(f"starts: expected an integer >= 1, got {starts!r}")
     ex = executor or SerialExecutor()
-    cache = EvalCache(checkpoint, _tag(problem, which))
+    tag = _tag(problem, which)
+    cache = EvalCache(checkpoint, tag)
     fn = functools.partial(evaluate, problem)
     bounds = list(problem.bounds.values())
+    lo = np.array([b[0] for b in bounds])
+    hi = np.array([b[1] for b in bounds])
     d = len(bounds)
-    total = popsize * d * (maxiter + 1) + (200 * d if refine else 0)
+    total = popsize * d * (maxiter + 1) + (200 * d * starts if refine else 0)
     done = [0]
+    seen_x: list[np.ndarray] = []
+    seen_f: list[float] = []
 
     def batch_map(_func, xs):
         xs = [np.asarray(x, dtype=float) for x in xs]
@@ -113,7 +168,10 @@ def optimize(
         done[0] += len(xs)
         if progress:
             progress(min(done[0], total), total)
-        return [-r[which] for r in res]
+        out = [-r[which] for r in res]
+        seen_x.extend(xs)
+        seen_f.extend(out)
+        return out
 
     history: list[float] = []
 
@@ -123,23 +181,23 @@ def optimize(
     de = differential_evolution(
         lambda x: -evaluate(problem, x)[which], bounds, seed=seed, popsize=popsize, maxiter=maxiter, tol=tol,
         polish=False, updating="deferred", workers=batch_map, init="sobol" if d > 1 else "latinhypercube",
-        callback=callback,
+        callback=callback, strategy=strategy,
     )
     x_best = np.asarray(de.x, dtype=float)
+    if evaluate(problem, x_best)["coverage"] == 0.0:
+        raise Unreachable(f"workspace: no design within the bounds {problem.bounds} (fixed {problem.fixed}) lets "
+                          f"the HI reach any workspace sample; its inverse kinematics failed everywhere")
+    n_refine = 0
     if refine:
-        lo = np.array([b[0] for b in bounds])
-        hi = np.array([b[1] for b in bounds])
-        step = 0.05 * (hi - lo)
-        simplex = np.vstack([x_best] + [np.clip(x_best + np.eye(d)[i] * step[i] * (1 if x_best[i] + step[i] <= hi[i]
-                                                                                  else -1), lo, hi)
-                                       for i in range(d)])
-        loc = minimize(lambda x: batch_map(None, [np.clip(x, lo, hi)])[0], x_best, method="Nelder-Mead",
-                       bounds=bounds, options={"initial_simplex": simplex, "xatol": 1e-6, "fatol": 1e-9,
-                                               "maxfev": 200 * d})
-        x_loc = np.clip(loc.x, lo, hi)
-        if loc.fun < de.fun:
-            x_best = x_loc
+        x0s = [x_best] + [x for x in _starts(np.array(seen_x), np.array(seen_f), lo, hi, starts, separation)
+                          if np.max(np.abs((x - x_best) / np.where(hi > lo, hi - lo, 1.0))) >= separation][:starts - 1]
+        rcache = EvalCache(None if checkpoint is None else str(checkpoint) + ".refine", tag + "|refine")
+        polished = rcache.map(functools.partial(_nelder_mead, problem, which), x0s, ex.map)
+        n_refine = sum(r["nfev"] for r in polished)
+        best = min(range(len(polished)), key=lambda i: (polished[i]["fun"], i))
+        if polished[best]["fun"] < de.fun:
+            x_best = np.array(polished[best]["x"])
     if progress:
         progress(total, total)
     return Optimum(which, x_best, problem.params(x_best), evaluate(problem, x_best), np.asarray(de.x, dtype=float),
-                   len(cache), np.array(history))
+                   len(cache) + n_refine, np.array(history))

@@ -17,14 +17,16 @@ Why our numbers differ from the thesis's:
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
 
 from rhi.control import VMEMatching
 from rhi.control.configuration import optimal_configuration
+from rhi.design.executors import parallel_map
 from rhi.device import Device, device
-from rhi.errors import Unreachable
+from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.result import Result, Row, Table
 from rhi.metrics import effective_inertia, effective_manipulability
 
@@ -92,41 +94,116 @@ def table_3_1() -> Result:
     )
 
 
-def ratio_maps(resolution: int = 41, progress: Callable[[int, int], None] | None = None) -> Result:
+def maybe_reachable(dev: Device, points: np.ndarray, n: int = 201) -> np.ndarray:
+    """Screen points against a 2-DoF device's workspace: False only where a point is certainly unreachable.
+
+    The joint box is sampled on an n × n grid. A reachable point f(q*), q* within the
+    limits, lies within ``margin`` of the image of a feasible grid node: the largest
+    end-effector step between neighbouring nodes bounds the distance across one cell,
+    and ``margin`` = 3 steps covers a cell's diagonal plus one more cell where a linear
+    limit cuts the cell off from its feasible neighbours. Points farther than that from
+    every feasible node cannot be reached, so their IK (which would try every restart
+    before failing) is skipped. tests/test_ch3.py checks that no FK image of a random
+    feasible configuration is screened out.
+
+    Args:
+        dev: device with n = 2 joints and finite joint limits.
+        points: (N, 2) end-effector positions [m].
+        n: grid nodes per joint.
+
+    Returns:
+        (N,) bool, True where IK must decide.
+    """
+    from scipy.spatial import cKDTree
+
+    if dev.n != 2 or not (np.all(np.isfinite(dev.q_min)) and np.all(np.isfinite(dev.q_max))):
+        raise InvalidInput(f"dev: the workspace screen needs 2 joints with finite limits, got {dev.name}")
+    g = [np.linspace(lo, hi, n) for lo, hi in zip(dev.q_min, dev.q_max)]
+    Q = np.stack(np.meshgrid(*g, indexing="ij"), -1)  # (n, n, 2)
+    X = dev.fk(Q.reshape(-1, 2)).reshape(n, n, -1)
+    step = max(np.linalg.norm(np.diff(X, axis=0), axis=-1).max(), np.linalg.norm(np.diff(X, axis=1), axis=-1).max())
+    feasible = dev.within_limits(Q.reshape(-1, 2))
+    dist, _ = cKDTree(X.reshape(-1, X.shape[-1])[feasible]).query(np.asarray(points, dtype=float))
+    return dist <= 3.0 * step
+
+
+def _ratio_row(row: tuple[float, np.ndarray], xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ρ_r and Λ_r (each (len(xs),), NaN where unreached) along the grid row ``row = (y [m], candidates (len(xs),))``.
+
+    The PHANToM's IK and the RHI's eq.-3.22 optimum are warm-started from the previous
+    point of the row; every row starts from the same configurations ([0.5, 0.3] rad and
+    the thesis's first optimised RHI configuration), so a row's values do not depend on
+    which process computes it or on the other rows. Points with ``candidates`` False are
+    outside the PHANToM's workspace (`maybe_reachable`) and skipped.
+    """
+    y, candidates = row
+    devs = _devices_cached()
+    rhi, ph = devs["RHI"], devs["PHANToM"]
+    objective = VMEMatching(tuple(U), BETA)
+    rho = np.full(len(xs), np.nan)
+    lam = np.full(len(xs), np.nan)
+    q_ph = np.array([0.5, 0.3])
+    q_rhi = np.array(THESIS_Q[0])
+    for i, x in enumerate(xs):
+        if not candidates[i]:
+            continue
+        try:
+            q_ph = ph.ik((x, y), q_ph if ph.within_limits(q_ph) else np.array([0.5, 0.3]))
+            q_rhi = optimal_configuration(rhi, (x, y), objective, q_rhi)
+        except Unreachable:
+            continue
+        r1, l1 = measures(rhi, q_rhi)
+        r0, l0 = measures(ph, q_ph)
+        rho[i], lam[i] = r1 / r0, l1 / l0
+    return rho, lam
+
+
+_DEVICES: dict[str, Device] = {}
+
+
+def _devices_cached() -> dict[str, Device]:
+    """`devices()` built once per process (map workers reuse them across rows)."""
+    if not _DEVICES:
+        _DEVICES.update(devices())
+    return _DEVICES
+
+
+def ratio_maps(
+    resolution: int = 41,
+    progress: Callable[[int, int], None] | None = None,
+    *,
+    executor=None,
+    workers: int | None = None,
+) -> Result:
     """Figs 3.6–3.8: workspaces and the ρ and Λ ratios RHI/PHANToM over their common workspace.
 
     The grid covers the PHANToM's workspace; at each point the PHANToM configuration comes
-    from IK and the RHI's from minimising eq. 3.22 (β = 0.01) within the joint limits.
+    from IK and the RHI's from minimising eq. 3.22 (β = 0.01) within the joint limits, both
+    warm-started along the grid row. Rows are evaluated through `rhi.design.executors`
+    (one row per task), so the map is identical on every executor.
 
     Args:
         resolution: grid points per axis.
-        progress: optional callback(done, total).
+        progress: optional callback(done, total) in grid points, after each finished row.
+        executor: an executor, a name ("serial", "local", "ray") or None (``workers``, else
+            the default of `rhi.design.executors.configure`: a local process pool).
+        workers: processes of a new local pool (1: in this process).
     """
-    devs = devices()
-    rhi, ph = devs["RHI"], devs["PHANToM"]
-    objective = VMEMatching(tuple(U), BETA)
+    if not isinstance(resolution, (int, np.integer)) or resolution < 2:
+        raise InvalidInput(f"resolution: expected an integer >= 2, got {resolution!r}")
     xs = np.linspace(0.25, 0.70, resolution)
     ys = np.linspace(-0.55, 0.05, resolution)
-    rho_r = np.full((resolution, resolution), np.nan)
-    lam_r = np.full_like(rho_r, np.nan)
-    q_rhi = np.array(THESIS_Q[0])
-    total = resolution * resolution
-    for j, y in enumerate(ys):
-        q_ph = np.array([0.5, 0.3])
-        for i, x in enumerate(xs):
-            if progress:
-                progress(j * resolution + i + 1, total)
-            try:
-                q_ph = ph.ik((x, y), q_ph if ph.within_limits(q_ph) else np.array([0.5, 0.3]))
-            except Unreachable:
-                continue
-            try:
-                q_rhi = optimal_configuration(rhi, (x, y), objective, q_rhi)
-            except Unreachable:
-                continue
-            r1, l1 = measures(rhi, q_rhi)
-            r0, l0 = measures(ph, q_ph)
-            rho_r[j, i], lam_r[j, i] = r1 / r0, l1 / l0
+    grid = np.stack(np.meshgrid(xs, ys), -1)  # (ny, nx, 2)
+    cand = maybe_reachable(_devices_cached()["PHANToM"], grid.reshape(-1, 2)).reshape(resolution, resolution)
+    # longest rows first (most IK candidates), so the pool's last tasks are short; values do not depend on order
+    order = np.argsort(-cand.sum(axis=1), kind="stable")
+    done = parallel_map(functools.partial(_ratio_row, xs=xs), [(ys[j], cand[j]) for j in order], executor=executor,
+                        workers=workers, progress=progress, units=[resolution] * resolution)
+    rows: list = [None] * resolution
+    for j, r in zip(order, done):
+        rows[j] = r
+    rho_r = np.array([r[0] for r in rows])
+    lam_r = np.array([r[1] for r in rows])
     ok = np.isfinite(rho_r)
     res = Result(
         "ch3.ratio_maps",
@@ -139,9 +216,10 @@ def ratio_maps(resolution: int = 41, progress: Callable[[int, int], None] | None
             Row("fraction of points with ρ_r ≥ 1", None, float(np.mean(rho_r[ok] >= 1 - 1e-9)) if ok.any() else np.nan),
             Row("fraction of points with Λ_r ≤ 1", None, float(np.mean(lam_r[ok] <= 1 + 1e-9)) if ok.any() else np.nan),
         ])],
-        {"x": xs, "y": ys, "rho_ratio": rho_r, "lambda_ratio": lam_r, "workspaces": workspaces(devs)},
+        {"x": xs, "y": ys, "rho_ratio": rho_r, "lambda_ratio": lam_r, "workspaces": workspaces()},
         ["The thesis shows these maps as figures only; we report their extremes.",
-         "Λ_r uses our documented inertial model; ρ_r is kinematic."],
+         "Λ_r uses our documented inertial model; ρ_r is kinematic.",
+         "Configurations are warm-started along each grid row; rows run in parallel (rhi.design.executors)."],
     )
     return res
 

@@ -11,6 +11,7 @@ are reported).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -24,8 +25,9 @@ from rhi.control.saturation import (
     force_capability,
     null_basis,
 )
+from rhi.design.executors import parallel_map
 from rhi.device import device
-from rhi.errors import Unreachable
+from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.result import Result, Row, Table
 from rhi.metrics import max_force
 
@@ -135,48 +137,70 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
     )
 
 
+_RHI4: dict[str, object] = {}
+
+
+def _deficiency_row(y: float, xs: np.ndarray, projector: str) -> np.ndarray:
+    """(3, len(xs)) force capabilities [N] (w/o, ASCM, LP) along the grid row at height y [m], NaN where skipped.
+
+    IK is continued along the row from the same start configuration for every row, so a
+    row's values do not depend on which process computes it.
+    """
+    if "dev" not in _RHI4:
+        _RHI4["dev"] = device("rhi4")
+    dev = _RHI4["dev"]
+    lo, hi = dev.torque_limits
+    out = np.full((3, len(xs)), np.nan)
+    q_prev = np.array([0.125, 0.022, 0.298, 0.175])
+    for i, x in enumerate(xs):
+        try:
+            q = dev.ik((x, y), q_prev, restarts=2)
+        except Unreachable:
+            continue
+        q_prev = q
+        J = dev.jacobian(q)
+        if np.linalg.svd(J, compute_uv=False)[-1] < 1e-3:
+            continue
+        M = dev.mass_matrix(q) if projector == "dynamic" else None
+        out[0, i] = force_capability(J, U, lo, hi, method="scaling")
+        out[1, i] = force_capability(J, U, lo, hi, method="ascm", M=M, samples=21)
+        out[2, i] = force_capability(J, U, lo, hi, method="lp", M=M)
+    return out
+
+
 def deficiency_map(
     resolution: int = 25,
     progress: Callable[[int, int], None] | None = None,
     *,
     projector: str = "kinematic",
+    executor=None,
+    workers: int | None = None,
 ) -> Result:
     """Fig. 7.5: percent deficiency PD = (F_ASCM − F_w/o)/F_ASCM × 100 along u = [0, 1] over rhi4's workspace (eq. 7.19).
 
     At each grid point the configuration comes from IK continued from the neighbouring
-    point; F_w/o is simple scaling (τ = Jᵀ f u until the first joint saturates), F_ASCM the
-    peak of Algorithm 1 over a force ramp, F_LP the optimum over every null-space torque.
+    point of the row; F_w/o is simple scaling (τ = Jᵀ f u until the first joint saturates),
+    F_ASCM the peak of Algorithm 1 over a force ramp, F_LP the optimum over every
+    null-space torque. Rows are evaluated through `rhi.design.executors` (one row per
+    task), so the map is identical on every executor.
 
     Args:
         resolution: grid points per axis.
-        progress: optional callback(done, total).
+        progress: optional callback(done, total) in grid points, after each finished row.
         projector: "kinematic" or "dynamic".
+        executor: an executor, a name ("serial", "local", "ray") or None (``workers``, else
+            the default of `rhi.design.executors.configure`: a local process pool).
+        workers: processes of a new local pool (1: in this process).
     """
-    dev = device("rhi4")
-    lo, hi = dev.torque_limits
+    if not isinstance(resolution, (int, np.integer)) or resolution < 2:
+        raise InvalidInput(f"resolution: expected an integer >= 2, got {resolution!r}")
+    if projector not in ("kinematic", "dynamic"):
+        raise InvalidInput(f"projector: expected 'kinematic' or 'dynamic', got {projector!r}")
     xs = np.linspace(0.25, 0.75, resolution)
     ys = np.linspace(-0.5, 0.3, resolution)
-    shape = (resolution, resolution)
-    f_wo, f_ascm, f_lp = np.full(shape, np.nan), np.full(shape, np.nan), np.full(shape, np.nan)
-    q0 = np.array([0.125, 0.022, 0.298, 0.175])
-    total = resolution * resolution
-    for j, y in enumerate(ys):
-        q_prev = q0
-        for i, x in enumerate(xs):
-            if progress:
-                progress(j * resolution + i + 1, total)
-            try:
-                q = dev.ik((x, y), q_prev, restarts=2)
-            except Unreachable:
-                continue
-            q_prev = q
-            J = dev.jacobian(q)
-            if np.linalg.svd(J, compute_uv=False)[-1] < 1e-3:
-                continue
-            M = dev.mass_matrix(q) if projector == "dynamic" else None
-            f_wo[j, i] = force_capability(J, U, lo, hi, method="scaling")
-            f_ascm[j, i] = force_capability(J, U, lo, hi, method="ascm", M=M, samples=21)
-            f_lp[j, i] = force_capability(J, U, lo, hi, method="lp", M=M)
+    rows = parallel_map(functools.partial(_deficiency_row, xs=xs, projector=projector), list(ys),
+                        executor=executor, workers=workers, progress=progress, units=[resolution] * resolution)
+    f_wo, f_ascm, f_lp = np.stack(rows, axis=1)  # each (resolution, resolution), rows = y
     pd = 100.0 * (f_ascm - f_wo) / f_ascm
     pd_lp = 100.0 * (f_lp - f_wo) / f_lp
     ok = np.isfinite(pd)

@@ -88,3 +88,37 @@ def convergence(result: Result) -> Figure:
     ax.set(xscale="log", xlabel="samples per metre", ylabel="index / finest", title="sampling convergence")
     ax.legend()
     return fig
+
+
+def k2_scan(result: Result) -> Figure:
+    """The full design's optima against K2/K1 (from `rhi.experiments.ch4.sensitivity`): l2 and GM_T of C1 and C2.
+
+    The dotted line is the smallest K2/K1 consistent with Table 4.1 (`ch4.K2_MIN_TABLE_4_1`).
+    """
+    from rhi.experiments.ch4 import K2_MIN_TABLE_4_1
+
+    a = result.arrays
+    k = a["k2_values"]
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
+    ax1.plot(k, a["k2_l2_C1"], "o-", label="C1")
+    ax1.plot(k, a["k2_l2_C2"], "s-", label="C2")
+    ax1.set(ylabel="l2 at the optimum [m]")
+    ax1.legend()
+    ax2.plot(k, a["k2_GM_T_C1"], "o-", label="C1")
+    ax2.plot(k, a["k2_GM_T_C1_mirror"], "o:", label="C1, mirror (−θz)")
+    ax2.plot(k, a["k2_GM_T_C2"], "s-", label="C2")
+    ax2.set(xlabel="K2/K1", ylabel="GM_T at the optimum")
+    ax2.legend()
+    for ax in (ax1, ax2):
+        ax.axvline(K2_MIN_TABLE_4_1, color="k", ls=":", lw=1)
+    fig.suptitle("Table 4.1 optima vs K2/K1 (dotted: Table 4.1's lower bound)")
+    return fig
+
+
+def l2_scan(result: Result) -> Figure:
+    """Best GM_T over (θz, Z_PH) against l2 (from `rhi.experiments.ch4.full_design`)."""
+    a = result.arrays
+    fig, ax = plt.subplots(figsize=(5, 4))
+    ax.plot(a["l2_scan"], a["l2_scan_GM_T"], "o-")
+    ax.set(xlabel="l2 [m]", ylabel="max GM_T over (θz, Z_PH)", title="GM_T rises with the HI's last link")
+    return fig
