@@ -177,8 +177,7 @@ def test_joint_limit_barrier_shapes():
     q = 0.5 * (dev.q_min + dev.q_max)
     q = np.where(np.isfinite(q), q, 0.0)
     q[k] = dev.q_min[k] + 0.05
-    if np.sum(JointLimitBarrier(0.1).distances(dev, q) < 0.1) != 1:
-        pytest.skip("planar3r: more than one limit within the margin at the test configuration")
+    assert np.sum(JointLimitBarrier(0.1).distances(dev, q) < 0.1) == 1  # exactly one limit within the margin
     assert JointLimitBarrier(0.1, weight=2.0).value(dev, q) == pytest.approx(0.5 * 2.0 * 0.05**2, rel=1e-9)
     assert JointLimitBarrier(0.1, weight=2.0, kind="inverse").value(dev, q) == pytest.approx(2.0 * 1.0, rel=1e-9)
 

@@ -46,7 +46,6 @@ in 96 % and the true JND and WF in 99 % of fits (conservative), JND error
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 import warnings
@@ -59,6 +58,7 @@ from numpy.typing import ArrayLike
 
 from rhi.analysis.stats import AnovaResult, PairedTest, Summary, describe, one_way_anova, paired_t_tests
 from rhi.analysis.stats import repeated_measures_anova
+from rhi.analysis._csv import read_rows
 from rhi.errors import InvalidInput
 
 #: reference stiffness of §3.5 [N/m].
@@ -368,20 +368,7 @@ def from_csv(path: str | Path) -> Responses:
             a comparison that is not a positive number, or a response outside
             {0, 1} -- each naming the line and column.
     """
-    path = Path(path)
-    try:
-        with path.open(newline="") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            body = list(enumerate(reader, start=2))
-    except OSError as exc:
-        raise InvalidInput(f"path: cannot read {str(path)!r} ({exc.strerror})") from None
-    except (csv.Error, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"path: {str(path)!r} is not a readable CSV file ({exc})") from None
-    if header is None:
-        raise InvalidInput(f"{path.name}: empty file (no header)")
-    cols = [h.strip().lower() for h in header]
-    index = {c: i for i, c in enumerate(cols)}
+    path, cols, index, body = read_rows(path)
     for c in ("subject", "device", "comparison", "response"):
         if c not in index:
             raise InvalidInput(f"{path.name}: missing column '{c}' (found {cols})")

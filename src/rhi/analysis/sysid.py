@@ -48,7 +48,6 @@ in variables) and biases ``M_x`` towards zero: with 50 µm on the 0.5 kg device
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import math
 from collections.abc import Iterable, Sequence
@@ -59,6 +58,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from rhi._validate import as_array, unit_vector
+from rhi.analysis._csv import read_rows
 from rhi.errors import InvalidInput
 
 #: fewest samples a record may have (filter padding, derivative window, 3 parameters).
@@ -609,20 +609,7 @@ def from_csv(path: str | Path, *, u: ArrayLike | None = None) -> list[Record]:
             value (naming the line and column), time not increasing (naming the
             line), or a trial with fewer than `MIN_SAMPLES` rows.
     """
-    path = Path(path)
-    try:
-        with path.open(newline="") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            body = list(enumerate(reader, start=2))
-    except OSError as exc:
-        raise InvalidInput(f"path: cannot read {str(path)!r} ({exc.strerror})") from None
-    except (csv.Error, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"path: {str(path)!r} is not a readable CSV file ({exc})") from None
-    if header is None:
-        raise InvalidInput(f"{path.name}: empty file (no header)")
-    cols = [h.strip().lower() for h in header]
-    index = {c: i for i, c in enumerate(cols)}
+    path, cols, index, body = read_rows(path)
     if "time" not in index:
         raise InvalidInput(f"{path.name}: missing column 'time' (found {cols})")
 
