@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import html
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -44,7 +45,7 @@ img{max-width:100%;border:1px solid #eee;margin:.5em 0}.note{color:#555;font-siz
 
 
 def write_report(
-    results: list[tuple[str, Result, dict[str, Figure]]],
+    results: list[tuple[str, Result, dict[str, Figure | Callable[[], Figure]]]],
     out: str | Path,
     *,
     title: str = "rhi reproduction of Torabiparizi (2020)",
@@ -53,7 +54,7 @@ def write_report(
     """Write `out/report.html`, `out/results.json`, one CSV per table and PNG per figure.
 
     Args:
-        results: (chapter, result, {figure name: figure}) triples.
+        results: (chapter, result, {figure name: figure or a zero-argument function drawing it}) triples.
         out: output directory (created).
         meta: run information printed at the top and stored in the JSON.
 
@@ -75,6 +76,7 @@ def write_report(
                     w.writerow([r.quantity, r.thesis, r.ours, r.difference, r.unit, r.note])
         for name, fig in figs.items():
             path = out / "figures" / f"{res.name}.{name}.png"
+            fig = fig() if callable(fig) else fig  # drawn here, so one figure is open at a time
             fig.savefig(path, dpi=110, bbox_inches="tight")
             plt.close(fig)
             parts.append(f"<img src='figures/{path.name}' alt='{html.escape(name)}'>")

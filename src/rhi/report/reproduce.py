@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import platform
 import time
 from collections.abc import Callable
@@ -144,7 +145,7 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
                 sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
                 kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
             res = s.run(**kwargs)
-            figs = {name: draw(res) for name, draw in s.figures.items()}
+            figs = {name: functools.partial(draw, res) for name, draw in s.figures.items()}
             done.append((s.chapter, res, figs))
             bar.advance(overall)
     meta = {"mode": "quick" if quick else "full", "chapters": only or ", ".join(chapters()),
