@@ -81,7 +81,6 @@ from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.result import Result, Row, Table
 from rhi.metrics import (
     ellipsoid_axes,
-    jbld,
     penalized_jacobian,
     teleoperation_ellipsoid,
     tmi,

@@ -94,29 +94,25 @@ def fig5_5(result: Result) -> Figure:
     return fig
 
 
-def fig5_6(result: Result) -> Figure:
-    """Fig. 5.6: the user's work W(t) = ∫F_hᵀẋ dt (eq. 5.15) along the W, per scenario."""
+def _per_scenario(result: Result, key: str, ylabel: str, title: str) -> Figure:
+    """`key` ("work", "area") against time along the W, one line per scenario."""
     a = result.arrays
     fig, ax = plt.subplots(figsize=(6.5, 4))
-    for key, (label, style) in _SCEN.items():
-        t, w = a[f"{key}_t"], a[f"{key}_work"]
+    for scen, (label, style) in _SCEN.items():
+        t, v = a[f"{scen}_t"], a[f"{scen}_{key}"]
         keep = t >= 0
-        ax.plot(t[keep], w[keep], label=label, **style)
-    ax.set(xlabel="t [s] (from the start of the W)", ylabel="user work W [J]", title="Fig. 5.6 user effort")
+        ax.plot(t[keep], v[keep], label=label, **style)
+    ax.set(xlabel="t [s] (from the start of the W)", ylabel=ylabel, title=title)
     ax.legend()
     fig.tight_layout()
     return fig
+
+
+def fig5_6(result: Result) -> Figure:
+    """Fig. 5.6: the user's work W(t) = ∫F_hᵀẋ dt (eq. 5.15) along the W, per scenario."""
+    return _per_scenario(result, "work", "user work W [J]", "Fig. 5.6 user effort")
 
 
 def tme_along_w(result: Result) -> Figure:
     """TME area λ = σ₁σ₂ against time along the W, per scenario."""
-    a = result.arrays
-    fig, ax = plt.subplots(figsize=(6.5, 4))
-    for key, (label, style) in _SCEN.items():
-        t, v = a[f"{key}_t"], a[f"{key}_area"]
-        keep = t >= 0
-        ax.plot(t[keep], v[keep], label=label, **style)
-    ax.set(xlabel="t [s] (from the start of the W)", ylabel="TME area λ = σ₁σ₂", title="TME along the W")
-    ax.legend()
-    fig.tight_layout()
-    return fig
+    return _per_scenario(result, "area", "TME area λ = σ₁σ₂", "TME along the W")

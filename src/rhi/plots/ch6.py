@@ -8,7 +8,7 @@ from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
 
 from rhi.experiments.result import Result
-from rhi.plots.draw import chain, ellipse
+from rhi.plots.draw import chain, ellipse, force_torque_panels
 
 _LABELS = {"initial": "(a) initial configuration", "free": "(b) matched to M_Free^des",
            "stiff": "(c) matched to M_Stiff^des"}
@@ -16,22 +16,8 @@ _LABELS = {"initial": "(a) initial configuration", "free": "(b) matched to M_Fre
 
 def example_3dof(result: Result) -> Figure:
     """Fig. 6.3: joint torques (dotted), desired F_e (black) and rendered force (red) at the three configurations."""
-    a = result.arrays
-    t, Fe = a["t"], a["Fe"]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.6), sharey=True)
-    for ax, name in zip(axes, ("initial", "free", "stiff")):
-        tau, F = a[f"tau_{name}"], a[f"force_{name}"]
-        for i in range(tau.shape[1]):
-            ax.plot(t, tau[:, i], ":", label=f"τ{i + 1} [N m]")
-        ax.plot(t, Fe[:, 0], "k-", label="F_e,x")
-        ax.plot(t, F[:, 0], "r-", label="F_out,x")
-        ax.plot(t, F[:, 1], "r--", label="F_out,y")
-        ax.set(title=_LABELS[name], xlabel="t [s]")
-    axes[0].set_ylabel("force [N] / torque [N m]")
-    axes[-1].legend(fontsize=7, loc="upper right")
-    fig.suptitle("Fig. 6.3 3-DoF RHI rendering F_e = [3.5 sin(πt/2), 0] N (force scaling at saturation)")
-    fig.tight_layout()
-    return fig
+    return force_torque_panels(result.arrays, _LABELS, "Fig. 6.3 3-DoF RHI rendering F_e = [3.5 sin(πt/2), 0] N "
+                               "(force scaling at saturation)")
 
 
 def configurations_3dof(result: Result) -> Figure:

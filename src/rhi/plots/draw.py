@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
 
 def ellipse(ax: Axes, center, A: np.ndarray, *, scale: float = 1.0, **style) -> None:
@@ -17,3 +19,28 @@ def ellipse(ax: Axes, center, A: np.ndarray, *, scale: float = 1.0, **style) -> 
 def chain(ax: Axes, points: np.ndarray, **style) -> None:
     """Draw a planar serial chain through joint positions points: (k, 2) [m]."""
     ax.plot(points[:, 0], points[:, 1], "-o", ms=3, **style)
+
+
+def force_torque_panels(arrays: dict, titles: dict[str, str], suptitle: str, *, fe_y: bool = False) -> Figure:
+    """One panel per case: joint torques (dotted), desired F_e (black) and output force (red) over time.
+
+    `arrays` holds "t" (T,), "Fe" (T, 2) and, per case key of `titles`, "tau_<key>" (T, n) and
+    "force_<key>" (T, 2); `fe_y` also draws F_e,y.
+    """
+    t, Fe = arrays["t"], arrays["Fe"]
+    fig, axes = plt.subplots(1, len(titles), figsize=(3.7 * len(titles) + 1.8, 3.6), sharey=True)
+    for ax, (key, title) in zip(axes, titles.items()):
+        tau, F = arrays[f"tau_{key}"], arrays[f"force_{key}"]
+        for i in range(tau.shape[1]):
+            ax.plot(t, tau[:, i], ":", label=f"τ{i + 1} [N m]")
+        ax.plot(t, Fe[:, 0], "k-", label="F_e,x")
+        if fe_y:
+            ax.plot(t, Fe[:, 1], "k--", label="F_e,y")
+        ax.plot(t, F[:, 0], "r-", label="F_out,x")
+        ax.plot(t, F[:, 1], "r--", label="F_out,y")
+        ax.set(title=title, xlabel="t [s]")
+    axes[0].set_ylabel("force [N] / torque [N m]")
+    axes[-1].legend(fontsize=7, loc="upper right")
+    fig.suptitle(suptitle)
+    fig.tight_layout()
+    return fig
