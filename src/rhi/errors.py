@@ -40,3 +40,7 @@ class Unreachable(RhiError):
 
 class Singular(RhiError, ArithmeticError):
     """A Jacobian or inertia matrix is singular where an inverse is required."""
+
+
+class LinkError(RhiError, ConnectionError):
+    """A device link failed: the device is unreachable or silent, or it speaks another protocol version."""

@@ -3,21 +3,28 @@ virtual and physical environments, teleoperation, and the 1 kHz simulation loop.
 
 from rhi.sim.environment import Fixture, Spring, Wall, compose, stop
 from rhi.sim.hand import Hand, Path, PushForce, check_path_in_workspace, w_path
-from rhi.sim.loop import Log, simulate
+from rhi.sim.log import Event, Log, LogWriter
+from rhi.sim.loop import Session, simulate
 from rhi.sim.mjcf import PlantFriction, build_mjcf
-from rhi.sim.plant import Plant, device_friction
+from rhi.sim.plant import Plant, PlantUnstable, device_friction
+from rhi.sim.telemetry import Telemetry
 from rhi.sim.teleop import Teleoperation
 
 __all__ = [
+    "Event",
     "Fixture",
     "Hand",
     "Log",
+    "LogWriter",
     "Path",
     "Plant",
+    "PlantUnstable",
     "PlantFriction",
     "PushForce",
+    "Session",
     "Spring",
     "Teleoperation",
+    "Telemetry",
     "Wall",
     "build_mjcf",
     "check_path_in_workspace",

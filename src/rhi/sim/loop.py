@@ -1,15 +1,24 @@
-"""The simulation loop: controller at a fixed rate (1 kHz), plant substeps, hand, environments, logs."""
+"""The simulation loop: controller at a fixed rate (1 kHz), plant substeps, hand, environments, logs.
+
+`Session` is a plant with its user (hand), its physical world and an optional teleoperated
+slave, advanced one control period at a time; `simulate` runs a controller against it as
+fast as the machine allows, and `rhi.runtime.SimLink` puts the same session behind the
+device-link protocol for the real-time loop. Both write the same `Log`.
+"""
 
 from __future__ import annotations
 
-import dataclasses
+import math
+import time
 from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
 
 from rhi.errors import InvalidInput
-from rhi.sim.plant import Plant
+from rhi.sim.log import Log, LogWriter, layout
+from rhi.sim.plant import Plant, PlantUnstable
+from rhi.sim.telemetry import Telemetry
 
 
 class Controller(Protocol):
@@ -24,53 +33,84 @@ class ForceField(Protocol):
     def force(self, *args) -> np.ndarray: ...
 
 
-@dataclasses.dataclass
-class Log:
-    """What a run recorded, one row per control tick (N ticks).
+def substeps(rate: float, timestep: float) -> int:
+    """Physics steps per control period; the rate must be exact.
+
+    Raises:
+        InvalidInput: a non-finite or non-positive rate, or one the plant's timestep does not divide.
+    """
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
+        raise InvalidInput(f"rate: must be a finite number > 0 [Hz], got {rate!r}")
+    sub = round(1.0 / (rate * timestep))
+    if sub < 1 or abs(sub * timestep * rate - 1.0) > 1e-9:
+        ok = [round(1.0 / (k * timestep), 6) for k in (1, 2, 4, 5, 10)]
+        raise InvalidInput(f"rate: {rate!r} Hz is not a whole number of plant timesteps ({timestep} s); "
+                           f"use e.g. {', '.join(f'{r:g}' for r in ok)} Hz or change the plant's timestep")
+    return sub
+
+
+class Session:
+    """A plant with its hand, physical environment and teleoperated slave, one control period at a time.
+
+    Args:
+        plant: the simulated device (already `reset` to its start).
+        rate: control rate [Hz]; the plant's timestep must divide its period.
+        hand: the user, `force(t, x, ẋ)`; None: no hand.
+        physical: environment acting on the handle in the plant, `force(x, ẋ)`.
+        teleop: a `Teleoperation` whose slave follows the master every period.
 
     Attributes:
-        t: (N,) time [s].
-        q, dq: (N, n) motor angles [rad] and velocities [rad/s] (the encoders).
-        tau: (N, n) commanded torques [N m].
-        x, xdot: (N, m) true handle position [m] and velocity [m/s] (MuJoCo).
-        F_hand: (N, m) force the hand applied [N].
-        F_env: (N, m) virtual-environment force sent to the controller [N].
-        ft: (N, 6) F/T sensor (force [N], torque [N m]) in world axes.
-        work: (N,) user work W = ∫ F_hᵀ ẋ dt up to each tick (eq. 5.15) [J].
-        V, omega, alpha, beta: (N,) controller state (ASO, FME activation, force scaling,
-            tertiary scaling); NaN where the controller has no such state.
-        slave_x: (N, m_s) slave position [m] in teleoperation, else empty.
-        fault: why the controller stopped, if it did.
+        t: simulated time [s] (kept here: MuJoCo resets its own clock when the physics diverges).
+        work: W = ∫ F_hᵀ ẋ dt so far [J] (eq. 5.15).
+        F_hand: (m,) the hand's force during the last period [N].
+        slave_x: (m_s,) the slave's position after the last period [m] (teleoperation).
+        fault: why the session stopped (non-finite force, unstable physics), else None.
     """
 
-    t: np.ndarray
-    q: np.ndarray
-    dq: np.ndarray
-    tau: np.ndarray
-    x: np.ndarray
-    xdot: np.ndarray
-    F_hand: np.ndarray
-    F_env: np.ndarray
-    ft: np.ndarray
-    work: np.ndarray
-    V: np.ndarray
-    omega: np.ndarray
-    alpha: np.ndarray
-    beta: np.ndarray
-    slave_x: np.ndarray
-    fault: str | None = None
+    def __init__(self, plant: Plant, *, rate: float = 1000.0, hand=None, physical=None, teleop=None) -> None:
+        self.plant, self.hand, self.physical, self.teleop = plant, hand, physical, teleop
+        self.sub = substeps(rate, plant.timestep)
+        self.dt = self.sub * plant.timestep
+        self.t = plant.time
+        self.work = 0.0
+        self.F_hand = np.zeros(plant.m)
+        self.slave_x = np.zeros((0,)) if teleop is None else teleop.slave.x.copy()
+        self.fault: str | None = None
+        self._zero = np.zeros(plant.m)
 
-    def to_csv(self, path) -> None:
-        """Write the log as CSV (one column per scalar, header names like q1, x1, F_hand2)."""
-        cols, names = [], []
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            if not isinstance(v, np.ndarray) or v.size == 0:
-                continue
-            v = v.reshape(len(v), -1)
-            cols.append(v)
-            names += [f.name] if v.shape[1] == 1 else [f"{f.name}{i + 1}" for i in range(v.shape[1])]
-        np.savetxt(path, np.hstack(cols), delimiter=",", header=",".join(names), comments="")
+    def advance(self, tau: np.ndarray, x_master: np.ndarray | None = None) -> str | None:
+        """Apply τ: (n,) [N m] for one control period; returns the fault that stopped it, if any.
+
+        x_master: (m,) [m] the master position the teleoperated slave follows (the controller's FK).
+        """
+        if self.fault is not None:
+            return self.fault
+        p, hand, phys, h = self.plant, self.hand, self.physical, self.plant.timestep
+        zero = self._zero
+        F_h = zero
+        t0 = self.t
+        try:
+            for s in range(self.sub):
+                x, xdot = p.x, p.xdot
+                F_h = hand.force(t0 + s * h, x, xdot) if hand is not None else zero
+                F = F_h + phys.force(x, xdot) if phys is not None else F_h
+                if not math.isfinite(float(F @ F)):
+                    return self._stop(f"hand/environment: non-finite force {np.asarray(F).tolist()} on the handle "
+                                      f"at t={t0 + s * h:.4f} s")
+                p.apply(tau, F)
+                p.step()
+                self.work += float(F_h @ p.xdot) * h
+        except PlantUnstable as exc:
+            return self._stop(str(exc))
+        self.t = t0 + self.dt
+        self.F_hand = F_h
+        if self.teleop is not None and x_master is not None:
+            self.slave_x = self.teleop.follow(x_master, self.dt)
+        return None
+
+    def _stop(self, why: str) -> str:
+        self.fault = why
+        return why
 
 
 def simulate(
@@ -84,71 +124,89 @@ def simulate(
     teleop=None,
     rate: float = 1000.0,
     progress: Callable[[int, int], None] | None = None,
+    log=None,
+    telemetry: Telemetry | None = None,
 ) -> Log:
-    """Run the controller against the plant for `duration` seconds.
+    """Run the controller against the plant for `duration` seconds, as fast as the machine allows.
 
     Each tick the controller receives the encoders q, dq and the sensors
     {"ft": (6,) F/T reading, "force": (m,) virtual-environment force}; the virtual force is
     computed from the *controller's* model (FK of the measured q), as a haptic rendering loop
-    does. Between ticks the plant advances `round(1/(rate·timestep))` physics steps with the
+    does. Between ticks the plant advances `1/(rate·timestep)` physics steps with the
     hand and the physical environment re-evaluated at every step.
+
+    A fault (the controller's safe stop, a non-finite force, unstable physics) ends the run with
+    zero torque; the log keeps every tick up to it and `Log.fault` says why and when.
 
     Args:
         plant: the simulated device (already `reset` to its start).
         controller: `step(t, q, dq, sensors) -> tau` (n,) [N m].
-        duration: simulated time [s].
+        duration: simulated time [s] (at least one control period).
         hand: the user, `force(t, x, ẋ)` (e.g. `Hand`, `PushForce`); None: no hand.
         virtual: environment rendered by the controller, `force(x, ẋ)`; None: free space.
         physical: environment acting on the handle in the plant, `force(x, ẋ)` (e.g. a stop).
         teleop: a `Teleoperation` whose slave follows the master each tick.
-        rate: control rate [Hz].
+        rate: control rate [Hz]; must be a whole number of plant timesteps per period.
         progress: callback(done, total) every 1 % of the ticks.
+        log: a ``.rhilog`` path to stream the log to (bounded memory), or None (in memory).
+        telemetry: a `Telemetry` that receives the newest tick (for a live view).
+
+    Raises:
+        InvalidInput: a bad duration or rate (named), or the controller's bad-input errors.
     """
-    if not np.isfinite(duration) or duration <= 0:
-        raise InvalidInput(f"duration: must be > 0 [s], got {duration!r}")
-    if not np.isfinite(rate) or rate <= 0:
-        raise InvalidInput(f"rate: must be > 0 [Hz], got {rate!r}")
-    sub = max(1, round(1.0 / (rate * plant.timestep)))
-    dt = sub * plant.timestep
-    N = int(round(duration / dt))
+    sess = Session(plant, rate=rate, hand=hand, physical=physical, teleop=teleop)
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) \
+            or duration < sess.dt * (1 - 1e-9):
+        raise InvalidInput(f"duration: must be a finite time >= one control period ({sess.dt} s), got {duration!r}")
+    N = int(round(duration / sess.dt))
     n, m = plant.n, plant.m
     dev = getattr(controller, "device", plant.device)
-    z = lambda *s: np.zeros((N, *s))  # noqa: E731
-    log = Log(t=z(), q=z(n), dq=z(n), tau=z(n), x=z(m), xdot=z(m), F_hand=z(m), F_env=z(m), ft=z(6), work=z(),
-              V=np.full(N, np.nan), omega=np.full(N, np.nan), alpha=np.full(N, np.nan), beta=np.full(N, np.nan),
-              slave_x=z(teleop.slave.m) if teleop is not None else np.zeros((0,)))
+    ms = teleop.slave.m if teleop is not None else 0
+    w = LogWriter(layout(n, m, ms), log, meta={"device": dev.name, "rate": float(rate), "source": "simulate"})
+    c = w.cols
     zero_m = np.zeros(m)
-    W = 0.0
     every = max(1, N // 100)
     state = getattr(controller, "state", None)
-    for k in range(N):
-        t = plant.time
-        q, dq = plant.q, plant.dq
-        ft = plant.ft()
-        if virtual is not None:
-            kin = dev.terms(q, dq, check=False)
-            F_env = virtual.force(kin.x, kin.xdot)
-        else:
-            F_env = zero_m
-        tau = np.asarray(controller.step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
-        F_h = zero_m
-        for s in range(sub):
-            x, xdot = plant.x, plant.xdot
-            F_h = hand.force(t + s * plant.timestep, x, xdot) if hand is not None else zero_m
-            F = F_h + physical.force(x, xdot) if physical is not None else F_h
-            plant.apply(tau, F)
-            plant.step()
-            W += float(F_h @ plant.xdot) * plant.timestep
-        if teleop is not None:
-            log.slave_x[k] = teleop.follow(dev.fk(q), dt)
-        log.t[k], log.q[k], log.dq[k], log.tau[k] = t, q, dq, tau
-        log.x[k], log.xdot[k], log.F_hand[k], log.F_env[k], log.ft[k] = plant.x, plant.xdot, F_h, F_env, ft
-        log.work[k] = W
-        if state is not None:
-            log.V[k], log.omega[k] = state.V, state.omega
-            log.alpha[k], log.beta[k] = state.alpha, state.beta
-            if state.stopped and log.fault is None:
-                log.fault = state.fault
-        if progress is not None and (k % every == 0 or k == N - 1):
-            progress(k + 1, N)
-    return log
+    t_start = time.perf_counter()
+    try:
+        for k in range(N):
+            t0 = time.perf_counter()
+            t = sess.t
+            q, dq = plant.q, plant.dq
+            ft = plant.ft()
+            if virtual is not None:
+                kin = dev.terms(q, dq, check=False)
+                F_env = virtual.force(kin.x, kin.xdot)
+            else:
+                F_env = zero_m
+            t1 = time.perf_counter()
+            tau = np.asarray(controller.step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
+            t2 = time.perf_counter()
+            fault = sess.advance(tau, dev.fk(q) if teleop is not None else None)
+            row = w.row()
+            row[c["t"]], row[c["q"]], row[c["dq"]], row[c["tau"]] = t, q, dq, tau
+            row[c["x"]], row[c["xdot"]], row[c["F_hand"]], row[c["F_env"]] = plant.x, plant.xdot, sess.F_hand, F_env
+            row[c["ft"]], row[c["work"]], row[c["seq"]] = ft, sess.work, k
+            if ms:
+                row[c["slave_x"]] = sess.slave_x
+            if state is not None:
+                row[c["V"]], row[c["omega"]], row[c["alpha"]], row[c["beta"]] = \
+                    state.V, state.omega, state.alpha, state.beta
+                if state.stopped and w.fault is None:
+                    w.fault = state.fault
+                    w.event(t, "controller", state.fault or "controller stopped", k)
+            t3 = time.perf_counter()
+            row[c["wall"]], row[c["t_read"]], row[c["t_step"]] = t0 - t_start, t1 - t0, t2 - t1
+            row[c["t_write"]], row[c["t_tick"]], row[c["late"]] = t3 - t2, t3 - t0, 0.0
+            row[c["safety"]] = 0.0 if fault is None else 1.0
+            if telemetry is not None:
+                telemetry.publish(row, c, fault or w.fault)
+            if fault is not None:
+                w.fault = fault
+                w.event(t, "plant", fault, k)
+                break
+            if progress is not None and (k % every == 0 or k == N - 1):
+                progress(k + 1, N)
+    finally:
+        w.close()
+    return w.to_log()

@@ -20,6 +20,21 @@ from rhi.sim.mjcf import PlantFriction, build_mjcf
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
+#: Largest physics step accepted [s]: a haptic plant integrated more coarsely than 200 Hz is not one.
+MAX_TIMESTEP = 5e-3
+
+
+class PlantUnstable(ModelError):
+    """The physics diverged (MuJoCo flagged bad accelerations, velocities or positions and reset).
+
+    Attributes:
+        t: simulated time [s] of the step that diverged (before MuJoCo's reset).
+    """
+
+    def __init__(self, message: str, t: float) -> None:
+        super().__init__(message)
+        self.t = t
+
 
 def device_friction(device: Device) -> PlantFriction:
     """The motor friction declared in the device's `device.toml` [plant] table (zeros if none).
@@ -60,6 +75,8 @@ class Plant:
 
     def __init__(self, device: Device, *, friction: PlantFriction | str | None = "device",
                  timestep: float = 5e-4, handle_mass: float = 1e-3) -> None:
+        if not isinstance(timestep, (int, float)) or not 0 < timestep <= MAX_TIMESTEP:
+            raise InvalidInput(f"timestep: must be in (0, {MAX_TIMESTEP}] s, got {timestep!r}")
         if isinstance(friction, str):
             if friction != "device":
                 raise InvalidInput(f"friction: expected 'device', a PlantFriction or None, got {friction!r}")
@@ -89,7 +106,9 @@ class Plant:
         # views into MjData's persistent buffers, for a cheap `apply`/`step` in the 1 kHz loop
         self._ctrl = self.data.ctrl
         self._xfrc = self.data.xfrc_applied[self._body]
-        self._badqacc = self.data.warning[mujoco.mjtWarning.mjWARN_BADQACC]
+        self._warnings = [self.data.warning[w] for w in (mujoco.mjtWarning.mjWARN_BADQACC,
+                                                         mujoco.mjtWarning.mjWARN_BADQVEL,
+                                                         mujoco.mjtWarning.mjWARN_BADQPOS)]
 
     # ------------------------------------------------------------------ state
     def reset(self, q, dq=None) -> None:
@@ -167,10 +186,16 @@ class Plant:
         Each step is `mj_step2` (accelerations, the F/T sensor, integration) followed by `mj_step1`
         (positions and velocities of the new state), so `q`, `dq`, `x`, `xdot` always describe the
         current state and forces set by `apply` may depend on it; `ft()` is the force of the last step.
+
+        Raises:
+            PlantUnstable: MuJoCo flagged the state as diverged (it then resets the data, time included);
+                the error carries the time of the step that diverged.
         """
         m, d = self.model, self.data
         for _ in range(steps):
+            t = d.time
             mujoco.mj_step2(m, d)
             mujoco.mj_step1(m, d)
-        if self._badqacc.number:
-            raise ModelError(f"plant: MuJoCo reported unstable accelerations at t={self.time:.4f} s")
+            if any(w.number for w in self._warnings):
+                raise PlantUnstable(f"plant: MuJoCo reported unstable physics at t={t:.4f} s "
+                                    "(bad accelerations, velocities or positions; it reset the state)", t)

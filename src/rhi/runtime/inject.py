@@ -1,0 +1,83 @@
+"""Fault injection: a link wrapper that corrupts readings on schedule, to test a safety configuration.
+
+    link = Inject(SimLink(plant, hand=hand), freeze=(0.5, 0.6))   # encoders and F/T frozen 100 ms
+    res = run(link, controller, realtime=False)                    # → a "stale" fault at t = 0.503 s
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from rhi.errors import InvalidInput, LinkError
+from rhi.runtime.link import DeviceLink, Reading
+
+
+def _window(name: str, w) -> tuple[float, float] | None:
+    if w is None:
+        return None
+    try:
+        a, b = (float(v) for v in w)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{name}: expected (start, end) [s], got {w!r}") from None
+    if not (math.isfinite(a) and a >= 0 and b > a):
+        raise InvalidInput(f"{name}: expected 0 <= start < end [s], got {w!r}")
+    return a, b
+
+
+class Inject:
+    """Wrap a link and corrupt its readings inside device-time windows (start, end) [s].
+
+    Args:
+        link: the link to wrap.
+        freeze: the reading (sequence number and values) stops changing, as a hung sensor driver.
+        nan: the F/T sensor reads NaN.
+        reorder_at: at this time, return the reading from two samples earlier once (an out-of-order packet).
+        silence: read() raises `LinkError` (the device went away).
+    """
+
+    def __init__(self, link: DeviceLink, *, freeze=None, nan=None, reorder_at: float | None = None,
+                 silence=None) -> None:
+        self.link = link
+        self.n = link.n
+        self.rate = getattr(link, "rate", None)
+        self.session = getattr(link, "session", None)
+        self.freeze, self.nan, self.silence = _window("freeze", freeze), _window("nan", nan), _window("silence", silence)
+        self.reorder_at = reorder_at
+        self._held: Reading | None = None
+        self._hist: list[Reading] = []
+        self._reordered = False
+
+    @staticmethod
+    def _in(w, t: float) -> bool:
+        return w is not None and w[0] <= t < w[1]
+
+    def open(self) -> None:
+        self.link.open()
+
+    def read(self) -> Reading:
+        r = self.link.read()
+        if self._in(self.silence, r.t):
+            raise LinkError(f"no reading (injected silence at t={r.t:.4f} s)")
+        old = self._hist[0] if len(self._hist) == 2 else None
+        self._hist = (self._hist + [r])[-2:]
+        if self._in(self.freeze, r.t):
+            self._held = self._held or r
+            return self._held
+        self._held = None
+        if self.reorder_at is not None and r.t >= self.reorder_at and not self._reordered and old is not None:
+            self._reordered = True
+            return old
+        if self._in(self.nan, r.t):
+            s = dict(r.sensors)
+            s["ft"] = np.full(6, np.nan)
+            return dataclasses.replace(r, sensors=s)
+        return r
+
+    def write(self, tau, *, enable: bool) -> None:
+        self.link.write(tau, enable=enable)
+
+    def close(self) -> None:
+        self.link.close()

@@ -1,0 +1,312 @@
+"""`run`: a controller against a device link at a fixed rate, behind the safety layer.
+
+Ticks start at absolute deadlines t₀ + k/rate on the monotonic clock, so the rate does not
+drift; a tick that ends after its successor's deadline is a missed deadline, and the slots it
+overran are skipped rather than run in a burst. Garbage collection is frozen and disabled for
+the run. Each tick: read → safety check → virtual environment → controller → safety filter
+(clamp) → write → log row. A fault writes zero torque with the motors disabled, latched.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import dataclasses
+import gc
+import math
+import os
+import signal
+import threading
+import time
+import warnings
+from collections.abc import Callable, Iterator
+
+import numpy as np
+
+from rhi.errors import InvalidInput, LinkError
+from rhi.runtime.link import DeviceLink, Status
+from rhi.runtime.safety import Safety, SafetyConfig
+from rhi.sim.log import TIMING, Log, LogWriter, layout, nan_stats
+from rhi.sim.telemetry import Telemetry
+
+_TRUTH = ("x", "xdot", "F_hand")
+
+
+@dataclasses.dataclass
+class RunResult:
+    """What `run` returns.
+
+    Attributes:
+        log: the per-tick log (streamed to disk when a path was given).
+        summary: JSON-serialisable statistics: ticks, rate, missed deadlines (count and %), p50/p99/p99.9/max
+            of the tick time and of the read→write latency [s], clamp count, fault, every safety event.
+    """
+
+    log: Log
+    summary: dict
+
+    @property
+    def fault(self) -> str | None:
+        return self.log.fault
+
+
+@contextlib.contextmanager
+def _realtime(cpu: int | None, priority: int | None) -> Iterator[list[str]]:
+    """GC frozen and off; optional CPU affinity and SCHED_FIFO priority; 1 µs timer slack. Yields warnings."""
+    notes: list[str] = []
+    gc.collect()
+    gc.freeze()
+    was = gc.isenabled()
+    gc.disable()
+    old_aff = old_sched = None
+    if cpu is not None:
+        try:
+            old_aff = os.sched_getaffinity(0)
+            os.sched_setaffinity(0, {int(cpu)})
+        except (OSError, AttributeError, ValueError) as exc:
+            notes.append(f"CPU affinity {cpu} not applied ({exc}); the loop may migrate between cores")
+    if priority is not None:
+        try:
+            old_sched = (os.sched_getscheduler(0), os.sched_getparam(0))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
+        except (OSError, AttributeError) as exc:
+            old_sched = None
+            notes.append(f"real-time priority {priority} not applied ({exc}); grant CAP_SYS_NICE or an rtprio "
+                         "limit (/etc/security/limits.conf) to run the loop under SCHED_FIFO")
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None).prctl(29, 1000)  # PR_SET_TIMERSLACK: 1 µs, so sleeps end on time
+    for msg in notes:
+        warnings.warn(msg, RuntimeWarning, stacklevel=4)
+    try:
+        yield notes
+    finally:
+        if old_sched is not None:
+            with contextlib.suppress(OSError):
+                os.sched_setscheduler(0, old_sched[0], old_sched[1])
+        if old_aff is not None:
+            with contextlib.suppress(OSError):
+                os.sched_setaffinity(0, old_aff)
+        gc.unfreeze()
+        if was:
+            gc.enable()
+
+
+def _sleep_until(deadline: float) -> None:
+    """Sleep until the monotonic time `deadline` [s]; the last 50 µs spin."""
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return
+        if left > 5e-5:
+            time.sleep(left - 5e-5)
+
+
+def run(
+    link: DeviceLink,
+    controller,
+    *,
+    rate: float = 1000.0,
+    duration: float | None = None,
+    safety: SafetyConfig | Safety | None = None,
+    log=None,
+    virtual=None,
+    telemetry: Telemetry | None = None,
+    realtime: bool = True,
+    stop_on_fault: bool = True,
+    cpu: int | None = None,
+    priority: int | None = None,
+    progress: Callable[[dict], None] | None = None,
+) -> RunResult:
+    """Run `controller` against `link` at `rate` until `duration` has passed, a fault, or an e-stop.
+
+    Args:
+        link: the device (`SimLink`, `UDPLink`, or any `DeviceLink`), not yet opened.
+        controller: `step(t, q, dq, sensors) -> tau`; its `device` is the model the safety layer and the
+            virtual environment use (a controller without one needs `safety=Safety(device, ...)`).
+        rate: control rate [Hz].
+        duration: run time [s] (device time when `realtime=False`); None: until a fault or an e-stop.
+        safety: limits (`SafetyConfig`) or a ready `Safety` (e.g. to call `estop`/`reset` from another thread).
+        log: a ``.rhilog`` path to stream the log to (bounded memory), or None (in memory).
+        virtual: environment rendered from the controller's model, `force(x, ẋ)`; its force goes to
+            the controller as sensors["force"].
+        telemetry: receives the newest tick for a live view (never blocks the loop).
+        realtime: pace ticks on the wall clock; False: as fast as the link answers.
+        stop_on_fault: end the run at the first fault (after commanding zero torque); False: keep
+            ticking with zero torque until `Safety.reset` or the end.
+        cpu: pin the loop to this CPU; priority: SCHED_FIFO priority (1–99). A clear warning where
+            the OS refuses either.
+        progress: called about twice a second with a status dict (rate, misses, max |τ|/limit, V, fault).
+
+    Returns:
+        `RunResult` with the log and a summary.
+
+    Raises:
+        InvalidInput: a bad rate or duration (named), a controller without a device and no `Safety`.
+    """
+    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
+        raise InvalidInput(f"rate: must be a finite number > 0 [Hz], got {rate!r}")
+    link_rate = getattr(link, "rate", None)
+    if link_rate is not None and abs(link_rate - rate) > 1e-9 * rate:
+        raise InvalidInput(f"rate: {rate!r} Hz differs from the link's {link_rate!r} Hz")
+    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
+                                 or not math.isfinite(duration) or duration < 1.0 / rate):
+        raise InvalidInput(f"duration: must be a finite time >= one period ({1.0 / rate} s) or None, got {duration!r}")
+    dev = getattr(controller, "device", None)
+    if isinstance(safety, Safety):
+        guard = safety
+    elif dev is None:
+        raise InvalidInput("safety: the controller has no `device`; pass safety=Safety(device, config)")
+    else:
+        guard = Safety(dev, safety)
+    n = guard.n
+    m = dev.m if dev is not None else len(getattr(link, "task_axes", "")) or 0
+    period = 1.0 / rate
+    N = None if duration is None else int(round(duration * rate))
+    ms = getattr(getattr(getattr(link, "session", None), "teleop", None), "slave", None)
+    ms = ms.m if ms is not None else 0
+    w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"), "rate": float(rate),
+                                                "source": type(link).__name__, "realtime": bool(realtime)})
+    c = w.cols
+    state = getattr(controller, "state", None)
+    zero = np.zeros(n)
+    zero_m = np.zeros(m)
+    span = np.maximum(-guard.lo, guard.hi)
+    stats = {"ticks": 0, "missed": 0, "skipped_slots": 0, "max_torque_ratio": 0.0}
+    prev_sigint = None
+    if threading.current_thread() is threading.main_thread():
+        prev_sigint = signal.signal(signal.SIGINT, lambda *_: guard.estop("SIGINT"))
+    k = slot = 0
+    t_dev = 0.0
+    try:
+        link.open()
+        with _realtime(cpu, priority) as notes:
+            for msg in notes:
+                w.event(0.0, "info", msg)
+            t0 = time.monotonic()
+            next_report = t0 + 0.5
+            while N is None or (slot if realtime else k) < N:
+                deadline = t0 + slot * period
+                if realtime:
+                    _sleep_until(deadline)
+                ts = time.monotonic()
+                tau, kin_xdot, F_env, r = zero, None, zero_m, None
+                try:
+                    r = link.read()
+                except LinkError as exc:
+                    guard.trip("link", f"link: {exc}")
+                tr = time.monotonic()
+                if r is not None:
+                    t_dev = r.t
+                    q, dq = r.q, r.dq
+                    if dev is not None and math.isfinite(float(q @ q + dq @ dq)):
+                        kin = dev.terms(q, dq, check=False)
+                        kin_xdot = kin.xdot
+                        if virtual is not None:
+                            F_env = virtual.force(kin.x, kin_xdot)
+                    if guard.check(r, ts if realtime else None, kin_xdot):
+                        sensors = dict(r.sensors)
+                        sensors["force"] = F_env
+                        try:
+                            tau = controller.step(r.t, q, dq, sensors)
+                        except Exception as exc:  # noqa: BLE001 - any controller failure is a fault, not a crash
+                            guard.trip("controller", f"controller raised {type(exc).__name__} at t={r.t:.4f} s: {exc}")
+                        if state is not None and state.stopped:
+                            guard.trip("controller", f"controller stopped: {state.fault}")
+                    tau = guard.filter(tau, r.t)
+                tc = time.monotonic()
+                ok = guard.fault is None
+                try:
+                    link.write(tau if ok else zero, enable=ok)
+                except LinkError as exc:
+                    guard.trip("link", f"link: {exc}")
+                te = time.monotonic()
+                row = w.row()
+                row[c["t"]], row[c["tau"]] = t_dev, tau if ok else zero
+                if r is not None:
+                    row[c["q"]], row[c["dq"]], row[c["seq"]] = r.q, r.dq, r.seq
+                    s = r.sensors
+                    if "ft" in s:
+                        row[c["ft"]] = s["ft"]
+                    for name in _TRUTH:
+                        if name in s:
+                            row[c[name]] = s[name]
+                    if "x" not in s and kin_xdot is not None:
+                        row[c["xdot"]] = kin_xdot
+                    if "work" in s:
+                        row[c["work"]] = s["work"][0]
+                    if ms and "slave_x" in s:
+                        row[c["slave_x"]] = s["slave_x"]
+                row[c["F_env"]] = F_env
+                if state is not None:
+                    row[c["V"]], row[c["omega"]], row[c["alpha"]], row[c["beta"]] = \
+                        state.V, state.omega, state.alpha, state.beta
+                row[c["wall"]], row[c["t_read"]], row[c["t_step"]] = ts - t0, tr - ts, tc - tr
+                row[c["t_write"]], row[c["t_tick"]] = te - tc, te - ts
+                row[c["late"]] = ts - deadline if realtime else 0.0
+                row[c["safety"]] = 0.0 if ok else 1.0
+                stats["max_torque_ratio"] = max(stats["max_torque_ratio"], float(np.max(np.abs(tau) / span)))
+                for kind, detail in guard.drain():
+                    w.event(t_dev, kind, detail, k)
+                if not ok and w.fault is None:
+                    w.fault = guard.fault
+                if telemetry is not None:
+                    telemetry.publish(row, c, guard.fault)
+                k += 1
+                slot += 1
+                if realtime:
+                    now = time.monotonic()
+                    if now > t0 + slot * period:
+                        stats["missed"] += 1
+                        behind = int((now - t0) / period) - slot + 1
+                        stats["skipped_slots"] += behind
+                        slot += behind
+                    if progress is not None and now >= next_report:
+                        next_report = now + 0.5
+                        progress(_status(k, slot, stats, state, guard, t_dev))
+                elif progress is not None and k % 500 == 0:
+                    progress(_status(k, slot, stats, state, guard, t_dev))
+                if not ok and stop_on_fault:
+                    break
+    finally:
+        for _ in range(3):  # zero torque, motors disabled; repeated against a lost packet
+            with contextlib.suppress(Exception):
+                link.write(zero, enable=False)
+        with contextlib.suppress(Exception):
+            link.close()
+        if prev_sigint is not None:
+            signal.signal(signal.SIGINT, prev_sigint)
+        for kind, detail in guard.drain():
+            w.event(t_dev, kind, detail, k)
+        if w.fault is None and guard.fault is not None:
+            w.fault = guard.fault
+        w.close()
+    stats["ticks"] = k
+    result_log = w.to_log()
+    return RunResult(result_log, _summary(result_log, stats, rate, guard, realtime))
+
+
+def _status(k: int, slot: int, stats: dict, state, guard: Safety, t: float) -> dict:
+    return {"t": t, "ticks": k, "missed": stats["missed"], "max_torque_ratio": stats["max_torque_ratio"],
+            "V": getattr(state, "V", math.nan), "fault": guard.fault}
+
+
+def _summary(log: Log, stats: dict, rate: float, guard: Safety, realtime: bool) -> dict:
+    k = max(stats["ticks"], 1)
+    lat = (log.t_read + log.t_step + log.t_write) if len(log) else np.zeros(0)
+    out = {
+        "rate": rate, "realtime": realtime, "ticks": stats["ticks"],
+        "duration": float(log.wall[-1]) if len(log) else 0.0,
+        "missed": stats["missed"], "missed_pct": 100.0 * stats["missed"] / k,
+        "skipped_slots": stats["skipped_slots"],
+        "tick": nan_stats(log.t_tick if len(log) else []), "read_to_write": nan_stats(lat),
+        "late": nan_stats(log.late if len(log) else []),
+        "clamped": guard.clamped, "max_torque_ratio": stats["max_torque_ratio"],
+        "fault": log.fault, "fault_kind": guard.fault_kind,
+        "events": [dataclasses.asdict(e) for e in log.events],
+    }
+    for name in TIMING[1:5]:
+        out[name] = nan_stats(getattr(log, name) if len(log) else [])
+    return out
+
+
+__all__ = ["RunResult", "Status", "run"]

@@ -1,0 +1,202 @@
+"""The safety layer between any controller and any device link.
+
+It knows nothing of the controllers: it sees readings going in and torques going out. Every
+fault latches: zero torque with the motors disabled until an explicit `reset`, the reason and
+the time recorded as an event. Torques outside the limits are clamped and counted (not a
+fault); a non-finite torque is a fault.
+
+Checks, each tick: device status flags (e-stop, watchdog, fault), non-finite readings, a
+sequence number that goes backwards (out of order) or does not advance for `stale_ticks`
+ticks (frozen sensors), link silence longer than `silence`, joint speed above
+`max_joint_speed`, a joint beyond its range by more than `range_margin`, handle speed above
+`max_handle_speed`, an external e-stop (`estop`, SIGINT in `rhi.runtime.run`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from rhi.errors import InvalidInput
+from rhi.runtime.link import Reading, Status
+
+
+def _positive(name: str, v, *, integer: bool = False) -> None:
+    ok = isinstance(v, int) if integer else isinstance(v, (int, float))
+    if isinstance(v, bool) or not ok or not math.isfinite(v) or v <= 0:
+        raise InvalidInput(f"{name}: must be a finite {'integer' if integer else 'number'} > 0, got {v!r}")
+
+
+@dataclasses.dataclass(frozen=True)
+class SafetyConfig:
+    """Limits of the safety layer (all finite and positive).
+
+    Attributes:
+        stale_ticks: ticks without a new sequence number before the sensors count as frozen.
+        silence: longest time without a new reading before the link counts as dead [s].
+        max_joint_speed: |q̇| limit [rad/s], one value or (n,).
+        range_margin: how far beyond a joint limit a joint may be [rad].
+        max_handle_speed: |ẋ| limit [m/s].
+    """
+
+    stale_ticks: int = 3
+    silence: float = 0.02
+    max_joint_speed: float | tuple[float, ...] = 20.0
+    range_margin: float = 0.05
+    max_handle_speed: float = 1.5
+
+    def __post_init__(self) -> None:
+        _positive("stale_ticks", self.stale_ticks, integer=True)
+        for f in ("silence", "range_margin", "max_handle_speed"):
+            _positive(f, getattr(self, f))
+        v = self.max_joint_speed
+        vals = v if isinstance(v, (tuple, list)) else (v,)
+        for x in vals:
+            _positive("max_joint_speed", x)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> SafetyConfig:
+        """From a mapping (e.g. a TOML table); unknown keys are refused by name."""
+        if not isinstance(d, dict):
+            raise InvalidInput(f"safety: expected a table of settings, got {type(d).__name__}")
+        names = {f.name for f in dataclasses.fields(cls)}
+        bad = sorted(set(d) - names)
+        if bad:
+            raise InvalidInput(f"safety: unknown setting(s) {bad}; known: {sorted(names)}")
+        d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+        return cls(**d)
+
+
+class Safety:
+    """The latched safety state of one run.
+
+    Args:
+        device: the device model (torque and joint limits; both must be finite where used).
+        config: the limits.
+
+    Attributes:
+        fault: the latched reason, or None.
+        fault_kind: short name of the fault ("stale", "nan", "estop", ...).
+        clamped: number of ticks whose torque was clamped into the limits.
+        events: [(kind, detail)] raised since the last `drain`.
+
+    Raises:
+        InvalidInput: non-finite or non-positive torque limits (torque limits are never infinite).
+    """
+
+    def __init__(self, device, config: SafetyConfig | None = None) -> None:
+        self.config = config or SafetyConfig()
+        n = device.n
+        lo, hi = np.asarray(device.torque_min, float), np.asarray(device.torque_max, float)
+        if lo.shape != (n,) or hi.shape != (n,) or not (np.isfinite(lo).all() and np.isfinite(hi).all()) \
+                or not (lo < 0).all() or not (hi > 0).all():
+            raise InvalidInput(f"device: torque limits must be finite with torque_min < 0 < torque_max for every "
+                               f"motor, got torque_min={lo.tolist()}, torque_max={hi.tolist()}")
+        self.n = n
+        self.lo, self.hi = lo, hi
+        v = np.broadcast_to(np.asarray(self.config.max_joint_speed, float), (n,)) \
+            if np.ndim(self.config.max_joint_speed) == 0 or len(self.config.max_joint_speed) == n else None
+        if v is None:
+            raise InvalidInput(f"max_joint_speed: expected one value or {n}, got {self.config.max_joint_speed!r}")
+        self.max_dq = v.copy()
+        m = self.config.range_margin
+        self.q_lo = np.asarray(device.q_min, float) - m
+        self.q_hi = np.asarray(device.q_max, float) + m
+        self.fault: str | None = None
+        self.fault_kind: str | None = None
+        self.clamped = 0
+        self.events: list[tuple[str, str]] = []
+        self._last_seq: int | None = None
+        self._same = 0
+        self._last_new: float | None = None
+        self._estop: str | None = None
+
+    # ------------------------------------------------------------------ faults
+    def trip(self, kind: str, detail: str) -> None:
+        """Latch a fault (the first one wins; later ones are recorded as events too)."""
+        self.events.append((kind, detail))
+        if self.fault is None:
+            self.fault, self.fault_kind = detail, kind
+
+    def estop(self, reason: str = "e-stop") -> None:
+        """External emergency stop (thread- and signal-safe: takes effect at the next tick)."""
+        self._estop = str(reason)
+
+    def reset(self) -> None:
+        """Clear a latched fault (an explicit operator action); the staleness counters restart."""
+        if self.fault is not None:
+            self.events.append(("reset", f"fault cleared: {self.fault}"))
+        self.fault = self.fault_kind = self._estop = None
+        self._same, self._last_new = 0, None
+
+    def drain(self) -> list[tuple[str, str]]:
+        """The events since the last call."""
+        ev, self.events = self.events, []
+        return ev
+
+    # ------------------------------------------------------------------ checks
+    def check(self, r: Reading, now: float | None, xdot: np.ndarray | None = None) -> bool:
+        """Check a reading taken at wall time `now` [s] (None: not in real time, no silence check);
+        ẋ: (m,) [m/s] if known. Returns whether the controller may act (no fault latched)."""
+        if self._estop is not None:
+            self.trip("estop", f"emergency stop: {self._estop}")
+        st = int(r.status)
+        if st & (Status.ESTOP | Status.WATCHDOG | Status.FAULT):
+            names = [s.name.lower() for s in (Status.ESTOP, Status.WATCHDOG, Status.FAULT) if st & s]
+            self.trip("device", f"device reports {'+'.join(names)} at t={r.t:.4f} s"
+                      + (f": {r.detail}" if r.detail else ""))
+        seq = int(r.seq)
+        if self._last_seq is None or seq > self._last_seq:
+            self._same, self._last_new = 0, now
+        elif seq < self._last_seq:
+            self.trip("order", f"out-of-order reading: sequence {seq} after {self._last_seq} at t={r.t:.4f} s")
+        else:
+            self._same += 1
+            if self._same >= self.config.stale_ticks:
+                self.trip("stale", f"sensors frozen: sequence {seq} repeated for {self._same} ticks at t={r.t:.4f} s")
+        if now is not None and self._last_new is not None and now - self._last_new > self.config.silence:
+            self.trip("silence", f"link silent for {1e3 * (now - self._last_new):.1f} ms (limit "
+                      f"{1e3 * self.config.silence:g} ms) at t={r.t:.4f} s")
+        self._last_seq = seq if self._last_seq is None else max(seq, self._last_seq)
+        q, dq = r.q, r.dq
+        if not (math.isfinite(float(q @ q)) and math.isfinite(float(dq @ dq))):
+            self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={q.tolist()}, dq={dq.tolist()}")
+            return False
+        for name, v in r.sensors.items():
+            v = np.asarray(v, float)
+            if not np.isfinite(v).all():
+                self.trip("nan", f"non-finite sensor {name!r} at t={r.t:.4f} s: {v.tolist()}")
+        if (np.abs(dq) > self.max_dq).any():
+            j = int(np.argmax(np.abs(dq) - self.max_dq))
+            self.trip("speed", f"joint {j + 1} speed {dq[j]:.3g} rad/s above {self.max_dq[j]:g} at t={r.t:.4f} s")
+        if (q < self.q_lo).any() or (q > self.q_hi).any():
+            j = int(np.argmax(np.maximum(self.q_lo - q, q - self.q_hi)))
+            self.trip("range", f"joint {j + 1} at {q[j]:.4g} rad, beyond its range by more than "
+                      f"{self.config.range_margin:g} rad at t={r.t:.4f} s")
+        if xdot is not None:
+            s = math.sqrt(float(xdot @ xdot))
+            if not s <= self.config.max_handle_speed:
+                self.trip("handle_speed", f"handle speed {s:.3g} m/s above {self.config.max_handle_speed:g} "
+                          f"at t={r.t:.4f} s")
+        return self.fault is None
+
+    def filter(self, tau, t: float) -> np.ndarray:
+        """The torque to send: τ clamped into the limits (counted), or zeros on a fault or a non-finite τ."""
+        if self.fault is not None:
+            return np.zeros(self.n)
+        tau = np.asarray(tau, dtype=float)
+        if tau.shape != (self.n,):
+            self.trip("torque", f"controller returned torque of shape {tau.shape}, expected ({self.n},) at t={t:.4f} s")
+            return np.zeros(self.n)
+        if not math.isfinite(float(tau @ tau)):
+            self.trip("torque", f"non-finite torque {tau.tolist()} at t={t:.4f} s")
+            return np.zeros(self.n)
+        if (tau < self.lo).any() or (tau > self.hi).any():
+            if self.clamped == 0:
+                self.events.append(("clamp", f"torque {tau.tolist()} clamped into the limits at t={t:.4f} s "
+                                    "(first of the run; the summary counts them)"))
+            self.clamped += 1
+            tau = np.minimum(np.maximum(tau, self.lo), self.hi)
+        return tau

@@ -1,0 +1,74 @@
+"""`SimLink`: the MuJoCo plant, its simulated hand and physical world behind the device-link interface."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rhi.runtime.link import Reading, Status
+from rhi.sim.loop import Session
+from rhi.sim.plant import Plant
+
+
+class SimLink:
+    """A simulated device: each `write` applies the torque for one control period and advances the plant.
+
+    Paced by the loop: `rhi.runtime.run(..., realtime=True)` keeps it in step with the wall clock,
+    `realtime=False` runs it as fast as it can (tests, batch studies). Readings carry the encoders,
+    the F/T sensor and, flagged `Status.SIMULATED`, the ground truth "x", "xdot", "F_hand" and
+    "work" for the log.
+
+    Args:
+        plant: the simulated device (already `reset` to its start).
+        rate: control rate [Hz] (the plant's timestep must divide its period).
+        hand, physical, teleop: as in `rhi.sim.simulate`.
+
+    Attributes:
+        session: the `rhi.sim.Session` it advances (its `hand` may be replaced while running).
+        fault: why the simulation stopped (non-finite force, unstable physics), else None.
+    """
+
+    def __init__(self, plant: Plant, *, rate: float = 1000.0, hand=None, physical=None, teleop=None) -> None:
+        self.plant = plant
+        self.session = Session(plant, rate=rate, hand=hand, physical=physical, teleop=teleop)
+        self.n, self.m = plant.n, plant.m
+        self.rate = float(rate)
+        self.seq = 0
+        self.cmd_seq = -1
+        self.enabled = False
+        self._zero = np.zeros(plant.n)
+
+    @property
+    def fault(self) -> str | None:
+        return self.session.fault
+
+    @property
+    def hand(self):
+        return self.session.hand
+
+    @hand.setter
+    def hand(self, hand) -> None:
+        self.session.hand = hand
+
+    def open(self) -> None:
+        """Nothing to connect."""
+
+    def read(self) -> Reading:
+        p, s = self.plant, self.session
+        status = Status.SIMULATED | (Status.ENABLED if self.enabled else 0) | (Status.FAULT if s.fault else 0)
+        sensors = {"ft": p.ft(), "x": p.x.copy(), "xdot": p.xdot.copy(), "F_hand": s.F_hand,
+                   "work": np.array([s.work])}
+        if s.teleop is not None:
+            sensors["slave_x"] = s.slave_x
+        return Reading(s.t, self.seq, p.q, p.dq, sensors, int(status), self.cmd_seq, s.fault or "")
+
+    def write(self, tau, *, enable: bool) -> None:
+        s = self.session
+        self.enabled = bool(enable) and s.fault is None
+        x_m = self.plant.device.fk(self.plant.q) if s.teleop is not None else None
+        s.advance(np.asarray(tau, dtype=float) if self.enabled else self._zero, x_m)
+        self.cmd_seq += 1
+        self.seq += 1
+
+    def close(self) -> None:
+        """Leave the motors disabled."""
+        self.enabled = False

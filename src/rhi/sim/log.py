@@ -1,0 +1,337 @@
+"""Run logs: one row per control tick, streamed to disk in chunks, loadable while the run goes on.
+
+`LogWriter` fills a preallocated chunk of rows and, when it is full, appends it to a file
+(or keeps it in memory when no file is given), so a streamed run's memory does not grow
+with its length. Safety and other events go to a JSON-lines file beside the log, written
+at once, so they survive a crash of the writing process.
+
+File format (``*.rhilog``, little-endian): the 8 bytes ``b"RHILOG1\\n"``, a uint64 header
+length L, L bytes of UTF-8 JSON (``{"columns": [[name, width], ...], "meta": {...}}``,
+padded with spaces to a multiple of 8 bytes), then rows of float64, each the columns'
+widths summed. A reader takes the whole rows present (`Log.load`); events are in
+``<log>.events.jsonl``, one JSON object per line.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from rhi.errors import InvalidInput
+
+MAGIC = b"RHILOG1\n"
+
+#: Per-tick timing columns [s]: wall time since the run's start, read, controller step,
+#: write, whole tick, and how late the tick started against its absolute deadline.
+TIMING = ("wall", "t_read", "t_step", "t_write", "t_tick", "late")
+
+
+@dataclasses.dataclass
+class Event:
+    """Something that happened during a run (a safety fault, a clamp, an e-stop, a reset).
+
+    Attributes:
+        t: device time [s] of the tick it happened at.
+        kind: short machine-readable name (e.g. "stale", "torque_limit", "estop").
+        detail: one human-readable sentence.
+        tick: tick index.
+    """
+
+    t: float
+    kind: str
+    detail: str
+    tick: int = -1
+
+
+@dataclasses.dataclass
+class Log:
+    """What a run recorded, one row per control tick (N ticks).
+
+    Attributes:
+        t: (N,) time [s] (the device's clock).
+        q, dq: (N, n) motor angles [rad] and velocities [rad/s] (the encoders).
+        tau: (N, n) commanded torques [N m] (after the safety layer).
+        x, xdot: (N, m) handle position [m] and velocity [m/s] (simulation: MuJoCo's ground truth;
+            hardware: NaN unless the device reports them).
+        F_hand: (N, m) force the hand applied [N] (simulation only; NaN otherwise).
+        F_env: (N, m) virtual-environment force sent to the controller [N].
+        ft: (N, 6) F/T sensor (force [N], torque [N m]) in world axes.
+        work: (N,) user work W = ∫ F_hᵀ ẋ dt up to each tick (eq. 5.15) [J] (simulation only).
+        V, omega, alpha, beta: (N,) controller state (ASO, FME activation, force scaling,
+            tertiary scaling); NaN where the controller has no such state.
+        slave_x: (N, m_s) slave position [m] in teleoperation, else empty.
+        seq: (N,) sequence number of the reading each tick acted on.
+        wall, t_read, t_step, t_write, t_tick, late: (N,) timing [s] (see `TIMING`).
+        safety: (N,) 0 while no fault is latched, else 1 (zero torque).
+        fault: why the run or the controller stopped, if it did.
+        events: safety and other events, in order.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    tau: np.ndarray
+    x: np.ndarray
+    xdot: np.ndarray
+    F_hand: np.ndarray
+    F_env: np.ndarray
+    ft: np.ndarray
+    work: np.ndarray
+    V: np.ndarray
+    omega: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    slave_x: np.ndarray
+    seq: np.ndarray | None = None
+    wall: np.ndarray | None = None
+    t_read: np.ndarray | None = None
+    t_step: np.ndarray | None = None
+    t_write: np.ndarray | None = None
+    t_tick: np.ndarray | None = None
+    late: np.ndarray | None = None
+    safety: np.ndarray | None = None
+    fault: str | None = None
+    events: list[Event] = dataclasses.field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The per-tick arrays by name, each (N,) or (N, k); empty columns left out."""
+        out = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, np.ndarray) and v.size:
+                out[f.name] = v
+        return out
+
+    def to_csv(self, path) -> None:
+        """Write the log as CSV (one column per scalar, header names like q1, x1, F_hand2).
+
+        An empty log (no tick) writes the header only.
+        """
+        cols, names = [], []
+        for name, v in self.columns().items():
+            v = np.asarray(v).reshape(len(v), -1)
+            cols.append(v)
+            names += [name] if v.shape[1] == 1 else [f"{name}{i + 1}" for i in range(v.shape[1])]
+        if not names:
+            names = ["t"]
+        data = np.hstack(cols) if cols else np.zeros((0, len(names)))
+        np.savetxt(path, data, delimiter=",", header=",".join(names), comments="")
+
+    def to_npz(self, path) -> None:
+        """Write the log as compressed NPZ (one array per column; `fault` and `events` as JSON strings)."""
+        extra = {"fault": json.dumps(self.fault), "events": json.dumps([dataclasses.asdict(e) for e in self.events])}
+        np.savez_compressed(path, **{k: np.asarray(v) for k, v in self.columns().items()}, **extra)
+
+    @classmethod
+    def load(cls, path) -> Log:
+        """Read a streamed log (``.rhilog``: the whole rows written so far, memory-mapped) or a CSV written
+        by `to_csv`.
+
+        Raises:
+            InvalidInput: the path does not exist or is not a log (named in the message).
+        """
+        p = Path(path)
+        if not p.is_file():
+            raise InvalidInput(f"path: no log file at {str(p)!r}")
+        with p.open("rb") as fh:
+            head = fh.read(len(MAGIC))
+        if head == MAGIC:
+            return _load_binary(p)
+        return _load_csv(p)
+
+
+def _events_path(path: Path) -> Path:
+    return path.with_name(path.name + ".events.jsonl")
+
+
+def layout(n: int, m: int, m_slave: int = 0) -> list[tuple[str, int]]:
+    """The columns of a log row and their widths for a device with n motors and m task rows."""
+    cols = [("t", 1), ("q", n), ("dq", n), ("tau", n), ("x", m), ("xdot", m), ("F_hand", m), ("F_env", m),
+            ("ft", 6), ("work", 1), ("V", 1), ("omega", 1), ("alpha", 1), ("beta", 1)]
+    if m_slave:
+        cols.append(("slave_x", m_slave))
+    cols += [("seq", 1)] + [(c, 1) for c in TIMING] + [("safety", 1)]
+    return cols
+
+
+class LogWriter:
+    """Streams log rows in chunks to `path` (or keeps them in memory when `path` is None).
+
+    Usage per tick: ``row = w.row()`` (a (width,) float64 view, NaN-filled), assign ``row[w.cols["q"]] = q``,
+    and so on; `close` flushes. Memory stays at one chunk when streaming to a file.
+
+    Args:
+        columns: [(name, width)] (see `layout`).
+        path: the ``.rhilog`` file to write (its events beside it), or None (in memory).
+        meta: JSON-serialisable run description stored in the header (device, rate, ...).
+        chunk: rows per chunk (flushed to disk when full; 200 rows = 0.2 s at 1 kHz).
+    """
+
+    def __init__(self, columns: list[tuple[str, int]], path=None, *, meta: dict | None = None,
+                 chunk: int = 200) -> None:
+        if int(chunk) < 1:
+            raise InvalidInput(f"chunk: must be >= 1 rows, got {chunk!r}")
+        self.columns = [(str(c), int(w)) for c, w in columns]
+        self.cols: dict[str, slice | int] = {}
+        i = 0
+        for c, w in self.columns:
+            self.cols[c] = i if w == 1 else slice(i, i + w)
+            i += w
+        self.width = i
+        self.meta = dict(meta or {})
+        self.path = None if path is None else Path(path)
+        self._buf = np.full((int(chunk), self.width), np.nan)
+        self._k = 0
+        self._chunks: list[np.ndarray] = []
+        self.rows = 0
+        self.events: list[Event] = []
+        self.fault: str | None = None
+        self._fh = self._ev = None
+        if self.path is not None:
+            try:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                self._fh = self.path.open("wb")
+                self._ev = _events_path(self.path).open("w")
+            except OSError as exc:
+                raise InvalidInput(f"log: cannot write {str(self.path)!r}: {exc}") from None
+            hdr = json.dumps({"columns": self.columns, "meta": self.meta}).encode()
+            hdr += b" " * (-len(hdr) % 8)
+            self._fh.write(MAGIC + struct.pack("<Q", len(hdr)) + hdr)
+            self._fh.flush()
+
+    def row(self) -> np.ndarray:
+        """The next row to fill: (width,) float64, NaN-filled."""
+        if self._k == len(self._buf):
+            self._flush()
+        r = self._buf[self._k]
+        self._k += 1
+        self.rows += 1
+        return r
+
+    def event(self, t: float, kind: str, detail: str, tick: int = -1) -> Event:
+        """Record an event now (written to the events file at once)."""
+        e = Event(float(t), str(kind), str(detail), int(tick))
+        self.events.append(e)
+        if self._ev is not None:
+            self._ev.write(json.dumps(dataclasses.asdict(e)) + "\n")
+            self._ev.flush()
+        return e
+
+    def _flush(self) -> None:
+        block = self._buf[: self._k]
+        if self._fh is not None:
+            self._fh.write(np.ascontiguousarray(block, dtype="<f8").tobytes())
+            self._fh.flush()
+        else:
+            self._chunks.append(block.copy())
+        self._buf.fill(np.nan)
+        self._k = 0
+
+    def close(self) -> None:
+        """Flush the last partial chunk and close the files (idempotent)."""
+        if self._k:
+            self._flush()
+        if self._fh is not None:
+            if self.fault is not None:
+                self._ev.write(json.dumps({"fault": self.fault}) + "\n")
+            self._fh.close()
+            self._ev.close()
+            self._fh = self._ev = None
+
+    def to_log(self) -> Log:
+        """The log written so far (closes the writer first)."""
+        self.close()
+        if self.path is not None:
+            return _load_binary(self.path)
+        data = np.vstack(self._chunks) if self._chunks else np.zeros((0, self.width))
+        log = _from_array(data, self.columns)
+        log.events, log.fault = list(self.events), self.fault
+        return log
+
+
+def _from_array(data: np.ndarray, columns: list[tuple[str, int]]) -> Log:
+    arrays, i = {}, 0
+    for c, w in columns:
+        arrays[c] = data[:, i] if w == 1 else data[:, i:i + w]
+        i += w
+    N = len(data)
+    arrays.setdefault("slave_x", np.zeros((0,)))
+    if N == 0:
+        arrays = {k: np.asarray(v) for k, v in arrays.items()}
+    names = {f.name for f in dataclasses.fields(Log)}
+    return Log(**{k: v for k, v in arrays.items() if k in names})
+
+
+def _load_binary(path: Path) -> Log:
+    with path.open("rb") as fh:
+        fh.read(len(MAGIC))
+        (L,) = struct.unpack("<Q", fh.read(8))
+        try:
+            hdr = json.loads(fh.read(L).decode())
+            columns = [(str(c), int(w)) for c, w in hdr["columns"]]
+        except (ValueError, KeyError, TypeError) as exc:
+            raise InvalidInput(f"path: {str(path)!r} has a damaged log header: {exc}") from None
+    width = sum(w for _, w in columns)
+    offset = len(MAGIC) + 8 + L
+    rows = (path.stat().st_size - offset) // (8 * width)
+    data = (np.memmap(path, dtype="<f8", mode="r", offset=offset, shape=(rows, width)) if rows
+            else np.zeros((0, width)))
+    log = _from_array(data, columns)
+    ev = _events_path(path)
+    if ev.is_file():
+        for line in ev.read_text().splitlines():
+            if not line.strip():
+                continue
+            try:
+                d = json.loads(line)
+            except ValueError:
+                continue  # a line cut by a crash
+            if "fault" in d and len(d) == 1:
+                log.fault = d["fault"]
+            else:
+                log.events.append(Event(**d))
+        if log.fault is None:
+            faults = [e for e in log.events if e.kind not in ("clamp", "reset", "info")]
+            log.fault = faults[0].detail if faults else None
+    return log
+
+
+def _load_csv(path: Path) -> Log:
+    try:
+        names = path.open().readline().strip().split(",")
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    except (ValueError, OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"path: {str(path)!r} is neither an rhi log nor a CSV log: {exc}") from None
+    if not names or names[0] != "t" or (data.size and data.shape[1] != len(names)):
+        raise InvalidInput(f"path: {str(path)!r} is not a CSV written by Log.to_csv (first column must be t)")
+    columns: list[tuple[str, int]] = []
+    for nm in names:
+        base = nm.rstrip("0123456789")
+        if columns and base != nm and columns[-1][0] == base:
+            columns[-1] = (base, columns[-1][1] + 1)
+        else:
+            columns.append((base if base != nm else nm, 1))
+    # a multi-column field of width 1 (e.g. q1 for n = 1) keeps its matrix shape
+    log = _from_array(data.reshape(-1, len(names)), columns)
+    for c, w in columns:
+        if w == 1 and c != "t" and c in {"q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "slave_x"}:
+            setattr(log, c, getattr(log, c)[:, None])
+    return log
+
+
+def nan_stats(v: np.ndarray) -> dict[str, float]:
+    """p50/p99/p99.9/max of the finite values of v (NaN where none)."""
+    v = np.asarray(v, dtype=float)
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return {"p50": math.nan, "p99": math.nan, "p99.9": math.nan, "max": math.nan}
+    p = np.percentile(v, [50, 99, 99.9])
+    return {"p50": float(p[0]), "p99": float(p[1]), "p99.9": float(p[2]), "max": float(v.max())}

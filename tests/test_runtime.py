@@ -1,0 +1,292 @@
+"""rhi.runtime: the fixed-rate loop over SimLink, the safety layer under fault injection, the streamed log."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import rhi
+from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
+from rhi.errors import InvalidInput
+from rhi.runtime import Reading, Safety, SafetyConfig, SimLink, Status, Telemetry, run
+from rhi.runtime.inject import Inject
+from rhi.sim import Hand, Log, Path, Plant, PushForce, Wall, simulate, stop
+
+Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
+
+
+@pytest.fixture(scope="module")
+def dev():
+    return rhi.device("rhi4")
+
+
+def _scenario(dev):
+    """The README's palpation: a hand pushing into a rendered 1000 N/m wall, a rigid stop behind it."""
+    plant = Plant(dev)
+    plant.reset(Q0)
+    x0 = dev.fk(Q0)
+    ctrl = NullSpaceController(dev, ControllerConfig(primary=ForceRendering(), saturation="ascm"))
+    hand = Hand(Path([x0, x0 + [0, 0.05]], speed=0.05))
+    wall = Wall(x0 + [0, 0.01], normal=[0, 1], stiffness=1000.0)
+    return plant, ctrl, hand, wall, stop(x0 + [0, 0.03], [0, 1])
+
+
+def _sim_run(dev, duration=0.6, link_wrap=None, **kw):
+    plant, ctrl, hand, wall, phys = _scenario(dev)
+    link = SimLink(plant, hand=hand, physical=phys)
+    if link_wrap is not None:
+        link = link_wrap(link)
+    return run(link, kw.pop("controller", ctrl), duration=duration, virtual=wall, realtime=False, **kw)
+
+
+def test_simlink_equals_simulate(dev):
+    plant, ctrl, hand, wall, phys = _scenario(dev)
+    ref = simulate(plant, ctrl, duration=0.6, hand=hand, virtual=wall, physical=phys)
+    res = _sim_run(dev)
+    assert res.fault is None and ref.fault is None
+    assert len(res.log) == len(ref) == 600
+    np.testing.assert_allclose(res.log.tau, ref.tau, atol=1e-9, rtol=0)
+    np.testing.assert_allclose(res.log.q, ref.q, atol=1e-12, rtol=0)
+    assert np.abs(ref.tau).max() > 0.05  # the scenario renders a real force
+    s = res.summary
+    assert s["ticks"] == 600 and s["clamped"] == 0 and s["fault"] is None
+    assert 0 < s["tick"]["p50"] <= s["tick"]["p99"] <= s["tick"]["max"]
+
+
+def test_realtime_log_streams_and_is_readable_while_running(dev, tmp_path):
+    path = tmp_path / "run.rhilog"
+    tel = Telemetry(every=5)
+    out = {}
+    th = threading.Thread(target=lambda: out.setdefault("res", _realtime(dev, path, tel)))
+    th.start()
+    time.sleep(0.4)
+    mid = Log.load(path)  # while the run goes on
+    snap = tel.latest()
+    th.join()
+    res = out["res"]
+    assert 0 < len(mid) < len(res.log)
+    assert snap is not None and snap.q.shape == (4,) and snap.safety == "ok"
+    assert res.summary["ticks"] >= 0.9 * 800  # 0.8 s at 1 kHz, few slots skipped on a loaded machine
+    assert res.summary["late"]["p50"] < 1e-3
+    full = Log.load(path)
+    np.testing.assert_array_equal(full.tau, res.log.tau)
+    assert np.all(np.diff(full.wall) > 0)
+
+
+def _realtime(dev, path, tel):
+    plant, ctrl, hand, wall, phys = _scenario(dev)
+    return run(SimLink(plant, hand=hand, physical=phys), ctrl, duration=0.8, virtual=wall, log=path, telemetry=tel)
+
+
+def _assert_safe_stop(res, kind, t_min, t_max):
+    log = res.log
+    assert res.summary["fault_kind"] == kind, res.summary["fault"]
+    assert res.fault and log.safety[-1] == 1
+    np.testing.assert_array_equal(log.tau[-1], 0.0)
+    t_fault = log.t[np.argmax(log.safety == 1)]
+    assert t_min <= t_fault <= t_max, (t_fault, res.fault)
+    assert any(e.kind == kind for e in log.events)
+
+
+@pytest.mark.parametrize("window", [(0.3, 0.4), (0.3, 0.8)])
+def test_frozen_sensors_fault(dev, window, tmp_path):
+    res = _sim_run(dev, link_wrap=lambda k: Inject(k, freeze=window), log=tmp_path / "f.rhilog")
+    _assert_safe_stop(res, "stale", 0.3, 0.305)
+    again = Log.load(tmp_path / "f.rhilog")  # the log survives the fault, complete
+    assert len(again) == len(res.log) and again.fault == res.fault
+
+
+def test_nan_reading_fault(dev):
+    _assert_safe_stop(_sim_run(dev, link_wrap=lambda k: Inject(k, nan=(0.2, 0.3))), "nan", 0.2, 0.201)
+
+
+def test_out_of_order_reading_fault(dev):
+    _assert_safe_stop(_sim_run(dev, link_wrap=lambda k: Inject(k, reorder_at=0.25)), "order", 0.247, 0.251)
+
+
+def test_link_lost_fault(dev):
+    _assert_safe_stop(_sim_run(dev, link_wrap=lambda k: Inject(k, silence=(0.1, 0.5))), "link", 0.0, 0.1)
+
+
+class _NaNHand:
+    def __init__(self, at):
+        self.at = at
+
+    def force(self, t, x, xdot):
+        return np.full(2, np.nan) if t >= self.at else np.zeros(2)
+
+
+class _Kick:
+    """A hand that hits the handle with an absurd force: the physics diverges."""
+
+    def force(self, t, x, xdot):
+        return np.array([0.0, 1e25]) if t >= 0.35 else np.zeros(2)
+
+
+@pytest.mark.parametrize("hand", [_NaNHand(0.5), _Kick()])
+def test_plant_fault_keeps_log_and_time(dev, hand):
+    plant, ctrl, *_ = _scenario(dev)
+    log = simulate(plant, ctrl, duration=1.0, hand=hand)
+    assert log.fault is not None and len(log) > 300
+    assert log.t[-1] >= 0.34, log.fault  # MuJoCo's reset must not rewind the reported time
+    plant, ctrl, *_ = _scenario(dev)
+    res = run(SimLink(plant, hand=hand), ctrl, duration=1.0, realtime=False)
+    assert res.summary["fault_kind"] == "device" and res.log.t[-1] >= 0.34
+    np.testing.assert_array_equal(res.log.tau[-1], 0.0)
+
+
+def test_controller_raising_is_a_fault(dev):
+    class Boom:
+        device = dev
+
+        def step(self, t, q, dq, sensors):
+            if t > 0.05:
+                raise RuntimeError("division by zero in a user objective")
+            return np.zeros(4)
+
+    _assert_safe_stop(_sim_run(dev, controller=Boom()), "controller", 0.05, 0.052)
+
+
+def test_estop_method_and_sigint(dev):
+    guard = Safety(dev)
+
+    class Stopper:
+        device = dev
+
+        def step(self, t, q, dq, sensors):
+            if t >= 0.1:
+                guard.estop("operator pressed the button")
+            return np.zeros(4)
+
+    _assert_safe_stop(_sim_run(dev, controller=Stopper(), safety=guard), "estop", 0.1, 0.102)
+    plant, ctrl, hand, wall, phys = _scenario(dev)
+    threading.Timer(0.2, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
+    res = run(SimLink(plant, hand=hand), ctrl, duration=2.0)
+    assert res.summary["fault_kind"] == "estop" and "SIGINT" in res.fault
+    assert res.log.wall[-1] < 1.0
+
+
+def test_latched_until_reset(dev):
+    plant, ctrl, hand, wall, phys = _scenario(dev)
+    guard = Safety(dev)
+    guard.estop("test")
+    res = run(SimLink(plant, hand=hand), ctrl, duration=0.05, safety=guard, realtime=False, stop_on_fault=False)
+    assert len(res.log) == 50 and np.all(res.log.safety == 1) and np.all(res.log.tau == 0)
+    guard.reset()
+    assert guard.fault is None
+
+
+class _RecordingLink:
+    """A device that reports random in-range states and records every torque it receives."""
+
+    def __init__(self, dev, rng, N):
+        lo, hi = np.maximum(dev.q_min, -3), np.minimum(dev.q_max, 3)
+        self.n, self.seq = dev.n, 0
+        self.Q, self.dQ = rng.uniform(lo, hi, (N + 10, dev.n)), rng.normal(0, 2.0, (N + 10, dev.n))
+        self.sent = []
+        self.ft = np.zeros(6)
+
+    def open(self):
+        pass
+
+    def read(self):
+        k = self.seq = self.seq + 1
+        return Reading(k * 1e-3, k, self.Q[k], self.dQ[k], {"ft": self.ft}, 1)
+
+    def write(self, tau, *, enable):
+        self.sent.append(tau if enable else np.zeros(self.n))
+
+    def close(self):
+        pass
+
+
+def test_no_torque_above_limit_over_1e5_ticks(dev):
+    """Every safety option on, a controller returning wild torques, the operator resetting every fault at once."""
+    N = 100_000
+    rng = np.random.default_rng(7)
+    scale = np.array([0.1, 1.0, 10.0, 1e6])[rng.integers(4, size=N + 10)]
+    T = rng.normal(0, 1, (N + 10, 4)) * scale[:, None]
+    bad = rng.random(N + 10) < 1e-3
+    T[bad, rng.integers(4, size=bad.sum())] = rng.choice([np.nan, np.inf, -np.inf], bad.sum())
+    guard = Safety(dev, SafetyConfig(max_joint_speed=5.0, max_handle_speed=3.0, range_margin=0.01))
+    kinds = set()
+
+    class Wild:
+        device = dev
+        k = 0
+
+        def step(self, t, q, dq, sensors):
+            self.k += 1
+            return T[self.k]
+
+    link = _RecordingLink(dev, rng, N)
+    ctrl = Wild()
+
+    orig = guard.filter
+
+    def filter_and_reset(tau, t):
+        out = orig(tau, t)
+        if guard.fault is not None:
+            kinds.add(guard.fault_kind)
+            guard.reset()
+        return out
+
+    guard.filter = filter_and_reset
+    res = run(link, ctrl, duration=N / 1000, realtime=False, safety=guard, stop_on_fault=False)
+    sent = np.array(link.sent)
+    assert len(sent) >= N
+    assert np.all(sent >= dev.torque_min - 1e-12) and np.all(sent <= dev.torque_max + 1e-12)
+    assert res.summary["clamped"] > 0.4 * N
+    assert {"torque", "speed"} <= kinds
+
+
+@pytest.mark.parametrize("bad", [
+    lambda dev, p: SimLink(p, rate=1500.0),
+    lambda dev, p: SimLink(p, rate=1e6),
+    lambda dev, p: SimLink(p, rate=-5.0),
+    lambda dev, p: Plant(dev, timestep=0.5),
+    lambda dev, p: Plant(dev, timestep=0.0),
+    lambda dev, p: simulate(p, object(), duration=0.1, rate=1500.0),
+    lambda dev, p: simulate(p, object(), duration=1e-5),
+    lambda dev, p: simulate(p, object(), duration=-1.0),
+    lambda dev, p: run(SimLink(p), NullSpaceController(dev, ControllerConfig(primary=ForceRendering())),
+                       duration=-1.0),
+    lambda dev, p: run(SimLink(p, rate=500.0), NullSpaceController(dev, ControllerConfig(primary=ForceRendering()))),
+    lambda dev, p: SafetyConfig(stale_ticks=0),
+    lambda dev, p: SafetyConfig(silence=float("nan")),
+    lambda dev, p: SafetyConfig.from_dict({"stale_tick": 3}),
+    lambda dev, p: SafetyConfig.from_dict({"stale_ticks": "3"}),
+    lambda dev, p: Inject(SimLink(p), freeze=(0.5, 0.1)),
+    lambda dev, p: Telemetry(every=0),
+], ids=range(16))
+def test_bad_input_is_a_clear_error(dev, bad):
+    plant = Plant(dev)
+    plant.reset(Q0)
+    with pytest.raises(InvalidInput) as e:
+        bad(dev, plant)
+    assert ":" in str(e.value)
+
+
+def test_infinite_torque_limits_refused(dev):
+    free = dev.lock(name="rhi4_unlimited")
+    free.torque_max = np.full(4, np.inf)
+    with pytest.raises(InvalidInput, match="torque limits"):
+        Safety(free)
+
+
+def test_push_force_and_csv_roundtrip(dev, tmp_path):
+    plant = Plant(dev)
+    plant.reset(Q0)
+    ctrl = NullSpaceController(dev, ControllerConfig(primary=ForceRendering()))
+    log = simulate(plant, ctrl, duration=0.05, hand=PushForce([0, 1], 1.0))
+    log.to_csv(tmp_path / "a.csv")
+    back = Log.load(tmp_path / "a.csv")
+    np.testing.assert_allclose(back.tau, log.tau, rtol=1e-15)
+    np.testing.assert_allclose(back.work, log.work, rtol=1e-15)
+    log.to_npz(tmp_path / "a.npz")
+    assert np.load(tmp_path / "a.npz")["q"].shape == (50, 4)
