@@ -77,6 +77,30 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _device_server(args: argparse.Namespace) -> int:
+    import signal
+
+    from rhi.device import device
+    from rhi.runtime import SimLink
+    from rhi.runtime.server import DeviceServer
+    from rhi.sim import Plant
+
+    dev = device(args.device)
+    plant = Plant(dev)
+    lo, hi = dev.joint_limits
+    q0 = args.q0 if args.q0 is not None else np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
+    plant.reset(q0)
+    srv = DeviceServer(SimLink(plant, rate=args.rate), dev, host=args.host, port=args.port,
+                       watchdog=args.watchdog_ms * 1e-3, lockstep=args.lockstep, log=args.log)
+    signal.signal(signal.SIGTERM, lambda *_: srv.stop())
+    signal.signal(signal.SIGINT, lambda *_: srv.stop())
+    print(f"rhi device-server: {dev.name} (simulated, {args.rate:g} Hz) on udp://{args.host}:{srv.port}, "
+          f"watchdog {args.watchdog_ms:g} ms{', lockstep' if args.lockstep else ''}", flush=True)
+    stats = srv.serve(args.duration)
+    print(json.dumps(stats), flush=True)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `rhi` command."""
     from rhi.errors import RhiError
@@ -104,6 +128,17 @@ def main(argv: list[str] | None = None) -> int:
         q.add_argument("--address", help="Ray cluster address for --executor ray (default: start a local instance)")
         q.add_argument("--workers", type=int, help="processes of the local pool (default: CPU count)")
         q.set_defaults(func=_reproduce)
+    d = sub.add_parser("device-server", help="serve a simulated device over UDP (the protocol of docs/protocol.md)")
+    d.add_argument("device")
+    d.add_argument("--port", type=int, default=5005, help="UDP port (0: any free port; default 5005)")
+    d.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    d.add_argument("--rate", type=float, default=1000.0, help="device rate [Hz] (default 1000)")
+    d.add_argument("--watchdog-ms", type=float, default=20.0, help="zero torque after this long without a command")
+    d.add_argument("--lockstep", action="store_true", help="wait for each command (bit-exact simulation)")
+    d.add_argument("--q0", type=_floats, help="start configuration [rad] (default: mid-range)")
+    d.add_argument("--log", help="device-side log (.rhilog)")
+    d.add_argument("--duration", type=float, help="stop after this much device time [s]")
+    d.set_defaults(func=_device_server)
     args = p.parse_args(argv)
     try:
         return args.func(args)

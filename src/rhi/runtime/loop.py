@@ -178,8 +178,8 @@ def run(
     k = slot = 0
     t_dev = 0.0
     try:
-        link.open()
         with _realtime(cpu, priority) as notes:
+            link.open()
             for msg in notes:
                 w.event(0.0, "info", msg)
             t0 = time.monotonic()
