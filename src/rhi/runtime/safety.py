@@ -29,6 +29,9 @@ def _positive(name: str, v, *, integer: bool = False) -> None:
         raise InvalidInput(f"{name}: must be a finite {'integer' if integer else 'number'} > 0, got {v!r}")
 
 
+_BAD_STATUS = int(Status.ESTOP | Status.WATCHDOG | Status.FAULT)
+
+
 @dataclasses.dataclass(frozen=True)
 class SafetyConfig:
     """Limits of the safety layer (all finite and positive).
@@ -143,15 +146,16 @@ class Safety:
         if self._estop is not None:
             self.trip("estop", f"emergency stop: {self._estop}")
         st = int(r.status)
-        if st & (Status.ESTOP | Status.WATCHDOG | Status.FAULT):
+        if st & _BAD_STATUS:
             names = [s.name.lower() for s in (Status.ESTOP, Status.WATCHDOG, Status.FAULT) if st & s]
             self.trip("device", f"device reports {'+'.join(names)} at t={r.t:.4f} s"
                       + (f": {r.detail}" if r.detail else ""))
         seq = int(r.seq)
-        if self._last_seq is None or seq > self._last_seq:
-            self._same, self._last_new = 0, now
-        elif seq < self._last_seq:
-            self.trip("order", f"out-of-order reading: sequence {seq} after {self._last_seq} at t={r.t:.4f} s")
+        last = self._last_seq
+        if last is None or seq > last:
+            self._same, self._last_new, self._last_seq = 0, now, seq
+        elif seq < last:
+            self.trip("order", f"out-of-order reading: sequence {seq} after {last} at t={r.t:.4f} s")
         else:
             self._same += 1
             if self._same >= self.config.stale_ticks:
@@ -159,24 +163,23 @@ class Safety:
         if now is not None and self._last_new is not None and now - self._last_new > self.config.silence:
             self.trip("silence", f"link silent for {1e3 * (now - self._last_new):.1f} ms (limit "
                       f"{1e3 * self.config.silence:g} ms) at t={r.t:.4f} s")
-        self._last_seq = seq if self._last_seq is None else max(seq, self._last_seq)
         q, dq = r.q, r.dq
-        if not (math.isfinite(float(q @ q)) and math.isfinite(float(dq @ dq))):
+        if not (math.isfinite(q.dot(q)) and math.isfinite(dq.dot(dq))):
             self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={q.tolist()}, dq={dq.tolist()}")
             return False
         for name, v in r.sensors.items():
-            v = np.asarray(v, float)
-            if not np.isfinite(v).all():
-                self.trip("nan", f"non-finite sensor {name!r} at t={r.t:.4f} s: {v.tolist()}")
-        if (np.abs(dq) > self.max_dq).any():
-            j = int(np.argmax(np.abs(dq) - self.max_dq))
-            self.trip("speed", f"joint {j + 1} speed {dq[j]:.3g} rad/s above {self.max_dq[j]:g} at t={r.t:.4f} s")
-        if (q < self.q_lo).any() or (q > self.q_hi).any():
-            j = int(np.argmax(np.maximum(self.q_lo - q, q - self.q_hi)))
-            self.trip("range", f"joint {j + 1} at {q[j]:.4g} rad, beyond its range by more than "
-                      f"{self.config.range_margin:g} rad at t={r.t:.4f} s")
+            if not math.isfinite(v.dot(v)) and not np.isfinite(v).all():
+                self.trip("nan", f"non-finite sensor {name!r} at t={r.t:.4f} s: {np.asarray(v).tolist()}")
+        if ((q < self.q_lo) | (q > self.q_hi) | (np.abs(dq) > self.max_dq)).any():
+            if (np.abs(dq) > self.max_dq).any():
+                j = int(np.argmax(np.abs(dq) - self.max_dq))
+                self.trip("speed", f"joint {j + 1} speed {dq[j]:.3g} rad/s above {self.max_dq[j]:g} at t={r.t:.4f} s")
+            if (q < self.q_lo).any() or (q > self.q_hi).any():
+                j = int(np.argmax(np.maximum(self.q_lo - q, q - self.q_hi)))
+                self.trip("range", f"joint {j + 1} at {q[j]:.4g} rad, beyond its range by more than "
+                          f"{self.config.range_margin:g} rad at t={r.t:.4f} s")
         if xdot is not None:
-            s = math.sqrt(float(xdot @ xdot))
+            s = math.sqrt(xdot.dot(xdot))
             if not s <= self.config.max_handle_speed:
                 self.trip("handle_speed", f"handle speed {s:.3g} m/s above {self.config.max_handle_speed:g} "
                           f"at t={r.t:.4f} s")
