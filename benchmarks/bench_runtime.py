@@ -1,0 +1,153 @@
+"""The 1 kHz runtime with the full ch7 controller, over UDP loopback and over SimLink, in real time.
+
+Controller: force rendering of a 1000 N/m wall (B = 0.01 N s/m) + FME matching with the ASO and
+its transition + ASCM + the VME tertiary objective (the thesis's ch7 stack). The hand strokes
+in and out of the wall (2 cm/s), so saturation and the null-space reconfiguration come and go.
+
+- udp: the device (MuJoCo plant + hand) is a second process serving the protocol of
+  docs/protocol.md, free-running on its own 1 kHz clock with its 20 ms watchdog; the host runs
+  `rhi.runtime.run` over `UDPLink`.
+- sim: the same plant in-process behind `SimLink`, paced on the wall clock.
+
+Prints missed deadlines (count and %), p50/p99/p99.9/max of the tick time and of the
+read→write latency, how late ticks started, and the host's RSS at start and end (the log
+streams to disk). Targets (issue 10, 2 cores): < 0.1 % missed, p99 tick ≤ 300 µs, RSS growth
+≤ 50 MB per hour. The period (1000 µs) is the baseline the tick times are divided by.
+
+    PYTHONPATH=src python benchmarks/bench_runtime.py [--duration 600] [--link udp|sim|both]
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import rhi
+from rhi.control import (
+    ControllerConfig,
+    FMESchedule,
+    ForceRendering,
+    NullSpaceController,
+    ObjectiveTerm,
+    VMEMatching,
+    desired_fme_free,
+    desired_fme_stiff,
+    fme_shape,
+)
+from rhi.runtime import SafetyConfig, SimLink, run
+from rhi.sim import Hand, Path as HandPath, Plant, Wall
+
+Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
+PERIOD_US = 1000.0
+
+
+def _rss_mb() -> float:
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def controller(dev: rhi.Device) -> NullSpaceController:
+    K, z = fme_shape(dev.jacobian(np.zeros(dev.n)), dev.torque_max, 5.0)
+    cfg = ControllerConfig(
+        ForceRendering(damping=0.01),
+        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0), 0.01), 0.5),),
+        fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z), gain=20.0),
+        damping=0.1,
+        saturation="ascm",
+    )
+    return NullSpaceController(dev, cfg)
+
+
+def plant_and_hand(dev: rhi.Device, duration: float) -> tuple[Plant, Hand, Wall]:
+    plant = Plant(dev)
+    plant.reset(Q0)
+    x0 = dev.fk(Q0)
+    strokes = int(duration * 0.02 / 0.03) + 2  # 3 cm strokes at 2 cm/s
+    pts = [x0 + [0.0, 0.03 * (i % 2)] for i in range(strokes + 1)]
+    return plant, Hand(HandPath(pts, speed=0.02), stiffness=300.0), Wall(x0 + [0.0, 0.005], [0, 1], 1000.0)
+
+
+def _device(port_q, duration: float) -> None:
+    from rhi.runtime.server import DeviceServer
+
+    dev = rhi.device("rhi4")
+    plant, hand, _ = plant_and_hand(dev, duration + 5)
+    srv = DeviceServer(SimLink(plant, hand=hand), dev, exit_on_bye=True)
+    port_q.put(srv.port)
+    srv.serve(duration + 10)
+
+
+def bench(link_kind: str, duration: float, log_dir: str) -> dict:
+    dev = rhi.device("rhi4")
+    ctrl = controller(dev)
+    rss0 = _rss_mb()
+    proc = None
+    if link_kind == "udp":
+        from rhi.runtime.udp import UDPLink
+
+        ctx = mp.get_context("spawn")
+        q = ctx.Queue()
+        proc = ctx.Process(target=_device, args=(q, duration), daemon=True)
+        proc.start()
+        link = UDPLink("127.0.0.1", q.get(timeout=120), timeout=4e-4)
+        _, _, wall = plant_and_hand(dev, duration)
+    else:
+        plant, hand, wall = plant_and_hand(dev, duration)
+        link = SimLink(plant, hand=hand)
+    last = [0.0]
+    warm = {}
+
+    def progress(s: dict) -> None:
+        if "rss" not in warm and s["t"] >= min(5.0, duration / 3):
+            warm["rss"], warm["t"] = _rss_mb(), s["t"]
+        warm["rss_last"], warm["t_last"] = _rss_mb(), s["t"]  # in the loop (the returned log is memory-mapped)
+        if time.monotonic() - last[0] > 10:
+            last[0] = time.monotonic()
+            print(f"  [{link_kind}] t={s['t']:7.1f} s  ticks={s['ticks']}  missed={s['missed']}  "
+                  f"max|τ|/limit={s['max_torque_ratio']:.2f}  V={s['V']:.2f}  fault={s['fault']}", flush=True)
+
+    res = run(link, ctrl, duration=duration, virtual=wall, log=Path(log_dir) / f"{link_kind}.rhilog",
+              safety=SafetyConfig(range_margin=0.3), progress=progress)
+    if proc is not None:
+        proc.join(15)
+    s = res.summary
+    s["rss_start_mb"], s["rss_end_mb"], s["t_end"] = rss0, warm.get("rss_last", rss0), warm.get("t_last", 0.0)
+    s["rss_warm_mb"], s["t_warm"] = warm.get("rss", rss0), warm.get("t", 0.0)
+    s["lost"] = getattr(link, "stats", {}).get("lost", 0)
+    return s
+
+
+def report(kind: str, s: dict) -> None:
+    us = lambda d: "  ".join(f"{k} {1e6 * v:7.1f}" for k, v in d.items())  # noqa: E731
+    print(f"\n{kind}: {s['ticks']} ticks in {s['duration']:.1f} s, fault: {s['fault']}")
+    print(f"  missed deadlines   {s['missed']} ({s['missed_pct']:.3f} %; target < 0.1 %), "
+          f"slots skipped {s['skipped_slots']}, readings lost {s['lost']}")
+    print(f"  tick [µs]          {us(s['tick'])}   (p99 / period = {1e6 * s['tick']['p99'] / PERIOD_US:.2f}; "
+          f"target p99 ≤ 300 µs)")
+    print(f"  read→write [µs]    {us(s['read_to_write'])}")
+    print(f"  controller [µs]    {us(s['t_step'])}")
+    print(f"  start late [µs]    {us(s['late'])}")
+    grow = (s["rss_end_mb"] - s["rss_warm_mb"]) * 3600 / max(s["t_end"] - s["t_warm"], 1e-9)
+    print(f"  RSS [MB]           start {s['rss_start_mb']:.1f}  after {s['t_warm']:.0f} s {s['rss_warm_mb']:.1f}  "
+          f"at {s['t_end']:.0f} s {s['rss_end_mb']:.1f}  (growth after warm-up ≈ {grow:+.1f} MB per hour; target ≤ 50)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--duration", type=float, default=60.0, help="seconds per link (the issue asks 600)")
+    ap.add_argument("--link", choices=("udp", "sim", "both"), default="both")
+    a = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in (("udp", "sim") if a.link == "both" else (a.link,)):
+            report(kind, bench(kind, a.duration, tmp))
+
+
+if __name__ == "__main__":
+    main()
