@@ -290,3 +290,12 @@ def test_push_force_and_csv_roundtrip(dev, tmp_path):
     np.testing.assert_allclose(back.work, log.work, rtol=1e-15)
     log.to_npz(tmp_path / "a.npz")
     assert np.load(tmp_path / "a.npz")["q"].shape == (50, 4)
+
+
+def test_affinity_refused_is_a_clear_warning(dev):
+    plant, ctrl, hand, wall, phys = _scenario(dev)
+    with pytest.warns(RuntimeWarning, match="CPU affinity 4096 not applied"):
+        res = run(SimLink(plant, hand=hand), ctrl, duration=0.02, cpu=4096)
+    assert res.fault is None and any("affinity" in e.detail for e in res.log.events)
+    with pytest.raises(InvalidInput, match="priority"):
+        run(SimLink(plant, hand=hand), ctrl, duration=0.02, priority=120)

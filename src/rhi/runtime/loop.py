@@ -151,6 +151,10 @@ def run(
     if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
                                  or not math.isfinite(duration) or duration < 1.0 / rate):
         raise InvalidInput(f"duration: must be a finite time >= one period ({1.0 / rate} s) or None, got {duration!r}")
+    if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
+        raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
+    if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int) or not 1 <= priority <= 99):
+        raise InvalidInput(f"priority: expected a SCHED_FIFO priority in 1..99 or None, got {priority!r}")
     dev = getattr(controller, "device", None)
     if isinstance(safety, Safety):
         guard = safety
@@ -159,7 +163,7 @@ def run(
     else:
         guard = Safety(dev, safety)
     n = guard.n
-    m = dev.m if dev is not None else len(getattr(link, "task_axes", "")) or 0
+    m = dev.m if dev is not None else 0
     period = 1.0 / rate
     N = None if duration is None else int(round(duration * rate))
     ms = getattr(getattr(getattr(link, "session", None), "teleop", None), "slave", None)
