@@ -9,8 +9,20 @@ Quick start::
 """
 
 from rhi import errors, metrics
-from rhi.device import Device, available_devices, device, device_from_urdf
+from rhi.device import Device, available_devices, device
+from rhi.loaders import description_path, device_from_description, device_from_mjcf, device_from_urdf
 from rhi.measure import measure
 
-__all__ = ["Device", "available_devices", "device", "device_from_urdf", "errors", "measure", "metrics"]
+__all__ = [
+    "Device",
+    "available_devices",
+    "description_path",
+    "device",
+    "device_from_description",
+    "device_from_mjcf",
+    "device_from_urdf",
+    "errors",
+    "measure",
+    "metrics",
+]
 __version__ = "0.1.0"

@@ -267,6 +267,13 @@ class Device:
         joint_names: (n,) names of the motor coordinates.
         armature: (n,) rotor inertia reflected to each motor coordinate [kg m²], added to M(q).
         params: design parameters this device was built with.
+        damping: (n,) viscous motor friction for the plant [N m s/rad] (default 0).
+        frictionloss: (n,) Coulomb motor friction for the plant [N m] (default 0).
+
+    Raises:
+        ModelError: torque limits missing, non-finite, or not torque_min < 0 < torque_max;
+            `ee_frame` unknown or a joint.
+        InvalidInput: bad `task_axes`, limits, armature or friction.
     """
 
     def __init__(
@@ -286,13 +293,19 @@ class Device:
         joint_names: list[str] | None = None,
         armature: np.ndarray | None = None,
         params: Mapping[str, float] | None = None,
+        damping: np.ndarray | None = None,
+        frictionloss: np.ndarray | None = None,
     ) -> None:
         if model.nq != model.nv:
             raise ModelError(f"{name}: model has nq={model.nq} != nv={model.nv}; use bounded revolute/prismatic joints")
-        if not model.existFrame(ee_frame):
-            raise ModelError(f"ee_frame: no frame named {ee_frame!r} in the model of {name}")
-        if not task_axes or any(a not in _AXES for a in task_axes):
-            raise InvalidInput(f"task: expected a string of axes from 'xyz', got {task_axes!r}")
+        if not isinstance(ee_frame, str) or not model.existFrame(ee_frame):
+            frames = [f.name for f in model.frames if f.type in (pin.FrameType.BODY, pin.FrameType.OP_FRAME)]
+            raise ModelError(f"ee_frame: no frame named {ee_frame!r} in the model of {name}; valid: {', '.join(frames)}")
+        if model.frames[model.getFrameId(ee_frame)].type == pin.FrameType.JOINT:
+            raise ModelError(f"ee_frame: {ee_frame!r} is a joint of {name}, not a link; name its child link")
+        if (not isinstance(task_axes, str) or not task_axes or any(a not in _AXES for a in task_axes)
+                or len(set(task_axes)) != len(task_axes)):
+            raise InvalidInput(f"task: expected a string of distinct axes from 'xyz', got {task_axes!r}")
         self.name = name
         self.model = model
         self.data = model.createData()
@@ -311,14 +324,29 @@ class Device:
         lo = np.full(n, -np.inf) if q_min is None else np.asarray(q_min, dtype=float)
         hi = np.full(n, np.inf) if q_max is None else np.asarray(q_max, dtype=float)
         self.q_min, self.q_max = limits_pair("q_min", lo, "q_max", hi, n)
-        tmax = np.full(n, np.inf) if torque_max is None else np.asarray(torque_max, dtype=float)
+        if torque_max is None:
+            raise ModelError(f"torque_max: {name} needs finite, positive torque limits [N m]")
+        tmax = np.asarray(torque_max, dtype=float)
         tmin = -tmax if torque_min is None else np.asarray(torque_min, dtype=float)
         self.torque_min, self.torque_max = limits_pair("torque_min", tmin, "torque_max", tmax, n)
+        if not (np.all(np.isfinite(self.torque_max)) and np.all(self.torque_max > 0)):
+            raise ModelError(f"torque_max: {name} needs finite, positive torque limits, got {self.torque_max.tolist()}")
+        if not (np.all(np.isfinite(self.torque_min)) and np.all(self.torque_min < 0)):
+            raise ModelError(f"torque_min: {name} needs finite, negative torque limits, got {self.torque_min.tolist()}")
         self.linear_limits = linear_limits
-        self.armature = np.zeros(n) if armature is None else np.asarray(armature, dtype=float)
-        if self.armature.shape != (n,) or np.any(self.armature < 0):
-            raise ModelError(f"armature: expected {n} non-negative values, got {self.armature}")
+        self.armature = self._nonneg("armature", armature, n)
+        self.damping = self._nonneg("damping", damping, n)
+        self.frictionloss = self._nonneg("frictionloss", frictionloss, n)
         self.params = dict(params or {})
+        self.locked_joints: dict[str, float] = {}
+
+    @staticmethod
+    def _nonneg(arg: str, value, n: int) -> np.ndarray:
+        v = np.zeros(n) if value is None else as_array(arg, value)
+        v = np.full(n, float(v)) if v.ndim == 0 else v
+        if v.shape != (n,) or np.any(v < 0):
+            raise InvalidInput(f"{arg}: expected {n} finite non-negative values, got {v.tolist()}")
+        return v
 
     # ------------------------------------------------------------------ limits
     @property
@@ -587,13 +615,20 @@ class Device:
             values: {joint name or index: value [rad]}; keywords work too (`lock(q1=0, q2=0)`).
             name: name of the new device.
         """
+        if values is not None and not isinstance(values, Mapping):
+            raise InvalidInput(f"values: expected a dict {{joint name or index: value}}, got {type(values).__name__}")
         values = {**(values or {}), **kw}
         idx = {}
         for key, v in values.items():
             i = key if isinstance(key, int) else (self.joint_names.index(key) if key in self.joint_names else None)
-            if i is None or not 0 <= i < self.n:
+            if i is None or isinstance(i, bool) or not 0 <= i < self.n:
                 raise InvalidInput(f"lock: unknown joint {key!r}; joints are {self.joint_names}")
-            idx[i] = float(v)
+            val = as_array(f"lock[{key!r}]", v)
+            if val.ndim != 0:
+                raise InvalidInput(f"lock[{key!r}]: expected one value, got shape {val.shape}")
+            if not self.q_min[i] - 1e-12 <= val <= self.q_max[i] + 1e-12:
+                raise InvalidInput(f"lock[{key!r}]: {float(val)} outside the joint range [{self.q_min[i]:g}, {self.q_max[i]:g}]")
+            idx[i] = float(val)
         free = [i for i in range(self.n) if i not in idx]
         locked = np.array(sorted(idx))
         qv = np.array([idx[i] for i in sorted(idx)])
@@ -606,7 +641,7 @@ class Device:
             if np.any(~keep & ((lo > 1e-12) | (hi < -1e-12))):
                 raise InvalidInput("lock: the locked values violate a linear joint limit")
             lin = LinearLimits(C[keep], lo[keep], hi[keep]) if keep.any() else None
-        return Device(
+        dev = Device(
             self.model,
             name=name or f"{self.name}-locked",
             ee_frame=self.ee_frame,
@@ -621,7 +656,11 @@ class Device:
             joint_names=[self.joint_names[i] for i in free],
             armature=self.armature[free],
             params=self.params,
+            damping=self.damping[free],
+            frictionloss=self.frictionloss[free],
         )
+        dev.locked_joints = {**self.locked_joints, **{self.joint_names[i]: v for i, v in idx.items()}}
+        return dev
 
     def __repr__(self) -> str:
         return f"Device({self.name!r}, n={self.n}, task={self.task_axes!r})"
@@ -773,6 +812,8 @@ def _build(folder: Path, spec: dict, params: Mapping[str, float]) -> Device:
         joint_names=spec.get("joint_names"),
         armature=spec.get("armature"),
         params=values,
+        damping=spec.get("plant", {}).get("damping"),
+        frictionloss=spec.get("plant", {}).get("frictionloss"),
     )
 
 
@@ -806,31 +847,3 @@ def _set_placement(model: pin.Model, target: str, component: str, value: float) 
         model.jointPlacements[model.getJointId(name)] = M
     else:
         model.frames[model.getFrameId(name)].placement = M
-
-
-def device_from_urdf(path: str | Path, *, ee_frame: str, task: str = "xyz", torque_max=None, name: str | None = None) -> Device:
-    """Wrap a user robot described by a URDF.
-
-    Args:
-        path: URDF file.
-        ee_frame: name of the end-effector link or frame.
-        task: world axes of the position task ("xy", "xyz", ...).
-        torque_max: (n,) actuator limits [N m]; defaults to the URDF effort limits.
-        name: device name (default: the file stem).
-    """
-    path = Path(path)
-    model = _load_urdf(path)
-    if model.nq != model.nv:
-        raise ModelError(f"path: {path.name} has continuous or floating joints (nq != nv); bound them")
-    tmax = model.effortLimit if torque_max is None else torque_max
-    tmax = np.where(np.asarray(tmax, dtype=float) > 0, tmax, np.inf)
-    return Device(
-        model,
-        name=name or path.stem,
-        ee_frame=ee_frame,
-        task_axes=task,
-        q_min=np.where(model.lowerPositionLimit > -1e10, model.lowerPositionLimit, -np.inf),
-        q_max=np.where(model.upperPositionLimit < 1e10, model.upperPositionLimit, np.inf),
-        torque_max=tmax,
-        joint_names=[model.names[j] for j in range(1, model.njoints)],
-    )

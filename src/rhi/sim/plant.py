@@ -9,12 +9,10 @@ simulation's ground truth for logging and tests.
 
 from __future__ import annotations
 
-import tomllib
-
 import mujoco
 import numpy as np
 
-from rhi.device import MODELS, Device
+from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError
 from rhi.sim.mjcf import PlantFriction, build_mjcf
 
@@ -37,26 +35,12 @@ class PlantUnstable(ModelError):
 
 
 def device_friction(device: Device) -> PlantFriction:
-    """The motor friction declared in the device's `device.toml` [plant] table (zeros if none).
+    """The motor friction the device carries (`Device.damping`, `Device.frictionloss`).
 
-    Devices derived by locking (`base = "rhi4"`) take their free motors' values from the base.
+    Bundled devices take it from their `device.toml` [plant] table, user devices from the
+    loader's `friction=` argument or their description's joint dynamics; `Device.lock` keeps it.
     """
-    path = MODELS / device.name / "device.toml"
-    if not path.is_file():
-        return PlantFriction.zero(device.n)
-    spec = tomllib.loads(path.read_text())
-    names = spec.get("joint_names")
-    if "base" in spec:
-        base = tomllib.loads((MODELS / spec["base"] / "device.toml").read_text())
-        spec, names = base, base.get("joint_names")
-    plant = spec.get("plant", {})
-    out = {}
-    for f in ("damping", "frictionloss"):
-        v = np.asarray(plant.get(f, np.zeros(len(names or device.joint_names))), dtype=float)
-        if names is not None and len(names) != device.n:
-            v = np.array([v[names.index(j)] for j in device.joint_names])
-        out[f] = v
-    return PlantFriction(**out).check(device.n)
+    return PlantFriction(device.damping, device.frictionloss).check(device.n)
 
 
 class Plant:
