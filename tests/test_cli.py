@@ -29,3 +29,40 @@ def test_bad_input_exits_2(capsys):
     assert "unknown device" in capsys.readouterr().err
     assert main(["experiment", "ch9.nothing", "--out", "/tmp/rhi-none"]) == 2
     assert "experiment" in capsys.readouterr().err
+
+
+def test_python_m_rhi_and_version():
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import rhi
+
+    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    res = subprocess.run([sys.executable, "-m", "rhi", "--version"], capture_output=True, text=True, env=env, check=True)
+    assert res.stdout.strip() == f"rhi {rhi.__version__}"
+
+
+def test_negative_numbers_and_singular_configuration(capsys):
+    assert main(["measure", "rhi4", "--q", "-0.5,0.2,0.3,0.1", "--u", "-1,0", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["q"][0] == -0.5 and res["u"] == [-1.0, 0.0] and res["singular"] is False
+    assert main(["measure", "gen3", "--q", "0,0,0,0,0,0,0", "--json"]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["singular"] is True and res["rank J"] < 3
+    assert res["manipulability μ (4.7)"] < 1e-12 and res["apparent_inertia M_x [kg] (3.12)"] is None
+    assert "max_force (LP, dynamic projector) [N]" in res["undefined (singular J)"]
+
+
+def test_experiment_report_names_default_out_and_piped_progress(tmp_path, monkeypatch, capsys):
+    from rhi.report.reproduce import STEPS, step_names
+
+    for report_name, step in [("perception.psychophysics", "ch3.psychophysics"), ("ch4.table_4_1", "ch4.full_design"),
+                              ("ch4.theta_z", "ch4.theta_z_design"), ("ch7.palpation", "ch7.palpation")]:
+        assert [s.name for s in STEPS if report_name in step_names(s)] == [step]
+    monkeypatch.chdir(tmp_path)
+    assert main(["experiment", "ch7.example_3dof", "--quick", "--executor", "serial"]) == 0
+    assert (tmp_path / "out" / "ch7.example_3dof" / "results.json").is_file()
+    assert not (tmp_path / "out" / "report.html").exists()
+    assert "[1/1] ch7.example_3dof done in" in capsys.readouterr().out  # stdout is not a terminal here

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 
 import numpy as np
@@ -49,6 +50,8 @@ def _measure(args: argparse.Namespace) -> int:
             v = np.array2string(np.asarray(v), precision=5, suppress_small=True).replace("\n", "\n" + " " * 46)
         elif isinstance(v, float):
             v = f"{v:.6g}"
+        elif v is None:
+            v = "— (undefined: J is singular)"
         print(f"{k:<45} {v}")
     return 0
 
@@ -62,10 +65,11 @@ def _reproduce(args: argparse.Namespace) -> int:
     if getattr(args, "list", False) or (args.command == "experiment" and not args.name):
         print("\n".join(experiments()))
         return 0
-    configure(executor=args.executor, address=args.address, workers=args.workers,
-              checkpoint_dir=str(Path(args.out) / "checkpoints"))
     name = getattr(args, "name", None)
-    path, results = reproduce(args.out, only=getattr(args, "only", None), quick=args.quick, experiment=name)
+    out = args.out or (str(Path("out") / name) if name else "out")
+    configure(executor=args.executor, address=args.address, workers=args.workers,
+              checkpoint_dir=str(Path(out) / "checkpoints"))
+    path, results = reproduce(out, only=getattr(args, "only", None), quick=args.quick, experiment=name)
     for res in results:
         for table in res.tables:
             print(f"\n{res.name}: {table.title}")
@@ -101,11 +105,27 @@ def _device_server(args: argparse.Namespace) -> int:
     return 0
 
 
+_NEGATIVE = re.compile(r"^-(\d|\.\d)")
+
+
+def _join_negative(argv: list[str]) -> list[str]:
+    """`--q -0.5,0.2` → `--q=-0.5,0.2` (argparse takes a leading '-' for an option)."""
+    out: list[str] = []
+    for tok in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and _NEGATIVE.match(tok):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `rhi` command."""
+    from rhi import __version__
     from rhi.errors import RhiError
 
     p = argparse.ArgumentParser(prog="rhi", description=__doc__)
+    p.add_argument("--version", action="version", version=f"rhi {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     sub.add_parser("devices", help="list the bundled devices").set_defaults(func=_devices)
     m = sub.add_parser("measure", help="print every measure of a device at a configuration")
@@ -118,11 +138,11 @@ def main(argv: list[str] | None = None) -> int:
     r = sub.add_parser("reproduce", help="reproduce the thesis's computational tables and figures into a report")
     r.add_argument("--only", help="one chapter, e.g. ch3")
     e = sub.add_parser("experiment", help="run one experiment: PNG figures, CSV/JSON numbers, thesis beside ours")
-    e.add_argument("name", nargs="?", help="experiment id, e.g. ch7.example_3dof (none: list them)")
+    e.add_argument("name", nargs="?", help="experiment id or the report's name, e.g. ch7.example_3dof (none: list them)")
     e.add_argument("--list", action="store_true", help="list the experiments")
     for q in (r, e):
         q.add_argument("--quick", action="store_true", help="reduced resolution (seconds)")
-        q.add_argument("--out", default="out", help="output directory (default: out)")
+        q.add_argument("--out", help="output directory (default: out, or out/<experiment> for one experiment)")
         q.add_argument("--executor", choices=("local", "serial", "ray"), default="local",
                        help="where design evaluations run: local process pool (default), this process, or Ray")
         q.add_argument("--address", help="Ray cluster address for --executor ray (default: start a local instance)")
@@ -139,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--log", help="device-side log (.rhilog)")
     d.add_argument("--duration", type=float, help="stop after this much device time [s]")
     d.set_defaults(func=_device_server)
-    args = p.parse_args(argv)
+    args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.func(args)
     except RhiError as exc:

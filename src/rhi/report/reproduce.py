@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import platform
+import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -114,6 +115,23 @@ def experiments() -> list[str]:
     return [s.name for s in STEPS]
 
 
+# result names the report shows (tables/<name>.csv) that are neither the step id nor module.function
+_REPORT_NAMES = {"ch4.theta_z": "ch4.theta_z_design", "ch4.table_4_1": "ch4.full_design"}
+
+
+def step_names(s: Step) -> set[str]:
+    """Every name `rhi experiment` accepts for a step: its id, its function, module.function, report names."""
+    module = s.run.__module__.rsplit(".", 1)[-1]
+    return {s.name, s.run.__name__, f"{module}.{s.run.__name__}"} | {k for k, v in _REPORT_NAMES.items() if v == s.name}
+
+
+def _report_progress(i: int, total: int, name: str, t_step: float, t0: float) -> None:
+    """One line per finished step when stdout is not a terminal (rich draws nothing there)."""
+    elapsed = time.perf_counter() - t0
+    eta = elapsed / i * (total - i)
+    print(f"[{i}/{total}] {name} done in {t_step:.1f} s; elapsed {elapsed:.0f} s, ETA {eta:.0f} s", flush=True)
+
+
 def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool = False,
               experiment: str | None = None) -> tuple[Path, list[Result]]:
     """Run the experiments (all, one chapter or one experiment) and write out/report.html + out/results.json.
@@ -130,7 +148,7 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
     if not steps:
         raise InvalidInput(f"only: unknown chapter {only!r}; available: {', '.join(chapters())}")
     if experiment is not None:
-        steps = [s for s in steps if experiment in (s.name, s.run.__name__)]
+        steps = [s for s in steps if experiment in step_names(s)]
         if not steps:
             raise InvalidInput(f"experiment: unknown experiment {experiment!r}; available: {', '.join(experiments())}")
     done: list[tuple[str, Result, dict]] = []
@@ -139,7 +157,8 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
             TimeElapsedColumn())
     with Progress(*cols) as bar:
         overall = bar.add_task("reproduction", total=len(steps))
-        for s in steps:
+        for i, s in enumerate(steps, 1):
+            t_step = time.perf_counter()
             kwargs = dict(s.quick if quick else s.full)
             if s.progress:
                 sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
@@ -148,6 +167,8 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
             figs = {name: functools.partial(draw, res) for name, draw in s.figures.items()}
             done.append((s.chapter, res, figs))
             bar.advance(overall)
+            if not sys.stdout.isatty():
+                _report_progress(i, len(steps), s.name, time.perf_counter() - t_step, t0)
     meta = {"mode": "quick" if quick else "full", "chapters": only or ", ".join(chapters()),
             "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version()}
     path = write_report(done, out, meta=meta)
