@@ -14,6 +14,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from rhi.experiments import appa as exa
 from rhi.experiments import appb as exb
+from rhi.experiments import bilateral as exbi
 from rhi.experiments import ch3 as ex3
 from rhi.experiments import ch3_control as ex3c
 from rhi.experiments import ch4 as ex4
@@ -25,6 +26,7 @@ from rhi.experiments import perception as exp
 from rhi.experiments.result import Result
 from rhi.plots import appa as pla
 from rhi.plots import appb as plb
+from rhi.plots import bilateral as plbi
 from rhi.plots import ch3 as pl3
 from rhi.plots import ch3_control as pl3c
 from rhi.plots import ch4 as pl4
@@ -102,6 +104,8 @@ STEPS: list[Step] = [
     Step("appb", exb.singularity, {}, {"duration": 16.0, "dt": 0.01}, {"fig_b7": plb.singularity}, progress=True),
     Step("appb", exb.tracking, {}, {"duration": 24.0, "dt": 0.01},
          {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True),
+    Step("beyond", exbi.teleoperation_delay, {}, {"duration": 2.0, "delays": (0.05,), "extra_stiffness": ()},
+         {"bilateral_energy": plbi.energy, "bilateral_forces": plbi.forces}, progress=True),
 ]
 
 
