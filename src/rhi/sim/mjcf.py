@@ -4,12 +4,14 @@ The kinematic tree is the device's serial chain in chain coordinates θ (one MuJ
 hinge/slide per Pinocchio joint, the inertias Pinocchio merged from fixed links). Each
 motor k is a *fixed tendon* whose length is the motor angle up to a constant,
 
-    L = A⁺ θ = q + A⁺ b,
+    L = R θ = q + R b,   R A = I,
 
 carrying the motor's rotor armature, viscous damping and Coulomb friction (frictionloss),
-its range (the motor's joint limits) and a torque-limited motor actuator. Tendon forces
-act on θ through A⁺ᵀ, so the plant's inertia in motor coordinates is Aᵀ M_θ A + diag(armature),
-exactly the device's `mass_matrix`. Chain joints that the motors do not span (side-branch
+its range (the motor's joint limits) and a torque-limited motor actuator. R is the inverse
+of A restricted to the joints on the path to the end effector when those rows span the motors
+(`motor_inverse`), else A⁺. Tendon forces act on θ through Rᵀ, so the plant's inertia in motor
+coordinates is Aᵀ M_θ A + diag(armature), exactly the device's `mass_matrix` (MuJoCo keeps the
+armature term Rᵀ diag(a) R only between joints of one branch, which the path choice respects). Chain joints that the motors do not span (side-branch
 parallelograms, `A` with more rows than columns) are tied by tendon equalities
 G(θ − b) = 0 with G spanning the left null space of A. Linear joint limits become
 tendon ranges. A body "handle" with a site carries the 6-axis force/torque sensor.
@@ -82,6 +84,27 @@ def left_null_space(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
     return U[:, rank:].T
 
 
+def motor_inverse(device: Device, A: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """Right inverse R (n, nθ) of the moving rows A (nθ, n), R A = I, supported on the end effector's path.
+
+    MuJoCo's sparse inertia has no entries between joints of different branches, so tendon
+    armature spread over a side branch (A⁺ on a parallelogram) would lose its cross terms.
+    When the rows of A of the joints that support the end-effector frame are invertible, R
+    uses only those; otherwise R = A⁺.
+    """
+    model = device.model
+    fr = model.frames[device._fid]
+    j = fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent
+    path = set(model.supports[j])
+    joint_of = {model.joints[k].idx_v: k for k in range(1, model.njoints)}
+    rows = [r for r, i in enumerate(np.flatnonzero(moving)) if joint_of[i] in path]
+    if len(rows) == A.shape[1] and np.linalg.matrix_rank(A[rows]) == A.shape[1]:
+        R = np.zeros((A.shape[1], A.shape[0]))
+        R[:, rows] = np.linalg.inv(A[rows])
+        return R
+    return np.linalg.pinv(A)
+
+
 def build_mjcf(device: Device, friction: PlantFriction | None = None, *, timestep: float = 5e-4,
                handle_mass: float = 1e-3) -> str:
     """MJCF text of the device's plant.
@@ -105,7 +128,7 @@ def build_mjcf(device: Device, friction: PlantFriction | None = None, *, timeste
     A, b = device.A[moving], device.b[moving]  # chain joints the motors move; the others are welded at b
     if np.linalg.matrix_rank(A) < n:
         raise ModelError(f"device: actuation map of {device.name} has rank < {n}; motors are not independent")
-    Ap = np.linalg.pinv(A)  # (n, nθ): L = Ap θ
+    Ap = motor_inverse(device, A, moving)  # (n, nθ): L = Ap θ
 
     root = ET.Element("mujoco", model=device.name)
     ET.SubElement(root, "compiler", angle="radian", autolimits="true")
