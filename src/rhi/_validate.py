@@ -15,6 +15,26 @@ def all_finite(arr: np.ndarray) -> bool:
     return math.isfinite(np.vdot(arr, arr)) or bool(np.isfinite(arr).all())
 
 
+def _float_array(name: str, value) -> np.ndarray:
+    """`value` as a float array; refuses None, strings, complex numbers and non-numeric objects."""
+    if value is None or isinstance(value, (str, bytes, dict, set)):
+        raise InvalidInput(f"{name}: expected a number or an array of numbers, got {type(value).__name__}")
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiub":
+        return value.astype(float, copy=False)
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as exc:  # ragged nesting
+        raise InvalidInput(f"{name}: cannot be read as an array of numbers ({exc})") from None
+    if raw.dtype.kind == "c":
+        raise InvalidInput(f"{name}: complex values are not accepted (got dtype {raw.dtype})")
+    if raw.dtype.kind not in "fiub":
+        if raw.dtype.kind == "O" and all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                                         for v in raw.flat):
+            return raw.astype(float)
+        raise InvalidInput(f"{name}: expected numbers, got an array of dtype {raw.dtype}")
+    return raw.astype(float, copy=False)
+
+
 def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | None, ...] = ()) -> np.ndarray:
     """Return `value` as a finite float array, checking its trailing shape.
 
@@ -24,10 +44,7 @@ def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | Non
         ndim_min: minimum number of dimensions.
         shape_tail: required trailing dimensions (None = any size).
     """
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInput(f"{name}: cannot be read as a float array ({exc})") from None
+    arr = _float_array(name, value)
     ndim = max(ndim_min, len(shape_tail))
     if arr.ndim < ndim:
         raise InvalidInput(f"{name}: expected at least {ndim} dimension(s), got shape {arr.shape}")
@@ -43,9 +60,9 @@ def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | Non
 
 
 def limits_pair(name_min: str, lo, name_max: str, hi, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Validate a (minimum, maximum) pair of limit vectors: finite, same shape, min <= max."""
-    lo = np.asarray(lo, dtype=float)
-    hi = np.asarray(hi, dtype=float)
+    """Validate a (minimum, maximum) pair of limit vectors: not NaN, same shape, min <= max."""
+    lo = _float_array(name_min, lo)
+    hi = _float_array(name_max, hi)
     if np.isnan(lo).any() or np.isnan(hi).any():
         raise InvalidInput(f"{name_min}/{name_max}: contains NaN")
     if n is not None:

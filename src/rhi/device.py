@@ -748,6 +748,8 @@ def device(name: str, **params: float) -> Device:
         **params: design parameters declared in the device's `device.toml`
             (e.g. `d2=0.1405` for rhi4) [m or rad].
     """
+    if not isinstance(name, str) or not name or "/" in name or name.startswith("."):
+        raise UnknownDevice(f"name: expected a bundled device name, got {name!r}; available: {', '.join(available_devices())}")
     folder = MODELS / name
     if not (folder / "device.toml").is_file():
         raise UnknownDevice(f"name: unknown device {name!r}; available: {', '.join(available_devices())}")
@@ -777,7 +779,10 @@ def _build(folder: Path, spec: dict, params: Mapping[str, float]) -> Device:
         raise InvalidInput(f"params: unknown parameter(s) {sorted(unknown)} for {folder.name}; known: {sorted(declared)}")
     values = {}
     for pname, p in declared.items():
-        v = float(params.get(pname, p["default"]))
+        arr = as_array(pname, params[pname]) if pname in params else np.asarray(float(p["default"]))
+        if arr.ndim != 0:
+            raise InvalidInput(f"{pname}: expected one value, got shape {arr.shape}")
+        v = float(arr)
         if not np.isfinite(v):
             raise InvalidInput(f"{pname}: must be finite, got {v}")
         if "min" in p and not p["min"] <= v <= p["max"]:

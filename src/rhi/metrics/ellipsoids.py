@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from rhi.errors import InvalidInput
 from rhi.metrics._common import (
     FloatArray,
     direction,
@@ -179,6 +180,8 @@ def directional_manipulability(J: ArrayLike, u: ArrayLike, torque_max: ArrayLike
     """
     J = jacobian("J", J)
     u = direction("u", u, J.shape[-2])
+    if torque_max is None:
+        raise InvalidInput("torque_max: required (the (n,) joint torque limits [N m])")
     w = torque_weights("torque_max", torque_max, J.shape[-1])
     B = J * w[..., None, :]
     v = np.einsum("...ij,...i->...j", B, u)
