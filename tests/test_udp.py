@@ -118,7 +118,7 @@ def test_realtime_over_udp_and_server_killed(dev, tmp_path):
     assert s["fault_kind"] in ("link", "stale", "silence"), res.fault
     t_fault = t_start + res.log.wall[-1]
     assert t_fault - t_kill["t"] < 0.25, (t_fault - t_kill["t"], res.fault)
-    assert s["ticks"] > 500 and link.stats["received"] > 500
+    assert s["ticks"] > 100 and link.stats["received"] > 100
     assert np.abs(res.log.tau[:-1]).max() > 0  # it rendered before the fault
     np.testing.assert_array_equal(res.log.tau[-1], 0.0)
 
