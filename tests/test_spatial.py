@@ -169,3 +169,48 @@ def test_fast_equals_reference_3d(spatial):
         fast.reset(), ref.reset()
         np.testing.assert_allclose(fast.step(0.0, q, dq, {"force": f}), ref.step(0.0, q, dq, {"force": f}),
                                    atol=1e-9)
+
+
+# ------------------------------------------------------------------------ experiments (reduced)
+def test_spatial_remarks_reduced():
+    from rhi.experiments.spatial import spatial_remarks
+
+    res = spatial_remarks(resolution=2, workers=1)
+    rows = {r.quantity: r.ours for r in res.tables[0].rows}
+    for d, sub in (("srhi5", "srhi5_phantom"), ("gen3", "gen3_3dof")):
+        pts, q = res.arrays[f"{d}_points"], res.arrays[f"{d}_q"]
+        assert len(pts) >= 4
+        dev = rhi.device(d)
+        np.testing.assert_allclose(dev.fk(q), pts, atol=1e-8)  # the RHI reaches the sub-chain's points
+        assert dev.within_limits(q, tol=1e-6).all()
+        assert 0.0 <= rows[f"{d}: fraction with ρ_RHI ≥ ρ_{sub} (Remark I)"] <= 1.0
+    with pytest.raises(rhi.errors.InvalidInput, match="resolution"):
+        spatial_remarks(resolution=1)
+    with pytest.raises(rhi.errors.InvalidInput, match="u"):
+        spatial_remarks(resolution=2, u=(0.0, 0.0, 0.0))
+    with pytest.raises(rhi.errors.InvalidInput, match="devices"):
+        spatial_remarks(resolution=2, devices=("rhi4",))
+
+
+def test_spatial_force_capability_orders_methods():
+    from rhi.experiments.spatial import spatial_force_capability
+
+    res = spatial_force_capability(configurations=2, directions=4)
+    for d in ("srhi5", "gen3"):
+        F = res.arrays[f"{d}_fmax"].reshape(-1, 3)
+        assert np.all(F[:, 1] >= F[:, 0] - 1e-9)  # ASCM never below simple scaling
+        assert np.all(F[:, 1] <= F[:, 2] * (1 + 1e-6))  # nor above the LP optimum
+    with pytest.raises(rhi.errors.InvalidInput, match="directions"):
+        spatial_force_capability(directions=0)
+
+
+def test_spatial_palpation_reduced():
+    from rhi.experiments.spatial_palpation import spatial_palpation
+
+    res = spatial_palpation(settle=0.05, depth=0.008, speed=0.02, hold=0.05, starts=1, cases=("free", "stiff"))
+    rows = {r.quantity: r.ours for r in res.tables[0].rows}
+    assert rows["torque-limit excess, M_Free^des"] <= 1e-12
+    # M_Stiff^des renders more force along u than M_Free^des once both saturate
+    assert rows["peak force along u (F/T sensor), M_Stiff^des"] < rows["peak force along u (F/T sensor), M_Free^des"]
+    with pytest.raises(rhi.errors.InvalidInput, match="cases"):
+        spatial_palpation(cases=("nope",))

@@ -201,7 +201,7 @@ def start_configurations(dev: Device, x, count: int, seed: int = 6, *, restarts:
     Raises:
         Unreachable: x is outside the workspace (the IK from home fails).
     """
-    out = [np.asarray(dev.ik(x, np.array(Q_HOME[: dev.n]), restarts=restarts))]
+    out = [np.asarray(dev.ik(x, np.zeros(dev.n), restarts=restarts))]
     rng = np.random.default_rng(seed)
     for q in rng.uniform(dev.q_min, dev.q_max, size=(max(count - 1, 0), dev.n)):
         try:

@@ -15,6 +15,8 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rhi.experiments import appa as exa
 from rhi.experiments import appb as exb
 from rhi.experiments import bilateral as exbi
+from rhi.experiments import spatial as exsp
+from rhi.experiments import spatial_palpation as exspp
 from rhi.experiments import ch3 as ex3
 from rhi.experiments import ch3_control as ex3c
 from rhi.experiments import ch4 as ex4
@@ -27,6 +29,7 @@ from rhi.experiments.result import Result
 from rhi.plots import appa as pla
 from rhi.plots import appb as plb
 from rhi.plots import bilateral as plbi
+from rhi.plots import spatial as plsp
 from rhi.plots import ch3 as pl3
 from rhi.plots import ch3_control as pl3c
 from rhi.plots import ch4 as pl4
@@ -106,6 +109,15 @@ STEPS: list[Step] = [
          {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True),
     Step("beyond", exbi.teleoperation_delay, {}, {"duration": 2.0, "delays": (0.05,), "extra_stiffness": ()},
          {"bilateral_energy": plbi.energy, "bilateral_forces": plbi.forces}, progress=True),
+    Step("beyond", exsp.spatial_remarks, {"resolution": 7}, {"resolution": 2, "workers": 1}, {"spatial_remarks": plsp.remark_maps},
+         progress=True),
+    Step("beyond", exsp.spatial_force_capability, {}, {"configurations": 2, "directions": 5},
+         {"spatial_force_capability": plsp.force_capability}, progress=True),
+    Step("beyond", exsp.spatial_ellipsoids, {}, {}, {"spatial_ellipsoids": plsp.ellipsoids}),
+    Step("beyond", exspp.spatial_vme, {}, {"duration": 0.5}, {"spatial_vme": plsp.vme_convergence}, progress=True),
+    Step("beyond", exspp.spatial_palpation, {},
+         {"settle": 0.1, "depth": 0.008, "speed": 0.02, "hold": 0.05, "starts": 1, "cases": ("free", "stiff")},
+         {"spatial_palpation": plsp.palpation}, progress=True),
 ]
 
 
