@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from rhi import batch
 from rhi._validate import as_array, limits_pair
 from rhi.errors import InvalidInput, ModelError, UnknownDevice, Unreachable
 
@@ -37,6 +38,7 @@ for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
 
 
 _EYE: dict[int, np.ndarray] = {}
+BATCH_MIN = 16  # batched inputs with at least this many configurations go through `rhi.batch`
 
 
 class _lazy:
@@ -381,7 +383,7 @@ class Device:
 
     def fk(self, q) -> np.ndarray:
         """End-effector position in the world frame: (..., m) [m]."""
-        return self._map(q, self._m_shape(), self._fk1)
+        return self._map(q, self._m_shape(), self._fk1, "x")
 
     def skeleton(self, q) -> np.ndarray:
         """World positions of every chain joint then the end-effector, for drawing: (k, 3) [m] for q: (n,)."""
@@ -392,15 +394,15 @@ class Device:
 
     def jacobian(self, q) -> np.ndarray:
         """Task Jacobian ∂x/∂q in the world frame: (..., m, n)."""
-        return self._map(q, (self.m, self.n), self._jac1)
+        return self._map(q, (self.m, self.n), self._jac1, "J")
 
     def jacobian_derivative(self, q) -> np.ndarray:
         """∂J/∂q: (..., m, n, n) with [..., i, j, k] = ∂J_ij/∂q_k."""
-        return self._map(q, (self.m, self.n, self.n), self._djac1)
+        return self._map(q, (self.m, self.n, self.n), self._djac1, "dJ")
 
     def mass_matrix(self, q) -> np.ndarray:
         """Joint-space inertia M(q) = Aᵀ M_θ A + diag(armature): (..., n, n) [kg m²]."""
-        return self._map(q, (self.n, self.n), self._mass1)
+        return self._map(q, (self.n, self.n), self._mass1, "M")
 
     def coriolis(self, q, dq) -> np.ndarray:
         """Coriolis/centrifugal matrix C(q, q̇): (..., n, n); C q̇ is the torque [N m]."""
@@ -414,7 +416,7 @@ class Device:
 
     def gravity(self, q) -> np.ndarray:
         """Gravity torque g(q) = Aᵀ g_θ: (..., n) [N m]."""
-        return self._map(q, (self.n,), lambda th: self.A.T @ pin.computeGeneralizedGravity(self.model, self.data, th))
+        return self._map(q, (self.n,), lambda th: self.A.T @ pin.computeGeneralizedGravity(self.model, self.data, th), "g")
 
     def terms(self, q, dq=None, *, check: bool = True) -> DeviceTerms:
         """Every kinematic and dynamic term of one state from a single Pinocchio pass.
@@ -701,14 +703,24 @@ class Device:
     def _m_shape(self) -> tuple[int]:
         return (self.m,)
 
-    def _map(self, q, shape: tuple[int, ...], fn: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    def _map(self, q, shape: tuple[int, ...], fn: Callable[[np.ndarray], np.ndarray], term: str) -> np.ndarray:
+        """fn per configuration, or the vectorized `rhi.batch` term for batches of >= BATCH_MIN configurations."""
         th = self.theta(q)
         if th.ndim == 1:
             return fn(th)
+        if self._batch is not None and th.size >= BATCH_MIN * th.shape[-1]:
+            return self._batch.evaluate(th, (term,))[term]
         out = np.empty(th.shape[:-1] + shape)
         for idx in np.ndindex(th.shape[:-1]):
             out[idx] = fn(th[idx])
         return out
+
+    @_lazy
+    def _batch(self) -> batch.BatchChain | None:
+        """Vectorized kinematics and dynamics for batched inputs; None if a joint type is not supported."""
+        if not batch.supported(self.model):
+            return None
+        return batch.BatchChain(self.model, self._fid, rows=self._rows, A=self.A, armature=self.armature)
 
     def _fk1(self, th: np.ndarray) -> np.ndarray:
         pin.framesForwardKinematics(self.model, self.data, th)

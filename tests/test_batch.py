@@ -1,0 +1,130 @@
+"""Batch kinematics and dynamics (`rhi.batch`) against Pinocchio, one configuration at a time."""
+
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from rhi import batch
+from rhi.device import BATCH_MIN, Device, available_devices, device
+
+TERMS = ("x", "J", "dJ", "M", "g")
+
+
+def _robots_dir() -> Path | None:
+    try:
+        dist = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError:
+        return None
+    path = Path(dist.locate_file("cmeel.prefix/share/example-robot-data/robots"))
+    return path if path.is_dir() else None
+
+
+def _arm(urdf: str, ee: str, name: str) -> Device:
+    root = _robots_dir()
+    if root is None:
+        pytest.skip("example-robot-data is not installed")
+    model = pin.buildModelFromUrdf(str(root / urdf))
+    return Device(model, name=name, ee_frame=ee, q_min=model.lowerPositionLimit, q_max=model.upperPositionLimit)
+
+
+def _device(name: str) -> Device:
+    if name == "panda":  # 7 revolute joints + 2 prismatic fingers on a branch (a tree)
+        return _arm("panda_description/urdf/panda.urdf", "panda_hand_tcp", "panda")
+    if name == "ur5":
+        return _arm("ur_description/urdf/ur5_robot.urdf", "tool0", "ur5")
+    return device(name)
+
+
+def _pinocchio(dev: Device, th: np.ndarray) -> dict[str, np.ndarray]:
+    """The terms from Pinocchio's own algorithms at one chain configuration θ, in motor coordinates."""
+    model, data, A, rows = dev.model, dev.model.createData(), dev.A, dev.task_rows
+    fid = model.getFrameId(dev.ee_frame)
+    J6 = pin.computeFrameJacobian(model, data, th, fid, pin.LOCAL_WORLD_ALIGNED)
+    x = data.oMf[fid].translation[rows].copy()
+    M = pin.crba(model, data, th)
+    M = np.triu(M) + np.triu(M, 1).T
+    g = pin.computeGeneralizedGravity(model, data, th)
+    H = []
+    for k in range(model.nv):  # ∂J/∂θ_k is dJ/dt along θ̇ = e_k
+        pin.computeJointJacobiansTimeVariation(model, data, th, np.eye(model.nv)[k])
+        pin.updateFramePlacements(model, data)
+        H.append(pin.getFrameJacobianTimeVariation(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[rows])
+    dJ = np.einsum("kib,ba,kc->iac", np.array(H), A, A)
+    return {"x": x, "J": J6[rows] @ A, "dJ": dJ, "M": A.T @ M @ A + np.diag(dev.armature), "g": A.T @ g}
+
+
+def _configurations(dev: Device, k: int, seed: int = 0) -> np.ndarray:
+    lo = np.where(np.isfinite(dev.q_min), dev.q_min, -np.pi)
+    hi = np.where(np.isfinite(dev.q_max), dev.q_max, np.pi)
+    return np.random.default_rng(seed).uniform(lo, hi, size=(k, dev.n))
+
+
+def _assert_equal_to_pinocchio(dev: Device, Q: np.ndarray, got: dict[str, np.ndarray]) -> None:
+    ref = [_pinocchio(dev, th) for th in dev.theta(Q)]
+    for term in TERMS:
+        want = np.array([r[term] for r in ref])
+        scale = max(1.0, float(np.max(np.abs(want))))
+        np.testing.assert_allclose(got[term], want, rtol=0, atol=1e-12 * scale, err_msg=f"{dev.name} {term}")
+
+
+@pytest.mark.parametrize("name", available_devices() + ["panda", "ur5"])
+def test_batch_terms_equal_pinocchio(name):
+    dev = _device(name)
+    assert dev._batch is not None, f"{name}: every joint is revolute or prismatic"
+    Q = _configurations(dev, 40)
+    got = {"x": dev.fk(Q), "J": dev.jacobian(Q), "dJ": dev.jacobian_derivative(Q), "M": dev.mass_matrix(Q),
+           "g": dev.gravity(Q)}
+    _assert_equal_to_pinocchio(dev, Q, got)
+
+
+def test_batch_leading_axes_and_chunks(monkeypatch):
+    dev = device("rhi4")
+    Q = _configurations(dev, 30, seed=3).reshape(3, 10, dev.n)
+    whole = dev._batch.evaluate(dev.theta(Q), TERMS)
+    monkeypatch.setattr(batch, "CHUNK", 7)  # several passes, the last one partial
+    parts = dev._batch.evaluate(dev.theta(Q), TERMS)
+    for term in TERMS:
+        assert whole[term].shape[:2] == (3, 10)
+        np.testing.assert_array_equal(parts[term], whole[term])
+    _assert_equal_to_pinocchio(dev, Q.reshape(-1, dev.n), {k: v.reshape((30,) + v.shape[2:]) for k, v in whole.items()})
+
+
+def test_batch_mimic_and_locked_joints():
+    """A mimic joint (θ3 = −0.5 θ2 + 0.2) and a locked one, both through the actuation map A, b."""
+    base = device("planar3r")
+    A = np.array([[1.0, 0.0], [0.0, 1.0], [0.0, -0.5]])
+    dev = Device(base.model, name="mimic", ee_frame=base.ee_frame, task_axes="xy", actuation=A,
+                 offset=np.array([0.0, 0.0, 0.2]), armature=np.array([1e-4, 2e-4]))
+    Q = _configurations(dev, BATCH_MIN + 5, seed=1)
+    got = dev._batch.evaluate(dev.theta(Q), TERMS)
+    _assert_equal_to_pinocchio(dev, Q, got)
+    locked = device("rhi4").lock(q2=0.3)
+    Q = _configurations(locked, BATCH_MIN, seed=2)
+    _assert_equal_to_pinocchio(locked, Q, locked._batch.evaluate(locked.theta(Q), TERMS))
+
+
+def test_batch_matches_per_configuration_api():
+    """Below and above BATCH_MIN the batch API gives the same numbers (to round-off)."""
+    dev = device("phantom3")
+    Q = _configurations(dev, BATCH_MIN, seed=4)
+    loop = np.array([dev.mass_matrix(q) for q in Q])
+    np.testing.assert_allclose(dev.mass_matrix(Q), loop, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(dev.mass_matrix(Q[:2]), loop[:2], rtol=0, atol=0)  # small batches: Pinocchio
+
+
+def test_unsupported_joint_falls_back_to_pinocchio():
+    model = pin.Model()
+    jid = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "hinge")
+    offset = pin.SE3(np.eye(3), np.array([0.3, 0.0, 0.0]))
+    jid = model.addJoint(jid, pin.JointModelHZ(0.05), offset, "screw")  # helical: not in rhi.batch
+    model.appendBodyToJoint(jid, pin.Inertia.FromBox(1.0, 0.1, 0.2, 0.3), pin.SE3.Identity())
+    model.addFrame(pin.Frame("tip", jid, 0, offset, pin.FrameType.OP_FRAME))
+    dev = Device(model, name="screw", ee_frame="tip")
+    assert not batch.supported(model) and dev._batch is None
+    Q = np.random.default_rng(5).uniform(-1.0, 1.0, (BATCH_MIN + 1, 2))
+    np.testing.assert_array_equal(dev.jacobian(Q), np.array([dev.jacobian(q) for q in Q]))
