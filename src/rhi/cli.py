@@ -105,6 +105,129 @@ def _device_server(args: argparse.Namespace) -> int:
     return 0
 
 
+# ------------------------------------------------------------------------------------------ rhi run
+def _link(url: str, rate: float, cfg, realtime: bool):
+    """The device link of `--link`: "sim" (the configuration's simulated device) or udp://HOST:PORT.
+
+    Without real time (`--fast`, e.g. against a lock-step device server) a reading may take up to 1 s and the
+    device 10 s to answer.
+    """
+    from rhi.errors import InvalidInput
+
+    if url == "sim":
+        return cfg.sim_link(rate=rate)
+    if not url.startswith("udp://"):
+        raise InvalidInput(f"--link: expected sim or udp://HOST:PORT (e.g. udp://127.0.0.1:5005), got {url!r}")
+    from rhi.runtime.udp import UDPLink, parse_url
+
+    try:
+        host, port = parse_url(url)
+    except InvalidInput as exc:
+        raise InvalidInput(f"--link: {exc}") from None
+    if realtime:
+        return UDPLink(host, port, rate=rate)
+    return UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0)
+
+
+class _Status:
+    """The live status line: rewritten in place on a terminal, one line every `every` seconds when piped."""
+
+    def __init__(self, stream, limit: float | None, every: float = 5.0) -> None:
+        import time
+
+        self.stream, self.tty, self.every = stream, stream.isatty(), every
+        self.limit, self.clock = limit, time.monotonic
+        self.t0 = self.last = self.clock()
+        self.k0 = 0
+        self.width = 0
+
+    def __call__(self, s: dict) -> None:
+        now = self.clock()
+        if not self.tty and now - self.last < self.every:
+            return
+        rate = (s["ticks"] - self.k0) / max(now - self.last, 1e-9)
+        self.last, self.k0 = now, s["ticks"]
+        end = f"/{self.limit:g}" if self.limit else ""
+        line = (f"t {s['t']:8.2f}{end} s  rate {rate:7.1f} Hz  missed {s['missed']}  "
+                f"max|τ|/limit {s['max_torque_ratio']:.2f}  V {s['V']:.3f}  fault {s['fault'] or '-'}")
+        if self.tty:
+            self.stream.write("\r" + line.ljust(self.width))
+            self.width = len(line)
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty and self.width:
+            self.stream.write("\n")
+            self.stream.flush()
+
+
+def _run(args: argparse.Namespace) -> int:
+    import math
+    import time
+    from pathlib import Path
+
+    from rhi.errors import InvalidInput
+    from rhi.runtime import run
+    from rhi.runtime.config import load_config
+
+    for name, v in (("--duration", args.duration), ("--rate", args.rate)):
+        if v is not None and (not math.isfinite(v) or v <= 0):
+            raise InvalidInput(f"{name}: must be a finite number > 0, got {v!r}")
+    cfg = load_config(args.config, device_name=args.device)
+    rate = args.rate or cfg.rate
+    duration = args.duration if args.duration is not None else cfg.duration
+    link = _link(args.link, rate, cfg, args.realtime)
+    out = Path("out") / time.strftime("run-%Y%m%d-%H%M%S")
+    log_path = Path(args.log) if args.log else out / "run.rhilog"
+    summary_path = Path(args.summary) if args.summary else (log_path.parent if args.log else out) / "summary.json"
+    for p in (log_path, summary_path):
+        p.parent.mkdir(parents=True, exist_ok=True)
+    print(f"rhi run: {cfg.name} on {cfg.device.name} over {args.link} at {rate:g} Hz, "
+          f"{'until Ctrl-C' if duration is None else f'{duration:g} s'}"
+          f"{'' if args.realtime else ' (as fast as possible)'}", flush=True)
+    status = _Status(sys.stderr, duration)
+    try:
+        res = run(link, cfg.controller(), rate=rate, duration=duration, safety=cfg.safety, log=log_path,
+                  virtual=cfg.virtual, realtime=args.realtime, progress=status)
+    finally:
+        status.close()
+    s = res.summary
+    s["config"] = {"name": cfg.name, "source": cfg.source, "device": cfg.device.name, "link": args.link}
+    s["log"] = str(log_path)
+    if hasattr(link, "stats"):
+        s["link_stats"] = dict(link.stats)
+    summary_path.write_text(json.dumps(s, indent=1, default=float))
+    us = lambda d: f"p50 {1e6 * d['p50']:.0f}  p99 {1e6 * d['p99']:.0f}  max {1e6 * d['max']:.0f} µs"  # noqa: E731
+    print(f"{s['ticks']} ticks in {s['duration']:.2f} s; missed deadlines {s['missed']} ({s['missed_pct']:.3f} %); "
+          f"tick {us(s['tick'])}; torques clamped {s['clamped']}")
+    print(f"log: {log_path}\nsummary: {summary_path}")
+    if res.fault is not None:
+        print(f"rhi run: fault ({s['fault_kind']}): {res.fault}", file=sys.stderr)
+        return 130 if s["fault_kind"] == "estop" and "SIGINT" in res.fault else 1
+    return 0
+
+
+def _add_run(sub) -> None:
+    from rhi.runtime.config import shipped_configs
+
+    r = sub.add_parser("run", help="run a controller described by a configuration file on a device, in real time")
+    r.add_argument("device", help="the device the controller models, e.g. rhi4")
+    r.add_argument("--link", default="sim", help="sim (the configuration's simulated device) or udp://HOST:PORT "
+                   "(a device server, e.g. `rhi device-server`)")
+    r.add_argument("--config", required=True,
+                   help=f"a TOML file or a shipped configuration: {', '.join(shipped_configs())}")
+    r.add_argument("--duration", type=float, help="run time [s] (default: the configuration's, else until Ctrl-C)")
+    r.add_argument("--rate", type=float, help="control rate [Hz] (default: the configuration's, else 1000)")
+    r.add_argument("--log", help="streamed log (.rhilog; default out/run-<timestamp>/run.rhilog)")
+    r.add_argument("--summary", help="JSON summary (default: summary.json beside the log)")
+    r.add_argument("--realtime", action=argparse.BooleanOptionalAction, default=True,
+                   help="pace ticks on the wall clock (default); --no-realtime runs as fast as possible")
+    r.add_argument("--fast", dest="realtime", action="store_false", help="same as --no-realtime")
+    r.set_defaults(func=_run)
+
+
 _NEGATIVE = re.compile(r"^-(\d|\.\d)")
 
 
@@ -159,6 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--log", help="device-side log (.rhilog)")
     d.add_argument("--duration", type=float, help="stop after this much device time [s]")
     d.set_defaults(func=_device_server)
+    _add_run(sub)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.func(args)

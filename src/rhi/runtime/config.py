@@ -1,0 +1,361 @@
+"""Run configurations: a TOML file describing a controller on a device, for `rhi run`.
+
+A file holds these tables (every key optional unless marked; the shipped files in
+``rhi/runtime/configs/`` are commented examples, `shipped_configs()` lists them):
+
+- ``description``: one line about the set-up.
+- ``[run]``: ``rate`` [Hz] (1000), ``duration`` [s] (none: until a fault or Ctrl-C).
+- ``[device]``: ``name`` of a bundled device, ``params`` (its design parameters, e.g. ``{ d2 = 0.1405 }``).
+- ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp"),
+  ``projector`` ("dynamic", "kinematic"), ``torque_min``/``torque_max`` [N m], ``gravity_compensation``,
+  ``aso_shape``, ``implementation`` — the fields of `rhi.control.ControllerConfig`;
+  ``[controller.primary]`` (required) with ``law`` = "impedance" | "force_rendering" | "spring" and that law's
+  parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...);
+  ``[[controller.objectives]]``, each with ``type`` = "vme" | "ellipsoid" | "fme" | "tmi" | "manipulability" |
+  "joint_limits", its parameters and its step ``gain``;
+  ``[controller.fme]``: the ASO-switched desired-FME schedule (``free_direction``, ``contact_direction``, ``mu``,
+  ``home``, ``gain``, ``[controller.fme.transition]`` eps1, eps2, rho, S).
+- ``[[virtual]]``: the rendered environment, each with ``type`` = "wall" | "spring" | "fixture" | "stop".
+- ``[sim]`` (for ``--link sim`` only): ``q0``, ``dq0``, ``friction`` ("device", "none" or a table), ``timestep``,
+  ``handle_mass``, ``[sim.hand]`` (``path``, ``speed``, ``start``, ``stiffness``, ``damping``, ``max_force``),
+  ``[[sim.physical]]`` (environments acting on the plant's handle).
+- ``[safety]``: the fields of `rhi.runtime.SafetyConfig`.
+
+Unknown keys and values of the wrong type raise `InvalidInput` naming the key path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from rhi.control import (
+    ControllerConfig,
+    EllipsoidMatching,
+    FMEMatching,
+    FMESchedule,
+    ForceRendering,
+    ImpedanceControl,
+    JointFriction,
+    JointLimitBarrier,
+    Manipulability,
+    NullSpaceController,
+    ObjectiveTerm,
+    SpringPalpation,
+    TMIMatching,
+    TransitionConfig,
+    VMEMatching,
+    desired_fme_free,
+    desired_fme_stiff,
+    fme_shape,
+)
+from rhi.device import Device, device
+from rhi.errors import InvalidInput
+from rhi.runtime import schema as S
+from rhi.runtime.safety import SafetyConfig
+from rhi.runtime.simlink import SimLink
+from rhi.sim import Fixture, Hand, Path as HandPath, Plant, PlantFriction, Spring, Wall, compose, stop
+
+_num, _pos, _nonneg = S.number(), S.number(low=0.0, strict=True), S.number(low=0.0)
+_vec = S.vector()
+_num_or_vec = S.either(_num, _vec, want="a number or a list of numbers")
+_num_or_mat = S.either(_num, S.matrix, want="a number or a matrix (a list of equally long lists of numbers)")
+R = S.REQUIRED
+
+_FRICTION = {"viscous": (_num_or_vec, 0.0), "coulomb": (_num_or_vec, 0.0), "velocity_scale": (_pos, 0.01)}
+_COMPENSATED = {"damping": (_num_or_mat, 0.0), "coriolis": (S.boolean, True), "gravity": (S.boolean, True),
+                "friction": (S.table(_FRICTION), None)}
+_PRIMARY = {
+    "impedance": {**_COMPENSATED, "inertia": (S.matrix, None), "sensor": (S.string, "ft")},
+    "force_rendering": {**_COMPENSATED, "gain": (_num, 1.0)},
+    "spring": {**_COMPENSATED, "stiffness": (_nonneg, R), "x0": (_vec, R), "normal": (_vec, None)},
+}
+_GAIN = {"gain": (_nonneg, R)}
+_OBJECTIVES = {
+    "vme": {**_GAIN, "u": (_vec, R), "beta": (_pos, 0.01)},
+    "ellipsoid": {**_GAIN, "desired": (S.matrix, R), "H": (S.matrix, None)},
+    "fme": {**_GAIN, "desired": (S.matrix, None), "shape": (S.choice("free", "stiff"), None),
+            "direction": (_vec, None), "mu": (_pos, 5.0), "home": (_vec, None)},
+    "tmi": {**_GAIN, "slave": (S.string, R), "slave_params": (S.numbers_table, {}), "slave_q": (_vec, R),
+            "k_q": (_pos, None), "penalize_slave": (S.boolean, False), "H": (S.matrix, None)},
+    "manipulability": {**_GAIN, "log": (S.boolean, False), "k_q": (_pos, None)},
+    "joint_limits": {**_GAIN, "margin": (_pos, R), "weight": (_pos, 1.0),
+                     "kind": (S.choice("quadratic", "inverse"), "quadratic")},
+}
+_TRANSITION = {"eps1": (_num, 0.7), "eps2": (_num, 0.95), "rho": (_num, 0.003), "S": (_num, 50.0)}
+_FME = {"free_direction": (_vec, R), "contact_direction": (_vec, R), "mu": (_pos, 5.0), "home": (_vec, None),
+        "gain": (_nonneg, 20.0), "transition": (S.table(_TRANSITION), {})}
+_CONTROLLER = {
+    "primary": (S.tagged("law", _PRIMARY), R),
+    "objectives": (S.tables(S.tagged("type", _OBJECTIVES)), []),
+    "fme": (S.table(_FME), None),
+    "damping": (_nonneg, 0.1),
+    "saturation": (S.choice("none", "scaling", "ascm", "lp"), "ascm"),
+    "projector": (S.choice("dynamic", "kinematic"), "dynamic"),
+    "torque_min": (_vec, None),
+    "torque_max": (_vec, None),
+    "gravity_compensation": (S.boolean, True),
+    "aso_shape": (_pos, 50.0),
+    "implementation": (S.choice("fast", "reference"), "fast"),
+}
+_ENV = S.tagged("type", {
+    "wall": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_nonneg, R), "damping": (_nonneg, 0.0)},
+    "spring": {"point": (_vec, R), "stiffness": (_nonneg, R), "damping": (_nonneg, 0.0), "direction": (_vec, None)},
+    "fixture": {"point": (_vec, R), "direction": (_vec, R), "stiffness": (_nonneg, 1000.0), "damping": (_nonneg, 5.0)},
+    "stop": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_nonneg, 2.0e4), "damping": (_nonneg, 50.0)},
+})
+_HAND = {"path": (S.either(S.matrix, _vec, want="a point or a list of points"), R), "speed": (_nonneg, 0.0),
+         "start": (_nonneg, 0.0), "stiffness": (_nonneg, 300.0), "damping": (_nonneg, 10.0),
+         "max_force": (S.either(_pos, S.choice("none"), want='a number > 0 or "none"'), 20.0)}
+_SIM = {
+    "q0": (_vec, None), "dq0": (_vec, None),
+    "friction": (S.either(S.choice("device", "none"), S.table({"damping": (_num_or_vec, 0.0),
+                                                               "frictionloss": (_num_or_vec, 0.0)}),
+                          want='"device", "none" or a table with damping and frictionloss'), "device"),
+    "timestep": (_pos, 5e-4), "handle_mass": (_pos, 1e-3),
+    "hand": (S.table(_HAND), None), "physical": (S.tables(_ENV), []),
+}
+
+
+def _safety(path: str, v) -> SafetyConfig:
+    if not isinstance(v, dict):
+        raise InvalidInput(f"{path}: expected a table of settings, got {v!r}")
+    for k, x in v.items():
+        _num_or_vec(f"{path}.{k}", x)
+    try:
+        return SafetyConfig.from_dict(v)
+    except InvalidInput as exc:
+        msg = str(exc)
+        raise InvalidInput(msg if msg.startswith(path) else f"{path}.{msg}") from None
+
+
+_ROOT = {
+    "description": (S.string, ""),
+    "run": (S.table({"rate": (_pos, 1000.0), "duration": (_pos, None)}), {}),
+    "device": (S.table({"name": (S.string, None), "params": (S.numbers_table, {})}), {}),
+    "controller": (S.table(_CONTROLLER), R),
+    "virtual": (S.tables(_ENV), []),
+    "sim": (S.table(_SIM), {}),
+    "safety": (_safety, {}),
+}
+
+
+# ------------------------------------------------------------------------------------------ building
+def _dim(path: str, v: np.ndarray | None, shape: tuple[int, ...]) -> None:
+    if v is not None and v.shape != shape:
+        raise InvalidInput(f"{path}: expected shape {shape} for this device, got {v.shape}")
+
+
+def _environment(path: str, e: dict, m: int):
+    kind = e.pop("type")
+    for key in ("point", "normal", "direction"):
+        _dim(f"{path}.{key}", e.get(key), (m,))
+    cls = {"wall": Wall, "spring": Spring, "fixture": Fixture}.get(kind)
+    return S.prefixed(path, stop if cls is None else cls, **e)
+
+
+def _environments(path: str, envs: list[dict], m: int):
+    parts = [_environment(f"{path}[{i}]", dict(e), m) for i, e in enumerate(envs)]
+    return None if not parts else parts[0] if len(parts) == 1 else compose(*parts)
+
+
+def _primary(dev: Device, p: dict):
+    p = dict(p)
+    law = p.pop("law")
+    if p["friction"] is not None:
+        p["friction"] = S.prefixed("controller.primary.friction", JointFriction, **p["friction"])
+    if law == "spring":
+        _dim("controller.primary.x0", p["x0"], (dev.m,))
+        _dim("controller.primary.normal", p["normal"], (dev.m,))
+    cls = {"impedance": ImpedanceControl, "force_rendering": ForceRendering, "spring": SpringPalpation}[law]
+    return S.prefixed("controller.primary", cls, **p)
+
+
+def _desired_fmes(path: str, dev: Device, mu: float, home, hi: np.ndarray) -> tuple[float, float]:
+    """(𝒦, ζ) of the desired FMEs from the torque-weighted FME at `home` (thesis §6.3.1)."""
+    home = np.zeros(dev.n) if home is None else home
+    _dim(f"{path}.home", home, (dev.n,))
+    return S.prefixed(path, fme_shape, dev.jacobian(home), hi, mu)
+
+
+def _objective(path: str, dev: Device, o: dict, hi: np.ndarray):
+    kind, m = o["type"], dev.m
+
+    def make(cls, *a, **kw):
+        return S.prefixed(path, cls, *a, **kw)
+
+    if kind == "vme":
+        _dim(f"{path}.u", o["u"], (m,))
+        return make(VMEMatching, tuple(o["u"]), o["beta"])
+    if kind == "ellipsoid":
+        return make(EllipsoidMatching, o["desired"], o["H"])
+    if kind == "fme":
+        if (o["desired"] is None) == (o["shape"] is None) or (o["shape"] is not None and o["direction"] is None):
+            raise InvalidInput(f"{path}: give either desired (a matrix) or shape and direction")
+        desired = o["desired"]
+        if desired is None:
+            _dim(f"{path}.direction", o["direction"], (m,))
+            K, z = _desired_fmes(path, dev, o["mu"], o["home"], hi)
+            desired = make(desired_fme_free if o["shape"] == "free" else desired_fme_stiff, o["direction"], K, z)
+        _dim(f"{path}.desired", desired, (m, m))
+        return make(FMEMatching, desired, hi)
+    if kind == "tmi":
+        slave = S.prefixed(f"{path}.slave", device, o["slave"], **o["slave_params"])
+        return make(TMIMatching, slave, o["slave_q"], k_q=o["k_q"], penalize_slave=o["penalize_slave"], H=o["H"])
+    if kind == "manipulability":
+        return make(Manipulability, log=o["log"], k_q=o["k_q"])
+    return make(JointLimitBarrier, o["margin"], o["weight"], kind=o["kind"])
+
+
+def _controller(dev: Device, c: dict) -> ControllerConfig:
+    lo, hi = c["torque_min"], c["torque_max"]
+    _dim("controller.torque_max", hi, (dev.n,))
+    _dim("controller.torque_min", lo, (dev.n,))
+    if hi is not None and lo is None:
+        lo = -hi
+    t_hi = dev.torque_max if hi is None else hi
+    terms = []
+    for i, o in enumerate(c["objectives"]):
+        path = f"controller.objectives[{i}]"
+        obj = _objective(path, dev, o, t_hi)
+        terms.append(S.prefixed(f"{path}.gain", ObjectiveTerm, obj, o["gain"]))
+    fme = None
+    if c["fme"] is not None:
+        f = c["fme"]
+        _dim("controller.fme.free_direction", f["free_direction"], (dev.m,))
+        _dim("controller.fme.contact_direction", f["contact_direction"], (dev.m,))
+        K, z = _desired_fmes("controller.fme", dev, f["mu"], f["home"], t_hi)
+        tc = S.prefixed("controller.fme.transition", TransitionConfig, **f["transition"])
+        fme = S.prefixed("controller.fme", FMESchedule, desired_fme_free(f["free_direction"], K, z),
+                         desired_fme_stiff(f["contact_direction"], K, z), gain=f["gain"], transition=tc)
+    cfg = ControllerConfig(primary=_primary(dev, c["primary"]), objectives=tuple(terms), fme=fme, damping=c["damping"],
+                           saturation=c["saturation"], projector=c["projector"], torque_min=lo, torque_max=hi,
+                           gravity_compensation=c["gravity_compensation"], aso_shape=c["aso_shape"],
+                           implementation=c["implementation"])
+    S.prefixed("controller", NullSpaceController, dev, cfg)  # every check the controller makes, now
+    return cfg
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class RunConfig:
+    """A loaded run configuration.
+
+    Attributes:
+        name: the file's stem (e.g. "ch7_ascm_tertiary"); source: its path.
+        description: the file's one-line description.
+        device: the device model the controller uses.
+        controller_config: the `ControllerConfig`; `controller()` builds a fresh controller from it.
+        virtual: the rendered environment `force(x, ẋ)`, or None.
+        safety: the safety limits.
+        rate: control rate [Hz]; duration: run time [s] or None.
+        sim: the simulated link's settings: q0, dq0 (n,) [rad, rad/s], friction, timestep [s], handle_mass [kg],
+            hand (a `rhi.sim.Hand` or None), physical (an environment or None).
+    """
+
+    name: str
+    source: str
+    description: str
+    device: Device
+    controller_config: ControllerConfig
+    virtual: object
+    safety: SafetyConfig
+    rate: float
+    duration: float | None
+    sim: dict
+
+    def controller(self) -> NullSpaceController:
+        """A fresh controller (its own state) for one run."""
+        return NullSpaceController(self.device, self.controller_config)
+
+    def sim_link(self, *, rate: float | None = None) -> SimLink:
+        """The simulated device of `[sim]`: a MuJoCo plant at q0 with the hand and the physical environment."""
+        s = self.sim
+        plant = Plant(self.device, friction=s["friction"], timestep=s["timestep"], handle_mass=s["handle_mass"])
+        plant.reset(s["q0"], s["dq0"])
+        return SimLink(plant, rate=self.rate if rate is None else rate, hand=s["hand"], physical=s["physical"])
+
+
+def _sim(dev: Device, s: dict) -> dict:
+    s = dict(s)
+    lo, hi = dev.joint_limits
+    if s["q0"] is None:
+        s["q0"] = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
+    _dim("sim.q0", s["q0"], (dev.n,))
+    _dim("sim.dq0", s["dq0"], (dev.n,))
+    fr = s["friction"]
+    s["friction"] = None if fr == "none" else fr if fr == "device" else \
+        S.prefixed("sim.friction", PlantFriction(fr["damping"], fr["frictionloss"]).check, dev.n)
+    h = s["hand"]
+    if h is not None:
+        pts = np.atleast_2d(h["path"])
+        _dim("sim.hand.path", pts[:1], (1, dev.m))
+        mf = None if h["max_force"] == "none" else h["max_force"]
+        path = S.prefixed("sim.hand", HandPath, pts, speed=h["speed"], start=h["start"])
+        s["hand"] = S.prefixed("sim.hand", Hand, path, stiffness=h["stiffness"], damping=h["damping"], max_force=mf)
+    s["physical"] = _environments("sim.physical", s["physical"], dev.m)
+    return s
+
+
+def parse_config(data: dict, *, name: str = "config", source: str = "<dict>",
+                 device_name: str | None = None) -> RunConfig:
+    """A `RunConfig` from a parsed TOML document.
+
+    Args:
+        data: the document (e.g. from `tomllib.loads`).
+        name, source: for messages and the run summary.
+        device_name: the device asked for (e.g. `rhi run DEVICE`); must match ``[device] name`` if the file names one.
+
+    Raises:
+        InvalidInput: an unknown key or a value of the wrong type (naming its key path), a device mismatch,
+            a parameter the controller refuses.
+    """
+    d = S.parse("", data, _ROOT)
+    dname = d["device"]["name"]
+    if dname is not None and device_name is not None and dname != device_name:
+        raise InvalidInput(f"device: {name} is written for {dname!r} ([device] name), got {device_name!r}")
+    dname = dname or device_name
+    if dname is None:
+        raise InvalidInput(f"device.name: missing ({name} names no device and none was given)")
+    dev = S.prefixed("device", device, dname, **d["device"]["params"])
+    return RunConfig(name=name, source=source, description=d["description"], device=dev,
+                     controller_config=_controller(dev, d["controller"]),
+                     virtual=_environments("virtual", d["virtual"], dev.m), safety=d["safety"],
+                     rate=d["run"]["rate"], duration=d["run"]["duration"], sim=_sim(dev, d["sim"]))
+
+
+def shipped_configs() -> list[str]:
+    """Names of the configurations shipped with rhi (``rhi run DEVICE --config NAME``)."""
+    folder = resources.files("rhi.runtime") / "configs"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def config_path(config: str | Path) -> Path:
+    """The file of `config`: a path to a TOML file, or the name of a shipped configuration.
+
+    Raises:
+        InvalidInput: neither exists (naming `config` and listing the shipped ones).
+    """
+    p = Path(config)
+    if p.is_file():
+        return p
+    if isinstance(config, str) and p.name == config and config.removesuffix(".toml") in shipped_configs():
+        return Path(str(resources.files("rhi.runtime") / "configs" / f"{config.removesuffix('.toml')}.toml"))
+    raise InvalidInput(f"config: no file {str(config)!r} and no shipped configuration of that name "
+                       f"(shipped: {', '.join(shipped_configs())})")
+
+
+def load_config(config: str | Path, *, device_name: str | None = None) -> RunConfig:
+    """Load a run configuration from a TOML file or by the name of a shipped one (see `parse_config`)."""
+    p = config_path(config)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InvalidInput(f"config: cannot read {str(p)!r} as TOML ({exc})") from None
+    return parse_config(data, name=p.stem, source=str(p), device_name=device_name)
+
+
+__all__ = ["RunConfig", "config_path", "load_config", "parse_config", "shipped_configs"]

@@ -1,0 +1,202 @@
+"""Run configurations (rhi.runtime.config) and the `rhi run` command: the shipped thesis set-ups, bad files, the CLI."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+import rhi
+from rhi.cli import main
+from rhi.errors import InvalidInput
+from rhi.runtime import run
+from rhi.runtime.config import config_path, load_config, parse_config, shipped_configs
+from rhi.sim import Log
+
+SHIPPED = ("ch3_vme", "ch5_tmi", "ch6_fme_aso", "ch7_ascm_tertiary")
+
+
+def test_every_thesis_setup_ships():
+    assert set(SHIPPED) <= set(shipped_configs())
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_shipped_config_runs_over_simlink(name):
+    cfg = load_config(name)
+    assert cfg.device.name == "rhi4" and cfg.description and cfg.rate == 1000.0
+    res = run(cfg.sim_link(), cfg.controller(), duration=0.2, safety=cfg.safety, virtual=cfg.virtual, realtime=False)
+    assert res.fault is None, res.fault
+    assert res.summary["ticks"] == 200 and len(res.log) == 200
+    assert np.all(np.isfinite(res.log.tau)) and np.abs(res.log.tau).max() > 0
+    lo, hi = cfg.device.torque_limits
+    assert np.all(res.log.tau >= lo - 1e-12) and np.all(res.log.tau <= hi + 1e-12)
+
+
+def _experiment_controller(name: str):
+    """The controller the experiment module builds for the set-up of the shipped configuration `name`."""
+    if name == "ch3_vme":
+        from rhi.experiments import ch3_control
+
+        return ch3_control.controller(rhi.device("rhi4"))
+    if name == "ch5_tmi":
+        from rhi.control import TMIMatching
+        from rhi.experiments import ch5
+
+        dev, slave = rhi.device("rhi4", d2=ch5.D2), rhi.device("rehab_slave")
+        qs = slave.ik(dev.fk(ch5.Q_FIXED), ch5.SLAVE_SEED)
+        return ch5._controller(dev, TMIMatching(slave, qs, k_q=ch5.K_Q), ch5.GAIN, ch5.NULL_DAMPING)
+    if name == "ch6_fme_aso":
+        from rhi.control import FMESchedule, TransitionConfig
+        from rhi.experiments import ch6
+
+        dev = rhi.device("rhi4")
+        _, _, Mf, Ms = ch6.desired_fmes(dev, np.array(ch6.U), ch6.Q_HOME)
+        tc = TransitionConfig(eps1=ch6.EPS1, eps2=ch6.EPS2, rho=ch6.RHO, S=ch6.ASO_S)
+        return ch6._palpation_controller(dev, None, FMESchedule(Mf, Ms, gain=ch6.BETA, transition=tc))
+    from rhi.experiments import ch7_palpation
+
+    return ch7_palpation.palpation_controller(rhi.device("rhi4"), "ascm")
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_config_controller_equals_the_experiments(name):
+    """Same torques and state as the experiment's own controller over 60 seeded ticks (deep contact included)."""
+    cfg = load_config(name)
+    ours, theirs = cfg.controller(), _experiment_controller(name)
+    dev = cfg.device
+    rng = np.random.default_rng(7)
+    q = np.array(cfg.sim["q0"])
+    for k in range(60):
+        q = q + rng.normal(0.0, 0.004, dev.n)  # a random walk: the spring/wall compresses, the ASO drains
+        dq = rng.normal(0.0, 0.3, dev.n)
+        kin = dev.terms(q, dq)
+        F = np.zeros(dev.m) if cfg.virtual is None else cfg.virtual.force(kin.x, kin.xdot)
+        sensors = {"force": F, "ft": rng.normal(0.0, 2.0, 6)}
+        a = ours.step(1e-3 * k, q, dq, sensors)
+        b = theirs.step(1e-3 * k, q, dq, sensors)
+        np.testing.assert_array_equal(a, b)
+        assert (ours.state.V, ours.state.omega, ours.state.alpha) == (theirs.state.V, theirs.state.omega,
+                                                                      theirs.state.alpha)
+    assert not ours.state.stopped
+
+
+def test_config_start_and_hand_match_the_experiments():
+    from rhi.experiments import ch3, ch3_control, ch5
+
+    c3 = load_config("ch3_vme")
+    np.testing.assert_allclose(c3.sim["q0"], ch3_control.start_configuration(c3.device, ch3.POINTS[0], "rehab"),
+                               atol=1e-12)
+    np.testing.assert_allclose(c3.sim["hand"].path.points[0], ch3.POINTS[0])
+    c5 = load_config("ch5_tmi")
+    np.testing.assert_array_equal(c5.sim["q0"], ch5.Q_FIXED)
+    np.testing.assert_allclose(c5.sim["hand"].path.points[0], c5.device.fk(ch5.Q_FIXED), atol=1e-12)
+    np.testing.assert_allclose(c5.sim["friction"].damping, ch5.GAMMA)
+
+
+def _doc(name: str = "ch7_ascm_tertiary") -> dict:
+    return tomllib.loads(config_path(name).read_text())
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d.update(colour="red"), "colour: unknown key"),
+    (lambda d: d["controller"].update(dampning=1.0), "controller.dampning: unknown key"),
+    (lambda d: d["controller"]["objectives"][1].update(gain="x"),
+     "controller.objectives[1].gain: expected a number >= 0, got 'x'"),
+    (lambda d: d["controller"]["objectives"][0].update(sigma=1.0), "controller.objectives[0].sigma: unknown key"),
+    (lambda d: d["controller"]["objectives"][0].update(type="banana"),
+     "controller.objectives[0].type: expected one of"),
+    (lambda d: d["controller"]["objectives"][0].pop("gain"), "controller.objectives[0].gain: missing"),
+    (lambda d: d["controller"]["objectives"][0].update(desired=[[1.0, 0.0], [0.0]]),
+     "controller.objectives[0].desired: expected a matrix"),
+    (lambda d: d["controller"]["primary"].pop("law"), "controller.primary.law: missing"),
+    (lambda d: d["controller"]["primary"].update(damping=-1.0), "controller.primary: damping: must be >= 0"),
+    (lambda d: d["controller"].update(saturation="clip"), "controller.saturation: expected one of 'none'"),
+    (lambda d: d["controller"].update(torque_max=[3.0, 3.0]), "controller.torque_max: expected shape (4,)"),
+    (lambda d: d["controller"].update(damping=True), "controller.damping: expected a number"),
+    (lambda d: d["virtual"][0].update(normal=[0.0, 1.0, 0.0]), "virtual[0].normal: expected shape (2,)"),
+    (lambda d: d["sim"]["hand"].update(max_force="lots"), "sim.hand.max_force: expected a number > 0 or \"none\""),
+    (lambda d: d["sim"].update(q0=[0.0, 0.0]), "sim.q0: expected shape (4,)"),
+    (lambda d: d["run"].update(duration=-1.0), "run.duration: expected a number > 0, got -1.0"),
+    (lambda d: d.update(safety={"silence_ms": 20}), "safety: unknown setting(s) ['silence_ms']"),
+    (lambda d: d.update(safety={"stale_ticks": "3"}), "safety.stale_ticks: expected a number"),
+    (lambda d: d.update(safety={"stale_ticks": 0}), "safety.stale_ticks: must be a finite integer > 0"),
+    (lambda d: d["device"].update(params={"d9": 0.1}), "device: "),
+    (lambda d: d["controller"].update(fme={"free_direction": [0.0, 1.0]}), "controller.fme.contact_direction: missing"),
+])
+def test_bad_config_names_the_key(edit, message):
+    d = _doc()
+    edit(d)
+    with pytest.raises(InvalidInput) as exc:
+        parse_config(d)
+    assert message in str(exc.value)
+
+
+def test_device_mismatch_and_unknown_file():
+    with pytest.raises(InvalidInput, match="device: ch7_ascm_tertiary is written for 'rhi4'"):
+        load_config("ch7_ascm_tertiary", device_name="phantom")
+    with pytest.raises(InvalidInput, match="config: no file 'ch9_nothing'.*shipped: ch3_vme"):
+        load_config("ch9_nothing")
+
+
+def test_bad_toml_file(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text("[controller\nlaw = 1")
+    with pytest.raises(InvalidInput, match="config: cannot read .*bad.toml.* as TOML"):
+        load_config(p)
+
+
+def test_cli_run_over_sim_writes_summary_and_log(tmp_path, capsys):
+    log, summ = tmp_path / "r.rhilog", tmp_path / "s.json"
+    assert main(["run", "rhi4", "--config", "ch7_ascm_tertiary", "--duration", "0.3", "--fast",
+                 "--log", str(log), "--summary", str(summ)]) == 0
+    out = capsys.readouterr().out
+    assert "300 ticks" in out and str(summ) in out
+    s = json.loads(summ.read_text())
+    assert s["ticks"] == 300 and s["fault"] is None and s["config"]["name"] == "ch7_ascm_tertiary"
+    assert {"tick", "read_to_write", "missed", "missed_pct", "events", "clamped"} <= set(s)
+    lg = Log.load(log)
+    assert len(lg) == 300 and lg.tau.shape == (300, 4) and np.all(np.isfinite(lg.tau))
+    np.testing.assert_allclose(lg.t[-1], 0.299, atol=1e-9)
+
+
+def test_cli_fault_exits_nonzero_with_reason(tmp_path, capsys):
+    cfg = tmp_path / "tight.toml"
+    cfg.write_text(config_path("ch7_ascm_tertiary").read_text() + "\n[safety]\nmax_handle_speed = 1e-9\n")
+    summ = tmp_path / "s.json"
+    assert main(["run", "rhi4", "--config", str(cfg), "--duration", "0.3", "--fast", "--log",
+                 str(tmp_path / "r.rhilog"), "--summary", str(summ)]) == 1
+    assert "fault (handle_speed): handle speed" in capsys.readouterr().err
+    s = json.loads(summ.read_text())
+    assert s["fault_kind"] == "handle_speed" and any(e["kind"] == "handle_speed" for e in s["events"])
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--link", "udp://127.0.0.1"], "--link: link: expected udp://HOST:PORT"),
+    (["--link", "tcp://127.0.0.1:5005"], "--link: expected sim or udp://HOST:PORT"),
+    (["--link", "udp://127.0.0.1:99999"], "--link: link: cannot parse"),
+    (["--duration", "-1"], "--duration: must be a finite number > 0, got -1.0"),
+    (["--rate", "0"], "--rate: must be a finite number > 0"),
+    (["--rate", "1500"], "rate: 1500"),
+])
+def test_cli_bad_arguments_exit_2(args, message, capsys):
+    assert main(["run", "rhi4", "--config", "ch7_ascm_tertiary", "--fast", *args]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_cli_run_over_udp(tmp_path, capsys):
+    from test_udp import _server, _stop
+
+    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye")
+    summ = tmp_path / "s.json"
+    try:
+        code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port}", "--config", "ch7_ascm_tertiary",
+                     "--duration", "0.3", "--fast", "--log", str(tmp_path / "u.rhilog"), "--summary", str(summ)])
+    finally:
+        _stop(p)
+    assert code == 0, capsys.readouterr().err
+    s = json.loads(summ.read_text())
+    assert s["ticks"] == 300 and s["fault"] is None
+    assert s["link_stats"]["lost"] == 0 and s["link_stats"]["received"] >= 300
+    assert len(Log.load(tmp_path / "u.rhilog")) == 300
