@@ -51,6 +51,8 @@ def corrupt(value, kind: str, pos: int, mag: float):
         return "no_such_name"
     if kind == "zero_scalar":
         return 0.0
+    if kind == "tiny":
+        return 1e-5
     if kind == "negative_scalar":
         return -abs(mag) - 1e-3
     if kind == "empty":
@@ -140,6 +142,7 @@ DIR = ARRAY + ("zeros", "shape")
 POS = ARRAY + ("negative", "zero", "shape")
 NONNEG = ARRAY + ("negative", "shape")
 POS_SCALAR = SCALAR + ("negative_scalar", "zero_scalar")
+NONNEG_SCALAR = SCALAR + ("negative_scalar",)
 
 
 def opt(kinds: tuple[str, ...]) -> tuple[str, ...]:
@@ -254,3 +257,106 @@ DEVICE_TRIPLES = [t for c in DEVICE for t in c.triples()]
 @given(data=st.data())
 def test_device_and_loaders_refuse_bad_inputs(data):
     run_suite(DEVICE_TRIPLES, data)
+
+
+# ------------------------------------------------------------------ control
+from rhi import control as ctl  # noqa: E402
+from rhi import sim  # noqa: E402
+
+RHI4 = rhi.device("rhi4")
+Q4 = np.deg2rad([30.0, 40.0, 20.0, 60.0])
+
+
+def _controller(**cfg):
+    return ctl.NullSpaceController(RHI4, ctl.ControllerConfig(**{"primary": ctl.ForceRendering(), **cfg}))
+
+
+CTRL = _controller()
+
+
+def _step(t, q, dq, force):
+    c = _controller()
+    return c.step(t, q, dq, {"force": force})
+
+
+CONTROL = [
+    Case("ControllerConfig", _controller,
+         _v(damping=0.1, saturation="ascm", projector="dynamic", implementation="fast", aso_shape=50.0,
+            torque_min=-np.ones(4), torque_max=np.ones(4)),
+         {"damping": SCALAR + ("negative_scalar",), "saturation": NAME, "projector": NAME, "implementation": NAME,
+          "aso_shape": POS_SCALAR, "torque_min": opt(ARRAY) + ("huge", "shape"),
+          "torque_max": opt(ARRAY) + ("negative", "zero", "shape")}),
+    Case("ControllerConfig(primary)", lambda primary: _controller(primary=primary), _v(primary=ctl.ForceRendering()),
+         {"primary": ("none", "int", "str")}),
+    Case("NullSpaceController.step", _step, _v(t=0.0, q=Q4, dq=np.zeros(4), force=np.zeros(2)),
+         {"t": SCALAR, "q": QV, "dq": QV, "force": ARRAY + ("shape",)}, names={"force": "sensors['force']"}),
+    Case("ObjectiveTerm", lambda gain: _controller(objectives=(ctl.ObjectiveTerm(ctl.Manipulability(), gain),)),
+         _v(gain=0.1), {"gain": SCALAR + ("negative_scalar",)}),
+    Case("VMEMatching", lambda u, beta: ctl.VMEMatching(u, beta), _v(u=np.array([0.0, 1.0]), beta=0.01),
+         {"u": ARRAY + ("zeros",), "beta": POS_SCALAR}),
+    Case("ForceRendering", ctl.ForceRendering, _v(damping=0.0, gain=1.0),
+         {"damping": ARRAY + ("negative",), "gain": SCALAR}),
+    Case("ImpedanceControl", ctl.ImpedanceControl, _v(damping=0.0, inertia=np.eye(2), sensor="ft"),
+         {"damping": ARRAY + ("negative",), "inertia": opt(SPD), "sensor": NAME}),
+    Case("SpringPalpation", ctl.SpringPalpation, _v(stiffness=100.0, x0=np.array([0.3, 0.2]), normal=np.array([0.0, 1.0])),
+         {"stiffness": NONNEG_SCALAR, "x0": ARRAY, "normal": opt(ARRAY) + ("zeros",)}),
+    Case("JointFriction", ctl.JointFriction, _v(viscous=0.1, coulomb=0.01, velocity_scale=0.01),
+         {"viscous": ARRAY + ("negative",), "coulomb": ARRAY + ("negative",), "velocity_scale": POS_SCALAR}),
+    Case("JointLimitBarrier", ctl.JointLimitBarrier, _v(margin=0.1, weight=1.0, kind="quadratic"),
+         {"margin": POS_SCALAR, "weight": SCALAR + ("negative_scalar",), "kind": NAME}),
+    Case("aso_volume", ctl.aso_volume, _v(tau=np.zeros(4), torque_min=-np.ones(4), torque_max=np.ones(4), S=50.0),
+         {"tau": QV, "torque_min": ARRAY + ("huge",), "torque_max": ARRAY + ("negative",), "S": POS_SCALAR}),
+]
+CONTROL_TRIPLES = [t for c in CONTROL for t in c.triples()]
+
+
+@suite_settings(200)
+@given(data=st.data())
+def test_control_refuses_bad_inputs(data):
+    run_suite(CONTROL_TRIPLES, data)
+
+
+# ---------------------------------------------------------------------- sim
+PLANT = sim.Plant(RHI4)
+
+
+def _simulate(duration, rate):
+    plant = sim.Plant(RHI4)
+    plant.reset(Q4)
+    return sim.simulate(plant, _controller(), duration=duration, rate=rate)
+
+
+SIM = [
+    Case("Plant", sim.Plant, _v(device=RHI4, timestep=5e-4, handle_mass=1e-3, friction="device"),
+         {"device": ("none", "int", "str"), "timestep": POS_SCALAR, "handle_mass": SCALAR + ("negative_scalar",),
+          "friction": ("unknown", "int")}),
+    Case("Plant.reset", PLANT.reset, _v(q=Q4, dq=np.zeros(4)), {"q": QV, "dq": opt(QV)}),
+    Case("simulate", _simulate, _v(duration=0.002, rate=1000.0),
+         {"duration": POS_SCALAR + ("tiny",), "rate": POS_SCALAR}),
+    Case("Wall", sim.Wall, _v(point=np.zeros(2), normal=np.array([0.0, 1.0]), stiffness=100.0, damping=0.0),
+         {"point": ARRAY, "normal": ARRAY + ("zeros", "shape"), "stiffness": NONNEG_SCALAR,
+          "damping": SCALAR + ("negative_scalar",)}),
+    Case("Spring", sim.Spring, _v(point=np.zeros(2), stiffness=100.0, damping=0.0, direction=np.array([1.0, 0.0])),
+         {"point": ARRAY, "stiffness": NONNEG_SCALAR, "damping": SCALAR + ("negative_scalar",),
+          "direction": opt(ARRAY) + ("zeros", "shape")}),
+    Case("Fixture", sim.Fixture, _v(point=np.zeros(2), direction=np.array([1.0, 0.0]), stiffness=100.0, damping=1.0),
+         {"point": ARRAY, "direction": ARRAY + ("zeros", "shape"), "stiffness": NONNEG_SCALAR,
+          "damping": SCALAR + ("negative_scalar",)}),
+    Case("Path", sim.Path, _v(points=np.array([[0.3, 0.2], [0.35, 0.2]]), speed=0.02, start=0.0),
+         {"points": ARRAY, "speed": NONNEG_SCALAR + ("zero_scalar",), "start": SCALAR}),
+    Case("w_path", sim.w_path, _v(center=np.array([0.3, 0.2]), width=0.08, height=0.04, speed=0.02),
+         {"center": ARRAY, "width": POS_SCALAR, "height": POS_SCALAR, "speed": POS_SCALAR}),
+    Case("Hand", lambda path, stiffness, damping, max_force: sim.Hand(path, stiffness, damping, max_force),
+         _v(path=sim.w_path(np.array([0.3, 0.2])), stiffness=300.0, damping=10.0, max_force=20.0),
+         {"path": ("none", "int", "str"), "stiffness": NONNEG_SCALAR, "damping": SCALAR + ("negative_scalar",),
+          "max_force": opt(POS_SCALAR)}),
+    Case("PushForce", sim.PushForce, _v(direction=np.array([1.0, 0.0]), magnitude=1.0, start=0.0),
+         {"direction": ARRAY + ("zeros",), "magnitude": SCALAR, "start": SCALAR}),
+]
+SIM_TRIPLES = [t for c in SIM for t in c.triples()]
+
+
+@suite_settings(200)
+@given(data=st.data())
+def test_sim_refuses_bad_inputs(data):
+    run_suite(SIM_TRIPLES, data)

@@ -83,3 +83,21 @@ def unit_vector(name: str, u, m: int | None = None) -> np.ndarray:
     if (norm < 1e-12).any():
         raise InvalidInput(f"{name}: zero-length direction vector")
     return u / norm
+
+
+def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, allow_inf: bool = False) -> float:
+    """Return `value` as a float, refusing None, strings, complex numbers, arrays and NaN (and ±inf
+    unless `allow_inf`); `positive` requires > 0, `nonnegative` >= 0."""
+    if value is None or isinstance(value, (str, bytes, complex, np.complexfloating)) or np.ndim(value) != 0:
+        raise InvalidInput(f"{name}: expected a real number, got {value!r:.60}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{name}: expected a real number, got {value!r:.60}") from None
+    if math.isnan(v) or (math.isinf(v) and not allow_inf):
+        raise InvalidInput(f"{name}: must be finite, got {v}")
+    if positive and not v > 0:
+        raise InvalidInput(f"{name}: must be > 0, got {v}")
+    if nonnegative and not v >= 0:
+        raise InvalidInput(f"{name}: must be >= 0, got {v}")
+    return v

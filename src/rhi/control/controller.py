@@ -36,6 +36,7 @@ from typing import Literal
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.control.objectives import FMEMatching, Objective, _spd, gradient_function
 from rhi.control.primary import PrimaryLaw
 from rhi.control.saturation import (
@@ -45,11 +46,12 @@ from rhi.control.saturation import (
     allocate_lp,
     allocate_none,
     allocate_scaling,
+    _as_list,
     _ascm_fast,
+    _aso_volume,
     _null_projector_rows,
     _tertiary_fast,
     ascm,
-    aso_volume,
     check_torque_limits,
     null_basis,
     null_projector,
@@ -61,6 +63,16 @@ from rhi.errors import InvalidInput, Singular
 from rhi.metrics import dynamic_pinv, nullspace_projector, weighted_pinv
 
 Saturation = Literal["none", "scaling", "ascm", "lp"]
+
+
+def _reading(name: str, v) -> np.ndarray:
+    """A sensor reading as a float array (NaN allowed: a running loop stops safely on it)."""
+    if v is None or isinstance(v, (str, bytes)) or np.iscomplexobj(v):
+        raise InvalidInput(f"{name}: expected a real vector, got {v!r:.60}")
+    try:
+        return np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInput(f"{name}: expected a real vector, got {v!r:.60}") from None
 
 
 def _finite(v: np.ndarray) -> bool:
@@ -76,8 +88,7 @@ class ObjectiveTerm:
     gain: float
 
     def __post_init__(self) -> None:
-        if not np.isfinite(self.gain) or self.gain < 0:
-            raise InvalidInput(f"gain: must be finite and >= 0, got {self.gain!r}")
+        object.__setattr__(self, "gain", scalar("gain", self.gain, nonnegative=True))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -101,8 +112,7 @@ class FMESchedule:
         stiff = _spd("stiff", self.stiff)
         if free.shape != stiff.shape:
             raise InvalidInput(f"free/stiff: shapes differ, {free.shape} vs {stiff.shape}")
-        if not np.isfinite(self.gain) or self.gain < 0:
-            raise InvalidInput(f"gain: must be finite and >= 0, got {self.gain!r}")
+        object.__setattr__(self, "gain", scalar("gain", self.gain, nonnegative=True))
         object.__setattr__(self, "free", free)
         object.__setattr__(self, "stiff", stiff)
         object.__setattr__(self, "_distance", float(np.linalg.norm(free - stiff)))
@@ -205,10 +215,10 @@ class NullSpaceController:
             raise InvalidInput(f"projector: expected 'dynamic' or 'kinematic', got {config.projector!r}")
         if config.implementation not in ("fast", "reference"):
             raise InvalidInput(f"implementation: expected 'fast' or 'reference', got {config.implementation!r}")
-        if not np.isfinite(config.damping) or config.damping < 0:
-            raise InvalidInput(f"damping: must be finite and >= 0, got {config.damping!r}")
-        if not np.isfinite(config.aso_shape) or config.aso_shape <= 0:
-            raise InvalidInput(f"aso_shape: must be finite and > 0, got {config.aso_shape!r}")
+        scalar("damping", config.damping, nonnegative=True)
+        scalar("aso_shape", config.aso_shape, positive=True)
+        if not (callable(getattr(config.primary, "forces", None)) and callable(getattr(config.primary, "required_sensors", None))):
+            raise InvalidInput(f"primary: expected a primary law (ForceRendering, ImpedanceControl, ...), got {config.primary!r:.80}")
         lo = device.torque_min if config.torque_min is None else config.torque_min
         hi = device.torque_max if config.torque_max is None else config.torque_max
         self.lo, self.hi = check_torque_limits(lo, hi, device.n)
@@ -273,8 +283,12 @@ class NullSpaceController:
         n = self._n
         if s.stopped:
             return np.zeros(n)
-        q = np.asarray(q, dtype=float)
-        dq = np.asarray(dq, dtype=float)
+        if not (type(t) is float or isinstance(t, (int, np.floating, np.integer))) or isinstance(t, bool):
+            raise InvalidInput(f"t: expected a real time [s], got {t!r:.60}")
+        if not (type(q) is np.ndarray and q.dtype == np.float64):
+            q = _reading("q", q)
+        if not (type(dq) is np.ndarray and dq.dtype == np.float64):
+            dq = _reading("dq", dq)
         if q.shape != (n,) or dq.shape != (n,):
             raise InvalidInput(f"q/dq: expected shape ({n},), got {q.shape} and {dq.shape}")
         if not _finite(q):
@@ -289,7 +303,9 @@ class NullSpaceController:
             for name in self._sensors:
                 if name not in sensors:
                     raise InvalidInput(f"sensors: missing {name!r} required by the primary law")
-                v = np.asarray(sensors[name], dtype=float)
+                v = sensors[name]
+                if not (type(v) is np.ndarray and v.dtype == np.float64):
+                    v = _reading(f"sensors[{name!r}]", v)
                 if v.ndim != 1:
                     raise InvalidInput(f"sensors[{name!r}]: expected a vector, got shape {v.shape}")
                 if not _finite(v):
@@ -323,7 +339,7 @@ class NullSpaceController:
         tau_m = a + b
 
         # ASO and desired-FME transition
-        s.V = aso_volume(tau_m, self._lo_l, self._hi_l, self._aso_S)
+        s.V = _aso_volume(_as_list(tau_m), self._lo_l, self._hi_l, self._aso_S)
         fme = cfg.fme
         if fme is not None:
             s.transition, s.omega = transition_step(s.transition, t, s.V, fme.distance, fme.transition)

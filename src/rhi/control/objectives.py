@@ -74,7 +74,7 @@ class VMEMatching:
     _desired: np.ndarray = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "_desired", desired_vme(np.asarray(self.u, dtype=float), self.beta))
+        object.__setattr__(self, "_desired", desired_vme(self.u, self.beta))
 
     def desired(self) -> np.ndarray:
         """M_des: (m, m)."""

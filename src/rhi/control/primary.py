@@ -20,7 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
-from rhi._validate import as_array
+from rhi._validate import as_array, scalar
 from rhi.device import Device, DeviceTerms
 from rhi.errors import InvalidInput
 
@@ -81,11 +81,10 @@ class JointFriction:
     def __post_init__(self) -> None:
         for name in ("viscous", "coulomb"):
             v = as_array(name, getattr(self, name))
-            if v.ndim > 1 or np.any(v < 0):
+            if v.ndim > 1 or v.size == 0 or np.any(v < 0):
                 raise InvalidInput(f"{name}: expected a scalar or an (n,) vector, each >= 0, got {v.tolist()}")
             object.__setattr__(self, name, v)
-        if not np.isfinite(self.velocity_scale) or self.velocity_scale <= 0:
-            raise InvalidInput(f"velocity_scale: must be finite and > 0, got {self.velocity_scale!r}")
+        object.__setattr__(self, "velocity_scale", scalar("velocity_scale", self.velocity_scale, positive=True))
 
     def check(self, n: int) -> None:
         """Raise InvalidInput unless the parameters fit a device with n joints."""
@@ -178,6 +177,8 @@ class ImpedanceControl(_Compensated):
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "damping", _damping("damping", self.damping))
+        if self.sensor not in ("ft", "force"):
+            raise InvalidInput(f"sensor: expected 'ft' (6-axis wrench) or 'force' (task force), got {self.sensor!r}")
         if self.inertia is not None:
             from rhi.control.objectives import _spd
 
@@ -243,8 +244,7 @@ class ForceRendering(_Compensated):
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "damping", _damping("damping", self.damping))
-        if not np.isfinite(self.gain):
-            raise InvalidInput(f"gain: must be finite, got {self.gain!r}")
+        object.__setattr__(self, "gain", scalar("gain", self.gain))
 
     def check(self, device: Device) -> None:
         """Raise InvalidInput unless the parameters fit `device`."""
@@ -286,8 +286,7 @@ class SpringPalpation(_Compensated):
     friction: JointFriction | None = None
 
     def __post_init__(self) -> None:
-        if not np.isfinite(self.stiffness) or self.stiffness < 0:
-            raise InvalidInput(f"stiffness: must be finite and >= 0, got {self.stiffness!r}")
+        object.__setattr__(self, "stiffness", scalar("stiffness", self.stiffness, nonnegative=True))
         object.__setattr__(self, "x0", as_array("x0", self.x0, ndim_min=1))
         if self.normal is not None:
             nrm = as_array("normal", self.normal, ndim_min=1)

@@ -27,7 +27,7 @@ from operator import mul
 import numpy as np
 from scipy.optimize import linprog
 
-from rhi._validate import as_array
+from rhi._validate import as_array, scalar
 from rhi.device import eye
 from rhi.errors import InfeasibleLimits, InvalidInput, Singular
 
@@ -182,9 +182,18 @@ def aso_volume(tau, torque_min, torque_max, S: float = 50.0) -> float:
         torque_min, torque_max: (n,) limits [N m], min < max.
         S: shape factor S > 0 (Fig. 6.6 uses 50).
     """
+    lo, hi = check_torque_limits(torque_min, torque_max)
+    t = as_array("tau", tau, shape_tail=(lo.shape[-1],))
+    if t.ndim != 1:
+        raise InvalidInput(f"tau: expected shape ({lo.shape[-1]},), got {t.shape}")
+    return _aso_volume(t.tolist(), lo.tolist(), hi.tolist(), scalar("S", S, positive=True))
+
+
+def _aso_volume(tau: list[float], torque_min: list[float], torque_max: list[float], S: float) -> float:
+    """`aso_volume` on plain lists, unchecked (the controller's 1 kHz path)."""
     prod = 1.0  # = (−1)ⁿ Π(...) with each factor > 0 inside the box
     n = 0
-    for t, lo, hi in zip(_as_list(tau), _as_list(torque_min), _as_list(torque_max)):
+    for t, lo, hi in zip(tau, torque_min, torque_max):
         if t >= hi or t <= lo:
             return 0.0
         prod *= (hi - t) * (t - lo) / (hi - lo) ** 2

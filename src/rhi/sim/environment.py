@@ -16,15 +16,20 @@ import dataclasses
 
 import numpy as np
 
-from rhi._validate import as_array, unit_vector
+from rhi._validate import as_array, scalar, unit_vector
 from rhi.errors import InvalidInput
 
 
 def _gain(name: str, v: float) -> float:
-    v = float(v)
-    if not np.isfinite(v) or v < 0:
-        raise InvalidInput(f"{name}: must be finite and >= 0, got {v!r}")
-    return v
+    return scalar(name, v, nonnegative=True)
+
+
+def _point(name: str, v) -> np.ndarray:
+    """A non-empty (m,) point [m]."""
+    p = as_array(name, v, ndim_min=1)
+    if p.ndim != 1 or p.size == 0:
+        raise InvalidInput(f"{name}: expected an (m,) point with m >= 1, got shape {p.shape}")
+    return p
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,7 +49,7 @@ class Wall:
     damping: float = 0.0
 
     def __post_init__(self) -> None:
-        p = as_array("point", self.point, ndim_min=1)
+        p = _point("point", self.point)
         object.__setattr__(self, "point", p)
         object.__setattr__(self, "normal", unit_vector("normal", self.normal, p.shape[-1]))
         object.__setattr__(self, "stiffness", _gain("stiffness", self.stiffness))
@@ -85,7 +90,7 @@ class Spring:
     direction: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        p = as_array("point", self.point, ndim_min=1)
+        p = _point("point", self.point)
         object.__setattr__(self, "point", p)
         object.__setattr__(self, "stiffness", _gain("stiffness", self.stiffness))
         object.__setattr__(self, "damping", _gain("damping", self.damping))
@@ -115,7 +120,7 @@ class Fixture:
     damping: float = 5.0
 
     def __post_init__(self) -> None:
-        p = as_array("point", self.point, ndim_min=1)
+        p = _point("point", self.point)
         object.__setattr__(self, "point", p)
         u = unit_vector("direction", self.direction, p.shape[-1])
         object.__setattr__(self, "direction", u)

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from rhi._validate import as_array, unit_vector
+from rhi._validate import as_array, scalar, unit_vector
 from rhi.errors import InvalidInput, Unreachable
 
 
@@ -36,10 +36,13 @@ class Path:
     def __post_init__(self) -> None:
         P = as_array("points", self.points, ndim_min=1)
         P = P[None] if P.ndim == 1 else P
-        if P.ndim != 2:
-            raise InvalidInput(f"points: expected (k, m) waypoints, got shape {P.shape}")
-        if len(P) > 1 and (not np.isfinite(self.speed) or self.speed <= 0):
+        if P.ndim != 2 or P.size == 0:
+            raise InvalidInput(f"points: expected (k, m) waypoints with k, m >= 1, got shape {P.shape}")
+        speed = scalar("speed", self.speed, nonnegative=True)
+        if len(P) > 1 and speed <= 0:
             raise InvalidInput(f"speed: must be > 0 [m/s] for a path of {len(P)} points, got {self.speed!r}")
+        object.__setattr__(self, "speed", speed)
+        object.__setattr__(self, "start", scalar("start", self.start))
         object.__setattr__(self, "points", P)
         seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
         object.__setattr__(self, "_s", np.concatenate([[0.0], np.cumsum(seg)]).tolist())
@@ -81,6 +84,10 @@ def w_path(center, *, width: float = 0.08, height: float = 0.04, speed: float = 
     Four strokes across `width` [m] with peaks `height` [m] apart along the second axis.
     """
     c = as_array("center", center, ndim_min=1)
+    if c.shape not in ((2,), (3,)):
+        raise InvalidInput(f"center: expected shape (2,) or (3,), got {c.shape}")
+    width, height = scalar("width", width, positive=True), scalar("height", height, positive=True)
+    speed = scalar("speed", speed, positive=True)
     xs = c[0] + width * np.linspace(-0.5, 0.5, 5)
     ys = c[1] + height * np.array([0.5, -0.5, 0.5, -0.5, 0.5])
     return Path(np.column_stack([xs, ys] + ([np.full(5, c[2])] if c.shape[0] > 2 else [])), speed)
@@ -103,12 +110,12 @@ class Hand:
     max_force: float | None = 20.0
 
     def __post_init__(self) -> None:
+        if not isinstance(self.path, Path):
+            raise InvalidInput(f"path: expected a rhi.sim.Path, got {type(self.path).__name__}")
         for f in ("stiffness", "damping"):
-            v = getattr(self, f)
-            if not np.isfinite(v) or v < 0:
-                raise InvalidInput(f"{f}: must be finite and >= 0, got {v!r}")
-        if self.max_force is not None and not self.max_force > 0:
-            raise InvalidInput(f"max_force: must be > 0 [N] or None, got {self.max_force!r}")
+            object.__setattr__(self, f, scalar(f, getattr(self, f), nonnegative=True))
+        if self.max_force is not None:
+            object.__setattr__(self, "max_force", scalar("max_force", self.max_force, positive=True))
 
     def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
         """F_h: (m,) [N] the hand applies to the handle at position x (m,) [m], velocity ẋ (m,) [m/s]."""
@@ -131,8 +138,8 @@ class PushForce:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "direction", unit_vector("direction", self.direction))
-        if not np.isfinite(self.magnitude):
-            raise InvalidInput(f"magnitude: must be finite, got {self.magnitude!r}")
+        object.__setattr__(self, "magnitude", scalar("magnitude", self.magnitude))
+        object.__setattr__(self, "start", scalar("start", self.start))
 
     def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
         return self.magnitude * self.direction if t >= self.start else np.zeros_like(self.direction)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from rhi._validate import as_array, scalar
 from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError
 from rhi.sim.mjcf import PlantFriction, build_mjcf
@@ -61,6 +62,11 @@ class Plant:
                  timestep: float = 5e-4, handle_mass: float = 1e-3) -> None:
         if not isinstance(timestep, (int, float)) or not 0 < timestep <= MAX_TIMESTEP:
             raise InvalidInput(f"timestep: must be in (0, {MAX_TIMESTEP}] s, got {timestep!r}")
+        if not isinstance(device, Device):
+            raise InvalidInput(f"device: expected a rhi.Device, got {type(device).__name__}")
+        handle_mass = scalar("handle_mass", handle_mass, nonnegative=True)
+        if friction is not None and not isinstance(friction, (str, PlantFriction)):
+            raise InvalidInput(f"friction: expected 'device', a PlantFriction or None, got {type(friction).__name__}")
         if isinstance(friction, str):
             if friction != "device":
                 raise InvalidInput(f"friction: expected 'device', a PlantFriction or None, got {friction!r}")
@@ -97,10 +103,10 @@ class Plant:
     # ------------------------------------------------------------------ state
     def reset(self, q, dq=None) -> None:
         """Place the device at motor angles q: (n,) [rad] with velocities dq: (n,) [rad/s]."""
-        q = np.asarray(q, dtype=float)
-        dq = np.zeros(self.n) if dq is None else np.asarray(dq, dtype=float)
-        if q.shape != (self.n,) or dq.shape != (self.n,) or not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq))):
-            raise InvalidInput(f"q/dq: expected {self.n} finite values each, got {q.tolist()} and {dq.tolist()}")
+        q = as_array("q", q)
+        dq = np.zeros(self.n) if dq is None else as_array("dq", dq)
+        if q.shape != (self.n,) or dq.shape != (self.n,):
+            raise InvalidInput(f"q/dq: expected {self.n} values each, got shapes {q.shape} and {dq.shape}")
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:] = self._A @ q + self._b
         self.data.qvel[:] = self._A @ dq
