@@ -86,15 +86,22 @@ def _device_server(args: argparse.Namespace) -> int:
 
     from rhi.device import device
     from rhi.runtime import SimLink
+    from rhi.runtime.config import load_config
     from rhi.runtime.server import DeviceServer
     from rhi.sim import Plant
 
-    dev = device(args.device)
-    plant = Plant(dev)
-    lo, hi = dev.joint_limits
-    q0 = args.q0 if args.q0 is not None else np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
-    plant.reset(q0)
-    srv = DeviceServer(SimLink(plant, rate=args.rate), dev, host=args.host, port=args.port,
+    if args.config is not None:  # the device side of a run configuration: its [sim] start, hand and world
+        cfg = load_config(args.config, device_name=args.device)
+        dev, link = cfg.device, cfg.sim_link(rate=args.rate)
+        if args.q0 is not None:
+            link.plant.reset(args.q0)
+    else:
+        dev = device(args.device)
+        plant = Plant(dev)
+        lo, hi = dev.joint_limits
+        plant.reset(args.q0 if args.q0 is not None else np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0))
+        link = SimLink(plant, rate=args.rate)
+    srv = DeviceServer(link, dev, host=args.host, port=args.port,
                        watchdog=args.watchdog_ms * 1e-3, lockstep=args.lockstep, log=args.log)
     signal.signal(signal.SIGTERM, lambda *_: srv.stop())
     signal.signal(signal.SIGINT, lambda *_: srv.stop())
@@ -278,7 +285,8 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--rate", type=float, default=1000.0, help="device rate [Hz] (default 1000)")
     d.add_argument("--watchdog-ms", type=float, default=20.0, help="zero torque after this long without a command")
     d.add_argument("--lockstep", action="store_true", help="wait for each command (bit-exact simulation)")
-    d.add_argument("--q0", type=_floats, help="start configuration [rad] (default: mid-range)")
+    d.add_argument("--config", help="a run configuration whose [sim] start, hand and physical world the device uses")
+    d.add_argument("--q0", type=_floats, help="start configuration [rad] (default: the configuration's, else mid-range)")
     d.add_argument("--log", help="device-side log (.rhilog)")
     d.add_argument("--duration", type=float, help="stop after this much device time [s]")
     d.set_defaults(func=_device_server)
