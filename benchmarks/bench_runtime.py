@@ -14,7 +14,11 @@ read→write latency, how late ticks started, and the host's RSS at start and en
 streams to disk). Targets (issue 10, 2 cores): < 0.1 % missed, p99 tick ≤ 300 µs, RSS growth
 ≤ 50 MB per hour. The period (1000 µs) is the baseline the tick times are divided by.
 
-    PYTHONPATH=src python benchmarks/bench_runtime.py [--duration 600] [--link udp|sim|both]
+    PYTHONPATH=src python benchmarks/bench_runtime.py [--duration 600] [--link udp|sim|both] [--config NAME]
+
+`--config` runs a run configuration instead (a shipped name such as ch7_ascm_tertiary, or a TOML file, as
+`rhi run` takes): its controller, rendered environment, safety limits and simulated device. The shipped
+`ch7_full` is this benchmark's own set-up (its hand does 40 strokes, 60 s, then holds).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from rhi.control import (
     fme_shape,
 )
 from rhi.runtime import SafetyConfig, SimLink, run
+from rhi.runtime.config import load_config
 from rhi.sim import Hand, Path as HandPath, Plant, Wall
 
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
@@ -74,19 +79,26 @@ def plant_and_hand(dev: rhi.Device, duration: float) -> tuple[Plant, Hand, Wall]
     return plant, Hand(HandPath(pts, speed=0.02), stiffness=300.0), Wall(x0 + [0.0, 0.005], [0, 1], 1000.0)
 
 
-def _device(port_q, duration: float) -> None:
+def _device(port_q, duration: float, config: str | None = None) -> None:
     from rhi.runtime.server import DeviceServer
 
-    dev = rhi.device("rhi4")
-    plant, hand, _ = plant_and_hand(dev, duration + 5)
-    srv = DeviceServer(SimLink(plant, hand=hand), dev, exit_on_bye=True)
+    if config is not None:
+        cfg = load_config(config)
+        dev, link = cfg.device, cfg.sim_link()
+    else:
+        dev = rhi.device("rhi4")
+        plant, hand, _ = plant_and_hand(dev, duration + 5)
+        link = SimLink(plant, hand=hand)
+    srv = DeviceServer(link, dev, exit_on_bye=True)
     port_q.put(srv.port)
     srv.serve(duration + 10)
 
 
-def bench(link_kind: str, duration: float, log_dir: str) -> dict:
-    dev = rhi.device("rhi4")
-    ctrl = controller(dev)
+def bench(link_kind: str, duration: float, log_dir: str, config: str | None = None) -> dict:
+    cfg = None if config is None else load_config(config)
+    dev = rhi.device("rhi4") if cfg is None else cfg.device
+    ctrl = controller(dev) if cfg is None else cfg.controller()
+    safety = SafetyConfig(range_margin=0.3) if cfg is None else cfg.safety
     rss0 = _rss_mb()
     proc = None
     if link_kind == "udp":
@@ -94,13 +106,15 @@ def bench(link_kind: str, duration: float, log_dir: str) -> dict:
 
         ctx = mp.get_context("spawn")
         q = ctx.Queue()
-        proc = ctx.Process(target=_device, args=(q, duration), daemon=True)
+        proc = ctx.Process(target=_device, args=(q, duration, config), daemon=True)
         proc.start()
         link = UDPLink("127.0.0.1", q.get(timeout=120), timeout=4e-4)
-        _, _, wall = plant_and_hand(dev, duration)
-    else:
+        wall = plant_and_hand(dev, duration)[2] if cfg is None else cfg.virtual
+    elif cfg is None:
         plant, hand, wall = plant_and_hand(dev, duration)
         link = SimLink(plant, hand=hand)
+    else:
+        link, wall = cfg.sim_link(), cfg.virtual
     last = [0.0]
     warm = {}
 
@@ -114,7 +128,7 @@ def bench(link_kind: str, duration: float, log_dir: str) -> dict:
                   f"max|τ|/limit={s['max_torque_ratio']:.2f}  V={s['V']:.2f}  fault={s['fault']}", flush=True)
 
     res = run(link, ctrl, duration=duration, virtual=wall, log=Path(log_dir) / f"{link_kind}.rhilog",
-              safety=SafetyConfig(range_margin=0.3), progress=progress)
+              safety=safety, progress=progress)
     if proc is not None:
         proc.join(15)
     s = res.summary
@@ -143,10 +157,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--duration", type=float, default=60.0, help="seconds per link (the issue asks 600)")
     ap.add_argument("--link", choices=("udp", "sim", "both"), default="both")
+    ap.add_argument("--config", help="a run configuration (shipped name or TOML file) instead of the built-in set-up")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for kind in (("udp", "sim") if a.link == "both" else (a.link,)):
-            report(kind, bench(kind, a.duration, tmp))
+            report(kind + (f" ({a.config})" if a.config else ""), bench(kind, a.duration, tmp, a.config))
 
 
 if __name__ == "__main__":

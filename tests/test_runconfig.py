@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,7 +17,15 @@ from rhi.runtime import run
 from rhi.runtime.config import config_path, load_config, parse_config, shipped_configs
 from rhi.sim import Log
 
-SHIPPED = ("ch3_vme", "ch5_tmi", "ch6_fme_aso", "ch7_ascm_tertiary")
+SHIPPED = ("ch3_vme", "ch5_tmi", "ch6_fme_aso", "ch7_ascm_tertiary", "ch7_full")
+BENCH = Path(__file__).parents[1] / "benchmarks" / "bench_runtime.py"
+
+
+def _bench_module():
+    spec = importlib.util.spec_from_file_location("bench_runtime", BENCH)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def test_every_thesis_setup_ships():
@@ -55,6 +65,8 @@ def _experiment_controller(name: str):
         _, _, Mf, Ms = ch6.desired_fmes(dev, np.array(ch6.U), ch6.Q_HOME)
         tc = TransitionConfig(eps1=ch6.EPS1, eps2=ch6.EPS2, rho=ch6.RHO, S=ch6.ASO_S)
         return ch6._palpation_controller(dev, None, FMESchedule(Mf, Ms, gain=ch6.BETA, transition=tc))
+    if name == "ch7_full":
+        return _bench_module().controller(rhi.device("rhi4"))  # the runtime benchmark's full ch7 stack
     from rhi.experiments import ch7_palpation
 
     return ch7_palpation.palpation_controller(rhi.device("rhi4"), "ascm")
@@ -93,6 +105,13 @@ def test_config_start_and_hand_match_the_experiments():
     np.testing.assert_array_equal(c5.sim["q0"], ch5.Q_FIXED)
     np.testing.assert_allclose(c5.sim["hand"].path.points[0], c5.device.fk(ch5.Q_FIXED), atol=1e-12)
     np.testing.assert_allclose(c5.sim["friction"].damping, ch5.GAMMA)
+    full, bench = load_config("ch7_full"), _bench_module()
+    plant, hand, wall = bench.plant_and_hand(full.device, 60.0)
+    n = len(full.sim["hand"].path.points)
+    assert n == 41 and full.sim["hand"].path.duration == pytest.approx(60.0)
+    np.testing.assert_allclose(full.sim["hand"].path.points, hand.path.points[:n], atol=1e-15)
+    np.testing.assert_allclose(full.virtual.point, wall.point, atol=1e-15)
+    np.testing.assert_array_equal(full.sim["q0"], bench.Q0)
 
 
 def _doc(name: str = "ch7_ascm_tertiary") -> dict:
@@ -200,3 +219,36 @@ def test_cli_run_over_udp(tmp_path, capsys):
     assert s["ticks"] == 300 and s["fault"] is None
     assert s["link_stats"]["lost"] == 0 and s["link_stats"]["received"] >= 300
     assert len(Log.load(tmp_path / "u.rhilog")) == 300
+
+
+class _Stream:
+    def __init__(self, tty: bool) -> None:
+        self.tty, self.text = tty, ""
+
+    def isatty(self) -> bool:
+        return self.tty
+
+    def write(self, s: str) -> None:
+        self.text += s
+
+    def flush(self) -> None:
+        pass
+
+
+def test_status_line_in_place_on_a_terminal_and_every_few_seconds_when_piped():
+    from rhi.cli import _Status
+
+    tick = {"t": 1.0, "ticks": 1000, "missed": 2, "max_torque_ratio": 0.5, "V": 0.9, "fault": None}
+    for tty, lines in ((True, 4), (False, 1)):
+        s = _Stream(tty)
+        st = _Status(s, 10.0)
+        clock = iter([0.5, 1.0, 2.0, 6.0])  # seconds since the start: piped, only the call at 6 s prints
+        st.clock, st.last = (lambda: next(clock)), 0.0
+        for _ in range(4):
+            st(tick)
+        st.close()
+        if tty:
+            assert s.text.count("\r") == lines and s.text.endswith("\n")
+        else:
+            assert s.text.count("\n") == lines and "\r" not in s.text
+        assert "missed 2" in s.text and "max|τ|/limit 0.50" in s.text and "V 0.900" in s.text and "/10 s" in s.text

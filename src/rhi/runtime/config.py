@@ -17,7 +17,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
   ``home``, ``gain``, ``[controller.fme.transition]`` eps1, eps2, rho, S).
 - ``[[virtual]]``: the rendered environment, each with ``type`` = "wall" | "spring" | "fixture" | "stop".
 - ``[sim]`` (for ``--link sim`` only): ``q0``, ``dq0``, ``friction`` ("device", "none" or a table), ``timestep``,
-  ``handle_mass``, ``[sim.hand]`` (``path``, ``speed``, ``start``, ``stiffness``, ``damping``, ``max_force``),
+  ``handle_mass``, ``[sim.hand]`` (``path``, ``repeat`` (more traversals, back and forth), ``speed``, ``start``,
+  ``stiffness``, ``damping``, ``max_force``),
   ``[[sim.physical]]`` (environments acting on the plant's handle).
 - ``[safety]``: the fields of `rhi.runtime.SafetyConfig`.
 
@@ -109,7 +110,8 @@ _ENV = S.tagged("type", {
     "stop": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_nonneg, 2.0e4), "damping": (_nonneg, 50.0)},
 })
 _HAND = {"path": (S.either(S.matrix, _vec, want="a point or a list of points"), R), "speed": (_nonneg, 0.0),
-         "start": (_nonneg, 0.0), "stiffness": (_nonneg, 300.0), "damping": (_nonneg, 10.0),
+         "repeat": (S.integer(low=0), 0), "start": (_nonneg, 0.0), "stiffness": (_nonneg, 300.0),
+         "damping": (_nonneg, 10.0),
          "max_force": (S.either(_pos, S.choice("none"), want='a number > 0 or "none"'), 20.0)}
 _SIM = {
     "q0": (_vec, None), "dq0": (_vec, None),
@@ -291,7 +293,8 @@ def _sim(dev: Device, s: dict) -> dict:
         S.prefixed("sim.friction", PlantFriction(fr["damping"], fr["frictionloss"]).check, dev.n)
     h = s["hand"]
     if h is not None:
-        pts = np.atleast_2d(h["path"])
+        P = np.atleast_2d(h["path"])
+        pts = np.vstack([P] + [(P[::-1] if i % 2 == 0 else P)[1:] for i in range(h["repeat"])])  # back and forth
         _dim("sim.hand.path", pts[:1], (1, dev.m))
         mf = None if h["max_force"] == "none" else h["max_force"]
         path = S.prefixed("sim.hand", HandPath, pts, speed=h["speed"], start=h["start"])
