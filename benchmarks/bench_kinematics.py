@@ -19,10 +19,8 @@ Run: python benchmarks/bench_kinematics.py [--n 10000]
 from __future__ import annotations
 
 import argparse
-import importlib.metadata
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -39,19 +37,17 @@ def best_of(fn, repeat: int = 5) -> float:
 
 
 def arms():
-    """Panda and UR5 from example-robot-data (skipped when it is not installed)."""
-    from rhi.device import Device
+    """Panda and UR5 from example-robot-data (none when it is not installed)."""
+    from rhi.loaders import device_from_description
 
-    try:
-        root = Path(importlib.metadata.distribution("example-robot-data").locate_file(
-            "cmeel.prefix/share/example-robot-data/robots"))
-    except importlib.metadata.PackageNotFoundError:
-        return []
     out = []
-    for urdf, ee, name in (("panda_description/urdf/panda.urdf", "panda_hand_tcp", "panda"),
-                           ("ur_description/urdf/ur5_robot.urdf", "tool0", "ur5")):
-        model = pin.buildModelFromUrdf(str(root / urdf))
-        out.append(Device(model, name=name, ee_frame=ee, q_min=model.lowerPositionLimit, q_max=model.upperPositionLimit))
+    for name, ee in (("panda", "panda_hand_tcp"), ("ur5", "tool0")):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out.append(device_from_description(name, ee_frame=ee))
+        except Exception as exc:  # noqa: BLE001 - a missing optional package only drops a row
+            print(f"({name}: {exc})")
     return out
 
 

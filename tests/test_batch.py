@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.metadata
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -24,19 +25,19 @@ def _robots_dir() -> Path | None:
     return path if path.is_dir() else None
 
 
-def _arm(urdf: str, ee: str, name: str) -> Device:
-    root = _robots_dir()
-    if root is None:
-        pytest.skip("example-robot-data is not installed")
-    model = pin.buildModelFromUrdf(str(root / urdf))
-    return Device(model, name=name, ee_frame=ee, q_min=model.lowerPositionLimit, q_max=model.upperPositionLimit)
-
-
 def _device(name: str) -> Device:
-    if name == "panda":  # 7 revolute joints + 2 prismatic fingers on a branch (a tree)
-        return _arm("panda_description/urdf/panda.urdf", "panda_hand_tcp", "panda")
-    if name == "ur5":
-        return _arm("ur_description/urdf/ur5_robot.urdf", "tool0", "ur5")
+    if name in ("panda", "ur5", "panda_tree") and _robots_dir() is None:
+        pytest.skip("example-robot-data is not installed")
+    if name == "panda_tree":  # the raw model: 7 revolute joints + 2 prismatic fingers on a branch
+        model = pin.buildModelFromUrdf(str(_robots_dir() / "panda_description/urdf/panda.urdf"))
+        return Device(model, name=name, ee_frame="panda_hand_tcp", q_min=model.lowerPositionLimit,
+                      q_max=model.upperPositionLimit, torque_max=model.effortLimit)
+    if name in ("panda", "ur5"):
+        from rhi.loaders import device_from_description
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the locked Panda fingers
+            return device_from_description(name, ee_frame={"panda": "panda_hand_tcp", "ur5": "tool0"}[name])
     return device(name)
 
 
@@ -72,7 +73,7 @@ def _assert_equal_to_pinocchio(dev: Device, Q: np.ndarray, got: dict[str, np.nda
         np.testing.assert_allclose(got[term], want, rtol=0, atol=1e-12 * scale, err_msg=f"{dev.name} {term}")
 
 
-@pytest.mark.parametrize("name", available_devices() + ["panda", "ur5"])
+@pytest.mark.parametrize("name", available_devices() + ["panda", "ur5", "panda_tree"])
 def test_batch_terms_equal_pinocchio(name):
     dev = _device(name)
     assert dev._batch is not None, f"{name}: every joint is revolute or prismatic"
@@ -99,7 +100,7 @@ def test_batch_mimic_and_locked_joints():
     base = device("planar3r")
     A = np.array([[1.0, 0.0], [0.0, 1.0], [0.0, -0.5]])
     dev = Device(base.model, name="mimic", ee_frame=base.ee_frame, task_axes="xy", actuation=A,
-                 offset=np.array([0.0, 0.0, 0.2]), armature=np.array([1e-4, 2e-4]))
+                 offset=np.array([0.0, 0.0, 0.2]), armature=np.array([1e-4, 2e-4]), torque_max=[1.0, 1.0])
     Q = _configurations(dev, BATCH_MIN + 5, seed=1)
     got = dev._batch.evaluate(dev.theta(Q), TERMS)
     _assert_equal_to_pinocchio(dev, Q, got)
@@ -124,7 +125,7 @@ def test_unsupported_joint_falls_back_to_pinocchio():
     jid = model.addJoint(jid, pin.JointModelHZ(0.05), offset, "screw")  # helical: not in rhi.batch
     model.appendBodyToJoint(jid, pin.Inertia.FromBox(1.0, 0.1, 0.2, 0.3), pin.SE3.Identity())
     model.addFrame(pin.Frame("tip", jid, 0, offset, pin.FrameType.OP_FRAME))
-    dev = Device(model, name="screw", ee_frame="tip")
+    dev = Device(model, name="screw", ee_frame="tip", torque_max=[1.0, 1.0])
     assert not batch.supported(model) and dev._batch is None
     Q = np.random.default_rng(5).uniform(-1.0, 1.0, (BATCH_MIN + 1, 2))
     np.testing.assert_array_equal(dev.jacobian(Q), np.array([dev.jacobian(q) for q in Q]))

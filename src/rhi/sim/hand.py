@@ -9,6 +9,7 @@ work W = ∫ F_hᵀ ẋ dt (eq. 5.15).
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 
@@ -66,9 +67,7 @@ class Path:
         d = (t - self.start) * self.speed
         if d >= s[-1]:
             return P[-1].copy(), np.zeros(P.shape[1])
-        i = 0
-        while s[i + 1] <= d:
-            i += 1
+        i = bisect.bisect_right(s, d) - 1  # the segment holding d (zero-length segments skipped)
         u = self._u[i]
         return P[i] + (d - s[i]) * u, self.speed * u
 
