@@ -15,6 +15,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rhi.experiments import appa as exa
 from rhi.experiments import appb as exb
 from rhi.experiments import bilateral as exbi
+from rhi.experiments import intent as exin
 from rhi.experiments import spatial as exsp
 from rhi.experiments import spatial_palpation as exspp
 from rhi.experiments import ch3 as ex3
@@ -29,6 +30,7 @@ from rhi.experiments.result import Result
 from rhi.plots import appa as pla
 from rhi.plots import appb as plb
 from rhi.plots import bilateral as plbi
+from rhi.plots import intent as plin
 from rhi.plots import spatial as plsp
 from rhi.plots import ch3 as pl3
 from rhi.plots import ch3_control as pl3c
@@ -118,6 +120,12 @@ STEPS: list[Step] = [
     Step("beyond", exspp.spatial_palpation, {},
          {"settle": 0.1, "depth": 0.008, "speed": 0.02, "hold": 0.05, "starts": 1, "cases": ("free", "stiff")},
          {"spatial_palpation": plsp.palpation}, progress=True),
+    Step("beyond", exin.intent_strokes, {}, {"train": 10, "test": 3}, {"intent_strokes": plin.strokes},
+         progress=True),
+    Step("beyond", exin.intent_w_trajectory, {}, {"scale": 0.06, "speed": 0.05, "settle": 0.1},
+         {"intent_w_trajectory": plin.w_trajectory}, progress=True),
+    Step("beyond", exin.intent_palpation, {}, {"settle": 0.1, "depth": 0.01, "speed": 0.02, "hold": 0.05, "starts": 1},
+         {"intent_palpation": plin.palpation}, progress=True),
 ]
 
 
