@@ -17,6 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi.control.mobile import DMConfig, WeightedConfig, WeightedDistributionController, W_TAU_LIMITS
 from rhi.device import device
 from rhi.experiments.result import Result, Row, Table
@@ -77,10 +78,7 @@ def tracking(
     for i, (name, dist) in enumerate(methods.items()):
         ctl = WeightedDistributionController(dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, distribution=dist))
         logs[name] = simulate(ctl, traj, Q0, plant=MobilePlant(dev, slip=slip), progress=prog.run(i))
-    thesis = {  # Table A.1 (cm/s, °/s) and §A.4.2 text (cm)
-        "proposed": {"max": (2.8, 1.72, 0.0917), "rms": (1.68, 0.65, 0.035), "err": (2.71, 1.88)},
-        "traditional": {"max": (3.91, 2.38, 0.882), "rms": (2.58, 1.42, 0.504), "err": (7.25, 2.71)},
-    }
+    thesis = {m: {**T.TABLE_A_1[m], "err": T.ERROR_A[m]} for m in ("proposed", "traditional")}
     comps = (("v_xb", CM, "cm/s"), ("v_yb", CM, "cm/s"), ("ω_b", DEG, "°/s"))
     rows, err_rows = [], []
     arrays: dict[str, np.ndarray] = {"t": traj.t, "x_des": traj.x}
@@ -104,9 +102,9 @@ def tracking(
             arrays[f"{name}_{key}"] = getattr(log, key)
     p, tr = stats["proposed"], stats["traditional"]
     ratio = [Row(f"RMS {c} proposed / traditional", th, float(100 * p["rms"][i] / tr["rms"][i]), "%")
-             for i, ((c, _, _), th) in enumerate(zip(comps, (65.12, 45.77, 6.94)))]
-    interval = [Row("proposed: base first commanded", 7.15, p["first"], "s"),
-                Row("proposed: base last commanded", 20.35, p["last"], "s")]
+             for i, ((c, _, _), th) in enumerate(zip(comps, T.RMS_RATIO_A))]
+    interval = [Row("proposed: base first commanded", T.BASE_INTERVAL_A[0], p["first"], "s"),
+                Row("proposed: base last commanded", T.BASE_INTERVAL_A[1], p["last"], "s")]
     bounds_ok = all(log.bounds_ok for log in logs.values())
     return Result(
         "appa.tracking",
@@ -202,11 +200,11 @@ def dm_enhancement(
     z, x, xw = out["z"], out["x"], out["x_weighted"]
     t_end = t_cartesian + t_null
     rows_z = [
-        Row("DM along z at q0", 1.125, float(z["dm"][0]), "N"),
-        Row(f"DM along z after enhancement (t = {t_end:g} s)", 4.031, z["dm_end"], "N",
+        Row("DM along z at q0", T.DM_Z[0], float(z["dm"][0]), "N"),
+        Row(f"DM along z after enhancement (t = {t_end:g} s)", T.DM_Z[1], z["dm_end"], "N",
             "the thesis does not give the simulation's length; null-space gradient ascent is slow along z"),
-        Row("‖W_τ τ‖ for a 10 N z force at q0", 8.89, tau_norm(Q0, (0, 0, 1)), "N m"),
-        Row(f"‖W_τ τ‖ for a 10 N z force after (t = {t_end:g} s)", 2.48, tau_norm(z["q_end"], (0, 0, 1)), "N m"),
+        Row("‖W_τ τ‖ for a 10 N z force at q0", T.TAU_Z[0], tau_norm(Q0, (0, 0, 1)), "N m"),
+        Row(f"‖W_τ τ‖ for a 10 N z force after (t = {t_end:g} s)", T.TAU_Z[1], tau_norm(z["q_end"], (0, 0, 1)), "N m"),
     ]
     if "z_long" in out:
         zl = out["z_long"]
@@ -216,19 +214,19 @@ def dm_enhancement(
               if min(abs(qk[i] - dev.q_min[i]), abs(dev.q_max[i] - qk[i])) < 1e-2]
         where = f"; joints at a position bound: {', '.join(at)}" if at else ""
         rows_z += [
-            Row(f"largest DM along z within {t_cartesian + t_long:g} s", 4.031, float(zl["dm"][k]), "N",
+            Row(f"largest DM along z within {t_cartesian + t_long:g} s", T.DM_Z[1], float(zl["dm"][k]), "N",
                 f"reached at t = {zl['t'][k]:.1f} s{where}"),
-            Row("‖W_τ τ‖ for a 10 N z force at that configuration", 2.48, tau_norm(zl["q"][k], (0, 0, 1)), "N m"),
+            Row("‖W_τ τ‖ for a 10 N z force at that configuration", T.TAU_Z[1], tau_norm(zl["q"][k], (0, 0, 1)), "N m"),
         ]
     rows_x = [
-        Row("DM along x at q0", 3.825, float(x["dm"][0]), "N"),
-        Row(f"DM along x after the Cartesian phase (t = {t_cartesian:g} s)", 3.905, x["dm_cart"], "N"),
-        Row("end-effector z after the Cartesian phase", 0.456, float(dev.fk(x["q_cart"])[2]), "m"),
-        Row(f"DM along x after the null-space phase (t = {t_end:g} s)", 5.88, x["dm_end"], "N",
+        Row("DM along x at q0", T.DM_X[0], float(x["dm"][0]), "N"),
+        Row(f"DM along x after the Cartesian phase (t = {t_cartesian:g} s)", T.DM_X[1], x["dm_cart"], "N"),
+        Row("end-effector z after the Cartesian phase", T.Z_AFTER_CARTESIAN, float(dev.fk(x["q_cart"])[2]), "m"),
+        Row(f"DM along x after the null-space phase (t = {t_end:g} s)", T.DM_X[2], x["dm_end"], "N",
             "projector of the generalized Jacobian (eq. A.7, Q = I): the base moves with the self-motion"),
-        Row(f"DM along x after the null-space phase, eq. A.19 as printed (weighted J†, t = {t_end:g} s)", 5.88,
+        Row(f"DM along x after the null-space phase, eq. A.19 as printed (weighted J†, t = {t_end:g} s)", T.DM_X[2],
             xw["dm_end"], "N", "at γ = 0 the weighted J† locks the base: only the arm's own self-motion is left"),
-        Row("‖W_τ τ‖ ratio without / with DM enhancement (push along x)", 40.0 / 30.0,
+        Row("‖W_τ τ‖ ratio without / with DM enhancement (push along x)", T.TAU_RATIO_PUSH,
             x["dm_end"] / float(x["dm"][0]), "",
             "thesis: measured torques while pushing a 26 kg box (≈ 40 vs ≈ 30 N m); ours: DM_after/DM_before, static"),
         Row("base displacement during the x enhancement", None,

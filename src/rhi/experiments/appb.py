@@ -18,6 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi.control.mobile import AMDConfig, AMDController, PinvAccelConfig, PinvAccelController
 from rhi.device import device
 from rhi.experiments.appa import CM, DEG, Q0, _Progress, _slip_note
@@ -103,10 +104,10 @@ def singularity(
     t = wo.t
     err_wo = np.linalg.norm(wo.error, axis=1)
     rows = [
-        Row(f"without avoidance: first time σ_min(J_m) < {SINGULAR_SIGMA}", 8.35, _first(t, wo.sigma < SINGULAR_SIGMA),
+        Row(f"without avoidance: first time σ_min(J_m) < {SINGULAR_SIGMA}", T.SINGULAR_TIME_B, _first(t, wo.sigma < SINGULAR_SIGMA),
             "s", "thesis: the arm 'puts itself at a singular configuration at about 8.35 s'"),
-        Row("without avoidance: first time the task must be scaled (α < 1)", 8.35, _first(t, wo.alpha < 1 - 1e-9), "s"),
-        Row("without avoidance: first time the tracking error exceeds 1 cm", 8.35, _first(t, err_wo > 0.01), "s"),
+        Row("without avoidance: first time the task must be scaled (α < 1)", T.SINGULAR_TIME_B, _first(t, wo.alpha < 1 - 1e-9), "s"),
+        Row("without avoidance: first time the tracking error exceeds 1 cm", T.SINGULAR_TIME_B, _first(t, err_wo > 0.01), "s"),
         Row("without avoidance: min σ_min(J_m)", None, float(np.min(wo.sigma)), "m/rad"),
         Row("with avoidance: min σ_min(J_m)", None, float(np.min(w.sigma)), "m/rad",
             "σ_m,min = 0.15; the base is enabled below it"),
@@ -114,8 +115,8 @@ def singularity(
         Row("with avoidance: max tracking error", None, float(np.linalg.norm(w.error, axis=1).max() * CM), "cm"),
     ]
     n_act, first, last = _activations(w)
-    rows += [Row("with avoidance: base first enabled", 6.40, first, "s", "§B.4.3 (same run, beyond the workspace)"),
-             Row("with avoidance: number of base activation periods", 1.0, float(n_act), "")]
+    rows += [Row("with avoidance: base first enabled", T.BASE_ON_B, first, "s", "§B.4.3 (same run, beyond the workspace)"),
+             Row("with avoidance: number of base activation periods", T.BASE_PERIODS_B["beyond"], float(n_act), "")]
     arrays = {"t": t, "x_des": wo.x_des}
     for name, log in logs.items():
         for key in ("sigma", "x", "x_est", "alpha", "beta", "base_active", "dq"):
@@ -178,16 +179,10 @@ def tracking(
         else:
             ctl = AMDController(dev, AMDConfig(dt=dt, sigma_min=sig))
         logs[where, method] = _run(ctl, R, duration, dt, slip, prog.run(i))
-    thesis_b2 = {  # Table B.2: RMS (cm/s or °/s) and duration (s) of x_b, y_b, θ_b
-        ("within", "proposed"): ((0, 0, 0), (0, 0, 0)),
-        ("within", "traditional"): ((1.10, 0.75, 0.287), (80, 80, 80)),
-        ("beyond", "proposed"): ((1.58, 0.24, 0.241), (12.08, 12.08, 12.08)),
-        ("beyond", "traditional"): ((2.77, 1.86, 0.739), (80, 80, 80)),
-    }
+    thesis_b2 = dict(T.TABLE_B_2)
     thesis_b2["within", "proposed_adapted"] = thesis_b2["within", "proposed"]
-    thesis_err = {("within", "traditional"): (0.91, 1.89), ("beyond", "proposed"): (2.44, 1.82),
-                  ("beyond", "traditional"): (6.65, 2.72)}
-    thesis_base_err = {("beyond", "traditional"): (2.81, 1.12), ("beyond", "proposed"): (0.81, 0.37)}
+    thesis_err = T.ERROR_B
+    thesis_base_err = {("beyond", m): v for m, v in T.BASE_ERROR_B.items()}
     comps = (("x_b", CM, "cm/s"), ("y_b", CM, "cm/s"), ("θ_b", DEG, "°/s"))
     rows_b2, rows_err = [], []
     arrays: dict[str, np.ndarray] = {"t": logs["within", "proposed"].t}
@@ -217,15 +212,15 @@ def tracking(
     p = logs["beyond", "proposed"]
     n_act, first, last = _activations(p)
     rows_err += [
-        Row("beyond, proposed: base first enabled", 6.40, first, "s"),
-        Row("beyond, proposed: base last released", 16.48, last, "s", "thesis: 'regained enough manipulability'"),
-        Row("beyond, proposed: number of base activation periods", 1.0, float(n_act), "",
+        Row("beyond, proposed: base first enabled", T.BASE_ON_B, first, "s"),
+        Row("beyond, proposed: base last released", T.BASE_OFF_B, last, "s", "thesis: 'regained enough manipulability'"),
+        Row("beyond, proposed: number of base activation periods", T.BASE_PERIODS_B["beyond"], float(n_act), "",
             "one threshold σ_m,min (no hysteresis), as the thesis describes: the base may be released and re-enabled"),
     ]
     w = logs["within", "proposed"]
     for method, sig in (("proposed", sigma_min), ("proposed_adapted", sigma_adapted)):
         n_w, first_w, _ = _activations(logs["within", method])
-        rows_err.append(Row(f"within, proposed (σ_m,min = {sig:.3f}): base activation periods", 0.0, float(n_w), "",
+        rows_err.append(Row(f"within, proposed (σ_m,min = {sig:.3f}): base activation periods", T.BASE_PERIODS_B["within"], float(n_w), "",
                             f"first at {first_w:.2f} s" if n_w else ""))
     ok = all(log.bounds_ok for log in logs.values())
     sig_w = float(np.min(w.sigma))

@@ -22,6 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi.control import VMEMatching
 from rhi.control.configuration import optimal_configuration
 from rhi.design.executors import parallel_map
@@ -33,9 +34,7 @@ from rhi.metrics import effective_inertia, effective_manipulability
 U = np.array([0.0, 1.0])
 POINTS = ((0.49, -0.22), (0.49, -0.14))
 #: Optimised RHI configurations reported in §3.5 [rad].
-THESIS_Q = ((0.125, 0.022, 0.298, 0.175), (0.298, 0.077, 0.413, 0.208))
-THESIS_RHO = {"RHI": (0.371, 0.387), "PHANToM": (0.188, 0.167), "Rehab": (0.296, 0.315)}
-THESIS_LAMBDA = {"RHI": (0.0576, 0.0590), "PHANToM": (0.0628, 0.0606), "Rehab": (0.4379, 0.4414)}
+THESIS_Q, THESIS_RHO, THESIS_LAMBDA = T.TABLE_3_1_Q, T.TABLE_3_1_RHO, T.TABLE_3_1_LAMBDA
 BETA = 0.01
 
 

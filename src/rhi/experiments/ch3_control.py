@@ -336,7 +336,7 @@ def nullspace_configurations(
                     "local static optimum of the same objective (VME + barrier), SLSQP started at the converged q"),
             ]
             for k in range(dev.n):
-                q_rows.append(Row(f"q{k + 1} {lbl}", float(q_th[k]) if on_table else None, float(sm["q"][k]), "rad",
+                q_rows.append(Row(f"q{k + 1} {lbl}", THESIS_Q[j][k] if on_table else None, float(sm["q"][k]), "rad",
                                   "thesis: the configuration printed in §3.5"))
         if hard_stops:
             sm = summaries[i, starts[0], False]

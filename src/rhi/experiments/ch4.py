@@ -86,6 +86,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi.design import (
     DesignProblem,
     Phantom3Master,
@@ -117,14 +118,9 @@ ENERGY_LABELS = ("θz only, C1", "θz only, C2", "l2, θz, Z_PH, C1", "l2, θz, 
 ELLIPSE_POINTS = np.array([(x, y) for x in (0.374, 0.474) for y in (-0.067, 0.0, 0.067)])
 
 #: §4.4 first round (D = {θz}).
-THESIS_THETA = {"C1": 89.0, "C2": 2.0}
-THESIS_GMT = {"C1": 0.0378, "C2": 0.0437}
-THESIS_GMM = {"C1": 0.0433, "C2": 0.0428}
+THESIS_THETA, THESIS_GMT, THESIS_GMM = T.THETA_Z, T.GM_T_ROUND1, T.GM_M_ROUND1
 #: Table 4.1 (D = {l2, θz, Z_PH}).
-THESIS_TABLE = {
-    "C1": {"l2": 0.365, "z_ph": -0.2162, "theta_z": -63.5, "GM_T": 0.0549, "GC_M": 0.7785, "GM_M": 0.1023},
-    "C2": {"l2": 0.269, "z_ph": -0.065, "theta_z": 0.0, "GM_T": 0.0590, "GC_M": 0.7315, "GM_M": 0.0728},
-}
+THESIS_TABLE = T.TABLE_4_1
 
 #: The smallest K2/K1 for which Table 4.1's C2 design beats its C1 design on C2 (eq. 4.24): ≈ 11.46.
 K2_MIN_TABLE_4_1 = ((THESIS_TABLE["C1"]["GC_M"] - THESIS_TABLE["C2"]["GC_M"])

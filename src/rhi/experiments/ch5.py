@@ -68,6 +68,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi.control import (
     ControllerConfig,
     ImpedanceControl,
@@ -105,11 +106,11 @@ REHAB_SEED = np.array([0.3, 0.9])  #: IK seed of the 2-DoF Rehab [rad]
 HOLD = {"stiffness": 3000.0, "damping": 40.0}  #: hand holding the handle still (fixed point)
 TRACK = {"stiffness": 300.0, "damping": 10.0}  #: hand following the W
 
-THESIS_TME_INCREASE = 18.1  #: % increase of the TME area at the fixed point (§5.4.1)
-THESIS_MEAN_TME_S2 = 0.1034  #: mean TME area, RHI + Yoshikawa (§5.4.1)
-THESIS_S2_BELOW_S1 = 15.3  #: % by which scenario 2's mean TME area is below scenario 1's (§5.4.1)
+THESIS_TME_INCREASE = T.TME_INCREASE  #: % increase of the TME area at the fixed point (§5.4.1)
+THESIS_MEAN_TME_S2 = T.MEAN_TME_S2  #: mean TME area, RHI + Yoshikawa (§5.4.1)
+THESIS_S2_BELOW_S1 = T.S2_BELOW_S1  #: % by which scenario 2's mean TME area is below scenario 1's (§5.4.1)
 #: Table 5.1 (experiments, 8 users): scenario means
-TABLE_5_1 = {"effort": (0.207, 0.425, 2.048), "time": (48.8, 54.3, 62.3), "error": (105.0, 126.5, 129.2)}
+TABLE_5_1 = T.TABLE_5_1
 
 SCENARIOS = {
     "s1": "RHI + TMI objective (eq. 5.11)",
@@ -494,7 +495,7 @@ def w_trajectory(
     align = float(np.sum(weight * np.abs(np.einsum("kj,kj->k", tangent, U_ax[:, :, 0]))) / np.sum(weight))
     names = {k: f"scenario {i + 1} ({v})" for i, (k, v) in enumerate(SCENARIOS.items())}
     rows = [
-        Row(f"mean TME area, {names['s1']}", THESIS_MEAN_TME_S2 / (1 - THESIS_S2_BELOW_S1 / 100), s1["area"],
+        Row(f"mean TME area, {names['s1']}", T.MEAN_TME_S1, s1["area"],
             "m²/s² per (rad/s)²",
             "thesis value implied: 0.1034 / (1 − 0.153); our W is not the thesis's (only drawn)"),
         Row(f"mean TME area, {names['s2']}", THESIS_MEAN_TME_S2, s2["area"], "m²/s² per (rad/s)²",
@@ -546,16 +547,16 @@ def w_trajectory(
         for k in SCENARIOS
     ]
     effort += [
-        Row("effort order 1 < 2 < 3 holds (1 = yes)", 1.0, order, "", "Fig. 5.6"),
-        Row("work ratio scenario 2 / scenario 1", TABLE_5_1["effort"][1] / TABLE_5_1["effort"][0],
+        Row("effort order 1 < 2 < 3 holds (1 = yes)", T.EFFORT_ORDER, order, "", "Fig. 5.6"),
+        Row("work ratio scenario 2 / scenario 1", T.EFFORT_RATIO_5_1[0],
             s2["work"] / s1["work"], "", "thesis: Table 5.1 experiments (8 users, uncompensated real friction)"),
-        Row("work ratio scenario 3 / scenario 1", TABLE_5_1["effort"][2] / TABLE_5_1["effort"][0],
+        Row("work ratio scenario 3 / scenario 1", T.EFFORT_RATIO_5_1[1],
             s3["work"] / s1["work"], "", "thesis: Table 5.1 experiments"),
         Row("ratio of the work beyond damping, scenario 2 / scenario 1",
-            TABLE_5_1["effort"][1] / TABLE_5_1["effort"][0], excess["s2"] / excess["s1"], "",
+            T.EFFORT_RATIO_5_1[0], excess["s2"] / excess["s1"], "",
             "thesis: Table 5.1 experiments, where real friction dominates the damping"),
         Row("ratio of the work beyond damping, scenario 3 / scenario 1",
-            TABLE_5_1["effort"][2] / TABLE_5_1["effort"][0], excess["s3"] / excess["s1"], "",
+            T.EFFORT_RATIO_5_1[1], excess["s3"] / excess["s1"], "",
             "thesis: Table 5.1 experiments"),
     ]
     effort += [Row(f"user work while settling, {names[k]}", None, stats[k]["work_settle"], "J") for k in SCENARIOS]
@@ -649,11 +650,11 @@ def workspaces(samples: int = 20000, seed: int = 0, cell: float = 0.02, area_sam
                 f"{cell * 100:g} cm cells occupied by {area_samples} samples (a lower bound)")
             for nm, a in zip(devs, area)]
     rows += [
-        Row("RHI workspace larger than the Rehab's (1 = yes)", 1.0, float(area[0] > area[1]), "", "§5.4.1, Fig. 5.4"),
+        Row("RHI workspace larger than the Rehab's (1 = yes)", T.WORKSPACE_LARGER, float(area[0] > area[1]), "", "§5.4.1, Fig. 5.4"),
         Row("fraction of the Rehab's cells inside the RHI's", None, inside, "",
             "1 in exact arithmetic: the Rehab is the RHI with q3 = q4 = 0, inside its limits"),
     ]
-    rows += [Row(f"W inside the workspace of the {nm} (1 = yes)", 1.0, reach[nm], "") for nm in devs]
+    rows += [Row(f"W inside the workspace of the {nm} (1 = yes)", T.W_INSIDE, reach[nm], "") for nm in devs]
     return Result("ch5.workspaces", "Fig. 5.4: workspaces of the RHI, the 2-DoF Rehab and the slave",
                   [Table("Fig. 5.4 workspaces", rows)],
                   {"workspaces": pts, "path": path.points},

@@ -69,6 +69,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import LinearConstraint, NonlinearConstraint, minimize
 
+from rhi import thesis as T
 from rhi.control import (
     ControllerConfig,
     FMEMatching,
@@ -107,18 +108,18 @@ MU = 5.0
 BETA = 20.0
 K_D = 0.1
 Q_HOME = (0.0, 0.0, 0.0, 0.0)
-THESIS_K, THESIS_ZETA = 123.0, 3.3
+THESIS_K, THESIS_ZETA = T.K_ZETA_6_4
 #: Table 6.1: (M_x [kg], Φ [N s/m], F_max [N]) along u at [0.5, 0.1] m.
-THESIS_TABLE = {"free": (0.036, 0.2953, -5.674), "stiff": (0.125, 0.6325, -8.564)}
-THESIS_GAIN = 51.0
+THESIS_TABLE = T.TABLE_6_1
+THESIS_GAIN = T.GAIN_6_4
 #: Fig. 6.11 transition parameters and its stated duration ("performed in 0.5 second").
 EPS1, EPS2, RHO, ASO_S = 0.7, 0.95, 0.003, 50.0
-THESIS_TF = 0.5
+THESIS_TF = T.TRANSITION_TIME
 #: §6.3.1 3-DoF example.
 Q_3DOF = (np.pi / 6, -np.pi / 3, -3 * np.pi / 4)
 F_3DOF = 3.5
 U_3DOF = (1.0, 0.0)
-THESIS_3DOF_EIG = (2.6, 5.8)
+THESIS_3DOF_EIG = T.EIG_3DOF
 #: Joint-limit barrier of the simulated controller (our choice, see the module docstring).
 LIMIT_MARGIN = 0.1
 LIMIT_GAIN = 100.0
@@ -299,8 +300,8 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = F_3
     rows += [
         Row("λ_min of M̂ at the initial configuration", THESIS_3DOF_EIG[0], float(lam0[0]), "N²/(N m)²"),
         Row("λ_max of M̂ at the initial configuration", THESIS_3DOF_EIG[1], float(lam0[1]), "N²/(N m)²"),
-        Row("𝒦 = μ λ_max", mu * THESIS_3DOF_EIG[1], K, "N²/(N m)²"),
-        Row("ζ = λ_min/μ", THESIS_3DOF_EIG[0] / mu, zeta, "N²/(N m)²"),
+        Row("𝒦 = μ λ_max", T.K_3DOF if mu == 5 else None, K, "N²/(N m)²"),
+        Row("ζ = λ_min/μ", T.ZETA_3DOF if mu == 5 else None, zeta, "N²/(N m)²"),
     ]
     for name, q in configs.items():
         J = dev.jacobian(q)
@@ -501,7 +502,7 @@ def palpation(
             gain(stat["stiff_settled"]["lp"], stat["free_settled"]["lp"]), "%"),
         Row("force gain, force scaling at the static optima", THESIS_GAIN,
             gain(stat["stiff_opt"]["fs"], stat["free_opt"]["fs"]), "%"),
-        Row("inertia ratio Λ_Stiff/Λ_Free (thesis: M_x ratio)", ts[0] / tf[0],
+        Row("inertia ratio Λ_Stiff/Λ_Free (thesis: M_x ratio)", T.MX_RATIO_6_1,
             stat["stiff_settled"]["lam"] / stat["free_settled"]["lam"], ""),
         Row("𝒦 (μ λ_max at q = 0)", THESIS_K, K, "N²/(N m)²"),
         Row("ζ (λ_min/μ at q = 0)", THESIS_ZETA, zeta, "N²/(N m)²"),

@@ -16,6 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi.control.controller import output_force
 from rhi.control.saturation import (
     allocate_lp,
@@ -105,8 +106,8 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
         ang = np.degrees(np.arctan2(np.abs(Fn[:, 1]), np.maximum(Fn[:, 0], 1e-12)))
         rows.append(Row(f"max direction error without compensation ({proj})", None, float(ang.max()), "deg"))
     gap = {p: 100.0 * (peaks[p, "ascm"] - peaks[p, "scaling"]) / peaks[p, "ascm"] for p in runs}
-    rows.insert(0, Row("peak force deficit of scaling vs ASCM (kinematic projector)", 12.0, gap["kinematic"], "%"))
-    rows.insert(1, Row("peak force deficit of scaling vs ASCM (dynamic projector, our inertias)", 12.0,
+    rows.insert(0, Row("peak force deficit of scaling vs ASCM (kinematic projector)", T.SCALING_GAP, gap["kinematic"], "%"))
+    rows.insert(1, Row("peak force deficit of scaling vs ASCM (dynamic projector, our inertias)", T.SCALING_GAP,
                        gap["dynamic"], "%", "dynamically consistent null space differs from the thesis's"))
     J = dev.jacobian(q)
     # full force until two joints saturate: first time ASCM scales (α < 1) and how many joints are held then
@@ -115,7 +116,7 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
     lo, hi = dev.torque_limits
     at_limit = (np.abs(r["tau"] - hi) < 1e-9) | (np.abs(r["tau"] - lo) < 1e-9)
     held = int(at_limit[first].sum()) if first >= 0 else 0
-    rows.append(Row("joints at a torque limit when ASCM first scales (α < 1)", 2.0, float(held), ""))
+    rows.append(Row("joints at a torque limit when ASCM first scales (α < 1)", T.HELD_AT_SCALING, float(held), ""))
     first_sat = int(np.argmax(runs["kinematic"]["none"]["saturated"].any(axis=1)))
     rows.append(Row("|F_e| when the first joint saturates", None, float(np.linalg.norm(Fe[first_sat])), "N"))
     if first >= 0:

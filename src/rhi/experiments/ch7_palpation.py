@@ -56,6 +56,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi._validate import as_array
 from rhi.control import (
     ControllerConfig,
@@ -90,7 +91,7 @@ B_D = 0.01
 #: Programmed torque limits [N m] (thesis §7.5).
 TORQUE_MAX = (3.0, 3.0, 1.0, 1.0)
 #: The thesis's result: ASCM raises the maximum force feedback by 73 % (§7.5, Fig. 7.6).
-THESIS_GAIN = 73.0
+THESIS_GAIN = T.GAIN_7_5
 #: (saturation, projector) of every simulated case; the first two are the thesis's cases (1) and (2).
 CASES = (("none", "dynamic"), ("ascm", "dynamic"), ("lp", "dynamic"), ("ascm", "kinematic"), ("lp", "kinematic"))
 #: The simulated hand: stiffness [N/m], damping [N s/m], largest push [N].
@@ -303,7 +304,7 @@ def palpation(
             Row(f"max force over the run (joint stops included), {lbl}", None, m["F_peak"], "N"),
             Row(f"force at the end (last 0.2 s, joint stops engaged), {lbl}", None, m["F_end"], "N"),
             Row(f"time of the first joint-range limit, {lbl}", None, m["t_lim"], "s"),
-            Row(f"max |τ_i| / limit, {lbl}", 1.0, m["tau_ratio"], "", "thesis column: the bound"),
+            Row(f"max |τ_i| / limit, {lbl}", 1.0, m["tau_ratio"], "", "the torque limits (a bound)", bound="max"),
             Row(f"max |F − K_e δX| in contact (K_e δX ≥ 1 N) before the first torque saturation, {lbl}", None,
                 m["track_err"], "N"),
         ]
@@ -344,7 +345,7 @@ def palpation(
         Row("|q_contact − local static optimum of eq. 7.18 + barrier from it|", 0.0,
             float(np.linalg.norm(q_c - q_opt)), "rad", "0: the settle phase converged"),
         Row("max handle drift while settling", 0.5, float(np.max(np.linalg.norm(log0.x - x0, axis=1)) * 1e3), "mm",
-            "thesis column: the acceptance bound"),
+            "rhi's acceptance bound (not a thesis number)", bound="max"),
     ] + [Row(f"contact configuration q{k + 1}", None, float(q_c[k]), "rad") for k in range(dev.n)]
     faults = [f"{c}: {m['fault']}" for c, m in results.items() if m["fault"]]
     notes = [

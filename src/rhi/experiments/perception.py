@@ -106,6 +106,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from rhi import thesis as T
 from rhi.analysis import psychophysics as pp
 from rhi.analysis.sysid import Record, SysidResult, identify
 from rhi.control import WeightedSum
@@ -119,19 +120,15 @@ Progress = Callable[[int, int], None]
 #: Direction of motion of §3.5 and §6.4.
 U = (0.0, 1.0)
 #: Table 3.2: identified Λ [kg] along u at the two points of Table 3.1.
-THESIS_TABLE_3_2 = {"RHI": (0.0691, 0.0718), "PHANToM": (0.0734, 0.0728), "Rehab": (0.5399, 0.5683)}
+THESIS_TABLE_3_2 = T.TABLE_3_2
 #: Table 6.1: (M_x [kg], Φ [N s/m], F_max [N]) at [0.5, 0.1] m.
-THESIS_TABLE_6_1 = {"free": (0.036, 0.2953, -5.674), "stiff": (0.125, 0.6325, -8.564)}
+THESIS_TABLE_6_1 = T.TABLE_6_1
 #: Table 3.3: (mean, std) of WF, JND [N/m], PSE [N/m] per device.
-THESIS_TABLE_3_3 = {
-    "wf": {"RHI": (0.111, 0.019), "PHANToM": (0.118, 0.021), "Rehab": (0.145, 0.021)},
-    "jnd": {"RHI": (5.571, 0.916), "PHANToM": (5.953, 1.068), "Rehab": (7.205, 1.024)},
-    "pse": {"RHI": (50.035, 0.578), "PHANToM": (50.238, 1.695), "Rehab": (49.654, 1.267)},
-}
+THESIS_TABLE_3_3 = T.TABLE_3_3
 #: §3.6: one-way ANOVA on WF, F(2, 27) = 7.36, P = 0.0032.
-THESIS_ANOVA = (7.36, 0.0032)
+THESIS_ANOVA = T.ANOVA_3_6
 #: §3.6: Holm-adjusted paired t-tests on WF.
-THESIS_PAIRED = {("RHI", "PHANToM"): 0.2958, ("RHI", "Rehab"): 0.00002, ("PHANToM", "Rehab"): 0.0075}
+THESIS_PAIRED = T.PAIRED_3_6
 #: Constant external force range of the identification [N] and trials per case.
 FORCE_RANGE = (0.5, 1.5)
 TRIALS = 10
@@ -497,11 +494,11 @@ def sysid_table_3_2(
             "the loop between the formula and the physics"),
         Row("largest |identified − Λ/(1 − k)| / (Λ/(1 − k)) over the six cases", None,
             float(np.max(np.abs(errs_vp))), "", "eq. 3.13 with the velocity-product force eq. 3.24 omits"),
-        Row("cases with identified Λ ordered RHI ≤ PHANToM < Rehab (of 2 points)", 2.0, float(sum(ordering_ok)), ""),
+        Row("cases with identified Λ ordered RHI ≤ PHANToM < Rehab (of 2 points)", T.TABLE_3_2_ORDER, float(sum(ordering_ok)), ""),
     ]
     for i in range(2):
         for a, b in (("RHI", "PHANToM"), ("RHI", "Rehab")):
-            th = THESIS_TABLE_3_2[a][i] / THESIS_TABLE_3_2[b][i]
+            th = T.TABLE_3_2_RATIO[a, b, i]
             summary.append(Row(f"ratio Λ_{a}/Λ_{b} identified at point {i + 1}", th,
                                cases[(a, i)].fit.mass / cases[(b, i)].fit.mass, ""))
     arrays["lambda_identified"] = np.array([[cases[(n, i)].fit.mass for n in DEVICE_NAMES] for i in range(2)])
@@ -631,8 +628,8 @@ def sysid_table_6_1(
     cf, cs = cases["free"], cases["stiff"]
     tf, ts = THESIS_TABLE_6_1["free"], THESIS_TABLE_6_1["stiff"]
     rows_cmp = [
-        Row("M_x ratio Stiff/Free, identified", ts[0] / tf[0], cs.fit.mass / cf.fit.mass, ""),
-        Row("Φ ratio Stiff/Free, identified", ts[1] / tf[1], cs.fit.damping / cf.fit.damping, ""),
+        Row("M_x ratio Stiff/Free, identified", T.MX_RATIO_6_1, cs.fit.mass / cf.fit.mass, ""),
+        Row("Φ ratio Stiff/Free, identified", T.PHI_RATIO_6_1, cs.fit.damping / cf.fit.damping, ""),
         Row("identified − eq. 3.13, M_Free^des", None, cf.lam_error, ""),
         Row("identified − eq. 3.13, M_Stiff^des", None, cs.lam_error, ""),
         Row("identified / (Λ/(1 − k)) − 1, M_Free^des", None, cf.fit.mass / cf.lam_vp - 1.0, ""),

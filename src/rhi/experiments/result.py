@@ -8,6 +8,9 @@ from typing import Any
 
 import numpy as np
 
+from rhi.errors import InvalidInput
+from rhi.thesis import ThesisValue
+
 
 @dataclasses.dataclass(frozen=True)
 class Row:
@@ -18,7 +21,12 @@ class Row:
         thesis: the thesis's value (None where the thesis gives none).
         ours: our value.
         unit: SI unit ("" for dimensionless).
-        note: why they differ, where they do.
+        note: why they differ, where they do (required where ours is outside the tolerance).
+        tolerance: explicit tolerance [unit]; default: the thesis value's own (its rounding, `rhi.thesis`).
+        bound: "max" or "min" where `thesis` is an acceptance bound (ours ≤ or ≥ it), not a value to equal.
+
+    A thesis number must be a `rhi.thesis.ThesisValue` (the one module of thesis values); a plain
+    float in `thesis` is allowed only as a `bound` of rhi's own.
     """
 
     quantity: str
@@ -26,6 +34,43 @@ class Row:
     ours: float
     unit: str = ""
     note: str = ""
+    tolerance: float | None = None
+    bound: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.bound not in (None, "max", "min"):
+            raise InvalidInput(f"bound: expected None, 'max' or 'min', got {self.bound!r}")
+        if self.bound is not None and self.thesis is None:
+            raise InvalidInput("thesis: a bound row needs its bound in `thesis`")
+
+    @property
+    def source(self) -> str | None:
+        """Key of the thesis value in `rhi.thesis` (None for bounds of rhi's own and rows without one)."""
+        return self.thesis.key if isinstance(self.thesis, ThesisValue) else None
+
+    @property
+    def tol(self) -> float | None:
+        """Tolerance [unit]: explicit, else the thesis value's rounding, else 0 for a bound."""
+        if self.tolerance is not None:
+            return self.tolerance
+        if isinstance(self.thesis, ThesisValue):
+            return self.thesis.tol
+        return 0.0 if self.bound is not None else None
+
+    @property
+    def within(self) -> bool | None:
+        """Whether ours matches the thesis within the tolerance (or satisfies the bound); None without one."""
+        tol = self.tol
+        if self.thesis is None or tol is None:
+            return None
+        if not math.isfinite(self.ours):
+            return False
+        slack = tol * (1 + 1e-9) + 1e-15
+        if self.bound == "max":
+            return bool(self.ours <= self.thesis + slack)
+        if self.bound == "min":
+            return bool(self.ours >= self.thesis - slack)
+        return bool(abs(self.ours - self.thesis) <= slack)
 
     @property
     def difference(self) -> float | None:
@@ -34,8 +79,10 @@ class Row:
 
     @property
     def relative(self) -> float | None:
-        """(ours − thesis)/|thesis|."""
-        if self.thesis is None or self.thesis == 0:
+        """(ours − thesis)/|thesis|; None where it means nothing (bounds, p-values, angles, orderings, ≈ 0)."""
+        if self.thesis is None or self.thesis == 0 or self.bound is not None:
+            return None
+        if isinstance(self.thesis, ThesisValue) and not self.thesis.relative:
             return None
         return (self.ours - self.thesis) / abs(self.thesis)
 
@@ -66,8 +113,8 @@ class Result:
     arrays: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
     notes: list[str] = dataclasses.field(default_factory=list)
 
-    def to_json(self) -> dict[str, Any]:
-        """JSON-serialisable dict of every number (arrays as nested lists)."""
+    def to_json(self, *, arrays: bool = True) -> dict[str, Any]:
+        """JSON-serialisable dict of every number (arrays as nested lists unless `arrays` is False)."""
 
         def clean(v: Any) -> Any:
             if isinstance(v, float) and not math.isfinite(v):
@@ -83,10 +130,14 @@ class Result:
                     "rows": [
                         {
                             "quantity": r.quantity,
-                            "thesis": r.thesis,
+                            "thesis": None if r.thesis is None else float(r.thesis),
                             "rhi": clean(float(r.ours)),
                             "difference": clean(r.difference),
                             "relative": clean(r.relative),
+                            "tolerance": r.tol,
+                            "bound": r.bound,
+                            "within": r.within,
+                            "source": r.source,
                             "unit": r.unit,
                             "note": r.note,
                         }
@@ -95,7 +146,7 @@ class Result:
                 }
                 for t in self.tables
             ],
-            "arrays": {k: _jsonable(v) for k, v in self.arrays.items()},
+            "arrays": {k: _jsonable(v) for k, v in self.arrays.items()} if arrays else {},
             "notes": self.notes,
         }
 

@@ -1,4 +1,9 @@
-"""The HTML report of a reproduction run: tables thesis | rhi | difference, figures, JSON of every number."""
+"""The HTML report of a reproduction run.
+
+It opens with the headline claims (`rhi.report.headline`, claims in `rhi.report.claims`) and a table
+of contents, then one section per experiment: tables thesis ± tolerance | rhi | difference | note
+(`rhi.report.tables`), figures, notes. Numbers go to `results.json`, arrays to `results.npz`.
+"""
 
 from __future__ import annotations
 
@@ -13,34 +18,19 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from rhi.experiments.result import Result
-
-
-def _fmt(v: float | None) -> str:
-    if v is None or not np.isfinite(v):
-        return "—"
-    a = abs(v)
-    return f"{v:.4g}" if 1e-3 <= a < 1e4 or a == 0 else f"{v:.3e}"
-
-
-def _table_html(table) -> str:
-    head = "<tr><th>quantity</th><th>thesis</th><th>rhi</th><th>difference</th><th>rel.</th><th>unit</th><th>note</th></tr>"
-    body = []
-    for r in table.rows:
-        rel = r.relative
-        cls = "" if rel is None else ("ok" if abs(rel) <= 0.05 else "off")
-        body.append(
-            f"<tr class='{cls}'><td>{html.escape(r.quantity)}</td><td>{_fmt(r.thesis)}</td><td>{_fmt(r.ours)}</td>"
-            f"<td>{_fmt(r.difference)}</td><td>{'—' if rel is None else f'{100 * rel:+.1f} %'}</td>"
-            f"<td>{html.escape(r.unit)}</td><td>{html.escape(r.note)}</td></tr>"
-        )
-    return f"<h3>{html.escape(table.title)}</h3><table>{head}{''.join(body)}</table>"
+from rhi.report import headline
+from rhi.report.claims import CLAIMS
+from rhi.report.tables import audit, summary, table_html
 
 
 STYLE = """
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;font-size:14px}
 th{background:#f3f3f3}tr.ok td:nth-child(3){background:#e6f6e6}tr.off td:nth-child(3){background:#fdf0dc}
-img{max-width:100%;border:1px solid #eee;margin:.5em 0}.note{color:#555;font-size:14px}
+tr.fail td:nth-child(3){background:#f8d7d7}td.src{font-size:12px;color:#666}
+table.headline tr.ok td.verdict{background:#e6f6e6}table.headline tr.dir td.verdict{background:#eef3d9}
+table.headline tr.off td.verdict{background:#fdf0dc}table.headline tr.na td.verdict{background:#eee}
+img{max-width:100%;border:1px solid #eee;margin:.5em 0}.note{color:#555;font-size:14px}nav li{font-size:14px}
 """
 
 
@@ -51,7 +41,7 @@ def write_report(
     title: str = "rhi reproduction of Torabiparizi (2020)",
     meta: dict | None = None,
 ) -> Path:
-    """Write `out/report.html`, `out/results.json`, one CSV per table and PNG per figure.
+    """Write `out/report.html`, `out/results.json` (numbers), `out/results.npz` (arrays), a CSV per table, a PNG per figure.
 
     Args:
         results: (chapter, result, {figure name: figure or a zero-argument function drawing it}) triples.
@@ -64,16 +54,20 @@ def write_report(
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     (out / "tables").mkdir(exist_ok=True)
-    sections, payload = [], {"meta": meta or {}, "results": []}
+    sections, toc, payload, arrays = [], [], {"meta": meta or {}, "results": []}, {}
     for chapter, res, figs in results:
-        parts = [f"<h2>{html.escape(chapter)} — {html.escape(res.title)}</h2>"]
+        anchor = headline.anchor(res.name)
+        toc.append(f"<li><a href='#{anchor}'>{html.escape(chapter)} — {html.escape(res.title)}</a></li>")
+        parts = [f"<h2 id='{anchor}'>{html.escape(chapter)} — {html.escape(res.title)}</h2>"]
         for t_i, table in enumerate(res.tables):
-            parts.append(_table_html(table))
+            parts.append(table_html(table))
             with open(out / "tables" / f"{res.name}.{t_i}.csv", "w", newline="") as fh:
                 w = csv.writer(fh)
-                w.writerow(["quantity", "thesis", "rhi", "difference", "unit", "note"])
+                w.writerow(["quantity", "thesis", "tolerance", "bound", "rhi", "difference", "within", "unit", "source",
+                            "note"])
                 for r in table.rows:
-                    w.writerow([r.quantity, r.thesis, r.ours, r.difference, r.unit, r.note])
+                    w.writerow([r.quantity, None if r.thesis is None else float(r.thesis), r.tol, r.bound, r.ours,
+                                r.difference, r.within, r.unit, r.source, r.note])
         for name, fig in figs.items():
             path = out / "figures" / f"{res.name}.{name}.png"
             fig = fig() if callable(fig) else fig  # drawn here, so one figure is open at a time
@@ -82,16 +76,36 @@ def write_report(
             parts.append(f"<img src='figures/{path.name}' alt='{html.escape(name)}'>")
         parts += [f"<p class='note'>{html.escape(n)}</p>" for n in res.notes]
         sections.append("\n".join(parts))
-        payload["results"].append({"chapter": chapter, **res.to_json()})
+        payload["results"].append({"chapter": chapter, **res.to_json(arrays=False)})
+        arrays.update({f"{res.name}/{k}": np.asarray(v) for k, v in res.arrays.items()})
+    done = [r for _, r, _ in results]
+    verdicts = headline.evaluate(CLAIMS, done)
+    problems, counts = audit(done), summary(done)
+    payload["headline"] = [{"where": v.claim.where, "claim": v.claim.claim, "thesis": v.thesis_text, "rhi": v.ours,
+                            "verdict": v.verdict, "reason": v.reason, "experiment": v.claim.experiments[0]}
+                           for v in verdicts]
+    payload["summary"], payload["problems"] = counts, problems
     meta_html = "".join(f"<li>{html.escape(str(k))}: {html.escape(str(v))}</li>" for k, v in (meta or {}).items())
+    n = headline.counts(verdicts)
+    verdict_line = "; ".join(f"{k}: {n[k]}" for k in (*headline.VERDICTS, headline.NOT_RUN) if n[k])
+    count_line = ", ".join(f"{k}: {v}" for k, v in counts.items())
     page = (
         f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
         f"<style>{STYLE}</style></head><body><h1>{html.escape(title)}</h1><ul>{meta_html}</ul>"
-        "<p class='note'>Green: within 5 % of the thesis; amber: further (the note says why).</p>"
+        f"<h2 id='headline'>Headline claims</h2><p class='note'>{html.escape(verdict_line)}. Reproduced: within the "
+        "thesis's rounding; in direction only: the sign or order holds, the size does not; cannot be reproduced: the "
+        "thesis's value rests on data it does not publish. Each claim links to its experiment.</p>"
+        + headline.to_html(verdicts)
+        + f"<h2>Contents</h2><nav><ol><li><a href='#headline'>Headline claims</a></li>{''.join(toc)}</ol></nav>"
+        f"<p class='note'>Rows: {html.escape(count_line)}. Green: within the thesis's rounding (the tolerance "
+        "column); amber: outside it, the note says why; red: an acceptance bound not met. Relative differences only "
+        "where they mean something (not on p-values, angles, counts or values near 0).</p>"
+        + (f"<p class='note'>Report problems: {html.escape('; '.join(problems))}</p>" if problems else "")
         + "\n".join(sections)
         + "</body></html>"
     )
     (out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=False))
+    np.savez_compressed(out / "results.npz", **arrays)
     path = out / "report.html"
     path.write_text(page)
     return path

@@ -40,7 +40,8 @@ from rhi.plots import ch6 as pl6
 from rhi.plots import ch7 as pl7
 from rhi.plots import ch7_palpation as pl7p
 from rhi.plots import perception as plp
-from rhi.report import write_report
+from rhi.report import headline, write_report
+from rhi.report.claims import CLAIMS
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,4 +197,7 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
     meta = {"mode": "quick" if quick else "full", "chapters": only or ", ".join(chapters()),
             "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version()}
     path = write_report(done, out, meta=meta)
-    return path, [r for _, r, _ in done]
+    results = [r for _, r, _ in done]
+    print("\nHeadline claims of the thesis (details in report.html):")
+    print(headline.to_text(headline.evaluate(CLAIMS, results)))
+    return path, results
