@@ -20,6 +20,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from rhi._validate import as_array, scalar
 from rhi.design.indices import device_indices, penalize, teleoperation_index
 from rhi.design.kinematics import Solution
 from rhi.design.workspace import Workspace
@@ -51,8 +52,10 @@ def check_bounds(bounds: Mapping[str, tuple[float, float]]) -> dict[str, tuple[f
         raise InvalidInput("bounds: no design parameter to optimise")
     out = {}
     for k, b in bounds.items():
+        if not isinstance(k, str):
+            raise InvalidInput(f"bounds: parameter names must be strings, got {k!r}")
         try:
-            lo, hi = (float(v) for v in b)
+            lo, hi = (scalar(f"bounds[{k!r}]", v, allow_inf=True) for v in b)
         except (TypeError, ValueError):
             raise InvalidInput(f"bounds[{k!r}]: expected (lower, upper), got {b!r}") from None
         if not (np.isfinite(lo) and np.isfinite(hi)):
@@ -96,6 +99,13 @@ class DesignProblem:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "bounds", check_bounds(self.bounds))
+        declared = getattr(self.master, "bounds", None)
+        if callable(declared):
+            known = set(declared()) | {"theta_z"}
+            for arg, keys in (("bounds", self.bounds), ("fixed", self.fixed)):
+                unknown = sorted(set(keys) - known)
+                if unknown:
+                    raise InvalidInput(f"{arg}: unknown design parameter(s) {unknown}; known: {sorted(known)}")
         for k, v in self.fixed.items():
             if k in LENGTHS and not v > 0:
                 raise InvalidInput(f"fixed[{k!r}]: a link length must be > 0, got {v}")
@@ -114,7 +124,7 @@ class DesignProblem:
 
     def params(self, x: Sequence[float]) -> dict[str, float]:
         """Full parameter mapping of design vector x."""
-        x = np.atleast_1d(np.asarray(x, dtype=float))
+        x = np.atleast_1d(as_array("x", x))
         if x.shape != (len(self.bounds),):
             raise InvalidInput(f"x: expected {len(self.bounds)} values ({', '.join(self.names)}), got shape {x.shape}")
         return {**self.fixed, **dict(zip(self.names, map(float, x)))}

@@ -20,6 +20,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
@@ -56,10 +60,40 @@ class SerialExecutor:
 PRELOAD = ["rhi.design", "rhi.control"]
 
 
+def _watch_parent(main_pid: int) -> None:
+    while True:
+        time.sleep(0.5)
+        try:
+            os.kill(main_pid, 0)
+        except ProcessLookupError:
+            os._exit(1)
+        except PermissionError:  # the pid now belongs to another user's process: ours is gone
+            os._exit(1)
+
+
+def _worker_init(main_pid: int) -> None:
+    """Make a pool worker die with the process that started the pool (no orphans after a kill).
+
+    On Linux the kernel sends SIGKILL when the worker's parent (the fork server, which exits
+    when the main process dies) goes; everywhere, a daemon thread exits once the main process is gone.
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() == 1:  # the parent is already gone
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(main_pid,), daemon=True, name="rhi-parent-watch").start()
+
+
 def _new_pool(workers: int) -> ProcessPoolExecutor:
     ctx = get_context("forkserver")
     ctx.set_forkserver_preload(PRELOAD)  # no effect once this process's fork server runs
-    return ProcessPoolExecutor(workers, mp_context=ctx)
+    return ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),))
 
 
 class PoolExecutor(SerialExecutor):

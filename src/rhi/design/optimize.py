@@ -14,10 +14,15 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from scipy.optimize import differential_evolution, minimize
 
+from rhi._validate import scalar
 from rhi.design.checkpoint import EvalCache
 from rhi.design.cost import DesignProblem, evaluate
 from rhi.design.executors import SerialExecutor
 from rhi.errors import InvalidInput, Unreachable
+
+# SciPy's differential-evolution strategies
+_STRATEGIES = ("best1bin", "best1exp", "rand1bin", "rand1exp", "rand2bin", "rand2exp", "randtobest1bin",
+               "randtobest1exp", "currenttobest1bin", "currenttobest1exp", "best2exp", "best2bin")
 
 Progress = Callable[[int, int], None]
 
@@ -159,8 +164,13 @@ def optimize(
     """
     if which not in ("C1", "C2"):
         raise InvalidInput(f"which: expected 'C1' or 'C2', got {which!r}")
-    if not isinstance(starts, (int, np.integer)) or starts < 1:
-        raise InvalidInput(f"starts: expected an integer >= 1, got {starts!r}")
+    for name, v, least in (("starts", starts, 1), ("popsize", popsize, 1), ("maxiter", maxiter, 1), ("seed", seed, 0)):
+        if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < least:
+            raise InvalidInput(f"{name}: expected an integer >= {least}, got {v!r}")
+    scalar("tol", tol, nonnegative=True)
+    scalar("separation", separation, positive=True)
+    if strategy not in _STRATEGIES:
+        raise InvalidInput(f"strategy: expected one of {', '.join(_STRATEGIES)}, got {strategy!r}")
     ex = executor or SerialExecutor()
     tag = _tag(problem, which)
     cache = EvalCache(checkpoint, tag)
