@@ -291,6 +291,9 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--duration", type=float, help="stop after this much device time [s]")
     d.set_defaults(func=_device_server)
     _add_run(sub)
+    from rhi.viz.cli import add_commands
+
+    add_commands(sub, _floats)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.func(args)

@@ -340,6 +340,8 @@ class Device:
         self.damping = self._nonneg("damping", damping, n)
         self.frictionloss = self._nonneg("frictionloss", frictionloss, n)
         self.params = dict(params or {})
+        #: (URDF XML, folders for its mesh paths) of the description, for drawing its visuals (rhi.viz); or None
+        self.visual_description: tuple[str, tuple[str, ...]] | None = None
         self.locked_joints: dict[str, float] = {}
 
     @staticmethod
@@ -671,6 +673,7 @@ class Device:
             frictionloss=self.frictionloss[free],
         )
         dev.locked_joints = {**self.locked_joints, **{self.joint_names[i]: v for i, v in idx.items()}}
+        dev.visual_description = self.visual_description
         return dev
 
     def __repr__(self) -> str:
@@ -823,7 +826,7 @@ def _build(folder: Path, spec: dict, params: Mapping[str, float]) -> Device:
         )
     q_min = conv(np.array(lim["q_min"], dtype=float)) if "q_min" in lim else None
     q_max = conv(np.array(lim["q_max"], dtype=float)) if "q_max" in lim else None
-    return Device(
+    dev = Device(
         model,
         name=spec.get("name", folder.name),
         ee_frame=spec["ee_frame"],
@@ -841,6 +844,8 @@ def _build(folder: Path, spec: dict, params: Mapping[str, float]) -> Device:
         damping=spec.get("plant", {}).get("damping"),
         frictionloss=spec.get("plant", {}).get("frictionloss"),
     )
+    dev.visual_description = (urdf.read_text(), (str(folder),))
+    return dev
 
 
 def _load_urdf(path: Path) -> pin.Model:

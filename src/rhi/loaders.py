@@ -76,7 +76,7 @@ def device_from_urdf(
         ModelError: malformed or physically inconsistent description (the link/joint and attribute are named).
         InvalidInput: a bad argument (named).
     """
-    text, _, stem = read_description(path, package_dirs)
+    text, near, stem = read_description(path, package_dirs)
     text, info = check_urdf(text)
     try:
         model = pin.buildModelFromXML(text)
@@ -90,8 +90,11 @@ def device_from_urdf(
     }
     for n in info.no_effort:
         own["effort"][n] = 0.0
-    return _finish(model, info, own, name or stem, ee_frame=ee_frame, task=task, ee_offset=ee_offset, lock=lock,
-                   armature=armature, torque_min=torque_min, torque_max=torque_max, friction=friction)
+    dev = _finish(model, info, own, name or stem, ee_frame=ee_frame, task=task, ee_offset=ee_offset, lock=lock,
+                  armature=armature, torque_min=torque_min, torque_max=torque_max, friction=friction)
+    dirs = ([str(near)] if near is not None else []) + [str(d) for d in package_dirs]
+    dev.visual_description = (text, tuple(dirs))
+    return dev
 
 
 def device_from_mjcf(

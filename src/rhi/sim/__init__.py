@@ -2,16 +2,17 @@
 virtual and physical environments, teleoperation, and the 1 kHz simulation loop."""
 
 from rhi.sim.environment import Fixture, Spring, Wall, compose, stop
-from rhi.sim.hand import Hand, Path, PushForce, check_path_in_workspace, w_path
+from rhi.sim.hand import DraggableHand, Hand, Path, PushForce, check_path_in_workspace, w_path
 from rhi.sim.log import Event, Log, LogWriter
 from rhi.sim.loop import Session, simulate
-from rhi.sim.mjcf import PlantFriction, build_mjcf
+from rhi.sim.mjcf import PlantFriction, build_mjcf, plant_spec
 from rhi.sim.plant import Plant, PlantUnstable, device_friction
 from rhi.sim.telemetry import Telemetry
 from rhi.sim.teleop import Teleoperation
 
 __all__ = [
     "Event",
+    "DraggableHand",
     "Fixture",
     "Hand",
     "Log",
@@ -30,6 +31,7 @@ __all__ = [
     "check_path_in_workspace",
     "compose",
     "device_friction",
+    "plant_spec",
     "simulate",
     "stop",
     "w_path",

@@ -159,3 +159,55 @@ def check_path_in_workspace(device, path: Path, *, q0=None, step: float = 0.005)
                               f"{device.name}") from None
         qs.append(q)
     return np.array(qs)
+
+
+class DraggableHand:
+    """A hand holding the handle and pulled towards a target that can be moved while the simulation runs
+    (the browser view's gizmo: the mouse as the hand).
+
+    F_h = K_h (x_t − x) − B_h ẋ, saturated at `max_force`; zero while no target is set. Setting the
+    target is one reference assignment (safe from another thread, never blocks the loop).
+
+    Args:
+        stiffness: K_h [N/m].
+        damping: B_h [N s/m].
+        max_force: saturation of |F_h| [N] (None: unbounded).
+    """
+
+    def __init__(self, *, stiffness: float = 300.0, damping: float = 10.0, max_force: float | None = 20.0) -> None:
+        for name, v in (("stiffness", stiffness), ("damping", damping)):
+            if not np.isfinite(v) or v < 0:
+                raise InvalidInput(f"{name}: must be finite and >= 0, got {v!r}")
+        if max_force is not None and not max_force > 0:
+            raise InvalidInput(f"max_force: must be > 0 [N] or None, got {max_force!r}")
+        self.stiffness, self.damping, self.max_force = float(stiffness), float(damping), max_force
+        self._target: np.ndarray | None = None
+
+    @property
+    def target(self) -> np.ndarray | None:
+        """(m,) the point the hand pulls the handle to [m], or None (the hand lets go)."""
+        return self._target
+
+    @target.setter
+    def target(self, x) -> None:
+        if x is None:
+            self._target = None
+            return
+        x = as_array("target", x, ndim_min=1)
+        if x.ndim != 1:
+            raise InvalidInput(f"target: expected a point (m,), got shape {x.shape}")
+        self._target = x.copy()
+
+    def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+        """F_h: (m,) [N] on the handle at x (m,) [m] moving at ẋ (m,) [m/s]."""
+        xt = self._target
+        if xt is None:
+            return np.zeros_like(x)
+        if xt.shape != np.shape(x):
+            raise InvalidInput(f"target: {xt.shape[0]} coordinates for a handle with {np.shape(x)[0]}")
+        F = self.stiffness * (xt - x) - self.damping * xdot
+        if self.max_force is not None:
+            nf = math.sqrt(float(F @ F))
+            if nf > self.max_force:
+                F *= self.max_force / nf
+        return F

@@ -1,4 +1,4 @@
-"""MJCF of a device's plant, generated from the same Pinocchio model the controller uses.
+"""MuJoCo model (`MjSpec`) of a device's plant, generated from the same Pinocchio model the controller uses.
 
 The kinematic tree is the device's serial chain in chain coordinates θ (one MuJoCo
 hinge/slide per Pinocchio joint, the inertias Pinocchio merged from fixed links). Each
@@ -14,19 +14,22 @@ coordinates is Aᵀ M_θ A + diag(armature), exactly the device's `mass_matrix` 
 armature term Rᵀ diag(a) R only between joints of one branch, which the path choice respects). Chain joints that the motors do not span (side-branch
 parallelograms, `A` with more rows than columns) are tied by tendon equalities
 G(θ − b) = 0 with G spanning the left null space of A. Linear joint limits become
-tendon ranges. A body "handle" with a site carries the 6-axis force/torque sensor.
+tendon ranges. A body "handle" with a site carries the 6-axis force/torque sensor. Visual geometry
+(massless, no contacts unless asked for) comes from `rhi.sim.geometry`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import xml.etree.ElementTree as ET
 
+import mujoco
 import numpy as np
 import pinocchio as pin
 
 from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError
+from rhi.sim.geometry import GeomAdder, add_scenery, add_handle, add_skeleton, add_urdf_visuals, joint_axis, link_radius, quat_wxyz, \
+    urdf_visuals
 
 _MIN_MASS = 1e-6  # [kg] MuJoCo needs mass on bodies with joints; used where Pinocchio has none
 _MIN_INERTIA = 1e-9  # [kg m²]
@@ -59,24 +62,6 @@ class PlantFriction:
         return PlantFriction(**out)
 
 
-def _fmt(v) -> str:
-    return " ".join(f"{float(x):.12g}" for x in np.atleast_1d(v))
-
-
-def _joint_axis(jm) -> tuple[str, np.ndarray]:
-    name = jm.shortname()
-    fixed = {"JointModelRX": ("hinge", 0), "JointModelRY": ("hinge", 1), "JointModelRZ": ("hinge", 2),
-             "JointModelPX": ("slide", 0), "JointModelPY": ("slide", 1), "JointModelPZ": ("slide", 2)}
-    if name in fixed:
-        kind, i = fixed[name]
-        return kind, np.eye(3)[i]
-    if name == "JointModelRevoluteUnaligned":
-        return "hinge", np.asarray(jm.extract().axis, dtype=float)
-    if name == "JointModelPrismaticUnaligned":
-        return "slide", np.asarray(jm.extract().axis, dtype=float)
-    raise ModelError(f"device: joint type {name} has no MuJoCo plant equivalent (revolute/prismatic only)")
-
-
 def left_null_space(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
     """Rows G spanning {g : gᵀ A = 0}: (nθ − rank A, nθ)."""
     U, s, _ = np.linalg.svd(A)
@@ -105,19 +90,21 @@ def motor_inverse(device: Device, A: np.ndarray, moving: np.ndarray) -> np.ndarr
     return np.linalg.pinv(A)
 
 
-def build_mjcf(device: Device, friction: PlantFriction | None = None, *, timestep: float = 5e-4,
-               handle_mass: float = 1e-3) -> str:
-    """MJCF text of the device's plant.
+def plant_spec(device: Device, friction: PlantFriction | None = None, *, timestep: float = 5e-4,
+               handle_mass: float = 1e-3, visual: bool = True, collision: bool = False) -> mujoco.MjSpec:
+    """The device's plant as a MuJoCo `MjSpec` (compile it with `spec.compile()`).
 
     Args:
         device: the device (its Pinocchio model, actuation map, limits, armature).
         friction: motor friction; None: frictionless.
         timestep: physics step [s].
         handle_mass: mass of the sensorised handle body [kg] (between the F/T sensor and the hand).
+        visual: add the device's visual geometry (`rhi.sim.geometry`); it has no mass and no contacts.
+        collision: let that geometry collide (off by default: the plant's dynamics are the joints').
 
     Returns:
-        The MJCF document. Names: tendons "motor{k}" (k = 0..n−1), actuators "motor{k}",
-        site "handle", sensors "ft_force" / "ft_torque" (handle frame, hand → device), "handle_pos" /
+        The spec. Names: tendons "motor{k}" (k = 0..n−1), actuators "motor{k}", body and site
+        "handle", sensors "ft_force" / "ft_torque" (handle frame, hand → device), "handle_pos" /
         "handle_vel" (world frame).
     """
     if not np.isfinite(timestep) or timestep <= 0:
@@ -130,85 +117,101 @@ def build_mjcf(device: Device, friction: PlantFriction | None = None, *, timeste
         raise ModelError(f"device: actuation map of {device.name} has rank < {n}; motors are not independent")
     Ap = motor_inverse(device, A, moving)  # (n, nθ): L = Ap θ
 
-    root = ET.Element("mujoco", model=device.name)
-    ET.SubElement(root, "compiler", angle="radian", autolimits="true")
-    g = model.gravity.linear
-    ET.SubElement(root, "option", timestep=f"{timestep:.9g}", integrator="implicitfast", gravity=_fmt(g))
-    ET.SubElement(root, "size", memory="2M")
-    world = ET.SubElement(root, "worldbody")
-    bodies = {0: world}
+    spec = mujoco.MjSpec()
+    spec.modelname = device.name
+    spec.compiler.degree = False
+    spec.compiler.autolimits = True
+    spec.option.timestep = float(timestep)
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.option.gravity = np.asarray(model.gravity.linear, dtype=float)
+    spec.memory = 2 << 20
+    bodies = {0: spec.worldbody}
     theta_names = []
     for j in range(1, model.njoints):
         jm = model.joints[j]
         if jm.nv != 1:
             raise ModelError(f"device: joint {model.names[j]} has {jm.nv} DoF; the plant supports 1-DoF joints")
-        kind, axis = _joint_axis(jm)
+        kind, axis = joint_axis(jm)
         M = model.jointPlacements[j]
         i = jm.idx_v
         if not moving[i]:  # locked: weld the body at θ_i = b_i
             motion = pin.SE3(pin.exp3(axis * device.b[i]), np.zeros(3)) if kind == "hinge" else \
                 pin.SE3(np.eye(3), axis * device.b[i])
             M = M * motion
-        quat = pin.Quaternion(M.rotation)
-        body = ET.SubElement(bodies[model.parents[j]], "body", name=f"b_{model.names[j]}",
-                             pos=_fmt(M.translation), quat=_fmt([quat.w, quat.x, quat.y, quat.z]))
+        body = bodies[model.parents[j]].add_body(name=f"b_{model.names[j]}", pos=M.translation,
+                                                 quat=quat_wxyz(M.rotation))
         Y = model.inertias[j]
-        mass = max(float(Y.mass), _MIN_MASS)
         Ic = np.asarray(Y.inertia) + _MIN_INERTIA * np.eye(3)
-        ET.SubElement(body, "inertial", pos=_fmt(Y.lever), mass=f"{mass:.12g}",
-                      fullinertia=_fmt([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]))
+        body.mass = max(float(Y.mass), _MIN_MASS)
+        body.ipos = np.asarray(Y.lever, dtype=float)
+        body.fullinertia = [Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]
+        body.explicitinertial = True
         bodies[j] = body
         if moving[i]:
-            ET.SubElement(body, "joint", name=model.names[j], type=kind, axis=_fmt(axis), limited="false")
+            body.add_joint(name=model.names[j], axis=axis, limited=mujoco.mjtLimited.mjLIMITED_FALSE,
+                           type=mujoco.mjtJoint.mjJNT_HINGE if kind == "hinge" else mujoco.mjtJoint.mjJNT_SLIDE)
             theta_names.append(model.names[j])
 
     # the sensorised handle, welded to the end-effector frame
     fr = model.frames[device._fid]
     pj = fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent
-    quat = pin.Quaternion(fr.placement.rotation)
-    handle = ET.SubElement(bodies[pj], "body", name="handle", pos=_fmt(fr.placement.translation),
-                           quat=_fmt([quat.w, quat.x, quat.y, quat.z]))
+    handle = bodies[pj].add_body(name="handle", pos=fr.placement.translation, quat=quat_wxyz(fr.placement.rotation))
     hm = float(handle_mass)
-    ET.SubElement(handle, "inertial", pos="0 0 0", mass=f"{hm:.9g}", diaginertia=_fmt([hm * 1e-4] * 3))
-    ET.SubElement(handle, "site", name="handle", pos="0 0 0", size="0.005")
+    handle.mass, handle.ipos, handle.inertia = hm, [0, 0, 0], [hm * 1e-4] * 3
+    handle.explicitinertial = True
+    handle.add_site(name="handle", pos=[0, 0, 0], size=[0.005, 0, 0])
+    if visual:
+        add = GeomAdder(spec, collision=collision)
+        add_scenery(spec)
+        shapes = urdf_visuals(device)
+        if shapes is None:
+            add_skeleton(add, device, bodies)
+        else:
+            add_urdf_visuals(add, shapes, bodies)
+        add_handle(add, handle, link_radius(device))
 
-    tendons = ET.SubElement(root, "tendon")
-
-    def fixed(name: str, coef: np.ndarray, **attrs) -> None:
-        t = ET.SubElement(tendons, "fixed", name=name, **attrs)
+    def fixed(name: str, coef: np.ndarray):
+        t = spec.add_tendon(name=name)
         for c, jn in zip(coef, theta_names):
             if abs(c) > 1e-14:
-                ET.SubElement(t, "joint", joint=jn, coef=f"{c:.15g}")
+                t.wrap_joint(jn, float(c))
+        return t
 
     const = Ap @ b  # L = q + Ap b
     for k in range(n):
-        attrs = {"armature": f"{device.armature[k]:.12g}", "damping": f"{friction.damping[k]:.12g}",
-                 "frictionloss": f"{friction.frictionloss[k]:.12g}"}
+        t = fixed(f"motor{k}", Ap[k])
+        t.armature, t.damping = float(device.armature[k]), [float(friction.damping[k]), 0.0, 0.0]
+        t.frictionloss = float(friction.frictionloss[k])
         lo, hi = device.q_min[k], device.q_max[k]
         if np.isfinite(lo) and np.isfinite(hi):
-            attrs.update(limited="true", range=_fmt([lo + const[k], hi + const[k]]))
-        fixed(f"motor{k}", Ap[k], **attrs)
+            t.limited, t.range = mujoco.mjtLimited.mjLIMITED_TRUE, [lo + const[k], hi + const[k]]
     if device.linear_limits is not None:
         L = device.linear_limits
         for i, (c, lo, hi) in enumerate(zip(L.C, L.lower, L.upper)):
             off = c @ const
-            fixed(f"linear{i}", c @ Ap, limited="true", range=_fmt([lo + off, hi + off]))
-    G = left_null_space(A)
-    equality = ET.SubElement(root, "equality") if len(G) else None
-    for i, gi in enumerate(G):
+            t = fixed(f"linear{i}", c @ Ap)
+            t.limited, t.range = mujoco.mjtLimited.mjLIMITED_TRUE, [lo + off, hi + off]
+    for i, gi in enumerate(left_null_space(A)):
         fixed(f"closure{i}", gi)
-        ET.SubElement(equality, "tendon", tendon1=f"closure{i}", polycoef=_fmt([gi @ b, 0, 0, 0, 0]),
-                      solref="0.002 1")
+        eq = spec.add_equality(type=mujoco.mjtEq.mjEQ_TENDON, name1=f"closure{i}", objtype=mujoco.mjtObj.mjOBJ_TENDON)
+        data = np.array(eq.data)
+        data[:5] = [gi @ b, 0, 0, 0, 0]  # polycoef
+        eq.data = data
+        eq.solref = [0.002, 1.0]
 
-    act = ET.SubElement(root, "actuator")
     for k in range(n):
+        a = spec.add_actuator(name=f"motor{k}", target=f"motor{k}", trntype=mujoco.mjtTrn.mjTRN_TENDON)
+        a.set_to_motor()
         lim = [device.torque_min[k], device.torque_max[k]]
-        rng = {"ctrllimited": "true", "ctrlrange": _fmt(lim)} if np.all(np.isfinite(lim)) else {}
-        ET.SubElement(act, "motor", name=f"motor{k}", tendon=f"motor{k}", **rng)
-    sensors = ET.SubElement(root, "sensor")
-    ET.SubElement(sensors, "force", name="ft_force", site="handle")
-    ET.SubElement(sensors, "torque", name="ft_torque", site="handle")
-    ET.SubElement(sensors, "framepos", name="handle_pos", objtype="site", objname="handle")
-    ET.SubElement(sensors, "framelinvel", name="handle_vel", objtype="site", objname="handle")
-    ET.indent(root)
-    return ET.tostring(root, encoding="unicode")
+        if np.all(np.isfinite(lim)):
+            a.ctrllimited, a.ctrlrange = mujoco.mjtLimited.mjLIMITED_TRUE, lim
+    S, O = mujoco.mjtSensor, mujoco.mjtObj
+    for name, kind in (("ft_force", S.mjSENS_FORCE), ("ft_torque", S.mjSENS_TORQUE),
+                       ("handle_pos", S.mjSENS_FRAMEPOS), ("handle_vel", S.mjSENS_FRAMELINVEL)):
+        spec.add_sensor(name=name, type=kind, objtype=O.mjOBJ_SITE, objname="handle")
+    return spec
+
+
+def build_mjcf(device: Device, friction: PlantFriction | None = None, **kw) -> str:
+    """MJCF text of the device's plant (`plant_spec(...).to_xml()`, e.g. to open it in MuJoCo's viewer)."""
+    return plant_spec(device, friction, **kw).to_xml()

@@ -1,7 +1,7 @@
 """MuJoCo plant of the wheeled mobile manipulator and its simulation loop (thesis App. A and B).
 
 **Plant.** The ``wmm`` chain (slide x, slide y, yaw hinge, then the Gen3 arm) is written as
-MJCF from the same Pinocchio model the controllers use. The base is *velocity
+an `MjSpec` (`rhi.sim.mobile_spec`) from the same Pinocchio model the controllers use. The base is *velocity
 commanded* through stiff velocity servos on its three planar joints and is *less
 accurate than the arm*: the commanded wheel speeds v_b produce the body twist
 J_V v_b (eq. A.21 / B.21), of which the ground transmits only
@@ -29,23 +29,17 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import xml.etree.ElementTree as ET
 from collections.abc import Callable
 
 import mujoco
 import numpy as np
-import pinocchio as pin
 
 from rhi._validate import as_array
 from rhi.device import Device
 from rhi.device import device as load_device
 from rhi.errors import InvalidInput, ModelError
-from rhi.mobile_base import BASE_JOINTS, body_map, wheel_geometry
-
-#: Reflected rotor inertia of each Gen3 joint in the plant [kg m²] (ESTIMATE: harmonic-drive
-#: actuators; the value only sets how hard the servos work, not the kinematics).
-ARM_ARMATURE = 0.1
-
+from rhi.mobile_base import body_map, wheel_geometry
+from rhi.sim.mobile_spec import wmm_spec
 
 # ================================================================== trajectories
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -158,96 +152,6 @@ class SlipModel:
 
 
 # ======================================================================== plant
-def _fmt(v) -> str:
-    return " ".join(f"{float(x):.12g}" for x in np.atleast_1d(v))
-
-
-_AXIS = {"JointModelRX": ("hinge", 0), "JointModelRY": ("hinge", 1), "JointModelRZ": ("hinge", 2),
-         "JointModelPX": ("slide", 0), "JointModelPY": ("slide", 1), "JointModelPZ": ("slide", 2)}
-
-
-def build_wmm_mjcf(device: Device, *, timestep: float = 1e-3, arm_kp: float = 4000.0, arm_kv: float = 150.0,
-                   base_kv: float = 5000.0, armature: float = ARM_ARMATURE) -> str:
-    """MJCF text of the mobile manipulator plant.
-
-    Bodies, joint placements and inertias are the device's Pinocchio model (inertias of
-    fixed links merged by Pinocchio); massless slider links get 1 g so that MuJoCo accepts
-    them. The arm bodies are gravity compensated (the Gen3's own controller does it) and
-    every arm joint has a position servo (kp) and a velocity servo (kv) whose torques are
-    limited to the device's torque limits (32/13 N m); the base joints have velocity servos.
-
-    Args:
-        device: a device whose first three coordinates are [x_b, y_b, θ_b] (``wmm``).
-        timestep: physics step [s].
-        arm_kp: arm position gain [N m/rad].
-        arm_kv: arm velocity gain [N m s/rad].
-        base_kv: base velocity gain [N s/m, N m s/rad].
-        armature: reflected rotor inertia of each arm joint [kg m²].
-
-    Returns:
-        The MJCF document; joints are named as the device's, the end-effector site "ee",
-        actuators "pos_<joint>", "vel_<joint>" (arm) and "vel_<base joint>".
-    """
-    if tuple(device.joint_names[:3]) != BASE_JOINTS:
-        raise InvalidInput(f"device: expected coordinates starting with {list(BASE_JOINTS)}, got {device.joint_names}")
-    for name, v in (("timestep", timestep), ("arm_kp", arm_kp), ("arm_kv", arm_kv), ("base_kv", base_kv)):
-        if not math.isfinite(v) or v <= 0:
-            raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
-    model = device.model
-    if model.nq != device.n or not np.allclose(device.A, np.eye(device.n)):
-        raise ModelError(f"device: {device.name} must be driven in chain coordinates (A = I)")
-    root = ET.Element("mujoco", model=f"{device.name}_plant")
-    ET.SubElement(root, "compiler", angle="radian", autolimits="true")
-    ET.SubElement(root, "option", timestep=f"{timestep:.9g}", integrator="implicitfast",
-                  gravity=_fmt(model.gravity.linear))
-    world = ET.SubElement(root, "worldbody")
-    bodies = {0: world}
-    names = device.joint_names
-    for j in range(1, model.njoints):
-        jm = model.joints[j]
-        kind_axis = _AXIS.get(jm.shortname())
-        if kind_axis is None:
-            raise ModelError(f"device: joint type {jm.shortname()} is not supported by the mobile plant")
-        kind, ax = kind_axis
-        M = model.jointPlacements[j]
-        quat = pin.Quaternion(M.rotation)
-        arm = jm.idx_v >= 3
-        attrs = {"name": f"b_{names[jm.idx_v]}", "pos": _fmt(M.translation),
-                 "quat": _fmt([quat.w, quat.x, quat.y, quat.z])}
-        if arm:
-            attrs["gravcomp"] = "1"
-        body = ET.SubElement(bodies[model.parents[j]], "body", **attrs)
-        Y = model.inertias[j]
-        mass = max(float(Y.mass), 1e-3)
-        Ic = np.asarray(Y.inertia) + 1e-7 * np.eye(3)
-        ET.SubElement(body, "inertial", pos=_fmt(Y.lever), mass=f"{mass:.12g}",
-                      fullinertia=_fmt([Ic[0, 0], Ic[1, 1], Ic[2, 2], Ic[0, 1], Ic[0, 2], Ic[1, 2]]))
-        jattrs = {"name": names[jm.idx_v], "type": kind, "axis": _fmt(np.eye(3)[ax])}
-        lo, hi = device.q_min[jm.idx_v], device.q_max[jm.idx_v]
-        if np.isfinite(lo) and np.isfinite(hi):
-            jattrs.update(limited="true", range=_fmt([lo, hi]))
-        else:
-            jattrs["limited"] = "false"
-        if arm:
-            jattrs["armature"] = f"{armature:.9g}"
-        ET.SubElement(body, "joint", **jattrs)
-        bodies[j] = body
-    fr = model.frames[model.getFrameId(device.ee_frame)]
-    quat = pin.Quaternion(fr.placement.rotation)
-    ET.SubElement(bodies[fr.parentJoint], "site", name="ee", pos=_fmt(fr.placement.translation),
-                  quat=_fmt([quat.w, quat.x, quat.y, quat.z]), size="0.01")
-    act = ET.SubElement(root, "actuator")
-    for i, name in enumerate(names):
-        if i < 3:
-            ET.SubElement(act, "velocity", name=f"vel_{name}", joint=name, kv=f"{base_kv:.9g}")
-            continue
-        lim = _fmt([device.torque_min[i], device.torque_max[i]])
-        ET.SubElement(act, "position", name=f"pos_{name}", joint=name, kp=f"{arm_kp:.9g}", forcerange=lim)
-        ET.SubElement(act, "velocity", name=f"vel_{name}", joint=name, kv=f"{arm_kv:.9g}", forcerange=lim)
-    ET.indent(root)
-    return ET.tostring(root, encoding="unicode")
-
-
 class MobilePlant:
     """The wmm in MuJoCo: a slipping velocity-commanded base carrying a servoed arm.
 
@@ -256,22 +160,23 @@ class MobilePlant:
         slip: ground model of the base (`SlipModel`); `SlipModel.none()` for a perfect base.
         timestep: physics step [s].
         geometry: Mecanum geometry {wheel_radius, half_length, half_width} [m]; None: the device's.
-        **gains: `build_wmm_mjcf` servo gains (arm_kp, arm_kv, base_kv, armature).
+        visual: give the model visual geometry (arm, Mecanum chassis and wheels, floor).
+        **gains: `wmm_spec` servo gains (arm_kp, arm_kv, base_kv, armature).
 
     Attributes:
-        model, data: the MuJoCo model and data (ground truth; controllers never read them).
+        spec, model, data: the MuJoCo spec, model and data (ground truth; controllers never read them).
     """
 
     def __init__(self, device: Device | None = None, *, slip: SlipModel | None = None, timestep: float = 1e-3,
-                 geometry: dict | None = None, **gains: float) -> None:
+                 geometry: dict | None = None, visual: bool = True, **gains: float) -> None:
         self.device = device or load_device("wmm")
         self.slip = slip if slip is not None else SlipModel()
         self.geometry = dict(geometry or wheel_geometry(self.device.name))
         self.JV = body_map(**self.geometry)
         self.JV_pinv = np.linalg.pinv(self.JV)
-        self.xml = build_wmm_mjcf(self.device, timestep=timestep, **gains)
+        self.spec = wmm_spec(self.device, timestep=timestep, geometry=self.geometry, visual=visual, **gains)
         try:
-            self.model = mujoco.MjModel.from_xml_string(self.xml)
+            self.model = self.spec.compile()
         except ValueError as exc:
             raise ModelError(f"device: MuJoCo rejected the plant of {self.device.name}: {exc}") from None
         self.data = mujoco.MjData(self.model)

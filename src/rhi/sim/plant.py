@@ -15,7 +15,7 @@ import numpy as np
 from rhi._validate import as_array, scalar
 from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError
-from rhi.sim.mjcf import PlantFriction, build_mjcf
+from rhi.sim.mjcf import PlantFriction, plant_spec
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -52,14 +52,17 @@ class Plant:
         friction: motor friction; "device" (default): the device's `[plant]` values; None: frictionless.
         timestep: physics step [s] (the control period is a multiple of it).
         handle_mass: mass of the handle between the F/T sensor and the hand [kg].
+        visual: give the model the device's visual geometry (massless; for `rhi.viz` and MuJoCo's viewer).
+        collision: let that geometry collide.
 
     Attributes:
-        model, data: the MuJoCo model and data (ground truth; controllers must not read them).
+        spec, model, data: the MuJoCo spec, model and data (ground truth; controllers must not read them).
         n: number of motors; m: task dimension.
     """
 
     def __init__(self, device: Device, *, friction: PlantFriction | str | None = "device",
-                 timestep: float = 5e-4, handle_mass: float = 1e-3) -> None:
+                 timestep: float = 5e-4, handle_mass: float = 1e-3, visual: bool = True,
+                 collision: bool = False) -> None:
         if not isinstance(timestep, (int, float)) or not 0 < timestep <= MAX_TIMESTEP:
             raise InvalidInput(f"timestep: must be in (0, {MAX_TIMESTEP}] s, got {timestep!r}")
         if not isinstance(device, Device):
@@ -73,9 +76,10 @@ class Plant:
             friction = device_friction(device)
         self.device = device
         self.friction = (friction or PlantFriction.zero(device.n)).check(device.n)
-        self.xml = build_mjcf(device, self.friction, timestep=timestep, handle_mass=handle_mass)
+        self.spec = plant_spec(device, self.friction, timestep=timestep, handle_mass=handle_mass, visual=visual,
+                               collision=collision)
         try:
-            self.model = mujoco.MjModel.from_xml_string(self.xml)
+            self.model = self.spec.compile()
         except ValueError as exc:
             raise ModelError(f"device: MuJoCo rejected the plant of {device.name}: {exc}") from None
         self.data = mujoco.MjData(self.model)

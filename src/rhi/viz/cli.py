@@ -1,0 +1,88 @@
+"""The `rhi render` and `rhi view` commands (registered by `rhi.cli`)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+
+def _pick_gl() -> None:
+    """Offscreen rendering without a display: MuJoCo's EGL backend unless the user chose one (MUJOCO_GL)."""
+    if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY") and "mujoco" not in sys.modules:
+        os.environ["MUJOCO_GL"] = "egl"
+
+
+def _render(args: argparse.Namespace) -> int:
+    _pick_gl()
+    from rhi.device import device
+    from rhi.viz.posed import rest_configuration
+    from rhi.viz.render import render, save_png
+
+    dev = device(args.device)
+    q = args.q if args.q is not None else rest_configuration(dev)
+    img = render(dev, q, width=args.width, height=args.height, azimuth=args.azimuth, elevation=args.elevation)
+    print(save_png(img, args.out))
+    return 0
+
+
+def _view(args: argparse.Namespace) -> int:
+    from rhi.device import device
+    from rhi.errors import InvalidInput
+    from rhi.viz.view import View
+
+    dev = device(args.device)
+    if args.log is not None:
+        from rhi.sim.log import Log
+
+        log = Log.load(args.log)
+        if log.q.shape[1:] != (dev.n,):
+            raise InvalidInput(f"device: the log has {log.q.shape[1]} motors, {dev.name} has {dev.n} (use --device)")
+        view = View(dev, log, host=args.host, port=args.port)
+        view.player.play()
+        print(f"rhi view: replaying {args.log} ({log.t[-1] - log.t[0]:.2f} s) at {view.url}", flush=True)
+        return _serve(view)
+    from rhi.viz.live import live
+
+    def hello(view) -> None:
+        print(f"rhi view: {dev.name} simulated live at 1 kHz at {view.url} (drag the gizmo to push the handle "
+              "into the wall; Ctrl-C to stop)", flush=True)
+
+    res = live(dev, duration=args.duration, host=args.host, port=args.port, on_start=hello)
+    s = res.summary
+    print(f"rhi view: {s['ticks']} ticks, missed deadlines {s['missed']} ({s['missed_pct']:.3f} %)")
+    return 0
+
+
+def _serve(view) -> int:
+    view.start()
+    try:
+        while True:
+            time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        view.close()
+    return 0
+
+
+def add_commands(sub, floats) -> None:
+    """Add `render` and `view` to the `rhi` argument parser's subcommands."""
+    r = sub.add_parser("render", help="render a device with MuJoCo's offscreen renderer to a PNG (MUJOCO_GL)")
+    r.add_argument("device")
+    r.add_argument("--q", type=floats, help="configuration [rad] (default: mid-range)")
+    r.add_argument("-o", "--out", default="device.png", help="output PNG (default: device.png)")
+    r.add_argument("--width", type=int, default=800)
+    r.add_argument("--height", type=int, default=600)
+    r.add_argument("--azimuth", type=float, help="camera azimuth [deg]")
+    r.add_argument("--elevation", type=float, help="camera elevation [deg]")
+    r.set_defaults(func=_render)
+    v = sub.add_parser("view", help="the device live in the browser (viser): replay a log, or simulate it with the "
+                                    "mouse as the hand")
+    v.add_argument("log", nargs="?", help="a saved log (.rhilog or .csv) to replay; none: a live simulation")
+    v.add_argument("--device", default="rhi4", help="the device (default: rhi4)")
+    v.add_argument("--host", default="127.0.0.1")
+    v.add_argument("--port", type=int, default=8080)
+    v.add_argument("--duration", type=float, default=3600.0, help="live simulation length [s]")
+    v.set_defaults(func=_view)

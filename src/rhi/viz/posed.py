@@ -1,0 +1,72 @@
+"""`Posed`: a device's MuJoCo model (with its visual geometry) placed at a configuration, for drawing.
+
+Serial and parallel devices use the plant of `rhi.sim.Plant` (chain coordinates θ = A q + b);
+a mobile manipulator (coordinates starting with the base pose x_b, y_b, θ_b) uses
+`rhi.sim.mobile.MobilePlant`. Only the kinematics are evaluated (`mj_kinematics`), never the
+dynamics.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from rhi._validate import as_array
+from rhi.device import Device
+from rhi.errors import InvalidInput
+from rhi.mobile_base import BASE_JOINTS
+
+
+def rest_configuration(device: Device) -> np.ndarray:
+    """Mid-range motor coordinates (0 for unbounded ones): (n,) [rad or m]."""
+    lo, hi = device.joint_limits
+    ok = np.isfinite(lo) & np.isfinite(hi)
+    return np.where(ok, 0.5 * (np.where(ok, lo, 0.0) + np.where(ok, hi, 0.0)), 0.0)
+
+
+class Posed:
+    """A device's drawable MuJoCo model.
+
+    Args:
+        device: the device to draw.
+        collision: give the geometry contacts (drawn the same).
+
+    Attributes:
+        model, data: MuJoCo model and data (the data holds the pose of the last `set`).
+        device: the device.
+    """
+
+    def __init__(self, device: Device, *, collision: bool = False) -> None:
+        self.device = device
+        if tuple(device.joint_names[:3]) == BASE_JOINTS:
+            from rhi.sim.mobile import MobilePlant
+
+            plant = MobilePlant(device)
+            self._qadr = np.array([plant.model.joint(nm).qposadr[0] for nm in device.joint_names])
+            self._A = self._b = None
+        else:
+            from rhi.sim.plant import Plant
+
+            plant = Plant(device, friction=None, collision=collision)
+            moving = np.any(device.A != 0, axis=1)
+            self._A, self._b = device.A[moving], device.b[moving]
+        self.model, self.data = plant.model, plant.data
+        self.handle = self.model.body("handle").id
+
+    def set(self, q) -> None:
+        """Place the device at motor coordinates q: (n,) [rad or m] (kinematics only)."""
+        q = as_array("q", q, shape_tail=(self.device.n,))
+        if q.ndim != 1:
+            raise InvalidInput(f"q: expected shape ({self.device.n},), got {q.shape}")
+        if self._A is not None:
+            self.data.qpos[:] = self._A @ q + self._b
+        else:
+            self.data.qpos[self._qadr] = q
+        mujoco.mj_kinematics(self.model, self.data)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned box of the drawn geometry at the current pose (floor planes left out): (3,), (3,) [m]."""
+        m, d = self.model, self.data
+        keep = m.geom_type != mujoco.mjtGeom.mjGEOM_PLANE
+        c, r = d.geom_xpos[keep], m.geom_rbound[keep][:, None]
+        return (c - r).min(axis=0), (c + r).max(axis=0)

@@ -1,0 +1,225 @@
+"""`View`: the device live in the browser (viser), from a running loop or a replayed log.
+
+The view polls a *source* — anything with ``latest()`` returning the newest snapshot
+(`rhi.runtime.Telemetry`, which `rhi.sim.simulate` and `rhi.runtime.run` publish into
+without blocking, or a `LogPlayer`) — from its own thread at `fps` frames per second and
+sends the browser only the body poses, overlays and panels. The control loop never waits
+on it: publishing is one reference assignment, and the view copies what it reads.
+
+With a `DraggableHand` the view adds a gizmo at the handle: dragging it in the browser
+moves the hand's target, so the mouse is the simulated user's hand (planar devices: the
+gizmo moves in the task plane).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from rhi.device import Device
+from rhi.errors import InvalidInput
+from rhi.sim.hand import DraggableHand
+from rhi.sim.log import Log
+from rhi.viz.overlays import Overlays, handle_measures
+from rhi.viz.panels import legend, state_panel, torque_panel
+from rhi.viz.posed import Posed, rest_configuration
+from rhi.viz.replay import LogPlayer
+from rhi.viz.scene import DeviceScene
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class View:
+    """A browser view of a device.
+
+    Args:
+        device: the device drawn (the controller's model).
+        source: where snapshots come from: an object with ``latest()`` (e.g. `rhi.runtime.Telemetry`),
+            a `Log` (replayed with a timeline slider and play/pause), or None (the device at rest at `q0`).
+        hand: a `DraggableHand` moved by a gizmo in the browser (the mouse as the hand), or None.
+        virtual: the rendered environment to draw (wall, spring, fixture), or None.
+        fme: a desired-FME schedule whose M_des(Ω) is drawn, or None.
+        q0: (n,) configuration shown before the first snapshot [rad] (default: mid-range).
+        host, port: where the server listens (port 0: a free port).
+        fps: browser updates per second (the thread's rate).
+        lp_every: solve the force-capability LP every this many frames (it costs milliseconds).
+
+    Attributes:
+        server: the `viser.ViserServer`.
+        frames: updates sent so far.
+        cpu: CPU time the update thread spent drawing them [s] (so cpu / frames is the cost of a frame).
+        player: the `LogPlayer` when replaying a log.
+    """
+
+    def __init__(self, device: Device, source=None, *, hand: DraggableHand | None = None, virtual=None, fme=None,
+                 q0=None, host: str = "127.0.0.1", port: int = 8080, fps: float = 45.0, lp_every: int = 10) -> None:
+        import viser
+
+        if not np.isfinite(fps) or not 1 <= fps <= 240:
+            raise InvalidInput(f"fps: expected 1..240 frames per second, got {fps!r}")
+        if hand is not None and not isinstance(hand, DraggableHand):
+            raise InvalidInput(f"hand: expected a rhi.sim.DraggableHand, got {type(hand).__name__}")
+        self.device, self.hand, self.fps, self.lp_every = device, hand, float(fps), max(1, int(lp_every))
+        self.player = LogPlayer(source) if isinstance(source, Log) else None
+        self.source = self.player or source
+        if self.source is not None and not callable(getattr(self.source, "latest", None)):
+            raise InvalidInput(f"source: expected a Log or an object with latest(), got {type(source).__name__}")
+        self.q0 = rest_configuration(device) if q0 is None else np.asarray(q0, dtype=float)
+        self.rows = [_AXES[a] for a in device.task_axes]
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server.gui.configure_theme(control_width="medium", show_logo=False)
+        self.posed = Posed(device)
+        self.posed.set(self.q0)
+        self.scene = DeviceScene(self.server, self.posed)
+        blo, bhi = self.posed.bounds()
+        self.size = float(np.max(bhi - blo))
+        self.overlays = Overlays(self.server, device, self.size, virtual=virtual, fme=fme)
+        self._camera(blo, bhi)
+        self._build_gui()
+        self.frames = 0
+        self.cpu = 0.0
+        self._last_t = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._draw(self._rest_snapshot(), force=True)
+
+    # ----------------------------------------------------------------- set-up
+    @property
+    def port(self) -> int:
+        return int(self.server.get_port())
+
+    @property
+    def url(self) -> str:
+        return f"http://127.0.0.1:{self.port}"
+
+    def _camera(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        c = 0.5 * (lo + hi)
+        d = 1.5 * self.size
+        planar = set(self.device.task_axes) <= {"x", "y"}
+        back = np.array([0.35, -0.6, 1.0]) if planar else np.array([1.0, -0.9, 0.6])
+        right = np.cross(-back, [0.0, 0.0, 1.0])
+        shift = 0.25 * self.size * right / np.linalg.norm(right)  # the panel covers the right of the page
+        self.server.initial_camera.position = tuple(c + back * d + shift)
+        self.server.initial_camera.look_at = tuple(c + shift)
+        self.server.initial_camera.up = (0.0, 0.0, 1.0)
+
+    def _build_gui(self) -> None:
+        gui = self.server.gui
+        gui.add_markdown(f"**rhi** · `{self.device.name}` (n = {self.device.n}, task {self.device.task_axes})")
+        if self.player is not None:
+            p = self.player
+            step = max((p.t1 - p.t0) / 1000.0, 1e-4)
+            self.timeline = gui.add_slider("time [s]", min=p.t0, max=p.t1, step=step, initial_value=p.t0)
+            self.play_button = gui.add_button("play / pause")
+
+            @self.timeline.on_update
+            def _(event) -> None:
+                if event.client is not None:  # the user moved it (the view moves it while playing)
+                    p.seek(float(self.timeline.value))
+
+            @self.play_button.on_click
+            def _(event) -> None:
+                p.pause() if p.playing else p.play()
+        self.state_html = gui.add_html(state_panel(self._rest_snapshot()))
+        self.torque_html = gui.add_html("")
+        self.legend_html = gui.add_html(legend(None, None))
+        self.gizmo = None
+        if self.hand is not None:
+            axes = tuple(a in self.device.task_axes for a in "xyz")
+            self.gizmo = self.server.scene.add_transform_controls(
+                "/hand", scale=0.35 * self.size, active_axes=axes, disable_rotations=True,
+                position=tuple(self.scene.handle_position()))
+            self.release = gui.add_button("let go of the handle")
+
+            @self.gizmo.on_update
+            def _(event) -> None:
+                self.hand.target = np.asarray(self.gizmo.position, dtype=float)[self.rows]
+
+            @self.release.on_click
+            def _(event) -> None:
+                self.hand.target = None
+
+    def _rest_snapshot(self):
+        import types
+
+        z = np.zeros(self.device.m)
+        return types.SimpleNamespace(t=0.0, q=self.q0, tau=np.zeros(self.device.n), F_hand=z, F_env=z, V=np.nan,
+                                     omega=np.nan, alpha=np.nan, beta=np.nan, safety="ok", fault=None)
+
+    # ----------------------------------------------------------------- frames
+    def _draw(self, snap, *, force: bool = False) -> None:
+        q = np.asarray(snap.q, dtype=float)
+        if not np.all(np.isfinite(q)):
+            return
+        self.posed.set(q)
+        handle = self.scene.handle_position()
+        F = np.asarray(getattr(snap, "F_hand", np.zeros(self.device.m)), dtype=float)
+        Fe = np.asarray(getattr(snap, "F_env", np.zeros(self.device.m)), dtype=float)
+        u = F if np.linalg.norm(F) > 0.05 else Fe if np.linalg.norm(Fe) > 0.05 else np.eye(self.device.m)[0]
+        lp = force or self.frames % self.lp_every == 0
+        try:
+            meas = handle_measures(self.device, q, u, lp=lp)
+        except Exception:  # noqa: BLE001 - a singular or degenerate pose must not stop the view
+            meas = None
+        if meas is not None:
+            if not lp and getattr(self, "_meas", None) is not None:
+                meas.f_lp = self._meas.f_lp
+            self._meas = meas
+        with self.server.atomic():  # one batch of messages per frame
+            self.scene.update(q)
+            if meas is not None:
+                self.overlays.update(handle, snap, meas)
+            lo, hi = self.device.torque_limits
+            self.torque_html.content = torque_panel(snap.tau, lo, hi, self.device.joint_names)
+            self.state_html.content = state_panel(snap)
+            if self.frames == 0:
+                self.legend_html.content = legend(self.overlays.force_scale, self.overlays.velocity_scale)
+            if self.gizmo is not None and self.hand.target is None:
+                self.gizmo.position = tuple(handle)
+            if self.player is not None:
+                self.timeline.value = float(snap.t)
+        self.frames += 1
+
+    def step(self) -> bool:
+        """Draw the newest snapshot if there is a new one; returns whether it drew."""
+        snap = self.source.latest() if self.source is not None else None
+        if snap is None or (self._last_t is not None and snap.t == self._last_t):
+            return False
+        self._last_t = snap.t
+        self._draw(snap)
+        return True
+
+    def _run(self) -> None:
+        period = 1.0 / self.fps
+        nxt = time.monotonic()
+        while not self._stop.is_set():
+            c0 = time.thread_time()
+            if self.step():
+                self.cpu += time.thread_time() - c0
+            nxt += period
+            delay = nxt - time.monotonic()
+            if delay < -period:
+                nxt = time.monotonic()
+            self._stop.wait(max(delay, 0.0))
+
+    def start(self) -> View:
+        """Start updating the browser from the source in a background thread (daemon)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="rhi-view", daemon=True)
+            self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop the update thread and the server."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self.server.stop()
+
+    def __enter__(self) -> View:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,185 @@
+"""Visual geometry of the MuJoCo models (MjSpec), user URDF meshes, `rhi render` and its pixels."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+import rhi
+from rhi.errors import InvalidInput
+from rhi.sim import Plant
+from rhi.sim.mobile import MobilePlant
+from rhi.viz.posed import Posed, rest_configuration
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+
+
+@pytest.mark.parametrize("name", [n for n in rhi.available_devices() if n != "wmm"])
+def test_visual_geometry_is_massless_and_changes_no_dynamics(name):
+    dev = rhi.device(name)
+    bare, vis = Plant(dev, visual=False), Plant(dev)
+    assert bare.model.ngeom == 0 and vis.model.ngeom >= 2 * dev.n
+    assert np.all(vis.model.geom_contype == 0) and np.all(vis.model.geom_conaffinity == 0)
+    for f in ("body_mass", "body_inertia", "body_ipos", "tendon_armature", "tendon_damping", "tendon_frictionloss",
+              "tendon_range", "actuator_ctrlrange", "eq_data"):
+        np.testing.assert_array_equal(getattr(vis.model, f), getattr(bare.model, f), err_msg=f)
+    q0 = rest_configuration(dev)
+    rng = np.random.default_rng(3)
+    taus = rng.uniform(0.2 * dev.torque_min, 0.2 * dev.torque_max, size=(200, dev.n))
+    out = []
+    for p in (bare, vis):
+        p.reset(q0)
+        for tau in taus:
+            p.apply(tau)
+            p.step()
+        out.append(np.r_[p.q, p.dq, p.ft()])
+    np.testing.assert_array_equal(out[0], out[1])
+
+
+def test_collision_geometry_on_request(rhi4):
+    m = Plant(rhi4, collision=True).model
+    assert np.all(m.geom_contype == 1) and np.all(m.geom_conaffinity == 1)
+
+
+def test_links_are_capsules_of_the_real_lengths(rhi4):
+    m = Plant(rhi4).model
+    caps = m.geom_type == mujoco.mjtGeom.mjGEOM_CAPSULE
+    lengths = 2 * m.geom_size[caps, 1]
+    placements = [np.linalg.norm(rhi4.model.jointPlacements[j].translation) for j in range(2, rhi4.model.njoints)]
+    for L in placements:
+        if L > 1e-3:
+            assert np.any(np.isclose(lengths, L, atol=1e-9)), (L, lengths)
+
+
+def test_wmm_has_mecanum_base_wheels_and_floor():
+    p = MobilePlant()
+    m = p.model
+    wheels = (m.geom_type == mujoco.mjtGeom.mjGEOM_CYLINDER) & np.isclose(m.geom_size[:, 0], 0.0762)
+    assert wheels.sum() == 4
+    assert (m.geom_type == mujoco.mjtGeom.mjGEOM_PLANE).sum() == 1
+    bare = MobilePlant(visual=False)
+    np.testing.assert_array_equal(m.body_mass[: bare.model.nbody], bare.model.body_mass)
+
+
+def _mesh_urdf(tmp_path: Path) -> Path:
+    import trimesh
+
+    pkg = tmp_path / "mypkg"
+    (pkg / "meshes").mkdir(parents=True)
+    (pkg / "package.xml").write_text("<package><name>mypkg</name></package>")
+    trimesh.creation.box(extents=[0.3, 0.04, 0.04]).export(pkg / "meshes" / "link.stl")
+    inertial = ('<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+                "</inertial>")
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text(f"""<robot name="two">
+<link name="base"><visual><geometry><box size="0.1 0.1 0.05"/></geometry></visual></link>
+<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><origin xyz="0 0 0.05"/><axis xyz="0 0 1"/>
+<limit lower="-3" upper="3" effort="5" velocity="1"/></joint>
+<link name="l1">{inertial}<visual><origin xyz="0.15 0 0"/>
+<geometry><mesh filename="package://mypkg/meshes/link.stl"/></geometry></visual></link>
+<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.3 0 0"/><axis xyz="0 0 1"/>
+<limit lower="-3" upper="3" effort="5" velocity="1"/></joint>
+<link name="l2">{inertial}<visual><origin xyz="0.1 0 0"/>
+<geometry><mesh filename="mypkg/meshes/link.stl" scale="0.66 1 1"/></geometry></visual></link>
+<joint name="ee" type="fixed"><parent link="l2"/><child link="tip"/><origin xyz="0.2 0 0"/></joint><link name="tip"/>
+</robot>""")
+    return urdf
+
+
+def test_user_urdf_meshes_package_and_relative_paths(tmp_path):
+    dev = rhi.device_from_urdf(_mesh_urdf(tmp_path), ee_frame="tip", task="xy")
+    posed = Posed(dev)
+    m = posed.model
+    meshes = np.flatnonzero(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
+    assert len(meshes) == 2 and m.nmesh == 2
+    posed.set([0.0, 0.0])
+    # the package:// mesh spans 0..0.3 m along x; the relative one (0.198 m long after its 0.66 scale,
+    # centred 0.1 m beyond the second joint at 0.3 m) 0.301..0.499 m
+    spans = []
+    for g in meshes:
+        i = m.geom_dataid[g]
+        V = m.mesh_vert[m.mesh_vertadr[i]: m.mesh_vertadr[i] + m.mesh_vertnum[i]]
+        R = posed.data.geom_xmat[g].reshape(3, 3)
+        W = posed.data.geom_xpos[g] + V @ R.T
+        spans.append((W[:, 0].min(), W[:, 0].max()))
+    np.testing.assert_allclose(sorted(spans), [(0.0, 0.3), (0.301, 0.499)], atol=1e-6)
+    assert (m.geom_type == mujoco.mjtGeom.mjGEOM_BOX).sum() == 1  # the base's <box>
+
+
+def test_user_urdf_without_visuals_gets_capsules(tmp_path):
+    from rhi.device import MODELS
+
+    dev = rhi.device_from_urdf(MODELS / "planar3r" / "planar3r.urdf", ee_frame="tip", task="xy", torque_max=1.0)
+    m = Posed(dev).model
+    assert (m.geom_type == mujoco.mjtGeom.mjGEOM_CAPSULE).sum() >= 3
+
+
+def test_posed_rejects_bad_q(rhi4):
+    with pytest.raises(InvalidInput, match="q"):
+        Posed(rhi4).set([0.0, 1.0])
+
+
+def _render_or_skip(dev, q, **kw):
+    from rhi.viz.render import RenderUnavailable, render
+
+    try:
+        return render(dev, q, **kw)
+    except RenderUnavailable as exc:
+        if os.environ.get("CI"):
+            raise
+        pytest.skip(f"no OpenGL backend here: {exc}")
+
+
+@pytest.mark.parametrize("name", ["rhi4", "gen3"])
+def test_render_shows_the_device(name):
+    dev = rhi.device(name)
+    posed = Posed(dev)
+    q = rest_configuration(dev)
+    img = _render_or_skip(posed, q, width=320, height=240)
+    assert img.shape == (240, 320, 3) and img.dtype == np.uint8
+    posed.model.geom_rgba[:, 3] = 0.0  # the same picture without the device
+    empty = _render_or_skip(posed, q, width=320, height=240)
+    device_px = np.abs(img.astype(int) - empty.astype(int)).sum(axis=-1) > 40
+    assert 0.005 < device_px.mean() < 0.6
+    orange = (img[..., 0] > 180) & (img[..., 1] > 80) & (img[..., 1] < 170) & (img[..., 2] < 90)
+    assert orange.sum() > 10  # the handle
+
+
+def test_render_rejects_bad_size(rhi4):
+    from rhi.viz.render import render
+
+    with pytest.raises(InvalidInput, match="width"):
+        render(rhi4, rest_configuration(rhi4), width=3)
+
+
+def _cli(*args, env=None):
+    return subprocess.run([sys.executable, "-c", "import sys; from rhi.cli import main; sys.exit(main())", *args],
+                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": SRC, **(env or {})},
+                          timeout=120)
+
+
+def test_cli_render_writes_png(tmp_path):
+    out = tmp_path / "rhi4.png"
+    r = _cli("render", "rhi4", "--q", "0.1,0.3,0.5,0.2", "-o", str(out), "--width", "200", "--height", "150")
+    if r.returncode != 0 and "MUJOCO_GL" in r.stderr and not os.environ.get("CI"):
+        pytest.skip("no OpenGL backend here")
+    assert r.returncode == 0, r.stderr
+    from PIL import Image
+
+    assert Image.open(out).size == (200, 150)
+
+
+def test_cli_render_names_mujoco_gl_without_a_backend(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "DISPLAY"}
+    env["MUJOCO_GL"] = "glfw"  # needs a display, which a test machine has not
+    r = subprocess.run([sys.executable, "-c", "import sys; from rhi.cli import main; sys.exit(main())", "render",
+                        "rhi4", "-o", str(tmp_path / "x.png")], capture_output=True, text=True,
+                       env={**env, "PYTHONPATH": SRC}, timeout=120)
+    assert r.returncode == 2
+    assert "MUJOCO_GL" in r.stderr and "osmesa" in r.stderr

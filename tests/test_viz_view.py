@@ -1,0 +1,222 @@
+"""The browser view (viser): replay, live telemetry, panels, the gizmo as the hand, in headless Chromium."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import rhi
+from rhi.errors import InvalidInput
+from rhi.sim import DraggableHand, Plant, simulate
+from rhi.viz.panels import torque_panel
+from rhi.viz.replay import LogPlayer
+
+pytest.importorskip("viser")
+
+import browser  # noqa: E402  (tests/browser.py)
+
+Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
+
+
+def need_browser() -> None:
+    if not browser.available():
+        if os.environ.get("CI"):
+            pytest.fail("CI needs Debian's chromium (.ci/run installs it)")
+        pytest.skip("no /usr/bin/chromium")
+
+
+# ------------------------------------------------------------------ units
+def test_draggable_hand_pulls_to_its_target_and_lets_go():
+    h = DraggableHand(stiffness=200.0, damping=5.0, max_force=3.0)
+    x, v = np.array([0.1, 0.2]), np.array([0.0, 0.1])
+    np.testing.assert_array_equal(h.force(0.0, x, v), [0.0, 0.0])
+    h.target = [0.105, 0.2]
+    np.testing.assert_allclose(h.force(0.0, x, v), [200 * 0.005, -5 * 0.1])
+    h.target = [0.2, 0.2]  # 20 N by the spring: saturated at 3 N
+    assert np.linalg.norm(h.force(0.0, x, np.zeros(2))) == pytest.approx(3.0)
+    h.target = None
+    np.testing.assert_array_equal(h.force(0.0, x, v), [0.0, 0.0])
+    with pytest.raises(InvalidInput, match="stiffness"):
+        DraggableHand(stiffness=-1.0)
+    with pytest.raises(InvalidInput, match="target"):
+        h.target = [[0.0, 1.0]]
+    h.target = [0.0, 0.0, 0.0]
+    with pytest.raises(InvalidInput, match="target"):
+        h.force(0.0, x, v)
+
+
+@pytest.fixture(scope="module")
+def run_log():
+    dev = rhi.device("rhi4")
+    from rhi.viz.live import demo_setup
+
+    plant, ctrl, wall, _ = demo_setup(dev, Q0)
+    hand = DraggableHand()
+    hand.target = dev.fk(Q0) + [0.0, 0.03]  # into the wall
+    return dev, simulate(plant, ctrl, duration=0.5, hand=hand, virtual=wall), wall, ctrl
+
+
+def test_log_player_plays_at_real_speed_and_seeks(run_log):
+    _, log, _, _ = run_log
+    p = LogPlayer(log)
+    assert p.latest().t == log.t[0]
+    p.play()
+    time.sleep(0.2)
+    t = p.latest().t
+    assert 0.15 <= t - log.t[0] <= 0.35
+    p.pause()
+    t1 = p.time
+    time.sleep(0.05)
+    assert p.time == t1
+    p.seek(0.4)
+    snap = p.latest()
+    k = int(np.searchsorted(log.t, 0.4, side="right") - 1)
+    np.testing.assert_array_equal(snap.q, log.q[k])
+    np.testing.assert_array_equal(snap.tau, log.tau[k])
+    assert snap.safety == "ok"
+    with pytest.raises(InvalidInput, match="log"):
+        LogPlayer(log.__class__(**{**{f: getattr(log, f)[:0] for f in ("t", "q", "dq", "tau", "x", "xdot", "F_hand",
+                                                                          "F_env", "ft", "work", "V", "omega",
+                                                                          "alpha", "beta")}, "slave_x": log.slave_x}))
+
+
+def test_torque_panel_highlights_the_saturated_joints():
+    html = torque_panel(np.array([3.0, -0.5, 1.0, 0.0]), -np.array([3.0, 3.0, 1.0, 1.0]), np.array([3.0, 3.0, 1.0, 1.0]),
+                        ["q1", "q2", "q3", "q4"])
+    assert html.count('data-saturated="1"') == 2 and "+3.000/3.00" in html and "-0.500/3.00" in html
+
+
+def test_view_replays_a_saved_log(run_log, tmp_path):
+    from rhi.sim.log import Log
+    from rhi.viz.view import View
+
+    dev, log, wall, ctrl = run_log
+    path = tmp_path / "run.csv"
+    log.to_csv(path)
+    loaded = Log.load(path)
+    v = View(dev, loaded, virtual=wall, fme=ctrl.config.fme, port=0)  # frames drawn by hand: no thread
+    try:
+        v.player.seek(0.45)
+        assert v.step() and not v.step()  # a new frame once, then nothing new while paused
+        k = v.player.index(0.45)
+        assert f"{loaded.tau[k][0]:+.3f}/" in v.torque_html.content
+        assert abs(v.timeline.value - loaded.t[k]) < 1e-2
+        np.testing.assert_allclose(v.scene.handle_position()[:2], dev.fk(loaded.q[k]), atol=1e-9)
+        np.testing.assert_allclose(v.overlays.vel.position[:2], dev.fk(loaded.q[k]), atol=1e-6)
+    finally:
+        v.close()
+
+
+# ------------------------------------------------------------- in Chromium
+@pytest.fixture(scope="module")
+def live_view():
+    """rhi4 running in real time (rhi.runtime.run + SimLink, a light impedance controller so that a loaded
+    2-core test machine keeps up), its view with the gizmo hand, and a headless Chromium on it."""
+    need_browser()
+    from rhi.control import ControllerConfig, ImpedanceControl, NullSpaceController
+    from rhi.runtime import Safety, SafetyConfig, SimLink, Telemetry, run
+    from rhi.viz.view import View
+
+    dev = rhi.device("rhi4")
+    plant = Plant(dev)
+    plant.reset(Q0)
+    ctrl = NullSpaceController(dev, ControllerConfig(ImpedanceControl(damping=2.0), saturation="scaling"))
+    hand, tel = DraggableHand(), Telemetry()
+    # limits wide enough that a loaded test machine's late ticks trip nothing: only the e-stop ends the run
+    guard = Safety(dev, SafetyConfig(range_margin=10.0, silence=10.0, stale_ticks=10**6, max_joint_speed=1e3,
+                                     max_handle_speed=1e3))
+    view = View(dev, tel, hand=hand, q0=Q0, port=0).start()
+    loop = threading.Thread(target=run, args=(SimLink(plant, hand=hand), ctrl),
+                            kwargs=dict(duration=None, telemetry=tel, safety=guard), daemon=True)
+    loop.start()
+    b = browser.Browser(view.url)
+    try:
+        yield dev, view, hand, plant, b
+    finally:
+        b.close()
+        guard.estop("test over")
+        loop.join(10)
+        view.close()
+
+
+def test_browser_draws_the_device_and_the_torque_numbers(live_view):
+    dev, view, _, _, b = live_view
+    assert b.wait_for("document.body.innerText.includes('joint torques')")
+    assert b.wait_for("/q1\\s*[+-]\\d+\\.\\d{3}\\/3\\.00/.test(document.body.innerText)")
+    b.pump(2.5)  # viser fades new objects in
+    shown = b.screenshot()
+    view.scene.set_visible(False)
+    b.pump(1.5)
+    hidden = b.screenshot()
+    view.scene.set_visible(True)
+    W = shown.shape[1]
+    scene = np.s_[:, : int(0.6 * W)]  # the 3-D canvas left of the side panel (whose numbers change)
+    device_px = np.abs(shown[scene].astype(int) - hidden[scene].astype(int)).sum(axis=-1) > 60
+    assert device_px.sum() > 1000, device_px.sum()  # the device's pixels
+
+
+def test_browser_receives_30_updates_per_second(live_view):
+    _, view, _, _, b = live_view
+    b.pump(0.5)
+    n0, f0, c0, t0 = len(b.ws_frames), view.frames, view.cpu, time.monotonic()
+    b.pump(2.0)
+    dt = time.monotonic() - t0
+    rate, drawn = (len(b.ws_frames) - n0) / dt, view.frames - f0
+    assert drawn > 0, "no new telemetry"
+    assert (view.cpu - c0) / drawn < 1 / 30, "a frame costs more than 1/30 s of CPU"
+    assert len(b.ws_frames) - n0 >= 0.8 * drawn  # the page gets (nearly) every frame the view draws
+    if rate < 30.0 and os.getloadavg()[0] > 2 * os.cpu_count():
+        pytest.skip(f"machine overloaded (load {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs): "
+                    f"{rate:.1f} updates/s")
+    assert rate >= 30.0, (rate, drawn / dt)
+
+
+def test_gizmo_moves_the_hand_and_the_handle_follows(live_view):
+    import msgspec
+    import viser
+    from viser import _messages
+    from websockets.sync.client import connect
+
+    dev, view, hand, plant, _ = live_view
+    x0 = plant.x.copy()
+    goal = x0 + np.array([0.03, -0.02])  # away from the wall (it is 1 cm beyond x0 along +y)
+    pos = (float(goal[0]), float(goal[1]), float(view.scene.handle_position()[2]))
+    msg = _messages.TransformControlsUpdateMessage(name="/hand", wxyz=(1.0, 0.0, 0.0, 0.0), position=pos)
+    with connect(f"ws://127.0.0.1:{view.port}", subprotocols=[f"viser-v{viser.__version__}"]) as ws:
+        ws.send(msgspec.msgpack.encode(msg.as_serializable_dict()))
+        deadline = time.monotonic() + 5.0
+        while hand.target is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+    np.testing.assert_allclose(hand.target, goal, atol=1e-9)
+    deadline = time.monotonic() + 6.0
+    while np.linalg.norm(plant.x - goal) > 0.004 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert np.linalg.norm(plant.x - goal) < 0.004, (plant.x, goal)
+    assert np.linalg.norm(view.scene.handle_position()[:2] - goal) < 0.01
+
+
+def test_browser_opens_a_replayed_log(live_view, run_log, tmp_path):
+    from rhi.sim.log import Log
+    from rhi.viz.view import View
+
+    dev, log, wall, ctrl = run_log
+    log.to_csv(tmp_path / "run.csv")
+    _, _, _, _, b = live_view
+    v = View(dev, Log.load(tmp_path / "run.csv"), virtual=wall, fme=ctrl.config.fme, port=0).start()
+    try:
+        b.call("Page.navigate", url=v.url)
+        assert b.wait_for("document.body.innerText.includes('time [s]') && "
+                          "document.body.innerText.includes('joint torques')")
+        read_t = "parseFloat(document.body.innerText.match(/t \\[s\\]\\s*([0-9.]+)/)[1])"
+        assert b.wait_for(f"{read_t} === 0")
+        v.player.play()
+        n0 = len(b.ws_frames)
+        assert b.wait_for(f"{read_t} > 0.2")  # plays: the panel's time advances with the log
+        assert len(b.ws_frames) > n0
+        assert b.wait_for("/q1\\s*[+-]\\d+\\.\\d{3}\\/3\\.00/.test(document.body.innerText)")
+    finally:
+        v.close()
