@@ -220,3 +220,71 @@ def test_browser_opens_a_replayed_log(live_view, run_log, tmp_path):
         assert b.wait_for("/q1\\s*[+-]\\d+\\.\\d{3}\\/3\\.00/.test(document.body.innerText)")
     finally:
         v.close()
+
+
+# ------------------------------------------------------- view in a process
+def test_shared_telemetry_and_hand_cross_processes(run_log):
+    """The loop publishes into shared memory and feels a hand target set in another process."""
+    from rhi.sim.log import layout
+    from rhi.viz.remote import SharedDraggableHand, SharedTelemetry
+
+    dev, log, _, _ = run_log
+    tel = SharedTelemetry(dev.n, dev.m, every=1)
+    hand = SharedDraggableHand(dev.m, stiffness=100.0, damping=0.0, max_force=None)
+    reader = SharedTelemetry(dev.n, dev.m, name=tel.name)
+    try:
+        assert reader.latest() is None
+        cols = tel.cols
+        row = np.full(sum(w for _, w in layout(dev.n, dev.m)), np.nan)
+        row[cols["t"]], row[cols["q"]], row[cols["tau"]], row[cols["safety"]] = 0.25, log.q[7], log.tau[7], 0.0
+        tel.publish(row, cols)
+        snap = reader.latest()
+        assert snap.t == 0.25 and snap.safety == "ok" and snap.fault is None
+        np.testing.assert_array_equal(snap.q, log.q[7])
+        tel.publish(row, cols, fault="stale readings")
+        assert reader.latest().fault == "stale readings" and reader.latest().safety == "fault"
+        import pickle
+
+        remote = pickle.loads(pickle.dumps(hand))  # what the view's process receives: the same block
+        remote.target = [0.1, 0.2]
+        np.testing.assert_allclose(hand.force(0.0, np.array([0.1, 0.1]), np.zeros(2)), [0.0, 10.0])
+        remote.target = None
+        np.testing.assert_array_equal(hand.force(0.0, np.zeros(2), np.zeros(2)), [0.0, 0.0])
+        with pytest.raises(InvalidInput, match="target"):
+            remote.target = [np.nan, 0.0]
+        remote.close()
+    finally:
+        reader.close()
+        tel.close()
+        hand.close()
+
+
+def test_remote_view_serves_a_running_simulation():
+    """A RemoteView (own process) fed by simulate(telemetry=...) draws what the loop publishes."""
+    from rhi.viz.live import demo_setup
+    from rhi.viz.remote import RemoteView, SharedDraggableHand
+
+    dev = rhi.device("rhi4")
+    plant, ctrl, wall, _ = demo_setup(dev, Q0)
+    hand = SharedDraggableHand(dev.m)
+    view = RemoteView(dev, hand=hand, virtual=wall, port=0, every=1)
+    try:
+        import msgspec
+        import viser
+        from viser import _messages
+        from websockets.sync.client import connect
+
+        goal = dev.fk(Q0) + np.array([0.02, -0.02])
+        msg = _messages.TransformControlsUpdateMessage(name="/hand", wxyz=(1.0, 0.0, 0.0, 0.0),
+                                                       position=(float(goal[0]), float(goal[1]), 0.0))
+        with connect(f"ws://127.0.0.1:{view.port}", subprotocols=[f"viser-v{viser.__version__}"]) as ws:
+            ws.send(msgspec.msgpack.encode(msg.as_serializable_dict()))
+            deadline = time.monotonic() + 20
+            while hand.target is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+        np.testing.assert_allclose(hand.target, goal, atol=1e-9)  # set in the view's process
+        log = simulate(plant, ctrl, duration=1.0, hand=hand, virtual=wall, telemetry=view.telemetry)
+        assert np.linalg.norm(log.x[-1] - goal) < 0.005
+        assert view.telemetry.latest().t == pytest.approx(log.t[-1])
+    finally:
+        view.close()

@@ -195,11 +195,20 @@ def _run(args: argparse.Namespace) -> int:
           f"{'until Ctrl-C' if duration is None else f'{duration:g} s'}"
           f"{'' if args.realtime else ' (as fast as possible)'}", flush=True)
     status = _Status(sys.stderr, duration)
+    ctrl = cfg.controller()
+    view = None
+    if args.view:
+        from rhi.viz.cli import attach_view
+
+        view = attach_view(cfg, ctrl, link, port=args.view_port, mouse=args.mouse)
     try:
-        res = run(link, cfg.controller(), rate=rate, duration=duration, safety=cfg.safety, log=log_path,
-                  virtual=cfg.virtual, realtime=args.realtime, progress=status)
+        res = run(link, ctrl, rate=rate, duration=duration, safety=cfg.safety, log=log_path,
+                  virtual=cfg.virtual, realtime=args.realtime, progress=status,
+                  telemetry=None if view is None else view.telemetry)
     finally:
         status.close()
+        if view is not None:
+            view.close()
     s = res.summary
     s["config"] = {"name": cfg.name, "source": cfg.source, "device": cfg.device.name, "link": args.link}
     s["log"] = str(log_path)
@@ -232,6 +241,10 @@ def _add_run(sub) -> None:
     r.add_argument("--realtime", action=argparse.BooleanOptionalAction, default=True,
                    help="pace ticks on the wall clock (default); --no-realtime runs as fast as possible")
     r.add_argument("--fast", dest="realtime", action="store_false", help="same as --no-realtime")
+    r.add_argument("--view", action="store_true", help="watch the run live in the browser (viser)")
+    r.add_argument("--view-port", type=int, default=8080, help="port of the browser view (default: 8080)")
+    r.add_argument("--mouse", action="store_true", help="with --view and the sim link: the mouse is the hand "
+                   "(drag the gizmo at the handle) instead of the configuration's hand")
     r.set_defaults(func=_run)
 
 

@@ -200,7 +200,7 @@ class DraggableHand:
 
     def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
         """F_h: (m,) [N] on the handle at x (m,) [m] moving at ẋ (m,) [m/s]."""
-        xt = self._target
+        xt = self.target
         if xt is None:
             return np.zeros_like(x)
         if xt.shape != np.shape(x):

@@ -67,6 +67,25 @@ def _serve(view) -> int:
     return 0
 
 
+def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False):
+    """A `RemoteView` (its own process) of a `rhi run` configuration; give `run` its `telemetry`.
+
+    With `mouse`, the simulated link's hand becomes a `SharedDraggableHand` moved by the browser's gizmo.
+    """
+    from rhi.errors import InvalidInput
+    from rhi.viz.remote import RemoteView, SharedDraggableHand
+
+    hand = None
+    if mouse:
+        if not hasattr(link, "hand"):
+            raise InvalidInput("--mouse: only a simulated link (--link sim) has a hand to move")
+        hand = link.hand = SharedDraggableHand(cfg.device.m)
+    view = RemoteView(cfg.device, hand=hand, virtual=cfg.virtual, fme=cfg.controller_config.fme, q0=cfg.sim["q0"],
+                      port=port)
+    print(f"rhi run: view at {view.url}", flush=True)
+    return view
+
+
 def add_commands(sub, floats) -> None:
     """Add `render` and `view` to the `rhi` argument parser's subcommands."""
     r = sub.add_parser("render", help="render a device with MuJoCo's offscreen renderer to a PNG (MUJOCO_GL)")

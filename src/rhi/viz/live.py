@@ -3,8 +3,9 @@
 The device (`rhi.sim.Plant` behind `rhi.runtime.SimLink`) runs the thesis's chapter-7
 controller — force rendering of a stiff wall, ASO-switched FME matching, ASCM, VME
 tertiary objective — in `rhi.runtime.run` on the calling thread; the view runs beside it
-and the user's mouse is the hand (`DraggableHand`): drag the gizmo into the wall and watch
-the force ellipsoid, the torque bars saturate and the null-space reconfiguration.
+in its own process (`RemoteView`) and the user's mouse is the hand (`SharedDraggableHand`): drag the
+gizmo into the wall and watch the force ellipsoid, the torque bars saturate and the null-space
+reconfiguration.
 """
 
 from __future__ import annotations
@@ -25,8 +26,8 @@ from rhi.control import (
 from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.mobile_base import BASE_JOINTS
-from rhi.runtime import Safety, SafetyConfig, SimLink, Telemetry, run
-from rhi.sim import DraggableHand, Plant, Wall
+from rhi.runtime import SafetyConfig, SimLink, run
+from rhi.sim import Plant, Wall
 from rhi.viz.posed import rest_configuration
 
 
@@ -59,25 +60,20 @@ def live(dev: Device, *, duration: float | None = 3600.0, host: str = "127.0.0.1
         dev: a torque-controlled device (rhi4, planar3r, phantom, gen3, a user URDF...).
         duration: run time [s]; None: until Ctrl-C.
         host, port: where the view listens.
-        on_start: called with the `View` once it serves (e.g. to print its address).
+        on_start: called with the `RemoteView` once it serves (e.g. to print its address).
 
     Returns:
         The runtime's `RunResult` (log and timing summary).
     """
-    from rhi.viz.view import View
+    from rhi.viz.remote import RemoteView, SharedDraggableHand
 
     plant, ctrl, wall, q0 = demo_setup(dev)
-    hand = DraggableHand()
-    tel = Telemetry()
-    guard = Safety(dev, SafetyConfig(range_margin=0.3))
-    view = View(dev, tel, hand=hand, virtual=wall, fme=ctrl.config.fme, q0=q0, host=host, port=port)
-    reset = view.server.gui.add_button("reset safety")
-    reset.on_click(lambda _: guard.reset())
-    view.start()
+    hand = SharedDraggableHand(dev.m)
+    view = RemoteView(dev, hand=hand, virtual=wall, fme=ctrl.config.fme, q0=q0, host=host, port=port)
     try:
         if on_start is not None:
             on_start(view)
-        return run(SimLink(plant, hand=hand), ctrl, duration=duration, virtual=wall, telemetry=tel, safety=guard,
-                   stop_on_fault=False)
+        return run(SimLink(plant, hand=hand), ctrl, duration=duration, virtual=wall, telemetry=view.telemetry,
+                   safety=SafetyConfig(range_margin=0.3))
     finally:
         view.close()
