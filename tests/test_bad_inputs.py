@@ -3,7 +3,8 @@
 
 Each case is a public function, a valid call, and per argument the kinds of corruption that make
 it invalid. Hypothesis draws (case, argument, kind, position, magnitude); the draws are
-derandomized so the suite is reproducible. `CALLS` counts the calls made (>= 1,000 in all).
+derandomized so the suite is reproducible. `CALLS` counts the calls made; each suite checks it made
+as many as it asked for (450 + 250 + 200 + 200 + 150 = 1,250 in all).
 """
 
 from __future__ import annotations
@@ -198,8 +199,14 @@ METRIC_TRIPLES = [t for c in METRICS for t in c.triples()]
 
 @suite_settings(450)
 @given(data=st.data())
-def test_metrics_refuse_bad_inputs(data):
+def _metrics_refuse_bad_inputs(data):
     run_suite(METRIC_TRIPLES, data)
+
+
+def test_metrics_refuse_bad_inputs():
+    before = CALLS["n"]
+    _metrics_refuse_bad_inputs()
+    assert CALLS["n"] - before >= 450  # every generated example made one call
 
 
 # ------------------------------------------------------------- device, loaders
@@ -255,8 +262,14 @@ DEVICE_TRIPLES = [t for c in DEVICE for t in c.triples()]
 
 @suite_settings(250)
 @given(data=st.data())
-def test_device_and_loaders_refuse_bad_inputs(data):
+def _device_and_loaders_refuse_bad_inputs(data):
     run_suite(DEVICE_TRIPLES, data)
+
+
+def test_device_and_loaders_refuse_bad_inputs():
+    before = CALLS["n"]
+    _device_and_loaders_refuse_bad_inputs()
+    assert CALLS["n"] - before >= 250  # every generated example made one call
 
 
 # ------------------------------------------------------------------ control
@@ -312,8 +325,14 @@ CONTROL_TRIPLES = [t for c in CONTROL for t in c.triples()]
 
 @suite_settings(200)
 @given(data=st.data())
-def test_control_refuses_bad_inputs(data):
+def _control_refuses_bad_inputs(data):
     run_suite(CONTROL_TRIPLES, data)
+
+
+def test_control_refuses_bad_inputs():
+    before = CALLS["n"]
+    _control_refuses_bad_inputs()
+    assert CALLS["n"] - before >= 200  # every generated example made one call
 
 
 # ---------------------------------------------------------------------- sim
@@ -358,5 +377,81 @@ SIM_TRIPLES = [t for c in SIM for t in c.triples()]
 
 @suite_settings(200)
 @given(data=st.data())
-def test_sim_refuses_bad_inputs(data):
+def _sim_refuses_bad_inputs(data):
     run_suite(SIM_TRIPLES, data)
+
+
+def test_sim_refuses_bad_inputs():
+    before = CALLS["n"]
+    _sim_refuses_bad_inputs()
+    assert CALLS["n"] - before >= 200  # every generated example made one call
+
+
+# ------------------------------------------------------------------ analysis
+from rhi.analysis import psychophysics as psy  # noqa: E402
+from rhi.analysis import stats, sysid  # noqa: E402
+
+G = {"a": np.array([1.0, 2.0, 3.5, 4.0]), "b": np.array([2.0, 2.5, 4.0, 5.5]), "c": np.array([0.5, 1.0, 1.5, 3.0])}
+STIM = np.repeat([30.0, 40.0, 50.0, 60.0, 70.0], 8)
+RESP = (np.arange(STIM.size) % 8 < np.repeat([1, 2, 4, 6, 7], 8)).astype(float)
+
+
+def _group(fn):
+    return lambda a: fn({"a": a, "b": G["b"], "c": G["c"]})
+
+
+ANALYSIS = [
+    Case("one_way_anova", _group(stats.one_way_anova), _v(a=G["a"]), {"a": ARRAY + ("ndim",)}, names={"a": "groups['a']"}),
+    Case("repeated_measures_anova", _group(stats.repeated_measures_anova), _v(a=G["a"]), {"a": ARRAY + ("shape",)},
+         names={"a": "groups"}),
+    Case("paired_t_tests", _group(stats.paired_t_tests), _v(a=G["a"]), {"a": ARRAY + ("shape",)}, names={"a": "groups"}),
+    Case("describe", lambda a: stats.describe({"a": a}), _v(a=G["a"]), {"a": ARRAY}, names={"a": "groups['a']"}),
+    Case("adjust", stats.adjust, _v(p_values=np.array([0.01, 0.2, 0.5]), correction="holm", alpha=0.05),
+         {"p_values": ARRAY + ("huge", "negative"), "correction": NAME, "alpha": SCALAR + ("huge", "zero_scalar")}),
+    Case("fit_psychometric", psy.fit_psychometric, _v(comparison=STIM, response=RESP, confidence=0.95),
+         {"comparison": ARRAY + ("negative", "shape"), "response": ARRAY + ("huge", "shape"),
+          "confidence": SCALAR + ("huge", "zero_scalar")}),
+    Case("sysid.Record", sysid.Record, _v(time=np.arange(50) * 1e-3, position=np.linspace(0, 0.01, 50),
+                                          force=np.linspace(0, 1, 50)),
+         {"time": ARRAY + ("shape",), "position": ARRAY + ("shape",), "force": ARRAY + ("shape",)}),
+    Case("sysid.project", sysid.project, _v(positions=np.zeros((50, 2)), forces=np.zeros((50, 2)), u=np.array([1.0, 0.0])),
+         {"positions": ARRAY, "forces": ARRAY, "u": ARRAY + ("zeros", "shape")}),
+    Case("sysid.lowpass", sysid.lowpass, _v(signal=np.linspace(0, 1, 200), sample_rate=1000.0, cutoff_hz=20.0),
+         {"signal": ARRAY, "sample_rate": POS_SCALAR, "cutoff_hz": POS_SCALAR + ("huge",)}),
+]
+ANALYSIS_TRIPLES = [t for c in ANALYSIS for t in c.triples()]
+
+
+@suite_settings(150)
+@given(data=st.data())
+def _analysis_refuses_bad_inputs(data):
+    run_suite(ANALYSIS_TRIPLES, data)
+
+
+def test_analysis_refuses_bad_inputs():
+    before = CALLS["n"]
+    _analysis_refuses_bad_inputs()
+    assert CALLS["n"] - before >= 150  # every generated example made one call
+
+
+def test_degenerate_statistics_and_fits_refused():
+    const = {"a": np.ones(5), "b": np.ones(5), "c": np.ones(5)}
+    with pytest.raises(rhi.errors.InvalidInput, match="groups: no variance"):
+        stats.one_way_anova(const)
+    with pytest.raises(rhi.errors.InvalidInput, match="groups: no residual variance"):
+        stats.repeated_measures_anova(const)
+    shifted = {"a": np.arange(5.0), "b": np.arange(5.0) + 1, "c": np.arange(5.0) + 3}  # additive offsets only
+    with pytest.raises(rhi.errors.InvalidInput, match="groups: no residual variance"):
+        stats.repeated_measures_anova(shifted)
+    with pytest.raises(rhi.errors.InvalidInput, match="response: .*every response is 0"):
+        psy.fit_psychometric(STIM, np.zeros_like(STIM))
+    with pytest.raises(rhi.errors.InvalidInput, match="response: .*every response is 1"):
+        psy.fit_psychometric(STIM, np.ones_like(STIM))
+    t = np.arange(2000) * 1e-3
+    flat = sysid.Record(t, 0.01 * np.sin(2 * np.pi * t), np.full(t.size, 0.5))
+    with pytest.raises(rhi.errors.InvalidInput, match="records: the force is constant"):
+        sysid.identify(flat)
+    still = sysid.Record(t, np.zeros(t.size), np.sin(t))
+    with pytest.raises(rhi.errors.InvalidInput, match="records: .*not independently excited"):
+        sysid.identify(still)
+

@@ -15,7 +15,7 @@ def all_finite(arr: np.ndarray) -> bool:
     return math.isfinite(np.vdot(arr, arr)) or bool(np.isfinite(arr).all())
 
 
-def _float_array(name: str, value) -> np.ndarray:
+def float_array(name: str, value) -> np.ndarray:
     """`value` as a float array; refuses None, strings, complex numbers and non-numeric objects."""
     if value is None or isinstance(value, (str, bytes, dict, set)):
         raise InvalidInput(f"{name}: expected a number or an array of numbers, got {type(value).__name__}")
@@ -44,7 +44,7 @@ def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | Non
         ndim_min: minimum number of dimensions.
         shape_tail: required trailing dimensions (None = any size).
     """
-    arr = _float_array(name, value)
+    arr = float_array(name, value)
     ndim = max(ndim_min, len(shape_tail))
     if arr.ndim < ndim:
         raise InvalidInput(f"{name}: expected at least {ndim} dimension(s), got shape {arr.shape}")
@@ -61,8 +61,8 @@ def as_array(name: str, value, *, ndim_min: int = 0, shape_tail: tuple[int | Non
 
 def limits_pair(name_min: str, lo, name_max: str, hi, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Validate a (minimum, maximum) pair of limit vectors: not NaN, same shape, min <= max."""
-    lo = _float_array(name_min, lo)
-    hi = _float_array(name_max, hi)
+    lo = float_array(name_min, lo)
+    hi = float_array(name_max, hi)
     if np.isnan(lo).any() or np.isnan(hi).any():
         raise InvalidInput(f"{name_min}/{name_max}: contains NaN")
     if n is not None:

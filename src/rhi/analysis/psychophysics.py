@@ -56,6 +56,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
+from rhi._validate import float_array, scalar
 from rhi.analysis.stats import AnovaResult, PairedTest, Summary, describe, one_way_anova, paired_t_tests
 from rhi.analysis.stats import repeated_measures_anova
 from rhi.analysis._csv import read_rows
@@ -647,8 +648,8 @@ def fit_psychometric(
 
     who = " ".join(x for x in (f"subject {subject!r}" if subject else "", f"device {device!r}" if device else "") if x)
     who = who or "data"
-    c = np.asarray(comparison, dtype=float)
-    r = np.asarray(response)
+    c = float_array("comparison", comparison)
+    r = float_array("response", response)
     if c.ndim != 1 or r.shape != c.shape:
         raise InvalidInput(f"comparison/response: expected two 1-D arrays of equal length, got {c.shape} and {r.shape}")
     if not (np.isfinite(c).all() and (c > 0).all()):
@@ -659,8 +660,11 @@ def fit_psychometric(
         raise InvalidInput(f"response: {who}: not numeric") from None
     if not np.isin(rf, (0.0, 1.0)).all():
         raise InvalidInput(f"response: {who}: values outside {{0, 1}}")
-    if not (0 < confidence < 1):
+    if not (0 < scalar("confidence", confidence) < 1):
         raise InvalidInput(f"confidence: must lie in (0, 1), got {confidence!r}")
+    if rf.size and np.all(rf == rf[0]):
+        raise InvalidInput(f"response: {who}: every response is {int(rf[0])}; the threshold lies outside the tested "
+                           "comparisons and no psychometric function can be fitted")
     if experiment_type not in ("equal asymptote", "yes/no"):
         raise InvalidInput(f"experiment_type: expected 'equal asymptote' or 'yes/no', got {experiment_type!r}")
     data = pool(c, rf)

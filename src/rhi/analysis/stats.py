@@ -27,6 +27,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from rhi._validate import float_array, scalar
 from rhi.errors import InvalidInput
 
 _CORRECTIONS = ("holm", "fdr_bh", "bonferroni", "none")
@@ -121,10 +122,7 @@ def _groups(
         raise InvalidInput(f"{name}: need at least {min_groups} group(s), got {len(groups)}")
     out = {}
     for g, values in groups.items():
-        try:
-            a = np.asarray(values, dtype=float)
-        except (TypeError, ValueError):
-            raise InvalidInput(f"{name}[{g!r}]: cannot be read as numbers") from None
+        a = float_array(f"{name}[{g!r}]", values)
         if a.ndim != 1:
             raise InvalidInput(f"{name}[{g!r}]: expected a 1-D array, got shape {a.shape}")
         if a.size < min_n:
@@ -168,6 +166,10 @@ def one_way_anova(groups: Mapping[str, ArrayLike]) -> AnovaResult:
     from scipy import stats
 
     data = _groups("groups", groups, paired=False)
+    within = sum(float(((a - a.mean()) ** 2).sum()) for a in data.values())
+    scale = max(float(np.abs(a).max()) for a in data.values())
+    if within <= (1e-12 * max(scale, 1e-300)) ** 2:
+        raise InvalidInput("groups: no variance within any group (constant data); F is undefined")
     res = stats.f_oneway(*data.values())
     n = sum(a.size for a in data.values())
     k = len(data)
@@ -232,6 +234,11 @@ def repeated_measures_anova(groups: Mapping[str, ArrayLike]) -> AnovaResult:
     from statsmodels.stats.anova import AnovaRM
 
     data = _groups("groups", groups, paired=True)
+    X = np.column_stack(list(data.values()))  # (subjects, conditions)
+    resid = X - X.mean(axis=0) - X.mean(axis=1, keepdims=True) + X.mean()
+    if float((resid**2).sum()) <= (1e-12 * max(float(np.abs(X).max()), 1e-300)) ** 2 * X.size:
+        raise InvalidInput("groups: no residual variance (constant data, or every subject differs by a constant "
+                           "offset); the repeated-measures F is undefined")
     n = next(iter(data.values())).size
     frame = pd.DataFrame(
         {
@@ -264,12 +271,12 @@ def adjust(p_values: ArrayLike, *, correction: str = "holm", alpha: float = 0.05
     Returns:
         ``(p_adjusted, reject)``: (m,) adjusted p-values and (m,) booleans.
     """
-    p = np.asarray(p_values, dtype=float)
+    p = float_array("p_values", p_values)
     if p.ndim != 1 or p.size == 0 or not np.all((p >= 0) & (p <= 1)):
         raise InvalidInput(f"p_values: expected a non-empty 1-D array in [0, 1], got {p_values!r}")
     if correction not in _CORRECTIONS:
         raise InvalidInput(f"correction: expected one of {_CORRECTIONS}, got {correction!r}")
-    if not (0 < alpha < 1):
+    if not (0 < scalar("alpha", alpha) < 1):
         raise InvalidInput(f"alpha: must lie in (0, 1), got {alpha!r}")
     if correction == "none":
         return p.copy(), p <= alpha

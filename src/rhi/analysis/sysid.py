@@ -57,7 +57,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rhi._validate import as_array, unit_vector
+from rhi._validate import as_array, scalar, unit_vector
 from rhi.analysis._csv import read_rows
 from rhi.errors import InvalidInput
 
@@ -224,6 +224,8 @@ def lowpass(signal: ArrayLike, *, sample_rate: float, cutoff_hz: float = 20.0, o
     from scipy import signal as sps
 
     x = as_array("signal", signal, ndim_min=1)
+    sample_rate = scalar("sample_rate", sample_rate, positive=True)
+    cutoff_hz = scalar("cutoff_hz", cutoff_hz, positive=True)
     if not (math.isfinite(sample_rate) and sample_rate > 0):
         raise InvalidInput(f"sample_rate: must be positive, got {sample_rate!r}")
     if not (0 < cutoff_hz < sample_rate / 2):
@@ -493,6 +495,9 @@ def identify(
     ci = [(float(params[i] - q * se[i]), float(params[i] + q * se[i])) for i in range(p)]
     resid = y - X @ params
     ss_tot = float(((y - y.mean()) ** 2).sum())
+    if not ss_tot > 1e-12 * float((y * y).sum()):
+        raise InvalidInput("records: the force is constant over the selected samples, so the fit's R² is undefined; "
+                           "record a varying force (a push, a release)")
     return SysidResult(
         mass=float(params[0]),
         damping=float(params[1]),
@@ -507,7 +512,7 @@ def identify(
         covariance=method,
         dof=dof,
         residual_rms=float(np.sqrt(np.mean(resid**2))),
-        r_squared=1.0 - float((resid**2).sum()) / ss_tot if ss_tot > 0 else float("nan"),
+        r_squared=1.0 - float((resid**2).sum()) / ss_tot,
         n_samples=int(X.shape[0]),
         n_trials=n_trials,
         cutoff_hz=float(cutoff_hz),
