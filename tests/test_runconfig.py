@@ -204,21 +204,41 @@ def test_cli_bad_arguments_exit_2(args, message, capsys):
     assert message in capsys.readouterr().err
 
 
-def test_cli_run_over_udp(tmp_path, capsys):
-    from test_udp import _server, _stop
+def test_cli_run_over_udp_equals_simlink(tmp_path, capsys):
+    """`rhi device-server --config X --lockstep` + `rhi run --link udp://... --config X`: the torques of the
+    in-process SimLink run of X (no packet lost). A long device watchdog keeps a loaded test machine from tripping it."""
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
 
-    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye")
-    summ = tmp_path / "s.json"
+    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    p = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", "rhi4", "--config", "ch7_ascm_tertiary",
+                          "--lockstep", "--port", "0", "--watchdog-ms", "5000"],
+                         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    summ, log = tmp_path / "s.json", tmp_path / "u.rhilog"
     try:
-        code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port}", "--config", "ch7_ascm_tertiary",
-                     "--duration", "0.3", "--fast", "--log", str(tmp_path / "u.rhilog"), "--summary", str(summ)])
+        first = p.stdout.readline()
+        port = re.search(r"udp://127\.0\.0\.1:(\d+)", first)
+        assert port, first + p.stdout.read() if p.poll() is not None else first
+        code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port.group(1)}", "--config", "ch7_ascm_tertiary",
+                     "--duration", "0.3", "--fast", "--log", str(log), "--summary", str(summ)])
     finally:
-        _stop(p)
+        p.send_signal(signal.SIGTERM)
+        try:
+            p.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.communicate()
     assert code == 0, capsys.readouterr().err
     s = json.loads(summ.read_text())
-    assert s["ticks"] == 300 and s["fault"] is None
-    assert s["link_stats"]["lost"] == 0 and s["link_stats"]["received"] >= 300
-    assert len(Log.load(tmp_path / "u.rhilog")) == 300
+    assert s["ticks"] == 300 and s["fault"] is None and s["config"]["link"].startswith("udp://")
+    assert s["link_stats"]["lost"] == 0 and s["link_stats"]["reordered"] == 0
+    cfg = load_config("ch7_ascm_tertiary")
+    ref = run(cfg.sim_link(), cfg.controller(), duration=0.3, safety=cfg.safety, virtual=cfg.virtual, realtime=False)
+    np.testing.assert_allclose(Log.load(log).tau, ref.log.tau, atol=1e-9, rtol=0)
+    assert np.abs(ref.log.tau).max() > 0.1
 
 
 class _Stream:
