@@ -582,7 +582,7 @@ def test_max_force_scaling_closed_form(rng):
     assert rm.max_force(J, u, torque_min=lo, torque_max=hi, projector=None) == f
 
 
-@pytest.mark.parametrize("projector", ["kinematic", "dynamic"])
+@pytest.mark.parametrize("projector", ["pseudoinverse", "dynamic"])
 def test_max_force_lp_invariants(rng, projector):
     J = rng.normal(size=(6, 2, 4))
     M = random_spd(rng, 4, (6,)) if projector == "dynamic" else None
@@ -605,14 +605,14 @@ def test_max_force_matches_brute_force_search():
     """3R arm, one-dimensional null space: scan the null-space torque on a fine grid."""
     J = jac_planar(Q73, L3)
     t = J.T @ np.array([1.0, 0.0])
-    n0 = np.linalg.svd(J)[2][-1]  # null(J) = range of the kinematic projector
+    n0 = np.linalg.svd(J)[2][-1]  # null(J) = range of the pseudoinverse projector
     z = np.linspace(-2, 2, 400001)
     tau_n = z[:, None] * n0
     with np.errstate(divide="ignore"):
         up = np.where(t > 0, (0.5 - tau_n) / t, np.where(t < 0, (-0.5 - tau_n) / t, np.inf))
     feasible = np.all(np.abs(tau_n) <= 0.5, axis=1)
     best = np.max(np.where(feasible, np.min(up, axis=1), -np.inf))
-    f = rm.max_force(J, [1, 0], torque_min=-0.5, torque_max=0.5, projector="kinematic")
+    f = rm.max_force(J, [1, 0], torque_min=-0.5, torque_max=0.5, projector="pseudoinverse")
     assert f == pytest.approx(best, abs=1e-4)
 
 
@@ -620,15 +620,15 @@ def test_section_7_3_scaling_vs_null_space_optimum():
     """§7.3: 3R planar arm (L = 0.25 m, relative angles), q = [pi/4, -pi/3, -pi/6], |tau| <= 0.5 N m,
     force along x. The thesis reports simple scaling ~12 % below ASCM.
 
-    Computed: scaling 2.0706 N, kinematic-projector optimum 2.3513 N, gap 11.9 %.
+    Computed: scaling 2.0706 N, pseudoinverse-projector optimum 2.3513 N, gap 11.9 %.
     (The dynamic projector with 0.5 kg point masses at the link midpoints, the §6.3
     example's mass model, gives 6.018 N, a 66 % gap: the thesis figure matches the
-    kinematic projector.)
+    pseudoinverse projector.)
     """
     J = jac_planar(Q73, L3)
     u = np.array([1.0, 0.0])
     f_s = rm.max_force_scaling(J, u, torque_min=-0.5, torque_max=0.5)
-    f_k, tau = rm.max_force(J, u, torque_min=-0.5, torque_max=0.5, projector="kinematic", return_torque=True)
+    f_k, tau = rm.max_force(J, u, torque_min=-0.5, torque_max=0.5, projector="pseudoinverse", return_torque=True)
     assert f_s == pytest.approx(2.0706, abs=1e-4)
     assert f_k == pytest.approx(2.3513, abs=1e-4)
     assert 1 - f_s / f_k == pytest.approx(0.12, abs=0.02)
@@ -646,19 +646,19 @@ def test_max_force_errors(rng):
     with pytest.raises(InfeasibleLimits, match="torque_min"):
         rm.max_force_scaling(J, [1, 0], torque_min=[0.1, 0.0, 0.0], torque_max=[1.0, 1.0, 1.0])
     with pytest.raises(InfeasibleLimits, match="torque_max"):
-        rm.max_force(J, [1, 0], torque_min=-np.ones(3), torque_max=[-0.1, 1.0, 1.0], projector="kinematic")
+        rm.max_force(J, [1, 0], torque_min=-np.ones(3), torque_max=[-0.1, 1.0, 1.0], projector="pseudoinverse")
     with pytest.raises(InvalidInput, match="torque_max"):
         rm.max_force_scaling(J, [1, 0], torque_min=-np.ones(3), torque_max=np.ones(2))
     with pytest.raises(InvalidInput, match="M"):
         rm.max_force(J, [1, 0], **kw)  # default projector is dynamic
     with pytest.raises(InvalidInput, match="M"):
-        rm.max_force(J, [1, 0], projector="kinematic", M=np.eye(3), **kw)
+        rm.max_force(J, [1, 0], projector="pseudoinverse", M=np.eye(3), **kw)
     with pytest.raises(InvalidInput, match="projector"):
         rm.max_force(J, [1, 0], projector="pseudo", **kw)
     with pytest.raises(InvalidInput, match="u"):
         rm.max_force(J, [0, 0], projector=None, **kw)
     with pytest.raises(Singular, match="J"):
-        rm.max_force(np.array([[1.0, 0, 0], [2.0, 0, 0]]), [1, 0], projector="kinematic", **kw)
+        rm.max_force(np.array([[1.0, 0, 0], [2.0, 0, 0]]), [1, 0], projector="pseudoinverse", **kw)
 
 
 def test_max_force_scaling_singular_direction_is_unbounded():
@@ -705,7 +705,7 @@ def _batch_cases(rng):
         (rm.tmi, (J, Js)),
         (rm.joint_energy, (A, u)),
         (lambda j, uu, a, b: rm.max_force_scaling(j, uu, torque_min=a, torque_max=b), (J, u, lo, hi)),
-        (lambda j, uu, a, b: rm.max_force(j, uu, torque_min=a, torque_max=b, projector="kinematic"), (J, u, lo, hi)),
+        (lambda j, uu, a, b: rm.max_force(j, uu, torque_min=a, torque_max=b, projector="pseudoinverse"), (J, u, lo, hi)),
     ]
 
 

@@ -71,9 +71,15 @@ def test_sysid_table_6_1(table_6_1):
     # omits matters (k ~ -15 %); with it, eq. 3.13 predicts the identified mass
     assert abs(stiff / a["stiff_lam_vp"] - 1.0) < 0.10
     assert stiff > free  # the M_Stiff^des configuration is heavier along u (Table 6.1: 0.125 vs 0.036 kg)
-    fs = _row(table_6_1, "F_max along u, M_Stiff^des: rhi.metrics.max_force").ours
-    ff = _row(table_6_1, "F_max along u, M_Free^des: rhi.metrics.max_force").ours
+    fs = _row(table_6_1, "F_max along u, M_Stiff^des (J#): rhi.metrics.max_force").ours
+    ff = _row(table_6_1, "F_max along u, M_Free^des (J#): rhi.metrics.max_force").ours
     assert fs < ff < 0  # signed like Table 6.1: larger capability for M_Stiff^des
+    # the ch. 6 controller with the pseudoinverse projector J⁺: its null-space torques are not dynamically
+    # consistent and add to the identified inertia (issue 13's check: 0.0555 / 0.1149 kg vs 0.0277 / 0.0488 kg
+    # with J# over 10 trials)
+    for case in ("free", "stiff"):
+        assert a[f"{case}_pinv_fit"][0] > 1.5 * a[f"{case}_fit"][0]
+    assert _row(table_6_1, "F_max along u, M_Stiff^des (J⁺): rhi.metrics.max_force").ours < fs
 
 
 def test_velocity_product_force_closes_the_dynamics():

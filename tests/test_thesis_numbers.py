@@ -15,8 +15,8 @@ def test_planar3r_scaling_is_12_percent_below_optimum():
     J = dev.jacobian([np.pi / 4, -np.pi / 3, -np.pi / 6])
     lo, hi = dev.torque_limits
     f_scale = float(metrics.max_force_scaling(J, [1, 0], torque_min=lo, torque_max=hi))
-    f_opt, tau = metrics.max_force(J, [1, 0], torque_min=lo, torque_max=hi, projector="kinematic", return_torque=True)
-    print(f"planar3r §7.3: scaling {f_scale:.4f} N, kinematic-projector optimum {float(f_opt):.4f} N")
+    f_opt, tau = metrics.max_force(J, [1, 0], torque_min=lo, torque_max=hi, projector="pseudoinverse", return_torque=True)
+    print(f"planar3r §7.3: scaling {f_scale:.4f} N, pseudoinverse-projector optimum {float(f_opt):.4f} N")
     assert 1 - f_scale / float(f_opt) == pytest.approx(0.12, abs=0.01)
     assert np.sum(np.isclose(np.abs(tau), 0.5, atol=1e-7)) == 2  # two joints saturated (Fig. 7.1c)
 

@@ -12,9 +12,14 @@ One tick (`NullSpaceController.step`) computes, from the joint sensors and the s
    M_des = Ω M_Free + (1 − Ω) M_Stiff for the FME-matching objective (eq. 6.10);
 4. the allocation of τ_m within the torque box: none / simple scaling / ASCM (Algorithm 1) /
    LP optimum, with force scaling α (eq. 7.9);
-5. the objective torque τ_to = −Σ β_i ∂ν_i/∂q − k_D q̇ (eqs. 3.20–3.21, 5.9–5.10, 6.6, 7.17),
-   projected into the null space of the task and of ASCM and scaled by the β of
-   Algorithm 2 (eq. 7.16).
+5. the safety torque τ_s = −k_D q̇ − Σ w ∂ν_lim/∂q (null-space damping and every
+   `JointLimitBarrier` term), projected into the null space of the task only, so it acts
+   whatever the allocation holds: when it does not fit in the box, the allocated torque
+   α a + Z y (not b) is scaled by the largest γ <= 1 that makes room (α ← γ α);
+6. the objective torque τ_to = −Σ β_i ∂ν_i/∂q of the other objectives (eqs. 3.20–3.21,
+   5.9–5.10, 6.6, 7.17), projected into the null space of the task and of the joints the
+   allocation holds and scaled by the β of Algorithm 2 (eq. 7.16): β scales this tertiary
+   objective alone.
 
 Torques never leave the torque box. Non-finite readings stop the controller (zero
 torque, latched) and record why in the state; on the very first tick after
@@ -37,7 +42,7 @@ from typing import Literal
 import numpy as np
 
 from rhi._validate import scalar
-from rhi.control.objectives import FMEMatching, Objective, _spd, gradient_function
+from rhi.control.objectives import FMEMatching, JointLimitBarrier, Objective, _spd, gradient_function
 from rhi.control.primary import PrimaryLaw
 from rhi.control.saturation import (
     Allocation,
@@ -55,6 +60,7 @@ from rhi.control.saturation import (
     check_torque_limits,
     null_basis,
     null_projector,
+    safety_room,
     tertiary,
     transition_step,
 )
@@ -141,7 +147,7 @@ class ControllerConfig:
         fme: optional ASO-switched FME matching (adds FMEMatching(M_des(t)) to the objectives).
         damping: null-space joint damping k_D [N m s/rad] (eqs. 3.20, 6.6).
         saturation: "none" | "scaling" | "ascm" | "lp".
-        projector: "dynamic" (J# = M⁻¹Jᵀ(JM⁻¹Jᵀ)⁻¹) or "kinematic" (J⁺).
+        projector: "dynamic" (J# = M⁻¹Jᵀ(JM⁻¹Jᵀ)⁻¹) or "pseudoinverse" (J⁺).
         torque_min, torque_max: (n,) limits [N m]; None: the device's.
         gravity_compensation: add the null-space part (I − JᵀJ#ᵀ) g(q) of the gravity torque;
             with a primary law that compensates G_x (eqs. 5.4, 7.2) the whole g(q) is compensated.
@@ -154,7 +160,7 @@ class ControllerConfig:
     fme: FMESchedule | None = None
     damping: float = 0.1
     saturation: Saturation = "ascm"
-    projector: Literal["dynamic", "kinematic"] = "dynamic"
+    projector: Literal["dynamic", "pseudoinverse"] = "dynamic"
     torque_min: np.ndarray | None = None
     torque_max: np.ndarray | None = None
     gravity_compensation: bool = True
@@ -171,8 +177,8 @@ class ControllerState:
         transition: FME transition state.
         omega: activation Ω of the desired FME (1: free, 0: stiff).
         V: ASO volume of the last τ_m.
-        alpha: force scaling of the last tick.
-        beta: tertiary scaling of the last tick.
+        alpha: force scaling of the last tick (of the allocation, times the room made for the safety torque).
+        beta: tertiary scaling of the last tick (the objectives only; damping and limit barrier act whatever β).
         saturated: (n,) joints ASCM held at a limit.
         clipped: the unscaled torque b (damping, compensation, gravity) alone left the box, so
             the last torque was clipped and the task force is not α F_render + F_extra.
@@ -211,8 +217,8 @@ class NullSpaceController:
     def __init__(self, device: Device, config: ControllerConfig, state: ControllerState | None = None) -> None:
         if config.saturation not in ("none", "scaling", "ascm", "lp"):
             raise InvalidInput(f"saturation: expected 'none', 'scaling', 'ascm' or 'lp', got {config.saturation!r}")
-        if config.projector not in ("dynamic", "kinematic"):
-            raise InvalidInput(f"projector: expected 'dynamic' or 'kinematic', got {config.projector!r}")
+        if config.projector not in ("dynamic", "pseudoinverse"):
+            raise InvalidInput(f"projector: expected 'dynamic' or 'pseudoinverse', got {config.projector!r}")
         if config.implementation not in ("fast", "reference"):
             raise InvalidInput(f"implementation: expected 'fast' or 'reference', got {config.implementation!r}")
         scalar("damping", config.damping, nonnegative=True)
@@ -237,14 +243,14 @@ class NullSpaceController:
         self._aso_S = config.fme.transition.S if config.fme is not None else config.aso_shape
         self._fast = config.implementation == "fast"
         self._dynamic = config.projector == "dynamic"
-        self._grads = []
+        self._grads, self._safe_grads = [], []  # tertiary objectives; joint-limit barriers (safety)
         for term in config.objectives:
             if term.gain > 0:
                 obj = term.objective
                 fn = gradient_function(obj, device) if self._fast else (
                     lambda kin, obj=obj: np.asarray(obj.gradient(device, kin.q), dtype=float)
                 )
-                self._grads.append((float(term.gain), fn))
+                (self._safe_grads if isinstance(obj, JointLimitBarrier) else self._grads).append((float(term.gain), fn))
 
     def reset(self) -> None:
         """Fresh state (clears a safe stop)."""
@@ -344,25 +350,30 @@ class NullSpaceController:
         if fme is not None:
             s.transition, s.omega = transition_step(s.transition, t, s.V, fme.distance, fme.transition)
 
-        # allocation within the torque box, then the null-space objectives (tertiary)
-        tau_to = -cfg.damping * dq
+        # allocation within the torque box, the safety torque, then the null-space objectives (tertiary)
+        tau_s = -cfg.damping * dq
+        for gain, fn in self._safe_grads:
+            tau_s = tau_s - gain * fn(kin)
+        tau_to = None
         if fme is not None and fme.gain > 0:
-            tau_to = tau_to - fme.gain * self._fme.gradient_from(kin.J, kin.dJ, fme.desired(s.omega))
+            tau_to = -fme.gain * self._fme.gradient_from(kin.J, kin.dJ, fme.desired(s.omega))
         for gain, fn in self._grads:
-            tau_to = tau_to - gain * fn(kin)
+            tau_to = -gain * fn(kin) if tau_to is None else tau_to - gain * fn(kin)
+        if tau_to is None:
+            tau_to = np.zeros(self._n)
         if self._fast:
-            al, delta, beta = self._allocate_fast(a, b, tau_m, s.V, tau_to, kin)
+            al, alpha, delta, beta = self._allocate_fast(a, b, tau_m, s.V, tau_s, tau_to, kin)
         else:
-            al, delta, beta = self._allocate_reference(a, b, tau_to, kin)
+            al, alpha, delta, beta = self._allocate_reference(a, b, tau_s, tau_to, kin)
         tau = np.minimum(np.maximum(al.tau + delta if beta else al.tau, lo), hi)
         if not _finite(tau):  # e.g. a non-finite objective gradient at a singular configuration
             return self._stop(f"non-finite torque at t={t} (singular configuration?): {tau.tolist()}")
 
-        s.t, s.alpha, s.beta, s.saturated, s.clipped, s.tau = t, al.alpha, beta, al.saturated, al.clipped, tau
+        s.t, s.alpha, s.beta, s.saturated, s.clipped, s.tau = t, alpha, beta, al.saturated, al.clipped, tau
         s.ticks += 1
         return tau
 
-    def _allocate_reference(self, a, b, tau_to, kin: DeviceTerms) -> tuple[Allocation, np.ndarray, float]:
+    def _allocate_reference(self, a, b, tau_s, tau_to, kin: DeviceTerms):
         cfg, lo, hi = self.config, self.lo, self.hi
         M = kin.M if self._dynamic else None
         Z = null_basis(kin.J, M)
@@ -375,19 +386,24 @@ class NullSpaceController:
         else:
             al = allocate_none(a, b, lo, hi)
         N = nullspace_projector(kin.J, M)
+        tau1, gamma = safety_room(al.tau, b, N @ tau_s, lo, hi, skip=al.clipped)
+        al = dataclasses.replace(al, tau=tau1)
         delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
-        return al, delta, beta
+        return al, gamma * al.alpha, delta, beta
 
-    def _allocate_fast(self, a, b, tau_m, V, tau_to, kin: DeviceTerms) -> tuple[Allocation, np.ndarray, float]:
+    def _allocate_fast(self, a, b, tau_m, V, tau_s, tau_to, kin: DeviceTerms):
         cfg, lo, hi, n = self.config, self.lo, self.hi, self._n
         r = n - self._m
         P = Z = None
         if self._dynamic:
             Jt = kin.J.T
-            Ntau = tau_to - Jt.dot(kin.Jsharp.T.dot(tau_to))  # (I − JᵀJ#ᵀ) τ_to
+            JsT = kin.Jsharp.T
+            Ntau = tau_to - Jt.dot(JsT.dot(tau_to))  # (I − JᵀJ#ᵀ) τ_to
+            Nsafe = tau_s - Jt.dot(JsT.dot(tau_s))
         else:
-            P = null_projector(kin.J)  # = I − JᵀJ⁺ᵀ, the kinematic N
+            P = null_projector(kin.J)  # = I − JᵀJ⁺ᵀ, the pseudoinverse N
             Ntau = P.dot(tau_to)
+            Nsafe = P.dot(tau_s)
         sat = cfg.saturation
         if V > 0.0 and sat in ("ascm", "lp"):  # τ_m strictly inside the box: kept as it is (Algorithm 1, line 6)
             al = Allocation(tau_m, 1.0, np.zeros(n, bool), np.zeros(n), sat)
@@ -405,13 +421,15 @@ class NullSpaceController:
             al = allocate_scaling(a, b, lo, hi)
         else:
             al = allocate_none(a, b, lo, hi)
+        tau1, gamma = safety_room(al.tau, b, Nsafe, lo, hi, skip=al.clipped)
+        al = dataclasses.replace(al, tau=tau1)
         if P is None and al.saturated.any():
             P = _null_projector_rows(kin.JMinv)
         res = _tertiary_fast(al.tau, al.saturated, P, tau_to, Ntau, self._lo_l, self._hi_l, r)
         if res is None:
             N = kin.N if self._dynamic else null_projector(kin.J)
             res = tertiary(al.tau, al.saturated, self._null_basis(kin) if Z is None else Z, tau_to, lo, hi, N)
-        return al, res[0], res[1]
+        return al, gamma * al.alpha, res[0], res[1]
 
     def _null_basis(self, kin: DeviceTerms) -> np.ndarray:
         return null_basis(kin.J, kin.M if self._dynamic else None)
@@ -422,7 +440,7 @@ class NullSpaceController:
 
 
 def output_force(J: np.ndarray, tau: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
-    """Task-space force produced by joint torques, J#ᵀ τ (dynamic) or J⁺ᵀ τ (kinematic) [N]: (m,)."""
+    """Task-space force produced by joint torques, J#ᵀ τ (dynamic) or J⁺ᵀ τ (pseudoinverse) [N]: (m,)."""
     return (weighted_pinv(J) if M is None else dynamic_pinv(J, M)).T @ tau
 
 

@@ -66,7 +66,7 @@ def check_torque_limits(torque_min, torque_max, n: int | None = None) -> tuple[n
 
 
 def null_basis(J: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
-    """Orthonormal basis Z (n, n−m) of range(I − Jᵀ J#ᵀ) = null(J M⁻¹) (kinematic: null(J)).
+    """Orthonormal basis Z (n, n−m) of range(I − Jᵀ J#ᵀ) = null(J M⁻¹) (pseudoinverse: null(J)).
 
     Args:
         J: (m, n) Jacobian, full row rank.
@@ -79,7 +79,7 @@ def null_basis(J: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
 
 
 def null_projector(J: np.ndarray, M: np.ndarray | None = None, *, JMinv: np.ndarray | None = None) -> np.ndarray:
-    """Orthogonal projector P = Z Zᵀ (n, n) onto range(I − Jᵀ J#ᵀ) = null(J M⁻¹) (kinematic: null(J)).
+    """Orthogonal projector P = Z Zᵀ (n, n) onto range(I − Jᵀ J#ᵀ) = null(J M⁻¹) (pseudoinverse: null(J)).
 
     ``P = I − Q Qᵀ`` with Q an orthonormal basis of the rows of ``A = J M⁻¹`` (or J), by
     Gram–Schmidt with re-orthogonalisation (accurate to rounding whatever cond(A)): the
@@ -357,7 +357,7 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
     the excess to the unsaturated joints through the least-norm null-space torque
     ``Z y`` with ``(a + b + Z y)_𝒮 = τ_s`` (eq. 7.8). When holding one more joint leaves
     no null-space torque that can do so (``Z_𝒮`` rank-deficient: smallest singular value
-    below `RANK_TOL`; with the kinematic
+    below `RANK_TOL`; with the pseudoinverse
     projector this is the thesis's test ``rank(J(I − 𝒮)) < m``), the rendered force is
     scaled by the largest α with all joints in the box, the held joints staying at their
     limits (eq. 7.9, Algorithm 1 lines 16–24; α is taken over every joint, not only joint k,
@@ -543,6 +543,39 @@ def allocate_lp(a, b, Z, lo, hi) -> Allocation:
     return Allocation(tau, alpha, sat, d, "lp")
 
 
+def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarray, float]:
+    """Add a null-space safety torque (damping, joint-limit barrier) that acts whatever the allocation holds.
+
+    Returns ``τ' = b + δ + γ (τ − b)`` with the largest γ ∈ [0, 1] that keeps τ' in the box:
+    the allocated part ``α a + Z y`` of τ (eq. 7.9) gives way to δ, so the task force becomes
+    γ α F_render + F_extra and δ, a null-space torque, leaves it unchanged. Joints the
+    allocation held at a limit leave it when δ points inwards. When even ``b + δ`` leaves the
+    box, δ itself is scaled by the largest σ ∈ [0, 1] with ``τ + σ δ`` in the box (γ = 1).
+
+    Args:
+        tau: (n,) allocated torque [N m], within the box.
+        b: (n,) unscaled torque of the allocation [N m].
+        delta: (n,) safety torque, already projected into the task's null space [N m].
+        lo, hi: (n,) torque limits [N m].
+        skip: return (τ, 1) unchanged (the allocation had to clip b).
+
+    Returns:
+        (τ' (n,) [N m], γ).
+    """
+    if skip or not np.any(np.abs(delta) > _negligible(delta)):
+        return tau, 1.0
+    lo_l, hi_l = _as_list(lo), _as_list(hi)
+    b_l, d_l, t_l = b.tolist(), delta.tolist(), tau.tolist()
+    c = [x + y for x, y in zip(b_l, d_l)]
+    gamma = _scaling_alpha([t - x for t, x in zip(t_l, b_l)], c, lo_l, hi_l)
+    if gamma is None:
+        sigma = _scaling_alpha(d_l, [min(max(t, lo_), hi_) for t, lo_, hi_ in zip(t_l, lo_l, hi_l)], lo_l, hi_l)
+        sigma = 0.0 if sigma is None else sigma
+        return tau + sigma * delta, 1.0
+    return np.array([min(max(ci + gamma * (t - x), lo_), hi_)
+                     for ci, t, x, lo_, hi_ in zip(c, t_l, b_l, lo_l, hi_l)]), gamma
+
+
 def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Tertiary-objective torque in the null space of the primary task and of ASCM (eqs. 7.16, Algorithm 2).
 
@@ -628,7 +661,7 @@ def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None =
 
 
 def force_capability(
-    J, u, torque_min, torque_max, *, method: str = "ascm", M=None, samples: int = 41
+    J, u, torque_min, torque_max, *, method: str = "ascm", projector: str = "dynamic", M=None, samples: int = 41
 ) -> float:
     """Largest force along u a static allocation method renders, over a ramp of requests [N].
 
@@ -642,18 +675,23 @@ def force_capability(
         u: (m,) direction; normalised internally.
         torque_min, torque_max: (n,) limits [N m].
         method: "scaling" | "ascm" | "lp".
-        M: (n, n) inertia for the dynamic projector, or None (kinematic).
+        projector: "dynamic" (J#, eq. 7.5; needs M) or "pseudoinverse" (J⁺).
+        M: (n, n) inertia [kg m²], required for (and only used by) ``projector="dynamic"``.
         samples: requests in the ramp (for "ascm").
+
+    Raises:
+        InvalidInput: an unknown method or projector, or M missing/superfluous.
     """
     from rhi.metrics import max_force, max_force_scaling
 
+    if projector not in ("dynamic", "pseudoinverse"):
+        raise InvalidInput(f"projector: expected 'dynamic' or 'pseudoinverse', got {projector!r}")
     lo, hi = check_torque_limits(torque_min, torque_max, np.shape(J)[-1])
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     f_s = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
     if method == "scaling":
         return f_s
-    kw = {"projector": "kinematic"} if M is None else {"projector": "dynamic", "M": M}
-    f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, **kw))
+    f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector=projector, M=M))
     if method == "lp":
         return f_lp
     if method != "ascm":

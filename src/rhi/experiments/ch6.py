@@ -312,7 +312,7 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = F_3
             tau[k], alpha[k] = al.tau, al.alpha
         force = tau @ weighted_pinv(J)  # (J⁺ᵀ τ)ᵀ = τᵀ J⁺
         fs = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
-        flp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector="kinematic"))
+        flp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector="pseudoinverse"))
         peak = float(np.max(np.abs(force[:, 0])))
         arrays.update({f"q_{name}": q, f"skeleton_{name}": dev.skeleton(q)[:, :2],
                        f"fme_{name}": force_ellipsoid(J, hi),
@@ -349,15 +349,19 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = F_3
 
 # ----------------------------------------------------------------------- simulated palpation
 def _palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMESchedule | None = None,
-                          *, limits: bool = True, beta: float = BETA) -> NullSpaceController:
-    """Spring palpation (eq. 6.21) with force scaling; FME matching to `desired` or by the ASO `schedule`."""
+                          *, limits: bool = True, beta: float = BETA,
+                          projector: str = "dynamic") -> NullSpaceController:
+    """Spring palpation (eq. 6.21) with force scaling; FME matching to `desired` or by the ASO `schedule`.
+
+    projector: "dynamic" (J#, eq. 6.6 as the thesis writes it) or "pseudoinverse" (J⁺).
+    """
     law = SpringPalpation(K_E, X0, normal=U, damping=0.0, coriolis=False, gravity=False)
     if desired is not None:
         terms = controller_terms(desired, dev.torque_max, limits=limits, beta=beta)
     else:
         terms = (ObjectiveTerm(BARRIER, LIMIT_GAIN),) if limits else ()
     cfg = ControllerConfig(primary=law, objectives=terms, fme=schedule, damping=K_D, saturation="scaling",
-                           projector="dynamic", aso_shape=ASO_S)
+                           projector=projector, aso_shape=ASO_S)
     return NullSpaceController(dev, cfg)
 
 
@@ -399,6 +403,7 @@ def palpation(
     starts: int = 3,
     limits: bool = True,
     filter_ms: float = 20.0,
+    projectors: tuple[str, ...] = ("dynamic", "pseudoinverse"),
     progress: Progress | None = None,
 ) -> Result:
     """Fig. 6.9 and Table 6.1: palpating K_e = 1000 N/m from X₀ = [0.5, 0.1] m along u = [0, 1] on the simulated rhi4.
@@ -425,9 +430,15 @@ def palpation(
         starts: starts of the static matching (`best_match`).
         limits: add the joint-limit barrier to the controller (see the module docstring).
         filter_ms: moving-average window of the sensor force [ms].
+        projectors: null-space projectors of the simulated controller, each run in turn:
+            "dynamic" (J#, the thesis's text) and/or "pseudoinverse" (J⁺). The first one gives
+            the main rows and arrays; the others add their simulated peaks and gain.
         progress: callback(done, total) in control ticks.
     """
     _check_motion(settle=settle, depth=depth, speed=speed, hold=hold)
+    if not projectors or len(set(projectors)) != len(projectors) or any(
+            p not in ("dynamic", "pseudoinverse") for p in projectors):
+        raise InvalidInput(f"projectors: expected distinct 'dynamic'/'pseudoinverse' entries, got {projectors!r}")
     dev = device("rhi4")
     lo, hi = dev.torque_limits
     u, x0 = np.array(U), np.array(X0)
@@ -439,12 +450,25 @@ def palpation(
     D = _plant_damping(dev)
     stat: dict[str, dict[str, float]] = {}
     sim: dict[str, float] = {}
+    total = 2 * ticks * len(projectors)
+    q_opts = {case: best_match(dev, x0, WeightedSum(controller_terms(desired[case], hi, limits=limits)),
+                               starts=starts) for case in CASES}
+    for j, proj in enumerate(projectors[1:], start=1):  # the other projectors: simulated peaks only
+        tag = "J#" if proj == "dynamic" else "J⁺"
+        for i, case in enumerate(CASES):
+            ctrl = _palpation_controller(dev, desired[case], limits=limits, projector=proj)
+            hand = _hand([x0, x0 + depth * u], speed, settle, hand_stiffness, hand_damping)
+            log = _run(dev, ctrl, hand, q_opts[case], duration, progress, (2 * j + i) * ticks, total)
+            if log.fault is not None:
+                raise InvalidInput(f"palpation: the controller stopped: {log.fault}")
+            f_u = -_smooth(log.ft[:, :2], max(1, int(round(filter_ms)))) @ u
+            sim[f"{case}_{tag}"] = float(np.min(np.where(log.t >= settle, f_u, np.inf)))
+            arrays[f"force_{case}_{proj}"] = f_u
     for i, case in enumerate(CASES):
-        obj = WeightedSum(controller_terms(desired[case], hi, limits=limits))
-        q_opt = best_match(dev, x0, obj, starts=starts)
-        ctrl = _palpation_controller(dev, desired[case], limits=limits)
+        q_opt = q_opts[case]
+        ctrl = _palpation_controller(dev, desired[case], limits=limits, projector=projectors[0])
         hand = _hand([x0, x0 + depth * u], speed, settle, hand_stiffness, hand_damping)
-        log = _run(dev, ctrl, hand, q_opt, duration, progress, i * ticks, 2 * ticks)
+        log = _run(dev, ctrl, hand, q_opt, duration, progress, i * ticks, total)
         if log.fault is not None:
             raise InvalidInput(f"palpation: the controller stopped: {log.fault}")
         k_set = int(round(settle * 1000.0)) - 1
@@ -460,6 +484,7 @@ def palpation(
             stat[f"{case}_{tag}"] = {
                 "fs": float(max_force_scaling(J, u, torque_min=lo, torque_max=hi)),
                 "lp": float(max_force(J, u, torque_min=lo, torque_max=hi, M=M)),
+                "lp_pinv": float(max_force(J, u, torque_min=lo, torque_max=hi, projector="pseudoinverse")),
                 "lam": float(effective_inertia(J, M, u)),
                 "phi": reflected_damping(J, M, D, u),
                 "nu": float(FMEMatching(desired[case], hi).value(dev, q)),
@@ -500,8 +525,16 @@ def palpation(
             gain(stat["stiff_settled"]["fs"], stat["free_settled"]["fs"]), "%"),
         Row("force gain, LP with null-space torques at the settled configurations", THESIS_GAIN,
             gain(stat["stiff_settled"]["lp"], stat["free_settled"]["lp"]), "%"),
+        Row("force gain, LP with J⁺ null-space torques at the settled configurations", THESIS_GAIN,
+            gain(stat["stiff_settled"]["lp_pinv"], stat["free_settled"]["lp_pinv"]), "%"),
         Row("force gain, force scaling at the static optima", THESIS_GAIN,
             gain(stat["stiff_opt"]["fs"], stat["free_opt"]["fs"]), "%"),
+        *[Row(f"force gain M_Stiff vs M_Free, simulated sensor peak, controller with {tag}", THESIS_GAIN,
+              gain(sim[f"stiff_{tag}"], sim[f"free_{tag}"]), "%") for tag in
+          ("J#" if p == "dynamic" else "J⁺" for p in projectors[1:])],
+        *[Row(f"F_max along u, M_{c.capitalize()}^des: simulated F/T sensor peak, controller with {tag}",
+              THESIS_TABLE[c][2], sim[f"{c}_{tag}"], "N") for tag in
+          ("J#" if p == "dynamic" else "J⁺" for p in projectors[1:]) for c in CASES],
         Row("inertia ratio Λ_Stiff/Λ_Free (thesis: M_x ratio)", T.MX_RATIO_6_1,
             stat["stiff_settled"]["lam"] / stat["free_settled"]["lam"], ""),
         Row("𝒦 (μ λ_max at q = 0)", THESIS_K, K, "N²/(N m)²"),
@@ -521,6 +554,8 @@ def palpation(
     g_sim = gain(sim["stiff"], sim["free"])
     g_lp = gain(stat["stiff_settled"]["lp"], stat["free_settled"]["lp"])
     notes = [
+        f"Simulated controller's projector: {projectors[0]} for the main rows; the gain rows marked J⁺/J# "
+        "repeat the simulation with the other projector.",
         "Table 6.1's F_max is a hardware measurement; ours is the simulated F/T sensor (20 ms moving "
         "average) and the static capability at the configuration the controller settled to.",
         f"Gain M_Stiff over M_Free: {g_sim:.0f} % simulated vs the thesis's {THESIS_GAIN:.0f} %. The thesis does not "

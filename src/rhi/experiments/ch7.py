@@ -1,9 +1,9 @@
 """Chapter 7: actuator saturation compensation (Fig. 7.1 3-DoF example, Fig. 7.5 percent-deficiency map).
 
 Both are static: the end-effector is held fixed, so no physics engine is needed. The
-output force of joint torques τ is ``J⁺ᵀ τ`` (kinematic projector, the default) or
+output force of joint torques τ is ``J⁺ᵀ τ`` (pseudoinverse projector, the default) or
 ``J#ᵀ τ`` (dynamically consistent, ``projector="dynamic"``). The thesis's 12 % gap of
-Fig. 7.1 between simple scaling and ASCM is reproduced with the kinematic projector
+Fig. 7.1 between simple scaling and ASCM is reproduced with the pseudoinverse projector
 (equivalently J# with M = I); with the dynamically consistent J# of our planar3r
 inertial model the null space is a different subspace and the numbers change (both
 are reported).
@@ -47,7 +47,7 @@ def _allocate(method: str, a, b, Z, lo, hi):
     return allocate_lp(a, b, Z, lo, hi)
 
 
-def force_run(dev, q, t, Fe, *, projector: str = "kinematic") -> dict[str, dict[str, np.ndarray]]:
+def force_run(dev, q, t, Fe, *, projector: str = "pseudoinverse") -> dict[str, dict[str, np.ndarray]]:
     """Render the force history Fe (T, m) [N] at the fixed configuration q with every method.
 
     Returns:
@@ -87,7 +87,7 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
     q = np.array(Q_3DOF)
     t = np.linspace(0.0, duration, steps)
     Fe = np.stack([amplitude * np.sin(np.pi * t / 2), np.zeros_like(t)], axis=1)
-    runs = {p: force_run(dev, q, t, Fe, projector=p) for p in ("kinematic", "dynamic")}
+    runs = {p: force_run(dev, q, t, Fe, projector=p) for p in ("pseudoinverse", "dynamic")}
     arrays: dict[str, np.ndarray] = {"t": t, "Fe": Fe, "q": q}
     rows = []
     peaks = {}
@@ -95,7 +95,7 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
         for meth, r in run.items():
             peak = float(np.max(np.linalg.norm(r["force"], axis=1)))
             peaks[proj, meth] = peak
-            if proj == "kinematic":
+            if proj == "pseudoinverse":
                 arrays[f"force_{meth}"] = r["force"]
                 arrays[f"tau_{meth}"] = r["tau"]
                 arrays[f"alpha_{meth}"] = r["alpha"]
@@ -106,30 +106,30 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
         ang = np.degrees(np.arctan2(np.abs(Fn[:, 1]), np.maximum(Fn[:, 0], 1e-12)))
         rows.append(Row(f"max direction error without compensation ({proj})", None, float(ang.max()), "deg"))
     gap = {p: 100.0 * (peaks[p, "ascm"] - peaks[p, "scaling"]) / peaks[p, "ascm"] for p in runs}
-    rows.insert(0, Row("peak force deficit of scaling vs ASCM (kinematic projector)", T.SCALING_GAP, gap["kinematic"], "%"))
+    rows.insert(0, Row("peak force deficit of scaling vs ASCM (pseudoinverse projector)", T.SCALING_GAP, gap["pseudoinverse"], "%"))
     rows.insert(1, Row("peak force deficit of scaling vs ASCM (dynamic projector, our inertias)", T.SCALING_GAP,
                        gap["dynamic"], "%", "dynamically consistent null space differs from the thesis's"))
     J = dev.jacobian(q)
     # full force until two joints saturate: first time ASCM scales (α < 1) and how many joints are held then
-    r = runs["kinematic"]["ascm"]
+    r = runs["pseudoinverse"]["ascm"]
     first = int(np.argmax(r["alpha"] < 1 - 1e-12)) if np.any(r["alpha"] < 1 - 1e-12) else -1
     lo, hi = dev.torque_limits
     at_limit = (np.abs(r["tau"] - hi) < 1e-9) | (np.abs(r["tau"] - lo) < 1e-9)
     held = int(at_limit[first].sum()) if first >= 0 else 0
     rows.append(Row("joints at a torque limit when ASCM first scales (α < 1)", T.HELD_AT_SCALING, float(held), ""))
-    first_sat = int(np.argmax(runs["kinematic"]["none"]["saturated"].any(axis=1)))
+    first_sat = int(np.argmax(runs["pseudoinverse"]["none"]["saturated"].any(axis=1)))
     rows.append(Row("|F_e| when the first joint saturates", None, float(np.linalg.norm(Fe[first_sat])), "N"))
     if first >= 0:
         rows.append(Row("|F_e| when ASCM starts scaling", None, float(np.linalg.norm(Fe[first])), "N"))
-    rows.append(Row("LP optimum along x (kinematic)", None,
-                    float(max_force(J, [1, 0], torque_min=lo, torque_max=hi, projector="kinematic")), "N"))
+    rows.append(Row("LP optimum along x (pseudoinverse)", None,
+                    float(max_force(J, [1, 0], torque_min=lo, torque_max=hi, projector="pseudoinverse")), "N"))
     return Result(
         "ch7.example_3dof",
         "Fig. 7.1: 3-DoF planar RHI rendering F_e = [4 sin(πt/2), 0] N with saturating joints",
         [Table("Fig. 7.1 peak output forces", rows)],
         arrays,
         [
-            "End-effector held fixed; F_out = J⁺ᵀτ (kinematic projector). The thesis's 12 % "
+            "End-effector held fixed; F_out = J⁺ᵀτ (pseudoinverse projector). The thesis's 12 % "
             "scaling-vs-ASCM gap is reproduced with this projector.",
             "With the dynamically consistent projector (our planar3r inertias) ASCM's greedy order "
             "stops short of the LP optimum here; the LP allocation reaches it.",
@@ -164,8 +164,8 @@ def _deficiency_row(y: float, xs: np.ndarray, projector: str) -> np.ndarray:
             continue
         M = dev.mass_matrix(q) if projector == "dynamic" else None
         out[0, i] = force_capability(J, U, lo, hi, method="scaling")
-        out[1, i] = force_capability(J, U, lo, hi, method="ascm", M=M, samples=21)
-        out[2, i] = force_capability(J, U, lo, hi, method="lp", M=M)
+        out[1, i] = force_capability(J, U, lo, hi, method="ascm", projector=projector, M=M, samples=21)
+        out[2, i] = force_capability(J, U, lo, hi, method="lp", projector=projector, M=M)
     return out
 
 
@@ -173,7 +173,7 @@ def deficiency_map(
     resolution: int = 25,
     progress: Callable[[int, int], None] | None = None,
     *,
-    projector: str = "kinematic",
+    projector: str = "pseudoinverse",
     executor=None,
     workers: int | None = None,
 ) -> Result:
@@ -188,15 +188,15 @@ def deficiency_map(
     Args:
         resolution: grid points per axis.
         progress: optional callback(done, total) in grid points, after each finished row.
-        projector: "kinematic" or "dynamic".
+        projector: "pseudoinverse" or "dynamic".
         executor: an executor, a name ("serial", "local", "ray") or None (``workers``, else
             the default of `rhi.design.executors.configure`: a local process pool).
         workers: processes of a new local pool (1: in this process).
     """
     if not isinstance(resolution, (int, np.integer)) or resolution < 2:
         raise InvalidInput(f"resolution: expected an integer >= 2, got {resolution!r}")
-    if projector not in ("kinematic", "dynamic"):
-        raise InvalidInput(f"projector: expected 'kinematic' or 'dynamic', got {projector!r}")
+    if projector not in ("pseudoinverse", "dynamic"):
+        raise InvalidInput(f"projector: expected 'pseudoinverse' or 'dynamic', got {projector!r}")
     xs = np.linspace(0.25, 0.75, resolution)
     ys = np.linspace(-0.5, 0.3, resolution)
     rows = parallel_map(functools.partial(_deficiency_row, xs=xs, projector=projector), list(ys),

@@ -546,15 +546,18 @@ def ch6_configurations(starts: int = 3) -> dict[str, np.ndarray]:
     return out
 
 
-def _ch6_controller(dev: Device, desired: np.ndarray) -> Callable[[], object]:
-    """Factory of the ch. 6 null-space controller with a zero primary force (sysid: nothing rendered)."""
+def _ch6_controller(dev: Device, desired: np.ndarray, projector: str = "dynamic") -> Callable[[], object]:
+    """Factory of the ch. 6 null-space controller with a zero primary force (sysid: nothing rendered).
+
+    projector: "dynamic" (J#, eq. 5.9 as the thesis writes it) or "pseudoinverse" (J⁺).
+    """
     from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
     from rhi.experiments import ch6
 
     def make():
         cfg = ControllerConfig(primary=ForceRendering(damping=0.0, coriolis=False, gravity=False),
                                objectives=ch6.controller_terms(desired, dev.torque_max), damping=ch6.K_D,
-                               saturation="scaling", projector="dynamic")
+                               saturation="scaling", projector=projector)
         return NullSpaceController(dev, cfg)
 
     return make
@@ -568,6 +571,7 @@ def sysid_table_6_1(
     window: float = WINDOW_CH6,
     starts: int = 3,
     cutoff_hz: float = 20.0,
+    projectors: tuple[str, ...] = ("dynamic", "pseudoinverse"),
     progress: Progress | None = None,
 ) -> Result:
     """Table 6.1: M_x, Φ and F_max along u at [0.5, 0.1] m for the FME-matched configurations of rhi4.
@@ -587,6 +591,10 @@ def sysid_table_6_1(
         window: half-width of the position window [m].
         starts: starts of the FME matching (`rhi.experiments.ch6.best_match`).
         cutoff_hz: low-pass cut-off [Hz].
+        projectors: null-space projectors of the controller and of the F_max LP, each run in turn:
+            "dynamic" (J#, the thesis's text) and/or "pseudoinverse" (J⁺). The first gives the
+            array keys ``free_*``/``stiff_*``, the others ``free_pinv_*``/``stiff_pinv_*``. With
+            ``controller="off"`` the projector only changes the F_max LP.
         progress: callback(done, total) in trials.
     """
     from rhi.experiments import ch6
@@ -594,6 +602,9 @@ def sysid_table_6_1(
 
     if controller not in ("nullspace", "off"):
         raise InvalidInput(f"controller: expected 'nullspace' or 'off', got {controller!r}")
+    if not projectors or len(set(projectors)) != len(projectors) or any(
+            p not in ("dynamic", "pseudoinverse") for p in projectors):
+        raise InvalidInput(f"projectors: expected distinct 'dynamic'/'pseudoinverse' entries, got {projectors!r}")
     dev = device("rhi4")
     u, x = np.array(U), np.array(X_CH6)
     x_start = x - BEFORE_CH6 * u
@@ -602,39 +613,49 @@ def sysid_table_6_1(
     desired = {"free": Mf, "stiff": Ms}
     q_point = ch6_configurations(starts)
     lo, hi = dev.torque_limits
-    rows, arrays, cases = [], {"forces": forces, "u": u, "x": x}, {}
-    for k, case in enumerate(ch6.CASES):
-        obj = WeightedSum(ch6.controller_terms(desired[case], hi))
-        q_start = ch6.match_fme(dev, x_start, obj, q_point[case])
-        factory = _ch6_controller(dev, desired[case]) if controller == "nullspace" else None
-        cb = None if progress is None else (lambda i, n, k=k: progress(k * len(forces) + i, 2 * len(forces)))
-        lab = "M_Free^des" if case == "free" else "M_Stiff^des"
-        res = identify_case(dev, q_start, q_point[case], x, label=lab, forces=forces, u=u, window=window,
-                            controller=factory, cutoff_hz=cutoff_hz, progress=cb)
-        cases[case] = res
-        mx, phi, fmax = THESIS_TABLE_6_1[case]
-        rows += _fit_rows(res, lab, mx, phi, "thesis: hardware identification (Table 6.1)")
-        J, M = dev.jacobian(q_point[case]), dev.mass_matrix(q_point[case])
-        f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, M=M))
-        f_sc = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
-        rows += [
-            Row(f"F_max along u, {lab}: rhi.metrics.max_force (LP, null-space torques)", fmax, -f_lp, "N",
-                "static capability at the FME-matched configuration; thesis: measured peak"),
-            Row(f"F_max along u, {lab}: force scaling (the ch. 6 controller)", fmax, -f_sc, "N"),
-        ]
-        arrays.update(_case_arrays(res, case))
-        arrays[f"q_nominal_{case}"] = q_point[case]
-        arrays[f"q_start_{case}"] = q_start
-    cf, cs = cases["free"], cases["stiff"]
+    rows, arrays, rows_cmp = [], {"forces": forces, "u": u, "x": x}, []
     tf, ts = THESIS_TABLE_6_1["free"], THESIS_TABLE_6_1["stiff"]
-    rows_cmp = [
-        Row("M_x ratio Stiff/Free, identified", T.MX_RATIO_6_1, cs.fit.mass / cf.fit.mass, ""),
-        Row("Φ ratio Stiff/Free, identified", T.PHI_RATIO_6_1, cs.fit.damping / cf.fit.damping, ""),
-        Row("identified − eq. 3.13, M_Free^des", None, cf.lam_error, ""),
-        Row("identified − eq. 3.13, M_Stiff^des", None, cs.lam_error, ""),
-        Row("identified / (Λ/(1 − k)) − 1, M_Free^des", None, cf.fit.mass / cf.lam_vp - 1.0, ""),
-        Row("identified / (Λ/(1 − k)) − 1, M_Stiff^des", None, cs.fit.mass / cs.lam_vp - 1.0, ""),
-    ]
+    total = len(projectors) * 2 * len(forces)
+    for j, proj in enumerate(projectors):
+        tag = "J#" if proj == "dynamic" else "J⁺"
+        cases = {}
+        for k, case in enumerate(ch6.CASES):
+            obj = WeightedSum(ch6.controller_terms(desired[case], hi))
+            q_start = ch6.match_fme(dev, x_start, obj, q_point[case])
+            factory = _ch6_controller(dev, desired[case], proj) if controller == "nullspace" else None
+            done = (2 * j + k) * len(forces)
+            cb = None if progress is None else (lambda i, n, done=done: progress(done + i, total))
+            lab = ("M_Free^des" if case == "free" else "M_Stiff^des") + f" ({tag})"
+            res = identify_case(dev, q_start, q_point[case], x, label=lab, forces=forces, u=u, window=window,
+                                controller=factory, cutoff_hz=cutoff_hz, progress=cb)
+            cases[case] = res
+            mx, phi, fmax = THESIS_TABLE_6_1[case]
+            rows += _fit_rows(res, lab, mx, phi, "thesis: hardware identification (Table 6.1)")
+            J, M = dev.jacobian(q_point[case]), dev.mass_matrix(q_point[case])
+            f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector=proj,
+                                   M=M if proj == "dynamic" else None))
+            f_sc = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
+            rows += [
+                Row(f"F_max along u, {lab}: rhi.metrics.max_force (LP, null-space torques)", fmax, -f_lp, "N",
+                    "static capability at the FME-matched configuration; thesis: measured peak"),
+                Row(f"F_max along u, {lab}: force scaling (the ch. 6 controller)", fmax, -f_sc, "N"),
+            ]
+            key = case if j == 0 else f"{case}_pinv" if proj == "pseudoinverse" else f"{case}_dyn"
+            arrays.update(_case_arrays(res, key))
+            arrays[f"q_nominal_{key}"] = q_point[case]
+            arrays[f"q_start_{key}"] = q_start
+        cf, cs = cases["free"], cases["stiff"]
+        rows_cmp += [
+            Row(f"M_x ratio Stiff/Free, identified ({tag})", T.MX_RATIO_6_1, cs.fit.mass / cf.fit.mass, ""),
+            Row(f"Φ ratio Stiff/Free, identified ({tag})", T.PHI_RATIO_6_1, cs.fit.damping / cf.fit.damping, ""),
+            Row(f"identified − eq. 3.13, M_Free^des ({tag})", None, cf.lam_error, ""),
+            Row(f"identified − eq. 3.13, M_Stiff^des ({tag})", None, cs.lam_error, ""),
+            Row(f"identified / (Λ/(1 − k)) − 1, M_Free^des ({tag})", None, cf.fit.mass / cf.lam_vp - 1.0, ""),
+            Row(f"identified / (Λ/(1 − k)) − 1, M_Stiff^des ({tag})", None, cs.fit.mass / cs.lam_vp - 1.0, ""),
+        ]
+        if j == 0:
+            first = (cf, cs)
+    cf, cs = first
     return Result(
         "perception.sysid_table_6_1",
         "Table 6.1: M_x, Φ and F_max along u = [0, 1] at [0.5, 0.1] m identified on the simulated rhi4",

@@ -12,7 +12,7 @@ from rhi.errors import InfeasibleLimits, InvalidInput, RhiError
 from rhi.metrics._common import SINGULAR_RTOL, FloatArray, direction, frobenius_norm, jacobian
 from rhi.metrics.inverses import nullspace_projector
 
-Projector = Literal["dynamic", "kinematic"] | None
+Projector = Literal["dynamic", "pseudoinverse"] | None
 
 
 def _setup(
@@ -125,9 +125,9 @@ def max_force(
     ``torque_min <= f Jᵀu + N τ_N <= torque_max`` with ``f >= 0`` and ``τ_N`` free, where
     ``N`` is the torque null-space projector of eq. 7.5: ``I − JᵀJ#ᵀ`` with the
     dynamically consistent ``J#`` (``projector="dynamic"``, needs ``M``), ``I − JᵀJ⁺ᵀ``
-    (``"kinematic"``), or no null space (``None``, identical to `max_force_scaling`).
+    (``"pseudoinverse"``), or no null space (``None``, identical to `max_force_scaling`).
     The optimal torque produces the end-effector force ``f u``: ``J#ᵀτ = f u`` (dynamic)
-    or ``J⁺ᵀτ = f u`` (kinematic). Solved with HiGHS, one LP per configuration;
+    or ``J⁺ᵀτ = f u`` (pseudoinverse). Solved with HiGHS, one LP per configuration;
     constraints hold to the solver's feasibility tolerance (about 1e-9 N m).
 
     Args:
@@ -135,7 +135,7 @@ def max_force(
         u: (..., m) force direction; normalised internally, must be non-zero.
         torque_min: (n,) or (..., n) lower torque limits [N m], each <= 0.
         torque_max: (n,) or (..., n) upper torque limits [N m], each >= 0.
-        projector: "dynamic", "kinematic" or None.
+        projector: "dynamic", "pseudoinverse" or None.
         M: (..., n, n) joint-space inertia [kg m²], required for (and only used by)
             ``projector="dynamic"``.
         return_torque: also return the optimal joint torques.
@@ -152,8 +152,8 @@ def max_force(
         Singular: ``J`` does not have full row rank (with a projector).
         RhiError: the LP solver failed.
     """
-    if projector not in ("dynamic", "kinematic", None):
-        raise InvalidInput(f"projector: expected 'dynamic', 'kinematic' or None, got {projector!r}")
+    if projector not in ("dynamic", "pseudoinverse", None):
+        raise InvalidInput(f"projector: expected 'dynamic', 'pseudoinverse' or None, got {projector!r}")
     if projector == "dynamic" and M is None:
         raise InvalidInput("M: the joint-space inertia matrix is required with projector='dynamic'")
     if projector != "dynamic" and M is not None:

@@ -67,7 +67,7 @@ def force_penetration(result: Result) -> Figure:
     p = np.linspace(0.0, pmax, 50)
     K = float(a["stiffness"])
     ax.plot(p, K * p / 1e3, "k--", lw=1, label=f"K_e δX ({K:g} N/m)")
-    for name, style in (("scaling", ":"), ("ascm_dynamic", "-."), ("ascm_kinematic", "--")):
+    for name, style in (("scaling", ":"), ("ascm_dynamic", "-."), ("ascm_pseudoinverse", "--")):
         key = f"capability_{name}"
         if key in a:
             ax.axhline(float(a[key]), color="0.4", ls=style, lw=0.9,
