@@ -7,7 +7,7 @@ A file holds these tables (every key optional unless marked; the shipped files i
 - ``[run]``: ``rate`` [Hz] (1000), ``duration`` [s] (none: until a fault or Ctrl-C).
 - ``[device]``: ``name`` of a bundled device, ``params`` (its design parameters, e.g. ``{ d2 = 0.1405 }``).
 - ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp"),
-  ``projector`` ("dynamic", "kinematic"), ``torque_min``/``torque_max`` [N m], ``gravity_compensation``,
+  ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m], ``gravity_compensation``,
   ``aso_shape``, ``implementation`` — the fields of `rhi.control.ControllerConfig`;
   ``[controller.primary]`` (required) with ``law`` = "impedance" | "force_rendering" | "spring" and that law's
   parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...);
@@ -96,7 +96,7 @@ _CONTROLLER = {
     "fme": (S.table(_FME), None),
     "damping": (_nonneg, 0.1),
     "saturation": (S.choice("none", "scaling", "ascm", "lp"), "ascm"),
-    "projector": (S.choice("dynamic", "kinematic"), "dynamic"),
+    "projector": (S.choice("dynamic", "pseudoinverse"), "dynamic"),
     "torque_min": (_vec, None),
     "torque_max": (_vec, None),
     "gravity_compensation": (S.boolean, True),
