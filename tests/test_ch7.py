@@ -55,6 +55,9 @@ def test_fig7_5_deficiency_map_reduced():
     assert np.all(a["pd"][ok] >= -1e-9)  # ASCM is never worse than scaling (thesis Fig. 7.5)
     assert np.all(a["f_ascm"][ok] <= a["f_lp"][ok] * (1 + 1e-7))
     assert np.all(a["pd_lp"][ok] >= a["pd"][ok] - 1e-9)
+    okd = np.isfinite(a["pd_dynamic"])  # the dynamically consistent J# map beside the J⁺ one
+    assert np.array_equal(okd, ok) and np.all(a["pd_dynamic"][ok] >= -1e-9)
+    assert np.all(a["f_ascm_dynamic"][ok] <= a["f_lp_dynamic"][ok] * (1 + 1e-7))
 
 
 def test_deficiency_map_serial_equals_local_pool():
@@ -69,7 +72,7 @@ def test_deficiency_map_serial_equals_local_pool():
         np.testing.assert_array_equal(a.arrays[k], b.arrays[k])  # bit for bit, NaNs in the same places
     assert ticks == [(4 * (j + 1), 16) for j in range(4)]
     with pytest.raises(InvalidInput, match="projector"):
-        ch7.deficiency_map(resolution=3, projector="kinematik", workers=1)
+        ch7.deficiency_map(resolution=3, projectors=("kinematik",), workers=1)
 
 
 def test_ch7_figures_draw(fig71):

@@ -30,6 +30,7 @@ from rhi.control.primary import (
     SpringPalpation,
     task_compensation,
 )
+from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import (
     Allocation,
     TransitionConfig,
@@ -44,7 +45,6 @@ from rhi.control.saturation import (
     hysteresis,
     null_basis,
     null_projector,
-    safety_room,
     tertiary,
     tertiary_projector,
     transition_step,
@@ -83,6 +83,7 @@ __all__ = [
     "desired_fme_stiff",
     "fme_shape",
     "gradient_function",
+    "held_part",
     "hysteresis",
     "null_basis",
     "null_projector",

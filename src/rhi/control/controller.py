@@ -13,13 +13,17 @@ One tick (`NullSpaceController.step`) computes, from the joint sensors and the s
 4. the allocation of τ_m within the torque box: none / simple scaling / ASCM (Algorithm 1) /
    LP optimum, with force scaling α (eq. 7.9);
 5. the safety torque τ_s = −k_D q̇ − Σ w ∂ν_lim/∂q (null-space damping and every
-   `JointLimitBarrier` term), projected into the null space of the task only, so it acts
-   whatever the allocation holds: when it does not fit in the box, the allocated torque
-   α a + Z y (not b) is scaled by the largest γ <= 1 that makes room (α ← γ α);
-6. the objective torque τ_to = −Σ β_i ∂ν_i/∂q of the other objectives (eqs. 3.20–3.21,
-   5.9–5.10, 6.6, 7.17), projected into the null space of the task and of the joints the
-   allocation holds and scaled by the β of Algorithm 2 (eq. 7.16): β scales this tertiary
-   objective alone.
+   `JointLimitBarrier` term) acts whatever ASCM or the LP allocation holds (simple scaling and
+   clipping hold no joint with null-space torque and keep Algorithm 2 as it is): the part of
+   N τ_s that the joints held at a limit would block (all of it when they leave no redundancy, where
+   Algorithm 2 gives β = 0) is added in full, and when it does not fit in the box the
+   allocated torque α a + Z y (not b) is scaled by the largest γ <= 1 that makes room
+   (α ← γ α; `safety_room`);
+6. the objective torque τ_to = −Σ β_i ∂ν_i/∂q − τ_s (eqs. 3.20–3.21, 5.9–5.10, 6.6, 7.17),
+   projected into the null space of the task and of the held joints and scaled by the β
+   of Algorithm 2 (eq. 7.16). The safety torque's share within the held joints' null space
+   is scaled with the objectives so their balance (the static optimum of ν + ν_lim) holds;
+   the share β = 0 would switch off is not.
 
 Torques never leave the torque box. Non-finite readings stop the controller (zero
 torque, latched) and record why in the state; on the very first tick after
@@ -60,10 +64,10 @@ from rhi.control.saturation import (
     check_torque_limits,
     null_basis,
     null_projector,
-    safety_room,
     tertiary,
     transition_step,
 )
+from rhi.control.safety import _held_part_fast, held_part, safety_room
 from rhi.device import Device, DeviceTerms
 from rhi.errors import InvalidInput, Singular
 from rhi.metrics import dynamic_pinv, nullspace_projector, weighted_pinv
@@ -354,13 +358,11 @@ class NullSpaceController:
         tau_s = -cfg.damping * dq
         for gain, fn in self._safe_grads:
             tau_s = tau_s - gain * fn(kin)
-        tau_to = None
+        tau_to = tau_s
         if fme is not None and fme.gain > 0:
-            tau_to = -fme.gain * self._fme.gradient_from(kin.J, kin.dJ, fme.desired(s.omega))
+            tau_to = tau_to - fme.gain * self._fme.gradient_from(kin.J, kin.dJ, fme.desired(s.omega))
         for gain, fn in self._grads:
-            tau_to = -gain * fn(kin) if tau_to is None else tau_to - gain * fn(kin)
-        if tau_to is None:
-            tau_to = np.zeros(self._n)
+            tau_to = tau_to - gain * fn(kin)
         if self._fast:
             al, alpha, delta, beta = self._allocate_fast(a, b, tau_m, s.V, tau_s, tau_to, kin)
         else:
@@ -386,8 +388,10 @@ class NullSpaceController:
         else:
             al = allocate_none(a, b, lo, hi)
         N = nullspace_projector(kin.J, M)
-        tau1, gamma = safety_room(al.tau, b, N @ tau_s, lo, hi, skip=al.clipped)
-        al = dataclasses.replace(al, tau=tau1)
+        gamma = 1.0
+        if al.saturated.any() and al.method in ("ascm", "lp"):  # safety the held joints would block
+            tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), lo, hi, skip=al.clipped)
+            al = dataclasses.replace(al, tau=tau1)
         delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
         return al, gamma * al.alpha, delta, beta
 
@@ -397,13 +401,10 @@ class NullSpaceController:
         P = Z = None
         if self._dynamic:
             Jt = kin.J.T
-            JsT = kin.Jsharp.T
-            Ntau = tau_to - Jt.dot(JsT.dot(tau_to))  # (I − JᵀJ#ᵀ) τ_to
-            Nsafe = tau_s - Jt.dot(JsT.dot(tau_s))
+            Ntau = tau_to - Jt.dot(kin.Jsharp.T.dot(tau_to))  # (I − JᵀJ#ᵀ) τ_to
         else:
             P = null_projector(kin.J)  # = I − JᵀJ⁺ᵀ, the pseudoinverse N
             Ntau = P.dot(tau_to)
-            Nsafe = P.dot(tau_s)
         sat = cfg.saturation
         if V > 0.0 and sat in ("ascm", "lp"):  # τ_m strictly inside the box: kept as it is (Algorithm 1, line 6)
             al = Allocation(tau_m, 1.0, np.zeros(n, bool), np.zeros(n), sat)
@@ -421,8 +422,16 @@ class NullSpaceController:
             al = allocate_scaling(a, b, lo, hi)
         else:
             al = allocate_none(a, b, lo, hi)
-        tau1, gamma = safety_room(al.tau, b, Nsafe, lo, hi, skip=al.clipped)
-        al = dataclasses.replace(al, tau=tau1)
+        gamma = 1.0
+        if al.saturated.any() and al.method in ("ascm", "lp"):  # safety the held joints would block
+            Nsafe = tau_s - Jt.dot(kin.Jsharp.T.dot(tau_s)) if self._dynamic else P.dot(tau_s)
+            if P is None:
+                P = _null_projector_rows(kin.JMinv)
+            held = _held_part_fast(P, al.saturated, Nsafe)
+            if held is None:
+                held = held_part(self._null_basis(kin) if Z is None else Z, al.saturated, Nsafe)
+            tau1, gamma = safety_room(al.tau, b, held, lo, hi, skip=al.clipped)
+            al = dataclasses.replace(al, tau=tau1)
         if P is None and al.saturated.any():
             P = _null_projector_rows(kin.JMinv)
         res = _tertiary_fast(al.tau, al.saturated, P, tau_to, Ntau, self._lo_l, self._hi_l, r)

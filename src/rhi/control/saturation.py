@@ -543,39 +543,6 @@ def allocate_lp(a, b, Z, lo, hi) -> Allocation:
     return Allocation(tau, alpha, sat, d, "lp")
 
 
-def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarray, float]:
-    """Add a null-space safety torque (damping, joint-limit barrier) that acts whatever the allocation holds.
-
-    Returns ``τ' = b + δ + γ (τ − b)`` with the largest γ ∈ [0, 1] that keeps τ' in the box:
-    the allocated part ``α a + Z y`` of τ (eq. 7.9) gives way to δ, so the task force becomes
-    γ α F_render + F_extra and δ, a null-space torque, leaves it unchanged. Joints the
-    allocation held at a limit leave it when δ points inwards. When even ``b + δ`` leaves the
-    box, δ itself is scaled by the largest σ ∈ [0, 1] with ``τ + σ δ`` in the box (γ = 1).
-
-    Args:
-        tau: (n,) allocated torque [N m], within the box.
-        b: (n,) unscaled torque of the allocation [N m].
-        delta: (n,) safety torque, already projected into the task's null space [N m].
-        lo, hi: (n,) torque limits [N m].
-        skip: return (τ, 1) unchanged (the allocation had to clip b).
-
-    Returns:
-        (τ' (n,) [N m], γ).
-    """
-    if skip or not np.any(np.abs(delta) > _negligible(delta)):
-        return tau, 1.0
-    lo_l, hi_l = _as_list(lo), _as_list(hi)
-    b_l, d_l, t_l = b.tolist(), delta.tolist(), tau.tolist()
-    c = [x + y for x, y in zip(b_l, d_l)]
-    gamma = _scaling_alpha([t - x for t, x in zip(t_l, b_l)], c, lo_l, hi_l)
-    if gamma is None:
-        sigma = _scaling_alpha(d_l, [min(max(t, lo_), hi_) for t, lo_, hi_ in zip(t_l, lo_l, hi_l)], lo_l, hi_l)
-        sigma = 0.0 if sigma is None else sigma
-        return tau + sigma * delta, 1.0
-    return np.array([min(max(ci + gamma * (t - x), lo_), hi_)
-                     for ci, t, x, lo_, hi_ in zip(c, t_l, b_l, lo_l, hi_l)]), gamma
-
-
 def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Tertiary-objective torque in the null space of the primary task and of ASCM (eqs. 7.16, Algorithm 2).
 

@@ -141,8 +141,9 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
 _RHI4: dict[str, object] = {}
 
 
-def _deficiency_row(y: float, xs: np.ndarray, projector: str) -> np.ndarray:
-    """(3, len(xs)) force capabilities [N] (w/o, ASCM, LP) along the grid row at height y [m], NaN where skipped.
+def _deficiency_row(y: float, xs: np.ndarray, projectors: tuple[str, ...]) -> np.ndarray:
+    """(3 P, len(xs)) force capabilities [N] (w/o, ASCM, LP for each of the P projectors) along the grid row
+    at height y [m], NaN where skipped.
 
     IK is continued along the row from the same start configuration for every row, so a
     row's values do not depend on which process computes it.
@@ -151,7 +152,7 @@ def _deficiency_row(y: float, xs: np.ndarray, projector: str) -> np.ndarray:
         _RHI4["dev"] = device("rhi4")
     dev = _RHI4["dev"]
     lo, hi = dev.torque_limits
-    out = np.full((3, len(xs)), np.nan)
+    out = np.full((3 * len(projectors), len(xs)), np.nan)
     q_prev = np.array([0.125, 0.022, 0.298, 0.175])
     for i, x in enumerate(xs):
         try:
@@ -162,10 +163,12 @@ def _deficiency_row(y: float, xs: np.ndarray, projector: str) -> np.ndarray:
         J = dev.jacobian(q)
         if np.linalg.svd(J, compute_uv=False)[-1] < 1e-3:
             continue
-        M = dev.mass_matrix(q) if projector == "dynamic" else None
-        out[0, i] = force_capability(J, U, lo, hi, method="scaling")
-        out[1, i] = force_capability(J, U, lo, hi, method="ascm", projector=projector, M=M, samples=21)
-        out[2, i] = force_capability(J, U, lo, hi, method="lp", projector=projector, M=M)
+        f_wo = force_capability(J, U, lo, hi, method="scaling")
+        for p, projector in enumerate(projectors):
+            M = dev.mass_matrix(q) if projector == "dynamic" else None
+            out[3 * p, i] = f_wo
+            out[3 * p + 1, i] = force_capability(J, U, lo, hi, method="ascm", projector=projector, M=M, samples=21)
+            out[3 * p + 2, i] = force_capability(J, U, lo, hi, method="lp", projector=projector, M=M)
     return out
 
 
@@ -173,7 +176,7 @@ def deficiency_map(
     resolution: int = 25,
     progress: Callable[[int, int], None] | None = None,
     *,
-    projector: str = "pseudoinverse",
+    projectors: tuple[str, ...] = ("pseudoinverse", "dynamic"),
     executor=None,
     workers: int | None = None,
 ) -> Result:
@@ -188,43 +191,57 @@ def deficiency_map(
     Args:
         resolution: grid points per axis.
         progress: optional callback(done, total) in grid points, after each finished row.
-        projector: "pseudoinverse" or "dynamic".
+        projectors: null-space projectors, each a map: "pseudoinverse" (J⁺) and/or "dynamic" (J#).
+            The first gives the arrays ``pd``, ``pd_lp``, ``f_ascm``, ``f_lp``; the others add
+            ``pd_{projector}``, ``pd_lp_{projector}``, ``f_ascm_{projector}``, ``f_lp_{projector}``.
         executor: an executor, a name ("serial", "local", "ray") or None (``workers``, else
             the default of `rhi.design.executors.configure`: a local process pool).
         workers: processes of a new local pool (1: in this process).
     """
     if not isinstance(resolution, (int, np.integer)) or resolution < 2:
         raise InvalidInput(f"resolution: expected an integer >= 2, got {resolution!r}")
-    if projector not in ("pseudoinverse", "dynamic"):
-        raise InvalidInput(f"projector: expected 'pseudoinverse' or 'dynamic', got {projector!r}")
+    projectors = tuple(projectors)
+    if not projectors or len(set(projectors)) != len(projectors) or any(
+            p not in ("pseudoinverse", "dynamic") for p in projectors):
+        raise InvalidInput(f"projectors: expected distinct 'pseudoinverse'/'dynamic' entries, got {projectors!r}")
     xs = np.linspace(0.25, 0.75, resolution)
     ys = np.linspace(-0.5, 0.3, resolution)
-    rows = parallel_map(functools.partial(_deficiency_row, xs=xs, projector=projector), list(ys),
+    rows = parallel_map(functools.partial(_deficiency_row, xs=xs, projectors=projectors), list(ys),
                         executor=executor, workers=workers, progress=progress, units=[resolution] * resolution)
-    f_wo, f_ascm, f_lp = np.stack(rows, axis=1)  # each (resolution, resolution), rows = y
-    pd = 100.0 * (f_ascm - f_wo) / f_ascm
-    pd_lp = 100.0 * (f_lp - f_wo) / f_lp
-    ok = np.isfinite(pd)
-    gap = (f_lp - f_ascm)[ok]
+    maps = np.stack(rows, axis=1)  # (3 P, resolution, resolution), rows = y
 
     def stat(fn, a):
         return float(fn(a)) if a.size else np.nan
 
-    rows = [
-        Row("grid points reached", None, float(ok.sum())),
-        Row("min PD (ASCM ≥ w/o everywhere: PD ≥ 0)", None, stat(np.min, pd[ok]), "%"),
-        Row("median PD", None, stat(np.median, pd[ok]), "%"),
-        Row("max PD", None, stat(np.max, pd[ok]), "%"),
-        Row("median PD against the LP optimum", None, stat(np.median, pd_lp[ok]), "%"),
-        Row("fraction of points where ASCM reaches the LP optimum (1e-6 rel.)", None,
-            stat(np.mean, gap <= 1e-6 * f_lp[ok]) if ok.any() else np.nan),
-        Row("worst ASCM shortfall from the LP optimum", None, stat(np.max, gap) if ok.any() else np.nan, "N"),
-    ]
+    arrays = {"x": xs, "y": ys}
+    table_rows = []
+    for p, projector in enumerate(projectors):
+        f_wo, f_ascm, f_lp = maps[3 * p: 3 * p + 3]
+        pd = 100.0 * (f_ascm - f_wo) / f_ascm
+        pd_lp = 100.0 * (f_lp - f_wo) / f_lp
+        ok = np.isfinite(pd)
+        gap = (f_lp - f_ascm)[ok]
+        tag = f" ({'J⁺' if projector == 'pseudoinverse' else 'J#'})"
+        table_rows += [
+            Row("grid points reached" + tag, None, float(ok.sum())),
+            Row("min PD (ASCM ≥ w/o everywhere: PD ≥ 0)" + tag, None, stat(np.min, pd[ok]), "%"),
+            Row("median PD" + tag, None, stat(np.median, pd[ok]), "%"),
+            Row("max PD" + tag, None, stat(np.max, pd[ok]), "%"),
+            Row("median PD against the LP optimum" + tag, None, stat(np.median, pd_lp[ok]), "%"),
+            Row("fraction of points where ASCM reaches the LP optimum (1e-6 rel.)" + tag, None,
+                stat(np.mean, gap <= 1e-6 * f_lp[ok]) if ok.any() else np.nan),
+            Row("worst ASCM shortfall from the LP optimum" + tag, None, stat(np.max, gap) if ok.any() else np.nan, "N"),
+        ]
+        sfx = "" if p == 0 else f"_{projector}"
+        arrays.update({f"pd{sfx}": pd, f"pd_lp{sfx}": pd_lp, f"f_ascm{sfx}": f_ascm, f"f_lp{sfx}": f_lp})
+        if p == 0:
+            arrays["f_wo"] = f_wo
     return Result(
         "ch7.deficiency_map",
         "Fig. 7.5: percent deficiency of the force capability without ASCM, rhi4 along u = [0, 1]",
-        [Table("Fig. 7.5 percent deficiency (eq. 7.19)", rows)],
-        {"x": xs, "y": ys, "pd": pd, "pd_lp": pd_lp, "f_wo": f_wo, "f_ascm": f_ascm, "f_lp": f_lp},
-        ["The thesis shows Fig. 7.5 as a map only; we report its extremes.",
-         f"Configurations by IK continued along each row; {projector} projector; limits ±[3, 3, 1, 1] N m."],
+        [Table("Fig. 7.5 percent deficiency (eq. 7.19)", table_rows)],
+        arrays,
+        ["The thesis shows Fig. 7.5 as a map only; we report its extremes for each projector.",
+         f"Configurations by IK continued along each row; projectors {', '.join(projectors)} (the first is "
+         "drawn); limits ±[3, 3, 1, 1] N m."],
     )

@@ -26,9 +26,13 @@ Numbers reported per case: the largest force rendered in full before saturation 
 the first clipped tick without ASCM, before α first drops below 1 with ASCM/LP, and
 before any joint reaches a range limit — the thesis's "maximum force feedback"), the
 force when the first joint reaches its torque limit, the largest force before any joint
-comes within 0.5° of a range limit, the largest force over the run and the force at the
-end; the static force capability of the contact configuration
-(`rhi.control.saturation.force_capability`) for each allocation and projector.
+comes within 0.5° of a range limit (the one criterion the gains use for every case), the
+force at a fixed indentation (`DEPTH_COMPARE`), the largest force over the run and the
+force at the end; the peak self-motion joint speed |(I − J⁺J) q̇|∞ after the first torque
+saturation and while the allocation holds two joints (the controller's null-space damping
+and joint-limit barrier act whatever β, `rhi.control.controller`); the static force
+capability of the contact configuration (`rhi.control.saturation.force_capability`) for
+each allocation and projector.
 
 Why our numbers differ from the thesis's (+73 %): every case is compared with one
 criterion, the peak handle force before a joint reaches a range limit (and the force at a

@@ -1,0 +1,81 @@
+"""The null-space safety torque (damping, joint-limit barrier) that acts whatever the allocation holds.
+
+Thesis Algorithm 2 scales the whole tertiary torque by β and sets β = 0 when the joints ASCM
+holds at a limit leave no redundancy; then the null-space damping and the joint-limit barrier
+switch off with the objective, and the self-motion driven by ASCM's null-space torque runs
+free (issue 13, item 5). These functions give the safety torque the part that the held joints
+would block, making room for it in the allocated torque (`rhi.control.controller`, step 5).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rhi.control.saturation import _as_list, _held_torque, _negligible, _scaling_alpha, _well_conditioned
+
+
+def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarray, float]:
+    """Add a null-space safety torque (damping, joint-limit barrier) that acts whatever the allocation holds.
+
+    Returns ``τ' = b + δ + γ (τ − b)`` with the largest γ ∈ [0, 1] that keeps τ' in the box:
+    the allocated part ``α a + Z y`` of τ (eq. 7.9) gives way to δ, so the task force becomes
+    γ α F_render + F_extra and δ, a null-space torque, leaves it unchanged. Joints the
+    allocation held at a limit leave it when δ points inwards. When even ``b + δ`` leaves the
+    box, δ itself is scaled by the largest σ ∈ [0, 1] with ``τ + σ δ`` in the box (γ = 1).
+
+    Args:
+        tau: (n,) allocated torque [N m], within the box.
+        b: (n,) unscaled torque of the allocation [N m].
+        delta: (n,) safety torque, already projected into the task's null space [N m].
+        lo, hi: (n,) torque limits [N m].
+        skip: return (τ, 1) unchanged (the allocation had to clip b).
+
+    Returns:
+        (τ' (n,) [N m], γ).
+    """
+    if skip or not np.any(np.abs(delta) > _negligible(delta)):
+        return tau, 1.0
+    lo_l, hi_l = _as_list(lo), _as_list(hi)
+    b_l, d_l, t_l = b.tolist(), delta.tolist(), tau.tolist()
+    c = [x + y for x, y in zip(b_l, d_l)]
+    gamma = _scaling_alpha([t - x for t, x in zip(t_l, b_l)], c, lo_l, hi_l)
+    if gamma is None:
+        sigma = _scaling_alpha(d_l, [min(max(t, lo_), hi_) for t, lo_, hi_ in zip(t_l, lo_l, hi_l)], lo_l, hi_l)
+        sigma = 0.0 if sigma is None else sigma
+        return tau + sigma * delta, 1.0
+    return np.array([min(max(ci + gamma * (t - x), lo_), hi_)
+                     for ci, t, x, lo_, hi_ in zip(c, t_l, b_l, lo_l, hi_l)]), gamma
+
+
+def held_part(Z, saturated, d) -> np.ndarray:
+    """The part of a null-space torque d that keeping the held joints 𝒮 unchanged removes: Z Z_𝒮⁺ d_𝒮.
+
+    ``d − held_part`` is what `tertiary` keeps of d (the torques in range(Z) with zero
+    entries on 𝒮); with no redundancy left (rank Z_𝒮 = n − m) the held part is all of d.
+
+    Args:
+        Z: (n, r) orthonormal null-space basis.
+        saturated: (n,) bool, the held joints 𝒮.
+        d: (n,) torque in range(Z) [N m].
+
+    Returns:
+        (n,) [N m].
+    """
+    if not saturated.any():
+        return np.zeros_like(d)
+    c = Z.T @ d
+    ZS = Z[saturated]
+    return Z @ (np.linalg.pinv(ZS) @ (ZS @ c))
+
+
+def _held_part_fast(P, saturated, d) -> np.ndarray | None:
+    """`held_part` from the projector P = Z Zᵀ (lists or array); None when P[𝒮, 𝒮] is ill-conditioned."""
+    S = [i for i, v in enumerate(saturated.tolist()) if v]
+    Pl = P if isinstance(P, list) else P.tolist()
+    if not _well_conditioned(Pl, S):
+        return None
+    dl = d.tolist()
+    return np.array(_held_torque(Pl, S, [dl[j] for j in S]))
+
+
+__all__ = ["held_part", "safety_room"]
