@@ -526,7 +526,7 @@ def test_spring_palpation_law(rhi4):
     np.testing.assert_allclose(law2.forces(0.0, kin, {})[1], -0.01 * kin.xdot + kin.Cx @ kin.xdot, atol=1e-12)
 
 
-@pytest.mark.parametrize("method", ["none", "scaling", "lp"])
+@pytest.mark.parametrize("method", ["none", "scaling", "lp", "active_set"])
 def test_controller_other_allocations_stay_in_limits(method, planar3r, rng):
     c = NullSpaceController(planar3r, ControllerConfig(ForceRendering(), saturation=method,
                                                        objectives=(ObjectiveTerm(Manipulability(log=True), 0.1),)))
@@ -685,6 +685,8 @@ def _tick_cases(dev, rng, count):
     [("rhi4", "ascm", "dynamic", "render"), ("rhi4", "ascm", "pseudoinverse", "render"),
      ("planar3r", "ascm", "dynamic", "render"), ("rhi4", "scaling", "dynamic", "render"),
      ("rhi4", "none", "dynamic", "render"), ("rhi4", "lp", "dynamic", "render"),
+     ("rhi4", "active_set", "dynamic", "render"),
+     ("planar3r", "active_set", "pseudoinverse", "render"),
      ("rhi4", "ascm", "dynamic", "impedance")],
 )
 def test_fast_tick_equals_reference(name, saturation, projector, law, rng):

@@ -46,6 +46,7 @@ from typing import Literal
 import numpy as np
 
 from rhi._validate import scalar
+from rhi.control.active_set import allocate_active_set
 from rhi.control.objectives import FMEMatching, JointLimitBarrier, Objective, _spd, gradient_function
 from rhi.control.primary import PrimaryLaw
 from rhi.control.saturation import (
@@ -72,7 +73,10 @@ from rhi.device import Device, DeviceTerms
 from rhi.errors import InvalidInput, Singular
 from rhi.metrics import dynamic_pinv, nullspace_projector, weighted_pinv
 
-Saturation = Literal["none", "scaling", "ascm", "lp"]
+#: Allocations that hold joints at a limit with null-space torque.
+_HOLDING = ("ascm", "lp", "active_set")
+
+Saturation = Literal["none", "scaling", "ascm", "lp", "active_set"]
 
 
 def _reading(name: str, v) -> np.ndarray:
@@ -150,7 +154,8 @@ class ControllerConfig:
         objectives: null-space objectives with step sizes (τ_to = −Σ gain ∂ν/∂q).
         fme: optional ASO-switched FME matching (adds FMEMatching(M_des(t)) to the objectives).
         damping: null-space joint damping k_D [N m s/rad] (eqs. 3.20, 6.6).
-        saturation: "none" | "scaling" | "ascm" | "lp".
+        saturation: "none" | "scaling" | "ascm" | "lp" | "active_set" (the LP optimum by an active-set
+            method warm-started at ASCM, `rhi.control.active_set`; "lp" solves the same LP with HiGHS).
         projector: "dynamic" (J# = M⁻¹Jᵀ(JM⁻¹Jᵀ)⁻¹) or "pseudoinverse" (J⁺).
         torque_min, torque_max: (n,) limits [N m]; None: the device's.
         gravity_compensation: add the null-space part (I − JᵀJ#ᵀ) g(q) of the gravity torque;
@@ -219,8 +224,9 @@ class NullSpaceController:
     """
 
     def __init__(self, device: Device, config: ControllerConfig, state: ControllerState | None = None) -> None:
-        if config.saturation not in ("none", "scaling", "ascm", "lp"):
-            raise InvalidInput(f"saturation: expected 'none', 'scaling', 'ascm' or 'lp', got {config.saturation!r}")
+        if config.saturation not in ("none", "scaling", "ascm", "lp", "active_set"):
+            raise InvalidInput(
+                f"saturation: expected 'none', 'scaling', 'ascm', 'lp' or 'active_set', got {config.saturation!r}")
         if config.projector not in ("dynamic", "pseudoinverse"):
             raise InvalidInput(f"projector: expected 'dynamic' or 'pseudoinverse', got {config.projector!r}")
         if config.implementation not in ("fast", "reference"):
@@ -383,13 +389,15 @@ class NullSpaceController:
             al = ascm(a, b, Z, lo, hi)
         elif cfg.saturation == "lp":
             al = allocate_lp(a, b, Z, lo, hi)
+        elif cfg.saturation == "active_set":
+            al = allocate_active_set(a, b, Z, lo, hi)
         elif cfg.saturation == "scaling":
             al = allocate_scaling(a, b, lo, hi)
         else:
             al = allocate_none(a, b, lo, hi)
         N = nullspace_projector(kin.J, M)
         gamma = 1.0
-        if al.saturated.any() and al.method in ("ascm", "lp"):  # safety the held joints would block
+        if al.saturated.any() and al.method in _HOLDING:  # safety the held joints would block
             tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), lo, hi, skip=al.clipped)
             al = dataclasses.replace(al, tau=tau1)
         delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
@@ -406,7 +414,7 @@ class NullSpaceController:
             P = null_projector(kin.J)  # = I − JᵀJ⁺ᵀ, the pseudoinverse N
             Ntau = P.dot(tau_to)
         sat = cfg.saturation
-        if V > 0.0 and sat in ("ascm", "lp"):  # τ_m strictly inside the box: kept as it is (Algorithm 1, line 6)
+        if V > 0.0 and sat in _HOLDING:  # τ_m strictly inside the box: kept as it is (Algorithm 1, line 6)
             al = Allocation(tau_m, 1.0, np.zeros(n, bool), np.zeros(n), sat)
         elif sat == "ascm":
             if P is None:
@@ -418,12 +426,18 @@ class NullSpaceController:
         elif sat == "lp":
             Z = self._null_basis(kin)
             al = allocate_lp(a, b, Z, lo, hi)
+        elif sat == "active_set":
+            if P is None:
+                P = _null_projector_rows(kin.JMinv)
+            Z = self._null_basis(kin)
+            start = _ascm_fast(a, b, P, self._lo_l, self._hi_l, r)
+            al = allocate_active_set(a, b, Z, lo, hi, start=start)
         elif sat == "scaling":
             al = allocate_scaling(a, b, lo, hi)
         else:
             al = allocate_none(a, b, lo, hi)
         gamma = 1.0
-        if al.saturated.any() and al.method in ("ascm", "lp"):  # safety the held joints would block
+        if al.saturated.any() and al.method in _HOLDING:  # safety the held joints would block
             Nsafe = tau_s - Jt.dot(kin.Jsharp.T.dot(tau_s)) if self._dynamic else P.dot(tau_s)
             if P is None:
                 P = _null_projector_rows(kin.JMinv)

@@ -10,7 +10,7 @@ Adding a claim (e.g. from another chapter's module)::
     from rhi.report.headline import Claim
     from rhi import thesis as T
     Claim("Fig. 7.1", "simple scaling gives 12 % less force than ASCM", T.SCALING_GAP, ("ch7.example_3dof",),
-          measure=lambda r: r("ch7.example_3dof", "peak force deficit of scaling vs ASCM (kinematic"),
+          measure=lambda r: r("ch7.example_3dof", "peak force deficit of scaling vs ASCM (pseudoinverse"),
           direction=lambda x: x > 0, reason="... {ours:.1f} % ...")
 
 and append it to `rhi.report.claims.CLAIMS`.
