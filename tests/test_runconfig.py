@@ -206,7 +206,7 @@ def test_cli_bad_arguments_exit_2(args, message, capsys):
 
 def test_cli_run_over_udp_equals_simlink(tmp_path, capsys):
     """`rhi device-server --config X --lockstep` + `rhi run --link udp://... --config X`: the torques of the
-    in-process SimLink run of X (no packet lost). A long device watchdog keeps a loaded test machine from tripping it."""
+    in-process SimLink run of X (no packet lost). A long device watchdog: a loaded test machine must not trip it."""
     import os
     import re
     import signal

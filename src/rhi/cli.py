@@ -226,14 +226,15 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _add_run(sub) -> None:
-    from rhi.runtime.config import shipped_configs
+    from pathlib import Path
 
+    shipped = sorted(p.stem for p in (Path(__file__).parent / "runtime" / "configs").glob("*.toml"))  # no heavy import
     r = sub.add_parser("run", help="run a controller described by a configuration file on a device, in real time")
     r.add_argument("device", help="the device the controller models, e.g. rhi4")
     r.add_argument("--link", default="sim", help="sim (the configuration's simulated device) or udp://HOST:PORT "
                    "(a device server, e.g. `rhi device-server`)")
     r.add_argument("--config", required=True,
-                   help=f"a TOML file or a shipped configuration: {', '.join(shipped_configs())}")
+                   help=f"a TOML file or a shipped configuration: {', '.join(shipped)}")
     r.add_argument("--duration", type=float, help="run time [s] (default: the configuration's, else until Ctrl-C)")
     r.add_argument("--rate", type=float, help="control rate [Hz] (default: the configuration's, else 1000)")
     r.add_argument("--log", help="streamed log (.rhilog; default out/run-<timestamp>/run.rhilog)")
