@@ -37,6 +37,7 @@ from rhi.plots import ch3_control as pl3c
 from rhi.plots import ch4 as pl4
 from rhi.plots import ch5 as pl5
 from rhi.plots import ch6 as pl6
+from rhi.plots import renders as plr
 from rhi.plots import ch7 as pl7
 from rhi.plots import ch7_palpation as pl7p
 from rhi.plots import perception as plp
@@ -62,7 +63,8 @@ class Step:
 
 
 STEPS: list[Step] = [
-    Step("ch3", ex3.table_3_1, {}, {}, {"configurations": pl3.configurations}),
+    Step("ch3", ex3.table_3_1, {}, {}, {"configurations": pl3.configurations,
+                                        "configurations_rendered": plr.ch3_configurations}),
     Step("ch3", ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
          {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
     Step("ch3", ex3c.nullspace_configurations, {}, {"duration": 4.0, "starts": ("rehab",), "hard_stops": False},
@@ -106,7 +108,8 @@ STEPS: list[Step] = [
           "ch7_palpation_settling": pl7p.settling}, progress=True),
     Step("appa", exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
          progress=True),
-    Step("appa", exa.dm_enhancement, {}, {"t_long": 20.0}, {"fig_a9": pla.dm_enhancement}, progress=True),
+    Step("appa", exa.dm_enhancement, {}, {"t_long": 20.0},
+         {"fig_a9": pla.dm_enhancement, "fig_a7_rendered": plr.wmm_configurations}, progress=True),
     Step("appb", exb.singularity, {}, {"duration": 16.0, "dt": 0.01}, {"fig_b7": plb.singularity}, progress=True),
     Step("appb", exb.tracking, {}, {"duration": 24.0, "dt": 0.01},
          {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True),
