@@ -165,6 +165,21 @@ def test_continuous_joints_unbounded():
     np.testing.assert_allclose(dev.fk(q), dev.fk([0.2, 0.3, 0.4]), atol=1e-8)
     res = rhi.measure(dev, [0.2, 0.3, 0.4])
     assert np.isfinite(res["max_force (LP, dynamic projector) [N]"])
+    # every limit-aware function takes the unbounded joint: no penalty, no barrier force, a plant without a range
+    q = np.array([7.0, 0.3, 0.4])
+    P = metrics.joint_limit_penalty(q, dev.q_min, dev.q_max, 1.0)
+    assert P[0] == 1.0 and 0 < P[1] < 1
+    from rhi import control as ctl
+
+    c = ctl.NullSpaceController(dev, ctl.ControllerConfig(ctl.ForceRendering(), objectives=(
+        ctl.ObjectiveTerm(ctl.JointLimitBarrier(0.1), 0.1), ctl.ObjectiveTerm(ctl.Manipulability(k_q=1.0), 0.1))))
+    tau = c.step(0.0, q, np.zeros(3), {"force": np.zeros(2)})
+    assert np.all(np.isfinite(tau))
+    plant = Plant(dev)
+    plant.reset(q)
+    plant.apply(np.array([0.5, 0.0, 0.0]))
+    plant.step(200)
+    assert plant.q[0] > 7.0
 
 
 def test_ee_frame_checks_offset_and_lock():

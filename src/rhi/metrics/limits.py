@@ -21,7 +21,8 @@ def joint_limit_penalty(q: ArrayLike, q_min: ArrayLike, q_max: ArrayLike, k_q: A
     Args:
         q: (..., n) joint positions [rad or m].
         q_min: (n,) or (..., n) lower joint limits, same unit as ``q``.
-        q_max: (n,) or (..., n) upper joint limits, each strictly above ``q_min``.
+        q_max: (n,) or (..., n) upper joint limits, each strictly above ``q_min``. A joint with
+            ``q_min = −inf`` and ``q_max = +inf`` (continuous) has P_i = 1.
         k_q: scalar or (..., n) shape coefficient, > 0.
 
     Returns:
@@ -34,15 +35,21 @@ def joint_limit_penalty(q: ArrayLike, q_min: ArrayLike, q_max: ArrayLike, k_q: A
     q = as_array("q", q, ndim_min=1)
     n = q.shape[-1]
     lo, hi = limits_pair("q_min", q_min, "q_max", q_max, n)
-    lo = as_array("q_min", lo, shape_tail=(n,))
-    hi = as_array("q_max", hi, shape_tail=(n,))
+    if lo.shape[-1:] != (n,) or hi.shape[-1:] != (n,):
+        raise InvalidInput(f"q_min/q_max: expected {n} entries, got shapes {lo.shape} and {hi.shape}")
+    if np.any(lo == np.inf) or np.any(hi == -np.inf):
+        raise InvalidInput("q_min/q_max: q_min = +inf or q_max = -inf leaves no range")
     if np.any(lo >= hi):
         raise InfeasibleLimits("q_min/q_max: every q_min must be strictly below q_max")
     k = positive("k_q", k_q)
-    span = hi - lo
-    x = -4.0 * k * (q - lo) * (hi - q) / span**2
+    bounded = np.isfinite(lo) & np.isfinite(hi)  # a joint without a limit (continuous) is never penalised
+    lo_b, hi_b = np.where(bounded, lo, -1.0), np.where(bounded, hi, 1.0)
+    x = -4.0 * k * (q - lo_b) * (hi_b - q) / (hi_b - lo_b) ** 2
     p = -np.expm1(x) / -np.expm1(-k)
-    return np.clip(p, 0.0, 1.0)
+    one_sided = ~bounded & (np.isfinite(lo) | np.isfinite(hi))
+    if np.any(one_sided):
+        raise InvalidInput("q_min/q_max: a joint with only one finite limit has no mid-range for eq. 4.20")
+    return np.where(bounded, np.clip(p, 0.0, 1.0), 1.0)
 
 
 def penalized_jacobian(
