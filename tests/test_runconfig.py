@@ -152,6 +152,17 @@ def test_bad_config_names_the_key(edit, message):
     assert message in str(exc.value)
 
 
+def test_every_saturation_method_of_the_controller_is_accepted():
+    import typing
+
+    from rhi.control.controller import Saturation
+
+    for method in typing.get_args(Saturation):
+        d = _doc()
+        d["controller"]["saturation"] = method
+        assert parse_config(d).controller().config.saturation == method
+
+
 def test_device_mismatch_and_unknown_file():
     with pytest.raises(InvalidInput, match="device: ch7_ascm_tertiary is written for 'rhi4'"):
         load_config("ch7_ascm_tertiary", device_name="phantom")

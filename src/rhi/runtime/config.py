@@ -6,9 +6,9 @@ A file holds these tables (every key optional unless marked; the shipped files i
 - ``description``: one line about the set-up.
 - ``[run]``: ``rate`` [Hz] (1000), ``duration`` [s] (none: until a fault or Ctrl-C).
 - ``[device]``: ``name`` of a bundled device, ``params`` (its design parameters, e.g. ``{ d2 = 0.1405 }``).
-- ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp"),
-  ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m], ``gravity_compensation``,
-  ``aso_shape``, ``implementation`` — the fields of `rhi.control.ControllerConfig`;
+- ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp",
+  "active_set"), ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
+  ``gravity_compensation``, ``aso_shape``, ``implementation`` — the fields of `rhi.control.ControllerConfig`;
   ``[controller.primary]`` (required) with ``law`` = "impedance" | "force_rendering" | "spring" and that law's
   parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...);
   ``[[controller.objectives]]``, each with ``type`` = "vme" | "ellipsoid" | "fme" | "tmi" | "manipulability" |
@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import tomllib
+import typing
 from importlib import resources
 from pathlib import Path
 
@@ -54,6 +55,7 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
+from rhi.control.controller import Saturation
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.runtime import schema as S
@@ -95,13 +97,13 @@ _CONTROLLER = {
     "objectives": (S.tables(S.tagged("type", _OBJECTIVES)), []),
     "fme": (S.table(_FME), None),
     "damping": (_nonneg, 0.1),
-    "saturation": (S.choice("none", "scaling", "ascm", "lp"), "ascm"),
-    "projector": (S.choice("dynamic", "pseudoinverse"), "dynamic"),
+    "saturation": (S.choice(*typing.get_args(Saturation)), "ascm"),  # the controller's own lists of names
+    "projector": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["projector"])), "dynamic"),
     "torque_min": (_vec, None),
     "torque_max": (_vec, None),
     "gravity_compensation": (S.boolean, True),
     "aso_shape": (_pos, 50.0),
-    "implementation": (S.choice("fast", "reference"), "fast"),
+    "implementation": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["implementation"])), "fast"),
 }
 _ENV = S.tagged("type", {
     "wall": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_nonneg, R), "damping": (_nonneg, 0.0)},
