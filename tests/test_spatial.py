@@ -133,7 +133,7 @@ def test_controller_invariants_3d(spatial, saturation):
     Q = random_q(spatial, rng, CASES)
     dQ = rng.normal(scale=0.5, size=Q.shape)
     F = rng.normal(scale=5.0 * hi.max(), size=(CASES, 3))
-    checked = saturated = 0
+    checked = saturated = tertiary = 0
     worst = 0.0
     for q, dq, f in zip(Q, dQ, F):
         ctrl.reset()
@@ -150,8 +150,11 @@ def test_controller_invariants_3d(spatial, saturation):
         worst = max(worst, float(np.abs(out - (s.alpha * F_r + F_x)).max()))
         checked += 1
         saturated += s.alpha < 1.0
+        tertiary += bool(s.beta > 0 and s.saturated is not None and s.saturated.any())
     assert checked >= CASES // 2
     assert saturated > 50  # the cases exercise the allocation, not only the interior
+    if saturation == "ascm":  # the tertiary objective acts beside held joints (Algorithm 2, m = 3)
+        assert tertiary > 20, tertiary
     assert worst < 1e-9, worst
 
 

@@ -188,6 +188,10 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
         if key in ("filtered", "hmm", "fixed"):
             rows += [Row(f"mean axial error of u while moving, {names[key]}", None, s["mean"], "deg"),
                      Row(f"median lag to < {LAG_DEG:g}° after a stroke change, {names[key]}", None, s["lag"], "s")]
+    seg = np.diff(path.points, axis=0)
+    rows.append(Row("largest axial angle between a stroke of the W and u fixed", None,
+                    float(np.degrees(axial_error(seg, u_fixed).max())), "deg",
+                    "the W's strokes are steep: a fixed [0, 1] is never far from the true direction"))
     gap = stats["fixed"]["work"] - stats["known"]["work"]
     for key in ("filtered", "hmm"):
         rec = (stats["fixed"]["work"] - stats[key]["work"]) / gap if abs(gap) > 1e-12 else float("nan")
