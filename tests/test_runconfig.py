@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import json
+import os
+import re
+import signal
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -215,26 +221,17 @@ def test_cli_bad_arguments_exit_2(args, message, capsys):
     assert message in capsys.readouterr().err
 
 
-def test_cli_run_over_udp_equals_simlink(tmp_path, capsys):
-    """`rhi device-server --config X --lockstep` + `rhi run --link udp://... --config X`: the torques of the
-    in-process SimLink run of X (no packet lost). A long device watchdog: a loaded test machine must not trip it."""
-    import os
-    import re
-    import signal
-    import subprocess
-    import sys
-
+@contextlib.contextmanager
+def _device_server(*args: str):
+    """`rhi device-server ARGS --lockstep --port 0` in a process; yields its port."""
     env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
-    p = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", "rhi4", "--config", "ch7_ascm_tertiary",
-                          "--lockstep", "--port", "0", "--watchdog-ms", "5000"],
+    p = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", *args, "--lockstep", "--port", "0"],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-    summ, log = tmp_path / "s.json", tmp_path / "u.rhilog"
     try:
         first = p.stdout.readline()
         port = re.search(r"udp://127\.0\.0\.1:(\d+)", first)
         assert port, first + p.stdout.read() if p.poll() is not None else first
-        code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port.group(1)}", "--config", "ch7_ascm_tertiary",
-                     "--duration", "0.3", "--fast", "--log", str(log), "--summary", str(summ)])
+        yield int(port.group(1))
     finally:
         p.send_signal(signal.SIGTERM)
         try:
@@ -242,6 +239,15 @@ def test_cli_run_over_udp_equals_simlink(tmp_path, capsys):
         except subprocess.TimeoutExpired:
             p.kill()
             p.communicate()
+
+
+def test_cli_run_over_udp_equals_simlink(tmp_path, capsys):
+    """`rhi device-server --config X --lockstep` + `rhi run --link udp://... --config X`: the torques of the
+    in-process SimLink run of X (no packet lost). A long device watchdog: a loaded test machine must not trip it."""
+    summ, log = tmp_path / "s.json", tmp_path / "u.rhilog"
+    with _device_server("rhi4", "--config", "ch7_ascm_tertiary", "--watchdog-ms", "5000") as port:
+        code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port}", "--config", "ch7_ascm_tertiary",
+                     "--duration", "0.3", "--fast", "--log", str(log), "--summary", str(summ)])
     assert code == 0, capsys.readouterr().err
     s = json.loads(summ.read_text())
     assert s["ticks"] == 300 and s["fault"] is None and s["config"]["link"].startswith("udp://")
@@ -250,6 +256,15 @@ def test_cli_run_over_udp_equals_simlink(tmp_path, capsys):
     ref = run(cfg.sim_link(), cfg.controller(), duration=0.3, safety=cfg.safety, virtual=cfg.virtual, realtime=False)
     np.testing.assert_allclose(Log.load(log).tau, ref.log.tau, atol=1e-9, rtol=0)
     assert np.abs(ref.log.tau).max() > 0.1
+
+
+def test_cli_run_refuses_a_device_server_of_another_device(tmp_path, capsys):
+    with _device_server("planar3r") as port:
+        code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port}", "--config", "ch7_ascm_tertiary",
+                     "--duration", "0.1", "--fast", "--log", str(tmp_path / "u.rhilog")])
+    assert code == 2
+    assert "--link: the device server runs 'planar3r' with 3 motors, the configuration controls 'rhi4' with 4" \
+        in capsys.readouterr().err
 
 
 class _Stream:

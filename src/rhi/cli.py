@@ -131,9 +131,30 @@ def _link(url: str, rate: float, cfg, realtime: bool):
         host, port = parse_url(url)
     except InvalidInput as exc:
         raise InvalidInput(f"--link: {exc}") from None
-    if realtime:
-        return UDPLink(host, port, rate=rate)
-    return UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0)
+    link = UDPLink(host, port, rate=rate) if realtime else \
+        UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0)
+    return _SameDevice(link, cfg.device)
+
+
+class _SameDevice:
+    """A link whose `open` also checks that the device process serves the configuration's device (name, motors)."""
+
+    def __init__(self, link, device) -> None:
+        self._link, self._device = link, device
+
+    def __getattr__(self, name: str):
+        return getattr(self._link, name)
+
+    def open(self) -> None:
+        from rhi.errors import LinkError
+
+        self._link.open()
+        info, dev = self._link.info, self._device
+        name = info.get("device")
+        if self._link.n != dev.n or (name is not None and name != dev.name):
+            self._link.close()
+            raise LinkError(f"--link: the device server runs {name!r} with {self._link.n} motors, the configuration "
+                            f"controls {dev.name!r} with {dev.n}")
 
 
 class _Status:
