@@ -90,6 +90,12 @@ def _worker_init(main_pid: int) -> None:
     threading.Thread(target=_watch_parent, args=(main_pid,), daemon=True, name="rhi-parent-watch").start()
 
 
+def _check_workers(workers) -> None:
+    """`workers` must be None (the CPU count) or an integer >= 1."""
+    if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
+        raise InvalidInput(f"workers: expected an integer >= 1 (or None for the CPU count), got {workers!r}")
+
+
 def _new_pool(workers: int) -> ProcessPoolExecutor:
     ctx = get_context("forkserver")
     ctx.set_forkserver_preload(PRELOAD)  # no effect once this process's fork server runs
@@ -106,9 +112,8 @@ class PoolExecutor(SerialExecutor):
     name = "local"
 
     def __init__(self, workers: int | None = None) -> None:
+        _check_workers(workers)
         self.workers = workers or os.cpu_count() or 1
-        if self.workers < 1:
-            raise InvalidInput(f"workers: must be >= 1, got {workers}")
         self._pool: ProcessPoolExecutor | None = None
 
     def map(self, fn, items):
@@ -145,6 +150,7 @@ class RayExecutor(SerialExecutor):
     name = "ray"
 
     def __init__(self, address: str | None = None, workers: int | None = None) -> None:
+        _check_workers(workers)
         try:
             import ray
         except ImportError:
@@ -209,6 +215,7 @@ def configure(*, executor: str | None = None, address: str | None = None, worker
     if address is not None:
         DEFAULTS["address"] = address
     if workers is not None:
+        _check_workers(workers)
         DEFAULTS["workers"] = workers
     if checkpoint_dir is not None:
         DEFAULTS["checkpoint_dir"] = checkpoint_dir
