@@ -69,6 +69,7 @@ def _slave_process(q, duration, delay):
     q.put((res.fault, end.stats["received"], float(np.abs(slave.F_e).max()), slave.port.E_out))
 
 
+@pytest.mark.realtime
 def test_two_processes_over_udp_with_delay():
     ctx = mp.get_context("spawn")
     q = ctx.Queue()

@@ -58,6 +58,7 @@ def test_simlink_equals_simulate(dev):
     assert 0 < s["tick"]["p50"] <= s["tick"]["p99"] <= s["tick"]["max"]
 
 
+@pytest.mark.realtime
 def test_realtime_log_streams_and_is_readable_while_running(dev, tmp_path):
     path = tmp_path / "run.rhilog"
     tel = Telemetry(every=5)
@@ -152,6 +153,7 @@ def test_controller_raising_is_a_fault(dev):
     _assert_safe_stop(_sim_run(dev, controller=Boom()), "controller", 0.05, 0.052)
 
 
+@pytest.mark.realtime
 def test_estop_method_and_sigint(dev):
     guard = Safety(dev)
 
@@ -292,6 +294,7 @@ def test_push_force_and_csv_roundtrip(dev, tmp_path):
     assert np.load(tmp_path / "a.npz")["q"].shape == (50, 4)
 
 
+@pytest.mark.realtime
 def test_affinity_refused_is_a_clear_warning(dev):
     plant, ctrl, hand, wall, phys = _scenario(dev)
     with pytest.warns(RuntimeWarning, match="CPU affinity 4096 not applied"):

@@ -26,6 +26,9 @@ from test_runtime import _scenario
 
 HERE = Path(__file__).parent
 
+# real processes on real clocks: run alone (./run tests -m realtime), not beside CPU-heavy tests
+pytestmark = pytest.mark.realtime
+
 
 @pytest.fixture(scope="module")
 def dev():
@@ -56,7 +59,7 @@ def _stop(p):
 
 
 def test_lockstep_over_udp_equals_simulate(dev, tmp_path):
-    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye")
+    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye", "--watchdog", "2.0")
     try:
         plant, ctrl, hand, wall, phys = _scenario(dev)
         link = UDPLink("127.0.0.1", port, timeout=0.5)
@@ -77,7 +80,7 @@ def test_lockstep_over_udp_equals_simulate(dev, tmp_path):
 @pytest.mark.parametrize("inject, reason", [(("--drop", "0.2", "0.3"), "stale"),
                                             (("--reorder", "0.2"), "link")])
 def test_dropped_and_reordered_packets_fault(dev, tmp_path, inject, reason):
-    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye", *inject)
+    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye", "--watchdog", "2.0", *inject)
     try:
         plant, ctrl, hand, wall, phys = _scenario(dev)
         link = UDPLink("127.0.0.1", port, timeout=0.005)
@@ -106,10 +109,15 @@ def test_realtime_over_udp_and_server_killed(dev, tmp_path):
             t_kill["t"] = time.monotonic()
             p.kill()
 
-        killer = threading.Timer(0.8, kill)
+        killer = threading.Timer(0.5, kill)
         t_start = time.monotonic()
-        killer.start()
-        res = run(link, ctrl, duration=3.0, virtual=wall, safety=SafetyConfig(stale_ticks=20, silence=0.05))
+
+        def arm(status):  # the kill is timed from inside the running loop (start-up may be slow)
+            if not killer.is_alive() and "t" not in t_kill:
+                killer.start()
+
+        res = run(link, ctrl, duration=6.0, virtual=wall, safety=SafetyConfig(stale_ticks=20, silence=0.05),
+                  progress=arm)
     finally:
         if killer is not None:
             killer.cancel()

@@ -18,7 +18,14 @@ from rhi.runtime.udp import UDPLink  # noqa: E402
 
 dev = rhi.device("rhi4")
 plant, ctrl, hand, wall, phys = _scenario(dev)
-print("host: running", flush=True)
+started = []
+
+
+def progress(status):  # called from inside the loop: the host is really running
+    if not started:
+        started.append(print("host: running", flush=True))
+
+
 res = run(UDPLink("127.0.0.1", int(sys.argv[1]), timeout=4e-4), ctrl, duration=float(sys.argv[2]), virtual=wall,
-          safety=SafetyConfig(stale_ticks=20, silence=0.1, range_margin=0.3))
+          safety=SafetyConfig(stale_ticks=20, silence=0.1, range_margin=0.3), progress=progress)
 print("host:", res.fault, flush=True)
