@@ -288,3 +288,29 @@ def test_remote_view_serves_a_running_simulation():
         assert view.telemetry.latest().t == pytest.approx(log.t[-1])
     finally:
         view.close()
+
+
+@pytest.mark.parametrize("name", ["gen3", "wmm", "planar3r"])
+def test_view_draws_spatial_planar_and_mobile_devices(name):
+    from rhi.viz.view import View
+
+    dev = rhi.device(name)
+    from rhi.viz.posed import rest_configuration
+
+    v = View(dev, None, port=0, q0=rest_configuration(dev) + 0.3)  # mid-range is a singular straight arm here
+    try:
+        snap = v._rest_snapshot()
+        snap.F_hand = np.eye(dev.m)[0] * 2.0
+        v._draw(snap, force=True)
+        assert v.torque_html.content.count('class="rhi-tau"') == dev.n
+        kind = type(v.overlays.vel).__name__
+        assert kind == ("IcosphereHandle" if dev.m == 3 else "LineSegmentsHandle")
+        np.testing.assert_allclose(v.overlays.vel.position, v.scene.handle_position(), atol=1e-12)
+        np.testing.assert_allclose(v.scene.handle_position()[v.rows], dev.fk(snap.q), atol=1e-9)
+        assert "F_hand" in v.overlays._arrows and "lp" in v.overlays._arrows
+        straight = v._rest_snapshot()
+        straight.q = rest_configuration(dev)  # singular for these arms: what is undefined is not drawn
+        v._draw(straight, force=True)
+        np.testing.assert_allclose(v.scene.handle_position()[v.rows], dev.fk(straight.q), atol=1e-9)
+    finally:
+        v.close()

@@ -38,8 +38,9 @@ class HandleMeasures:
         velocity: (m, m) JJᵀ [(m/s)² per (rad/s)²] (eq. 3.5).
         force: (m, m) M̂ [N²] (eq. 6.9), or None at a singularity.
         u: (m,) unit direction of the force capability.
-        f_lp: largest force along u with null-space torques [N] (LP, eq. 7.9), or None when not computed.
-        f_scaling: largest force along u by simple scaling [N] (§7.3).
+        f_lp: largest force along u with null-space torques [N] (LP, eq. 7.9), or None when not computed
+            or undefined (singular).
+        f_scaling: largest force along u by simple scaling [N] (§7.3), NaN where undefined.
     """
 
     velocity: np.ndarray
@@ -55,14 +56,17 @@ def handle_measures(device: Device, q: np.ndarray, u: np.ndarray, *, lp: bool = 
     u = np.asarray(u, dtype=float)
     u = u / np.linalg.norm(u)
     lo, hi = device.torque_limits
-    try:
-        F = force_ellipsoid(J, hi)
-    except RhiError:
-        F = None
-    f_s = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
-    f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector="dynamic", M=device.mass_matrix(q))) \
-        if lp else None
-    return HandleMeasures(velocity_ellipsoid(J), F, u, f_lp, f_s)
+    def safe(fn):  # at a singularity a measure is undefined: not drawn
+        try:
+            return fn()
+        except RhiError:
+            return None
+
+    F = safe(lambda: force_ellipsoid(J, hi))
+    f_s = safe(lambda: float(max_force_scaling(J, u, torque_min=lo, torque_max=hi)))
+    f_lp = safe(lambda: float(max_force(J, u, torque_min=lo, torque_max=hi, projector="dynamic",
+                                        M=device.mass_matrix(q)))) if lp else None
+    return HandleMeasures(velocity_ellipsoid(J), F, u, f_lp, np.nan if f_s is None else f_s)
 
 
 def ellipsoid_pose(A: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
@@ -161,7 +165,7 @@ class Overlays:
         is added, so nothing is re-created per frame)."""
         k = self.force_scale
         vecs = {"F_hand": (HAND_RGB, getattr(snap, "F_hand", None)), "F_env": (ENV_RGB, getattr(snap, "F_env", None)),
-                "scaling": (SCALING_RGB, meas.f_scaling * meas.u), "lp": (LP_RGB, None if meas.f_lp is None else
+                "scaling": (SCALING_RGB, meas.f_scaling * meas.u if np.isfinite(meas.f_scaling) else None), "lp": (LP_RGB, None if meas.f_lp is None else
                                                                         meas.f_lp * meas.u)}
         r = 0.012 * self.size
         for name, (rgb, v) in vecs.items():
