@@ -606,14 +606,16 @@ class Device:
     def _ik_from(self, x, q, Qinv, tol, max_iter, k_null) -> tuple[np.ndarray, float]:
         q = np.clip(q, self.q_min, self.q_max)
         err = np.inf
+        At, b = self.A.T, self.b
         for it in range(max_iter):
-            e = x - self._fk1(self.theta(q))
+            th = q @ At + b  # = theta(q), without re-validating q
+            e = x - self._fk1(th)
             err = float(np.linalg.norm(e))
             # null-space centering during the first half, pure Newton steps to finish
             centering = it < max_iter // 2 and self.n > self.m
             if err <= tol and not centering:
                 break
-            step, null = self._ik_step(self._jac1(self.theta(q)), e, Qinv, q, k_null if centering else 0.0)
+            step, null = self._ik_step(self._jac1(th), e, Qinv, q, k_null if centering else 0.0)
             if err <= tol and np.max(np.abs(null), initial=0.0) < 1e-6:
                 break
             s = float(np.max(np.abs(step)))  # keep the linearisation valid
@@ -686,11 +688,13 @@ class Device:
         Returns (step, null-space part), each (n,).
         """
         free = np.ones(self.n, dtype=bool)
+        eye_m, eye_n = eye(self.m), eye(self.n)
+        grad = self._centering_gradient(q) if k_null else None
         for _ in range(self.n):
             Jf = J * free
             JQ = Jf @ Qinv
-            Jp = JQ.T @ np.linalg.solve(JQ @ Jf.T + 1e-10 * np.eye(self.m), np.eye(self.m))
-            null = -k_null * ((np.eye(self.n) - Jp @ Jf) @ self._centering_gradient(q)) * free
+            Jp = JQ.T @ np.linalg.solve(JQ @ Jf.T + 1e-10 * eye_m, eye_m)
+            null = -k_null * ((eye_n - Jp @ Jf) @ grad) * free if k_null else np.zeros(self.n)
             step = Jp @ e + null
             blocked = free & (((q <= self.q_min) & (step < 0)) | ((q >= self.q_max) & (step > 0)))
             if not blocked.any():
@@ -700,14 +704,23 @@ class Device:
 
     def _centering_gradient(self, q: np.ndarray) -> np.ndarray:
         """∇h for h(q) = Σ ((q_i − mid_i)/range_i)² + Σ ((c_j q − mid_j)/range_j)² over finite limits."""
+        finite, mid, den, lin = self._centering_constants
+        g = np.where(finite, 2 * (q - mid) / den, 0.0)
+        if lin is not None:
+            C, Ct, mid_l, den_l = lin
+            g = g + Ct @ (2 * (C @ q - mid_l) / den_l)
+        return g
+
+    @_lazy
+    def _centering_constants(self):
+        """Constant parts of `_centering_gradient` (finite mask, mid-ranges, squared ranges)."""
         finite = np.isfinite(self.q_min) & np.isfinite(self.q_max)
         lo, hi = np.where(finite, self.q_min, 0.0), np.where(finite, self.q_max, 0.0)
-        g = np.where(finite, 2 * (q - 0.5 * (lo + hi)) / np.maximum(hi - lo, 1e-9) ** 2, 0.0)
+        lin = None
         if self.linear_limits is not None:
             L = self.linear_limits
-            r = np.maximum(L.upper - L.lower, 1e-9)
-            g = g + L.C.T @ (2 * (L.C @ q - 0.5 * (L.lower + L.upper)) / r**2)
-        return g
+            lin = (L.C, L.C.T, 0.5 * (L.lower + L.upper), np.maximum(L.upper - L.lower, 1e-9) ** 2)
+        return finite, 0.5 * (lo + hi), np.maximum(hi - lo, 1e-9) ** 2, lin
 
     def _q(self, q, name: str = "q") -> np.ndarray:
         return as_array(name, q, shape_tail=(self.n,))

@@ -226,6 +226,25 @@ def default_executor() -> SerialExecutor:
     return make_executor(DEFAULTS["executor"], address=DEFAULTS["address"], workers=DEFAULTS["workers"])
 
 
+_SHARED: list[SerialExecutor] = []
+
+
+@contextlib.contextmanager
+def shared() -> Iterator[SerialExecutor]:
+    """Keep one default executor (`configure`) open for every `parallel_map` inside the block.
+
+    A reproduction runs many maps; one pool for all of them starts its workers (and their
+    imports and per-process caches) once instead of once per map. Results do not change.
+    """
+    ex = default_executor()
+    _SHARED.append(ex)
+    try:
+        yield ex
+    finally:
+        _SHARED.pop()
+        ex.close()
+
+
 @contextlib.contextmanager
 def using(executor: SerialExecutor | str | None = None, workers: int | None = None) -> Iterator[SerialExecutor]:
     """The executor to run on, closed on exit if this call created it.
@@ -246,6 +265,9 @@ def using(executor: SerialExecutor | str | None = None, workers: int | None = No
         own = make_executor(executor, address=DEFAULTS["address"], workers=workers)
     elif workers is not None:
         own = SerialExecutor() if workers == 1 else PoolExecutor(workers)
+    elif _SHARED:
+        yield _SHARED[-1]  # the open default of `shared` (its owner closes it)
+        return
     else:
         own = default_executor()
     try:

@@ -730,7 +730,7 @@ class MinimumJerkPalpation:
         """F_h: (m,) [N] on the handle at position x (m,) [m], velocity ẋ (m,) [m/s]."""
         xr, vr = self.reference(t)
         F = self.stiffness * (xr - x) + self.damping * (vr - xdot)
-        nf = float(np.linalg.norm(F))
+        nf = math.sqrt(float(F @ F))  # = np.linalg.norm(F), without its overhead (called at every plant step)
         if nf > self.max_force:
             F = F * (self.max_force / nf)
         return F
@@ -851,23 +851,28 @@ def stimulus_table(
         {device: (len(comparison_percent), len(durations)) perceived stiffness [N/m]}, plus
         "stiffness" (k,) [N/m], "durations" (s,) [s] and "{device}_speed" (k, s) peak speeds [m/s].
     """
+    from rhi.design.executors import parallel_map
+
     K = reference * (1.0 + np.asarray(comparison_percent, dtype=float) / 100.0)
     T = np.asarray(durations, dtype=float)
-    total = len(devices) * K.size * T.size
     out: dict[str, np.ndarray] = {"stiffness": K, "durations": T}
-    done = 0
+    items = [(name, float(k), float(dur)) for name in devices for k in K for dur in T]
+    # independent, deterministic simulations: the default executor runs them in parallel
+    res = iter(parallel_map(_palpation_measures, items, progress=progress))
     for name in devices:
         kh = np.empty((K.size, T.size))
         sp = np.empty((K.size, T.size))
-        for i, k in enumerate(K):
-            for j, dur in enumerate(T):
-                r = palpate(name, float(k), float(dur))
-                kh[i, j], sp[i, j] = r["k_hat"], r["peak_speed"]
-                done += 1
-                if progress is not None:
-                    progress(done, total)
+        for i in range(K.size):
+            for j in range(T.size):
+                kh[i, j], sp[i, j] = next(res)
         out[name], out[f"{name}_speed"] = kh, sp
     return out
+
+
+def _palpation_measures(item: tuple[str, float, float]) -> tuple[float, float]:
+    """(K̂ [N/m], peak speed [m/s]) of `palpate(name, stiffness, duration)` for item = (name, stiffness, duration)."""
+    r = palpate(*item)
+    return r["k_hat"], r["peak_speed"]
 
 
 def simulate_study(
@@ -935,6 +940,12 @@ def simulate_study(
     return pp.Responses.from_trials(trials, resp), weber
 
 
+def _fit_group(group: tuple) -> pp.PsychometricFit:
+    """`fit_psychometric` of one (comparisons, responses, subject, device, overdispersion, min_trials) group."""
+    x, r, subject, dev, overdispersion, min_trials = group
+    return pp.fit_psychometric(x, r, subject=subject, device=dev, overdispersion=overdispersion, min_trials=min_trials)
+
+
 def _summary_of(analysis, measure: str) -> dict[str, tuple[float, float, float]]:
     return {s.name: (s.mean, s.std, s.median) for s in analysis.summary[measure]}
 
@@ -984,12 +995,12 @@ def psychophysics(
     responses, weber = simulate_study(table, subjects=subjects, devices=devs, repetitions=repetitions,
                                       comparison_percent=comparison_percent, weber_mean=weber_mean,
                                       weber_sd=weber_sd, lapse=lapse, seed=seed)
-    fits = []
-    for k, ((s, d), idx) in enumerate(responses.groups().items()):
-        fits.append(pp.fit_psychometric(responses.comparison[idx], responses.response[idx], subject=s, device=d,
-                                        overdispersion=overdispersion, min_trials=min(20, len(idx))))
-        if progress is not None:
-            progress(total - n_fit + k + 1, total)
+    from rhi.design.executors import parallel_map
+
+    groups = [(responses.comparison[idx], responses.response[idx], s, d, overdispersion, min(20, len(idx)))
+              for (s, d), idx in responses.groups().items()]
+    cb = None if progress is None else (lambda k, n: progress(total - n_fit + k, total))
+    fits = parallel_map(_fit_group, groups, progress=cb)  # independent fits, in parallel on the default executor
     analysis = pp.analyse_fits(fits, measure="wf", devices=devs, correction="holm")
     fdr = paired_t_tests(analysis.values, correction="fdr_bh")
 

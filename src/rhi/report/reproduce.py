@@ -12,6 +12,7 @@ from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from rhi.design.executors import shared
 from rhi.experiments import appa as exa
 from rhi.experiments import appb as exb
 from rhi.experiments import bilateral as exbi
@@ -180,10 +181,11 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         if not steps:
             raise InvalidInput(f"experiment: unknown experiment {experiment!r}; available: {', '.join(experiments())}")
     done: list[tuple[str, Result, dict]] = []
+    seconds: dict[str, float] = {}  # wall time of each experiment (without its figures), for results.json
     t0 = time.perf_counter()
     cols = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
             TimeElapsedColumn())
-    with Progress(*cols) as bar:
+    with Progress(*cols) as bar, shared():
         overall = bar.add_task("reproduction", total=len(steps))
         for i, s in enumerate(steps, 1):
             t_step = time.perf_counter()
@@ -192,13 +194,15 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
                 sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
                 kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
             res = s.run(**kwargs)
+            seconds[s.name] = round(time.perf_counter() - t_step, 2)
             figs = {name: functools.partial(draw, res) for name, draw in s.figures.items()}
             done.append((s.chapter, res, figs))
             bar.advance(overall)
             if not sys.stdout.isatty():
                 _report_progress(i, len(steps), s.name, time.perf_counter() - t_step, t0)
     meta = {"mode": "quick" if quick else "full", "chapters": only or ", ".join(chapters()),
-            "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version()}
+            "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version(),
+            "seconds_per_experiment": seconds}
     path = write_report(done, out, meta=meta)
     results = [r for _, r, _ in done]
     print("\nHeadline claims of the thesis (details in report.html):")

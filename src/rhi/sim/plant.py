@@ -100,9 +100,10 @@ class Plant:
         # views into MjData's persistent buffers, for a cheap `apply`/`step` in the 1 kHz loop
         self._ctrl = self.data.ctrl
         self._xfrc = self.data.xfrc_applied[self._body]
-        self._warnings = [self.data.warning[w] for w in (mujoco.mjtWarning.mjWARN_BADQACC,
-                                                         mujoco.mjtWarning.mjWARN_BADQVEL,
-                                                         mujoco.mjtWarning.mjWARN_BADQPOS)]
+        # live view of MjData's warning counters; BADQACC, BADQVEL, BADQPOS flag diverged physics
+        self._wnum = self.data.warning.number
+        self._bad = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
+                                           mujoco.mjtWarning.mjWARN_BADQPOS))
 
     # ------------------------------------------------------------------ state
     def reset(self, q, dq=None) -> None:
@@ -185,11 +186,12 @@ class Plant:
             PlantUnstable: MuJoCo flagged the state as diverged (it then resets the data, time included);
                 the error carries the time of the step that diverged.
         """
-        m, d = self.model, self.data
+        m, d, wn = self.model, self.data, self._wnum
+        i, j, k = self._bad
         for _ in range(steps):
             t = d.time
             mujoco.mj_step2(m, d)
             mujoco.mj_step1(m, d)
-            if any(w.number for w in self._warnings):
+            if wn[i] or wn[j] or wn[k]:
                 raise PlantUnstable(f"plant: MuJoCo reported unstable physics at t={t:.4f} s "
                                     "(bad accelerations, velocities or positions; it reset the state)", t)
