@@ -60,6 +60,7 @@ def run_log():
     return dev, simulate(plant, ctrl, duration=0.5, hand=hand, virtual=wall), wall, ctrl
 
 
+@pytest.mark.realtime
 def test_log_player_plays_at_real_speed_and_seeks(run_log):
     _, log, _, _ = run_log
     p = LogPlayer(log)
@@ -143,6 +144,7 @@ def live_view():
         view.close()
 
 
+@pytest.mark.realtime
 def test_browser_draws_the_device_and_the_torque_numbers(live_view):
     dev, view, _, _, b = live_view
     assert b.wait_for("document.body.innerText.includes('joint torques')")
@@ -159,6 +161,7 @@ def test_browser_draws_the_device_and_the_torque_numbers(live_view):
     assert device_px.sum() > 1000, device_px.sum()  # the device's pixels
 
 
+@pytest.mark.realtime
 def test_browser_receives_30_updates_per_second(live_view):
     _, view, _, _, b = live_view
     b.pump(0.5)
@@ -175,6 +178,7 @@ def test_browser_receives_30_updates_per_second(live_view):
     assert rate >= 30.0, (rate, drawn / dt)
 
 
+@pytest.mark.realtime
 def test_gizmo_moves_the_hand_and_the_handle_follows(live_view):
     import msgspec
     import viser
@@ -199,6 +203,7 @@ def test_gizmo_moves_the_hand_and_the_handle_follows(live_view):
     assert np.linalg.norm(view.scene.handle_position()[:2] - goal) < 0.01
 
 
+@pytest.mark.realtime
 def test_browser_opens_a_replayed_log(live_view, run_log, tmp_path):
     from rhi.sim.log import Log
     from rhi.viz.view import View
@@ -259,6 +264,7 @@ def test_shared_telemetry_and_hand_cross_processes(run_log):
         hand.close()
 
 
+@pytest.mark.realtime
 def test_remote_view_serves_a_running_simulation():
     """A RemoteView (own process) fed by simulate(telemetry=...) draws what the loop publishes."""
     from rhi.viz.live import demo_setup
