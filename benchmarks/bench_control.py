@@ -1,5 +1,8 @@
 """One full rhi4 controller tick: primary law + FME matching (ASO, transition) + ASCM + tertiary objective.
 
+Also the same stack with the active-set allocation (`saturation="active_set"`), with the LP,
+and on gen3 as a spatial RHI (7 joints, 3 task rows).
+
 The controller is the thesis's rhi4 setup: force rendering with B^d = 0.01 N s/m and the
 C_x ẋ + G_x compensation of eq. 7.2, ASO-switched FME matching (μ = 5, β = 20, eqs.
 6.10–6.19), ASCM (Algorithm 1) and the VME-matching tertiary objective (eq. 7.18, β = 0.01).
@@ -46,11 +49,13 @@ Q0 = np.array([0.3, 0.5, 0.2, 0.4])
 
 
 def make(dev: rhi.Device, saturation: str = "ascm", implementation: str = "fast") -> NullSpaceController:
-    K, z = fme_shape(dev.jacobian(np.zeros(dev.n)), dev.torque_max, 5.0)
+    u = np.zeros(dev.m)
+    u[1] = 1.0
+    K, z = fme_shape(dev.jacobian(np.full(dev.n, 0.3) if dev.m == 3 else np.zeros(dev.n)), dev.torque_max, 5.0)
     cfg = ControllerConfig(
         ForceRendering(damping=0.01),
-        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0), 0.01), 0.5),),
-        fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z), gain=20.0),
+        objectives=(ObjectiveTerm(VMEMatching(tuple(u), 0.01), 0.5),),
+        fme=FMESchedule(desired_fme_free(u, K, z), desired_fme_stiff(u, K, z), gain=20.0),
         damping=0.1,
         saturation=saturation,
         implementation=implementation,
@@ -58,13 +63,19 @@ def make(dev: rhi.Device, saturation: str = "ascm", implementation: str = "fast"
     return NullSpaceController(dev, cfg)
 
 
-def ticks(count: int, seed: int = 0) -> list[tuple[float, np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
+def ticks(count: int, seed: int = 0, dev: rhi.Device | None = None,
+          ) -> list[tuple[float, np.ndarray, np.ndarray, dict[str, np.ndarray]]]:
+    """Seeded ticks for rhi4 (default) or, with `dev`, a spatial device (m = 3) near q = 0.3 rad."""
     rng = np.random.default_rng(seed)
+    n, m = (4, 2) if dev is None else (dev.n, dev.m)
+    q0 = Q0 if dev is None else np.full(n, 0.3)
+    peak = 12.0 if dev is None else 400.0  # gen3's torque limits are 13-32 N m
     out = []
     for k in range(count):
-        q = Q0 + 0.05 * np.sin(0.01 * k + np.arange(4))
-        dq = 0.1 * rng.normal(size=4)
-        F = np.array([0.0, -12.0 * np.sin(0.005 * k) ** 2])  # drives joints into saturation and back
+        q = q0 + 0.05 * np.sin(0.01 * k + np.arange(n))
+        dq = 0.1 * rng.normal(size=n)
+        F = np.zeros(m)
+        F[1] = -peak * np.sin(0.005 * k) ** 2  # drives joints into saturation and back
         out.append((k * 1e-3, q, dq, {"force": F}))
     return out
 
@@ -82,11 +93,11 @@ def _run(c: NullSpaceController, path) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return wall, cpu, taus, held
 
 
-def bench_ticks(saturation: str, count: int, rounds: int = 2) -> dict[str, np.ndarray]:
+def bench_ticks(saturation: str, count: int, rounds: int = 2, name: str = "rhi4") -> dict[str, np.ndarray]:
     """Fast and reference passes over the same ticks, alternated `rounds` times (both see the same
     machine load). Returns wall and CPU µs per tick (first 10% of each pass dropped as warm-up)."""
-    dev = rhi.device("rhi4")
-    path = ticks(count)
+    dev = rhi.device(name)
+    path = ticks(count, dev=None if name == "rhi4" else dev)
     skip = count // 10
     res: dict[str, list[np.ndarray]] = {k: [] for k in ("fast_wall", "fast_cpu", "ref_wall", "ref_cpu")}
     worst, held = 0.0, 0
@@ -129,9 +140,11 @@ def _row(label: str, us: np.ndarray) -> str:
 def main(count: int = 5000) -> None:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"rhi4 controller tick, {count} ticks (first 10% dropped); load average {load:.1f} on {os.cpu_count()} CPUs")
-    for sat, n in (("ascm", count), ("lp", max(count // 10, 200))):
-        r = bench_ticks(sat, n)
-        print(f"saturation={sat!r}: {100 * r['held']:.0f}% of ticks hold a joint at its limit; "
+    for name, sat, n in (("rhi4", "ascm", count), ("rhi4", "active_set", count), ("rhi4", "lp", max(count // 10, 200)),
+                         ("gen3", "ascm", max(count // 2, 200))):
+        r = bench_ticks(sat, n, name=name)
+        print(f"{name} (m = {rhi.device(name).m}), saturation={sat!r}: {100 * r['held']:.0f}% of ticks hold a joint "
+              "at its limit; "
               f"fast == reference to {r['worst']:.1e} N m")
         for clock in ("wall", "cpu"):
             print(_row(f"reference ({clock})", r[f"ref_{clock}"]))
