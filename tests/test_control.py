@@ -360,7 +360,7 @@ def test_tertiary_respects_limits_and_held_joints(rng, rhi4):
 def _controller(dev, **kw):
     K, z = fme_shape(dev.jacobian(np.array([0.3, 0.5, 0.2, 0.4])[: dev.n]), dev.torque_max)
     cfg = dict(
-        primary=ForceRendering(damping=0.01),
+        primary=ForceRendering(damping=0.01, passivity=None),  # the thesis law (no PC)
         objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.5),),
         fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z), gain=20.0),
         damping=0.1,

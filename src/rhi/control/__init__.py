@@ -22,6 +22,7 @@ from rhi.control.objectives import (
     fme_shape,
     gradient_function,
 )
+from rhi.control.passivity import Passivity, PassivityController, PassivityState
 from rhi.control.primary import (
     ForceRendering,
     ImpedanceControl,
@@ -65,6 +66,9 @@ __all__ = [
     "NullSpaceController",
     "Objective",
     "ObjectiveTerm",
+    "Passivity",
+    "PassivityController",
+    "PassivityState",
     "PrimaryLaw",
     "SpringPalpation",
     "TMIMatching",

@@ -48,6 +48,7 @@ import numpy as np
 from rhi._validate import scalar
 from rhi.control.active_set import allocate_active_set
 from rhi.control.objectives import FMEMatching, JointLimitBarrier, Objective, _spd, gradient_function
+from rhi.control.passivity import PassivityController, PassivityState
 from rhi.control.primary import PrimaryLaw
 from rhi.control.saturation import (
     Allocation,
@@ -195,6 +196,9 @@ class ControllerState:
         stopped: latched safe stop (zero torque).
         fault: why it stopped.
         ticks: number of ticks.
+        E_obs: energy the passivity observer has seen flow into the controller [J]
+            (`rhi.control.passivity`; negative: energy created); NaN without a passivity option.
+        alpha_pc: damping rate α of the passivity controller at the last tick [1/s]; NaN without one.
     """
 
     t: float = -math.inf
@@ -209,6 +213,8 @@ class ControllerState:
     stopped: bool = False
     fault: str | None = None
     ticks: int = 0
+    E_obs: float = math.nan
+    alpha_pc: float = math.nan
 
 
 class NullSpaceController:
@@ -248,6 +254,8 @@ class NullSpaceController:
         self._fme = None if config.fme is None else FMEMatching(config.fme.free, self.hi)
         self.state = state or ControllerState()
         self._sensors = tuple(config.primary.required_sensors())
+        pas = getattr(config.primary, "passivity", None)
+        self._pc = None if pas is None else PassivityController(pas)
         self._n, self._m = device.n, device.m
         self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
         self._aso_S = config.fme.transition.S if config.fme is not None else config.aso_shape
@@ -262,9 +270,16 @@ class NullSpaceController:
                 )
                 (self._safe_grads if isinstance(obj, JointLimitBarrier) else self._grads).append((float(term.gain), fn))
 
+    @property
+    def passivity(self) -> PassivityState | None:
+        """State of the passivity observer/controller (`rhi.control.passivity`), None without one."""
+        return None if self._pc is None else self._pc.state
+
     def reset(self) -> None:
-        """Fresh state (clears a safe stop)."""
+        """Fresh state (clears a safe stop, empties the passivity observer)."""
         self.state = ControllerState()
+        if self._pc is not None:
+            self._pc.reset()
 
     def _stop(self, why: str) -> np.ndarray:
         s = self.state
@@ -374,6 +389,10 @@ class NullSpaceController:
         else:
             al, alpha, delta, beta = self._allocate_reference(a, b, tau_s, tau_to, kin)
         tau = np.minimum(np.maximum(al.tau + delta if beta else al.tau, lo), hi)
+        pc = self._pc
+        if pc is not None and _finite(tau):  # time-domain passivity around the whole torque (rhi.control.passivity)
+            tau = pc.apply(t, kin, tau, lo, hi)
+            s.E_obs, s.alpha_pc = pc.state.energy, pc.state.alpha
         if not _finite(tau):  # e.g. a non-finite objective gradient at a singular configuration
             return self._stop(f"non-finite torque at t={t} (singular configuration?): {tau.tolist()}")
 

@@ -10,6 +10,11 @@ environment force, which saturation handling may scale by α (eq. 7.9); ``F_extr
 
 Sign convention: every force here is the force the device applies to the user's hand,
 in the world task axes of the device (``Device.task_axes``).
+
+The laws that render an environment (`ForceRendering`, `SpringPalpation`) carry a
+``passivity`` option, on by default: the controller then runs the time-domain passivity
+observer and controller of `rhi.control.passivity` (Hannaford and Ryu 2002) around the
+whole torque it sends. ``passivity=None`` renders exactly the thesis's law.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from typing import Protocol
 import numpy as np
 
 from rhi._validate import as_array, scalar
+from rhi.control.passivity import Passivity
 from rhi.device import Device, DeviceTerms
 from rhi.errors import InvalidInput
 
@@ -53,6 +59,11 @@ def _damping(name: str, B) -> np.ndarray:
     if np.any(np.linalg.eigvalsh(0.5 * (B + B.T)) < -1e-12):
         raise InvalidInput(f"{name}: must be positive semi-definite")
     return B
+
+
+def _check_passivity(p) -> None:
+    if p is not None and not isinstance(p, Passivity):
+        raise InvalidInput(f"passivity: expected a rhi.control.Passivity or None, got {type(p).__name__}")
 
 
 def _check_task_matrix(name: str, A: np.ndarray, m: int) -> None:
@@ -234,6 +245,7 @@ class ForceRendering(_Compensated):
         coriolis: compensate C_x ẋ.
         gravity: compensate G_x.
         friction: joint friction model for F_x, or None (not compensated, thesis §7.5).
+        passivity: time-domain passivity observer/controller (`rhi.control.passivity`), or None (off).
     """
 
     damping: float | np.ndarray = 0.0
@@ -241,10 +253,12 @@ class ForceRendering(_Compensated):
     coriolis: bool = True
     gravity: bool = True
     friction: JointFriction | None = None
+    passivity: Passivity | None = dataclasses.field(default_factory=Passivity)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "damping", _damping("damping", self.damping))
         object.__setattr__(self, "gain", scalar("gain", self.gain))
+        _check_passivity(self.passivity)
 
     def check(self, device: Device) -> None:
         """Raise InvalidInput unless the parameters fit `device`."""
@@ -275,6 +289,7 @@ class SpringPalpation(_Compensated):
         normal: (m,) direction into the environment, or None.
         damping: B^d scalar or (m, m) [N s/m].
         coriolis, gravity, friction: compensation terms as in `ForceRendering`.
+        passivity: time-domain passivity observer/controller (`rhi.control.passivity`), or None (off).
     """
 
     stiffness: float
@@ -284,6 +299,7 @@ class SpringPalpation(_Compensated):
     coriolis: bool = True
     gravity: bool = True
     friction: JointFriction | None = None
+    passivity: Passivity | None = dataclasses.field(default_factory=Passivity)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "stiffness", scalar("stiffness", self.stiffness, nonnegative=True))
@@ -296,6 +312,7 @@ class SpringPalpation(_Compensated):
                 raise InvalidInput("normal: zero-length direction vector")
             object.__setattr__(self, "normal", nrm / np.linalg.norm(nrm))
         object.__setattr__(self, "damping", _damping("damping", self.damping))
+        _check_passivity(self.passivity)
 
     def check(self, device: Device) -> None:
         """Raise InvalidInput unless the parameters fit `device`."""

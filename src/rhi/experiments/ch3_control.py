@@ -137,7 +137,8 @@ def controller(dev: Device, *, gain: float = GAIN, damping: float = NULL_DAMPING
     terms = [ObjectiveTerm(VMEMatching(tuple(U), beta), gain)]
     if limits:
         terms.append(ObjectiveTerm(BARRIER, gain))
-    cfg = ControllerConfig(primary=ForceRendering(damping=0.0), objectives=terms, damping=damping, saturation="none")
+    cfg = ControllerConfig(primary=ForceRendering(damping=0.0, passivity=None), objectives=terms, damping=damping,
+                           saturation="none")
     return NullSpaceController(dev, cfg)
 
 

@@ -355,7 +355,7 @@ def _palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FME
 
     projector: "dynamic" (J#, eq. 6.6 as the thesis writes it) or "pseudoinverse" (J⁺).
     """
-    law = SpringPalpation(K_E, X0, normal=U, damping=0.0, coriolis=False, gravity=False)
+    law = SpringPalpation(K_E, X0, normal=U, damping=0.0, coriolis=False, gravity=False, passivity=None)
     if desired is not None:
         terms = controller_terms(desired, dev.torque_max, limits=limits, beta=beta)
     else:

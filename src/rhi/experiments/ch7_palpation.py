@@ -134,7 +134,7 @@ def palpation_controller(dev: Device, saturation: str, projector: str = "dynamic
     """
     lo = -np.asarray(TORQUE_MAX)
     terms = [ObjectiveTerm(EllipsoidMatching(np.array(M_DES)), gain), ObjectiveTerm(BARRIER, gain)]
-    cfg = ControllerConfig(primary=ForceRendering(damping=B_D), objectives=terms, damping=damping,
+    cfg = ControllerConfig(primary=ForceRendering(damping=B_D, passivity=None), objectives=terms, damping=damping,
                            saturation=saturation, projector=projector, torque_min=lo, torque_max=np.asarray(TORQUE_MAX))
     return NullSpaceController(dev, cfg)
 

@@ -555,7 +555,7 @@ def _ch6_controller(dev: Device, desired: np.ndarray, projector: str = "dynamic"
     from rhi.experiments import ch6
 
     def make():
-        cfg = ControllerConfig(primary=ForceRendering(damping=0.0, coriolis=False, gravity=False),
+        cfg = ControllerConfig(primary=ForceRendering(damping=0.0, coriolis=False, gravity=False, passivity=None),
                                objectives=ch6.controller_terms(desired, dev.torque_max), damping=ch6.K_D,
                                saturation="scaling", projector=projector)
         return NullSpaceController(dev, cfg)
@@ -761,7 +761,8 @@ def _palpation_controller(name: str, dev: Device):
 
     if name == "RHI":
         return ch3_control.controller(dev)
-    cfg = ControllerConfig(primary=ForceRendering(damping=0.0), objectives=(), damping=0.0, saturation="none")
+    cfg = ControllerConfig(primary=ForceRendering(damping=0.0, passivity=None), objectives=(), damping=0.0,
+                           saturation="none")
     return NullSpaceController(dev, cfg)
 
 

@@ -26,6 +26,7 @@ from rhi.experiments import ch5 as ex5
 from rhi.experiments import ch6 as ex6
 from rhi.experiments import ch7 as ex7
 from rhi.experiments import ch7_palpation as ex7p
+from rhi.experiments import passivity as expas
 from rhi.experiments import perception as exp
 from rhi.experiments.result import Result
 from rhi.plots import appa as pla
@@ -41,6 +42,7 @@ from rhi.plots import ch6 as pl6
 from rhi.plots import renders as plr
 from rhi.plots import ch7 as pl7
 from rhi.plots import ch7_palpation as pl7p
+from rhi.plots import passivity as plpas
 from rhi.plots import perception as plp
 from rhi.report import headline, write_report
 from rhi.report.claims import CLAIMS
@@ -107,6 +109,10 @@ STEPS: list[Step] = [
           "cases": (("none", "dynamic"), ("ascm", "dynamic"), ("lp", "dynamic"))},
          {"fig7_6": pl7p.fig7_6, "fig7_6_force_penetration": pl7p.force_penetration,
           "ch7_palpation_settling": pl7p.settling}, progress=True),
+    Step("beyond", expas.passivity, {},
+         {"duration": 1.5, "stiff_duration": 1.0, "speed": 0.03, "cases": ("objectives", "objectives_pc")},
+         {"passivity_energy": plpas.energy, "passivity_force": plpas.force, "passivity_chatter": plpas.chatter},
+         progress=True),
     Step("appa", exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
          progress=True),
     Step("appa", exa.dm_enhancement, {}, {"t_long": 20.0},

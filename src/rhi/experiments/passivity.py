@@ -1,0 +1,375 @@
+"""Beyond the thesis: is the rendered wall passive? Energy at the hand in the §6.4 palpation set-up.
+
+Set-up: the simulated rhi4 (MuJoCo plant, device friction) at X₀ = [0.5, 0.1] m, a virtual
+one-sided wall of K_e = 1000 N/m along u = [0, 1] rendered at 1 kHz by eq. 7.2
+(`ForceRendering`, B^d = 0.01 N s/m, C_x ẋ compensated), actuator saturation handled by
+ASCM (Algorithm 1), the null-space objectives of the §6.4 controller (FME matching to
+M_Stiff^des with β = 20, the joint-limit barrier, K_d = 0.1; `rhi.experiments.ch6`),
+started at the FME-matched configuration. The simulated hand (3000 N/m, 40 N s/m, at
+most 60 N, the grip of `ch6.palpation`) palpates repeatedly: its reference moves from
+2 mm outside the wall to 15 mm into it and back at 1 cm/s, for the whole run (60 s).
+The hand's work W = ∫F_hᵀẋ dt (eq. 5.15) is the energy it put into the device; W < 0 is
+energy the device gave the hand.
+
+Cases: without and with the time-domain passivity controller (`rhi.control.passivity`,
+Hannaford and Ryu 2002, at the motor port), with and without the null-space objectives,
+the passivity controller at the handle port (H&R's virtual-environment port), and simple force
+scaling in place of ASCM (no allocation torque in the null space).
+A 5000 N/m wall, without and with the passivity controller, shows the chatter.
+
+The energy is traced from the log (every term exact under the zero-order hold):
+the motors' work Σ τ(k)ᵀ(q(k+1) − q(k)), split into the task part (J#ᵀτ)ᵀΔx at the
+handle and the null-space rest; the energy the sampled wall generates
+Σ F_e(k)ᵀΔx + ΔU_wall; the plant's joint friction losses Σ (b q̇² + f_c |q̇|) ΔT. The
+notes state which of them makes the device active.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from rhi.control import (
+    ControllerConfig,
+    ForceRendering,
+    NullSpaceController,
+    Passivity,
+    WeightedSum,
+)
+from rhi.device import Device, device
+from rhi.errors import InvalidInput
+from rhi.experiments import ch6
+from rhi.experiments.result import Result, Row, Table
+
+#: The rendered wall [N/m], the stiff wall [N/m] and B^d [N s/m] (thesis §6.4, §7.5).
+K_E = 1000.0
+K_STIFF = 5000.0
+B_D = 0.01
+#: The palpating hand: stiffness [N/m], damping [N s/m], largest force [N], stroke [m] out/in, speed [m/s].
+HAND = (3000.0, 40.0, 60.0)
+OUT, DEPTH, SPEED = 0.002, 0.015, 0.01
+#: Target of the issue: the hand's work with the passivity controller [J].
+TARGET_W = -1e-3
+#: case key: (null-space objectives, passivity port or None, saturation handling)
+CASES: dict[str, tuple[bool, str | None, str]] = {
+    "objectives": (True, None, "ascm"),
+    "objectives_pc": (True, "motors", "ascm"),
+    "bare": (False, None, "ascm"),
+    "bare_pc": (False, "motors", "ascm"),
+    "objectives_pc_handle": (True, "handle", "ascm"),
+    "scaling": (True, None, "scaling"),
+}
+STIFF_CASES = ("objectives", "objectives_pc")
+#: Window of the moving average that separates chatter from the palpation motion [s].
+CHATTER_WINDOW = 0.02
+DECIMATE = 10
+#: Order of the per-case ``{case}_summary`` array.
+SUMMARY = ("W", "motors", "task", "null", "wall_zoh", "friction", "force_rms_error", "chatter_velocity",
+           "E_obs_min", "qdot_max")
+
+
+class _Recorder:
+    """Records the passivity state (E_obs, α, λ) and ASCM's held set per tick (the log does not carry them)."""
+
+    def __init__(self, ctrl: NullSpaceController) -> None:
+        self.ctrl, self.device = ctrl, ctrl.device
+        self.E, self.alpha, self.scale, self.held = [], [], [], []
+
+    @property
+    def state(self):
+        return self.ctrl.state
+
+    def step(self, t, q, dq, sensors):
+        tau = self.ctrl.step(t, q, dq, sensors)
+        s, pc = self.ctrl.state, self.ctrl.passivity
+        self.E.append(s.E_obs)
+        self.alpha.append(s.alpha_pc)
+        self.scale.append(math.nan if pc is None else pc.scale)
+        self.held.append(0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated)))))
+        return tau
+
+
+def controller(dev: Device, *, objectives: bool, port: str | None, saturation: str = "ascm") -> NullSpaceController:
+    """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`), optional objectives and
+    passivity port."""
+    u = np.array(ch6.U)
+    _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
+    terms = ch6.controller_terms(Ms, dev.torque_max) if objectives else ()
+    law = ForceRendering(damping=B_D, passivity=None if port is None else Passivity(port=port))
+    return NullSpaceController(dev, ControllerConfig(primary=law, objectives=terms, damping=ch6.K_D,
+                                                     saturation=saturation))
+
+
+def _moving_average(a: np.ndarray, w: int) -> np.ndarray:
+    k = np.ones(w) / w
+    return np.convolve(a, k, mode="same") / np.convolve(np.ones(len(a)), k, mode="same")
+
+
+def _energies(dev: Device, log, friction, stiffness: float) -> dict[str, float]:
+    """Energy terms of one run [J] (see the module docstring); positive: energy into the mechanism."""
+    q, tau, dt = log.q, log.tau, float(log.t[1] - log.t[0])
+    dq = np.diff(q, axis=0)
+    motors = float(np.einsum("ki,ki->", tau[:-1], dq))
+    x = np.array([dev.fk(qi) for qi in q])
+    F = np.array([dev.terms(qi, None, check=False).Jsharp.T.dot(ti) for qi, ti in zip(q[:-1], tau[:-1])])
+    task = float(np.einsum("ki,ki->", F, np.diff(x, axis=0)))
+    u, x0 = np.array(ch6.U), np.array(ch6.X0)
+    U = 0.5 * stiffness * np.maximum((x - x0) @ u, 0.0) ** 2
+    wall = float(np.einsum("ki,ki->", log.F_env[:-1], np.diff(x, axis=0))) + U[-1] - U[0]
+    v = log.dq
+    fric = float(np.sum(friction.damping * v**2 + friction.frictionloss * np.abs(v)) * dt)
+    damp = float(B_D * np.sum(log.xdot**2) * dt)
+    return {"W": float(log.work[-1]), "motors": motors, "task": task, "null": motors - task,
+            "wall_zoh": wall, "friction": fric, "damping": damp}
+
+
+def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: float, depth: float, speed: float,
+         progress, offset: int, total: int) -> tuple[dict, dict]:
+    from rhi.sim import Hand, Path, Plant, Wall, simulate
+
+    u, x0 = np.array(ch6.U), np.array(ch6.X0)
+    strokes = int(math.ceil(duration * speed / (OUT + depth))) + 1
+    pts = [x0] + [x0 - OUT * u, x0 + depth * u] * strokes
+    hand = Hand(Path(np.array(pts), speed=speed, start=0.2), stiffness=HAND[0], damping=HAND[1], max_force=HAND[2])
+    plant = Plant(dev)
+    plant.reset(q0)
+    objectives, port, saturation = CASES[case]
+    rec = _Recorder(controller(dev, objectives=objectives, port=port, saturation=saturation))
+    cb = None if progress is None else (lambda k, n: progress(offset + k, total))
+    log = simulate(plant, rec, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=cb)
+    en = _energies(dev, log, plant.friction, stiffness)
+    pen = (log.x - x0) @ u
+    F_des = stiffness * np.maximum(pen, 0.0)
+    F = log.ft[:, :2] @ u  # the force the hand pushes along u = the force rendered to it [N]
+    contact = F_des >= 0.5
+    err = (F - F_des)[contact]
+    w = max(1, int(round(CHATTER_WINDOW * 1000.0)))
+    xd = log.xdot @ u
+    hf_v = (xd - _moving_average(xd, w))[contact]
+    hf_F = (F - _moving_average(F, w))[contact]
+    held = np.array(rec.held)
+    E = np.array(rec.E)
+    m = {
+        **en,
+        "W_min": float(np.min(log.work)),
+        "force_rms_error": float(np.sqrt(np.mean(err**2))) if err.size else math.nan,
+        "force_mean_error": float(np.mean(err)) if err.size else math.nan,
+        "force_peak": float(np.max(F)),
+        "penetration_max": float(np.max(pen)),
+        "chatter_velocity": float(np.sqrt(np.mean(hf_v**2))) if hf_v.size else math.nan,
+        "chatter_force": float(np.sqrt(np.mean(hf_F**2))) if hf_F.size else math.nan,
+        "held": float(np.mean(held > 0)),
+        "qdot_max": float(np.max(np.abs(log.dq))),
+        "beyond_range": float(np.mean(np.any((log.q < dev.q_min) | (log.q > dev.q_max), axis=1))),
+        "E_obs_min": float(np.nanmin(E)) if port is not None else math.nan,
+        "pc_active": float(np.mean(np.array(rec.alpha) > 0)) if port is not None else math.nan,
+        "pc_scaled": float(np.mean(np.array(rec.scale) < 1)) if port is not None else math.nan,
+        "alpha_scaling_min": float(np.nanmin(log.alpha)),
+        "fault": log.fault,
+    }
+    series = {"t": log.t, "W": log.work, "F": F, "F_des": F_des, "pen": pen, "E_obs": E,
+              "alpha_pc": np.array(rec.alpha), "xdot": xd}
+    out = {k: v[::DECIMATE] for k, v in series.items()}
+    out["summary"] = np.array([m[k] for k in SUMMARY])
+    return m, out
+
+
+def passivity(
+    *,
+    duration: float = 60.0,
+    stiff_duration: float = 20.0,
+    stiffness: float = K_E,
+    stiff: float | None = K_STIFF,
+    depth: float = DEPTH,
+    speed: float = SPEED,
+    cases: Sequence[str] = tuple(CASES),
+    progress: Callable[[int, int], None] | None = None,
+) -> Result:
+    """The energy the device gives the hand in the §6.4 palpation set-up, without and with passivity control.
+
+    Args:
+        duration: palpation time per case at `stiffness` [s] (issue 10: 60 s).
+        stiff_duration: palpation time per case at the stiff wall [s].
+        stiffness: the rendered wall K_e [N/m] (thesis: 1000).
+        stiff: the stiff wall [N/m] (None: skip it).
+        depth: how far the hand's reference goes into the wall each stroke [m].
+        speed: the hand's reference speed [m/s].
+        cases: keys of `CASES`.
+        progress: callback(done, total) in control ticks.
+
+    Returns:
+        Result "beyond.passivity": energy and force tables; arrays ``{case}_{t, W, F, F_des, pen,
+        E_obs, alpha_pc, xdot}`` (every 10 ms) and ``{case}_summary`` (the `SUMMARY` numbers, [J],
+        [N], [m/s], [rad/s]) at K_e, and ``stiff_{case}_…`` at the stiff wall.
+
+    Raises:
+        InvalidInput: non-positive durations or stiffnesses, unknown cases.
+    """
+    for name, v in (("duration", duration), ("stiff_duration", stiff_duration), ("stiffness", stiffness),
+                    ("depth", depth), ("speed", speed)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
+    if stiff is not None and not (isinstance(stiff, (int, float)) and math.isfinite(stiff) and stiff > 0):
+        raise InvalidInput(f"stiff: must be finite and > 0 [N/m] or None, got {stiff!r}")
+    cases = list(cases)
+    for c in cases:
+        if c not in CASES:
+            raise InvalidInput(f"cases: unknown case {c!r}; available: {', '.join(CASES)}")
+    if not cases:
+        raise InvalidInput("cases: give at least one case")
+    dev = device("rhi4")
+    x0, u = np.array(ch6.X0), np.array(ch6.U)
+    _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
+    q0 = ch6.best_match(dev, x0, WeightedSum(ch6.controller_terms(Ms, dev.torque_max)), starts=1)
+    stiff_cases = [c for c in STIFF_CASES if stiff is not None]
+    n1, n2 = int(round(duration * 1000)), int(round(stiff_duration * 1000))
+    total = n1 * len(cases) + n2 * len(stiff_cases)
+    res: dict[str, dict] = {}
+    arrays: dict[str, np.ndarray] = {"q0": q0, "x0": x0, "u": u, "stiffness": np.array(stiffness)}
+    off = 0
+    for c in cases:
+        res[c], series = _run(dev, q0, c, stiffness=stiffness, duration=duration, depth=depth, speed=speed,
+                              progress=progress, offset=off, total=total)
+        arrays.update({f"{c}_{k}": v for k, v in series.items()})
+        off += n1
+    stiff_res: dict[str, dict] = {}
+    for c in stiff_cases:
+        stiff_res[c], series = _run(dev, q0, c, stiffness=stiff, duration=stiff_duration, depth=depth,
+                                    speed=speed, progress=progress, offset=off, total=total)
+        arrays.update({f"stiff_{c}_{k}": v for k, v in series.items()})
+        off += n2
+    if stiff is not None:
+        arrays["stiff"] = np.array(stiff)
+    return Result("beyond.passivity", f"Beyond the thesis: energy at the hand palpating {stiffness:g} N/m on the "
+                  "simulated rhi4, without and with time-domain passivity control",
+                  _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff), arrays,
+                  _notes(res, stiff_res, duration, stiffness, depth, speed))
+
+
+_LABEL = {
+    "objectives": "null-space objectives, no PC",
+    "objectives_pc": "null-space objectives, PC (motor port)",
+    "bare": "no null-space objectives, no PC",
+    "bare_pc": "no null-space objectives, PC (motor port)",
+    "objectives_pc_handle": "null-space objectives, PC at the handle port",
+    "scaling": "null-space objectives, simple force scaling instead of ASCM, no PC",
+}
+
+
+def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[Table]:
+    e_rows, f_rows, s_rows = [], [], []
+    for c, m in res.items():
+        lab = _LABEL[c]
+        pc = CASES[c][1] is not None
+        e_rows += [
+            Row(f"hand's work W over {duration:g} s, {lab}", TARGET_W if pc else None, m["W"], "J",
+                "target (issue 10): W ≥ −1 mJ with the passivity controller" if pc else ""),
+            Row(f"lowest W during the run, {lab}", None, m["W_min"], "J"),
+            Row(f"motors' work on the mechanism, {lab}", None, m["motors"], "J", "exact under the zero-order hold"),
+            Row(f"  of which at the handle (J#ᵀτ)ᵀΔx, {lab}", None, m["task"], "J"),
+            Row(f"  of which in the null space, {lab}", None, m["null"], "J"),
+            Row(f"energy generated by the sampled wall Σ F_eᵀΔx + ΔU, {lab}", None, m["wall_zoh"], "J"),
+            Row(f"joint friction losses of the plant, {lab}", None, m["friction"], "J"),
+            Row(f"ticks with a joint held at its torque limit by ASCM, {lab}", None, 100.0 * m["held"], "%"),
+            Row(f"fastest joint speed, {lab}", None, m["qdot_max"], "rad/s"),
+            Row(f"ticks with a joint past its range limit (in the plant's stop), {lab}", None,
+                100.0 * m["beyond_range"], "%"),
+        ]
+        if pc:
+            e_rows += [Row(f"lowest E_obs of the observer, {lab}", 0.0, m["E_obs_min"], "J"),
+                       Row(f"ticks with the PC damping / scaling the law, {lab}", None,
+                           100.0 * m["pc_active"], "%", f"scaled: {100.0 * m['pc_scaled']:.1f} %")]
+        f_rows += [
+            Row(f"RMS force error F − K_e δX in contact, {lab}", None, m["force_rms_error"], "N",
+                "includes the torque saturation every case shares"),
+            Row(f"mean force error in contact, {lab}", None, m["force_mean_error"], "N"),
+            Row(f"largest rendered force, {lab}", None, m["force_peak"], "N"),
+            Row(f"deepest penetration, {lab}", None, 1e3 * m["penetration_max"], "mm"),
+        ]
+    for c, m in stiff_res.items():
+        lab = _LABEL[c]
+        s_rows += [
+            Row(f"{stiff:g} N/m: chatter, RMS handle velocity above {1 / CHATTER_WINDOW:g} Hz in contact, {lab}",
+                None, 1e3 * m["chatter_velocity"], "mm/s"),
+            Row(f"{stiff:g} N/m: chatter, RMS force above {1 / CHATTER_WINDOW:g} Hz in contact, {lab}", None,
+                m["chatter_force"], "N"),
+            Row(f"{stiff:g} N/m: hand's work W over {stiff_duration:g} s, {lab}", None, m["W"], "J"),
+            Row(f"{stiff:g} N/m: RMS force error in contact, {lab}", None, m["force_rms_error"], "N"),
+            Row(f"{stiff:g} N/m: fastest joint speed, {lab}", None, m["qdot_max"], "rad/s"),
+        ]
+    for c, m in res.items():
+        if c in ("objectives", "bare"):
+            s_rows.append(Row(f"{stiffness:g} N/m: chatter, RMS handle velocity above {1 / CHATTER_WINDOW:g} Hz, "
+                              f"{_LABEL[c]}", None, 1e3 * m["chatter_velocity"], "mm/s"))
+    out = [Table(f"Energy at the hand palpating {stiffness:g} N/m for {duration:g} s (positive: into the device)",
+                 e_rows),
+           Table("What passivity costs in force", f_rows)]
+    if s_rows:
+        out.append(Table("Chatter", s_rows))
+    return out
+
+
+def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
+    notes = [
+        f"rhi4 in MuJoCo (device friction), 1 kHz, X₀ = {list(ch6.X0)} m, u = {list(ch6.U)}; wall {stiffness:g} N/m "
+        f"rendered by eq. 7.2 with B^d = {B_D} N s/m and C_x ẋ; ASCM; objectives: FME matching to M_Stiff^des "
+        f"(β = {ch6.BETA:g}) + joint-limit barrier, K_d = {ch6.K_D}; hand {HAND[0]:g} N/m, {HAND[1]:g} N s/m, "
+        f"≤ {HAND[2]:g} N, reference {OUT * 1e3:g} mm out to {depth * 1e3:g} mm in at {speed * 1e2:g} cm/s, "
+        f"{duration:g} s per case.",
+        "Sign: W = ∫F_hᵀẋ dt is the energy the hand put into the device; W < 0 is energy the device gave the hand. "
+        "The passivity observer's E_obs is the energy flowed from the mechanism into the controller (≥ 0: passive).",
+    ]
+    if "objectives" in res:
+        m = res["objectives"]
+        notes.append(
+            f"Where the energy comes from (no PC, objectives on): the motors did {m['motors']:.3f} J of work on the "
+            f"mechanism, {m['task']:.3f} J of it at the handle and {m['null']:.3f} J in the null space; the sampled "
+            f"wall generated {m['wall_zoh']:.4f} J (sample-and-hold: the wall alone is nearly passive at 1 kHz "
+            f"against the plant's friction), the damping B^d dissipated {m['damping']:.4f} J and the plant's joint "
+            f"friction {m['friction']:.3f} J. The source is the null-space torque of the allocation under "
+            f"saturation: while ASCM holds joints at their torque limits ({100 * m['held']:.0f} % of the ticks) its "
+            "null-space torque is balanced by nothing (the hand holds only the handle), so it accelerates the "
+            f"self-motion steadily (joint speeds up to {m['qdot_max']:.1f} rad/s) until a joint runs past its range "
+            f"into the plant's stop ({100 * m['beyond_range']:.1f} % of the ticks). The motors' work on the "
+            "self-motion is lost in friction and stop impacts, and the part that reaches the hand comes through the "
+            "stops' reaction and the velocity coupling of the fast self-motion with the handle (the dynamically "
+            "consistent projector removes the instantaneous handle force of a null-space torque, neither of these). "
+            "Sample-and-hold (the wall's generated energy above), B^d and friction (dissipative) do not make the "
+            "device active" + (f"; with simple force scaling, which puts no allocation torque into the null space, "
+                               f"W = {res['scaling']['W'] * 1e3:.2f} mJ." if "scaling" in res else "."))
+    if "bare" in res and "objectives" in res:
+        notes.append(
+            f"Null-space objectives: W = {res['objectives']['W']:.3f} J with them and {res['bare']['W']:.3f} J "
+            f"without (ASCM alone); their own null-space work adds "
+            f"{res['objectives']['null'] - res['bare']['null']:.3f} J to the motors' null-space work.")
+    if "objectives_pc" in res:
+        m, m0 = res["objectives_pc"], res.get("objectives")
+        notes.append(
+            f"With the passivity controller at the motor port: W = {m['W'] * 1e3:.2f} mJ (target ≥ −1 mJ), lowest "
+            f"E_obs {m['E_obs_min'] * 1e3:.3f} mJ; the motors' net work is {m['motors'] * 1e3:.2f} mJ. "
+            + (f"Force: RMS error {m['force_rms_error']:.2f} N with it vs {m0['force_rms_error']:.2f} N without, "
+               f"mean {m['force_mean_error']:.2f} N vs {m0['force_mean_error']:.2f} N, peak {m['force_peak']:.1f} N "
+               f"vs {m0['force_peak']:.1f} N. The PC counts every joule the motors put into the mechanism, the "
+               "objectives' null-space work included, as active: while that budget is spent it damps the motion "
+               f"({100 * m['pc_active']:.0f} % of the ticks) and scales the law down "
+               f"({100 * m['pc_scaled']:.0f} % of the ticks), which weakens the wall; it also removes the "
+               "stop impacts' force spikes of the run without it." if m0 else ""))
+    if "objectives_pc_handle" in res:
+        m = res["objectives_pc_handle"]
+        notes.append(
+            f"At the handle port (H&R's virtual-environment port, J#ᵀτ against ẋ) the observer sees only "
+            f"{m['task']:.3f} J and the hand still receives W = {m['W']:.3f} J: the energy comes through the null "
+            "space, which only the motor port observes.")
+    if stiff_res:
+        a, b = stiff_res.get("objectives"), stiff_res.get("objectives_pc")
+        if a and b:
+            notes.append(
+                f"Stiff wall: handle-velocity chatter above {1 / CHATTER_WINDOW:g} Hz {a['chatter_velocity'] * 1e3:.1f}"
+                f" mm/s without the PC, {b['chatter_velocity'] * 1e3:.1f} mm/s with it; W {a['W']:.3f} J vs "
+                f"{b['W']:.3f} J.")
+    faults = [f"{c}: {m['fault']}" for c, m in {**res, **stiff_res}.items() if m["fault"]]
+    if faults:
+        notes.append("Controller faults: " + "; ".join(faults))
+    return notes
