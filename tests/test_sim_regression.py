@@ -32,7 +32,7 @@ Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 def scenario(duration: float = 0.9):
     dev = rhi.device("rhi4")
     K, z = fme_shape(dev.jacobian(np.zeros(4)), dev.torque_max, 5.0)
-    cfg = ControllerConfig(ForceRendering(damping=0.01),
+    cfg = ControllerConfig(ForceRendering(damping=0.01, passivity=None),
                            fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)),
                            saturation="ascm")
     plant = Plant(dev)

@@ -36,7 +36,8 @@ def scenario(delay: float, passivity: bool, *, stiffness: float = 1000.0, durati
     mp.reset(Q_MASTER)
     sp.reset(Q_SLAVE)
     x0, xs0 = dm.fk(Q_MASTER), ds.fk(Q_SLAVE)
-    ctrl = NullSpaceController(dm, ControllerConfig(ForceRendering(damping=0.01), saturation="ascm", damping=0.1))
+    ctrl = NullSpaceController(dm, ControllerConfig(ForceRendering(damping=0.01, passivity=None), saturation="ascm",
+                                                    damping=0.1))
     hand = Hand(Path([x0, x0 + [0, 0.02]], speed=0.02), stiffness=300.0)
     fwd = ChannelConfig(delay=delay, jitter=jitter, loss=loss, seed=2 * seed + 1)
     bwd = ChannelConfig(delay=delay, jitter=jitter, loss=loss, seed=2 * seed + 2)

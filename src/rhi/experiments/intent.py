@@ -228,7 +228,8 @@ def intent_palpation(settle: float = 0.5, depth: float = 0.015, speed: float = 0
     N = int(round(duration * 1000.0))
     rows, arrays = [], {}
     for i, (key, src) in enumerate(sources.items()):
-        law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u_true), damping=0.0, coriolis=False, gravity=False)
+        law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u_true), damping=0.0, coriolis=False, gravity=False,
+                              passivity=None)
         terms = (ObjectiveTerm(IntentFME(src, K, zeta, hi, "stiff"), ch6.BETA),
                  ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN))
         cfg = ControllerConfig(primary=law, objectives=terms, damping=ch6.K_D, saturation="scaling",

@@ -338,7 +338,8 @@ def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
             "consistent projector removes the instantaneous handle force of a null-space torque, neither of these). "
             "Sample-and-hold (the wall's generated energy above), B^d and friction (dissipative) do not make the "
             "device active" + (f"; with simple force scaling, which puts no allocation torque into the null space, "
-                               f"W = {res['scaling']['W'] * 1e3:.2f} mJ." if "scaling" in res else "."))
+                               f"W = {res['scaling']['W']:.3g} J (lowest {res['scaling']['W_min']:.2g} J)."
+                               if "scaling" in res else "."))
     if "bare" in res and "objectives" in res:
         notes.append(
             f"Null-space objectives: W = {res['objectives']['W']:.3f} J with them and {res['bare']['W']:.3f} J "
@@ -347,8 +348,9 @@ def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
     if "objectives_pc" in res:
         m, m0 = res["objectives_pc"], res.get("objectives")
         notes.append(
-            f"With the passivity controller at the motor port: W = {m['W'] * 1e3:.2f} mJ (target ≥ −1 mJ), lowest "
-            f"E_obs {m['E_obs_min'] * 1e3:.3f} mJ; the motors' net work is {m['motors'] * 1e3:.2f} mJ. "
+            f"With the passivity controller at the motor port: W = {m['W']:.4g} J (target ≥ −1 mJ; lowest during "
+            f"the run {m['W_min']:.2g} J), lowest E_obs {m['E_obs_min']:.2g} J; the motors' net work is "
+            f"{m['motors']:.2g} J. "
             + (f"Force: RMS error {m['force_rms_error']:.2f} N with it vs {m0['force_rms_error']:.2f} N without, "
                f"mean {m['force_mean_error']:.2f} N vs {m0['force_mean_error']:.2f} N, peak {m['force_peak']:.1f} N "
                f"vs {m0['force_peak']:.1f} N. The PC counts every joule the motors put into the mechanism, the "

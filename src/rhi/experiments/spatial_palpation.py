@@ -55,7 +55,8 @@ CASES = ("free", "stiff", "schedule", "stiff_ascm")
 
 
 def _controller(dev, x0, u, case: str, Mf, Ms, hi) -> NullSpaceController:
-    law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u), damping=0.0, coriolis=False, gravity=True)
+    law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u), damping=0.0, coriolis=False, gravity=True,
+                         passivity=None)
     barrier = ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN)
     if case == "schedule":
         sched = FMESchedule(Mf, Ms, gain=ch6.BETA, transition=TransitionConfig(ch6.EPS1, ch6.EPS2, ch6.RHO, ch6.ASO_S))

@@ -10,7 +10,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
   "active_set"), ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
   ``gravity_compensation``, ``aso_shape``, ``implementation`` — the fields of `rhi.control.ControllerConfig`;
   ``[controller.primary]`` (required) with ``law`` = "impedance" | "force_rendering" | "spring" and that law's
-  parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...);
+  parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...; the rendering
+  laws take ``passivity`` = "motors" (default) | "handle" | "off", `rhi.control.passivity`);
   ``[[controller.objectives]]``, each with ``type`` = "vme" | "ellipsoid" | "fme" | "tmi" | "manipulability" |
   "joint_limits", its parameters and its step ``gain``;
   ``[controller.fme]``: the ASO-switched desired-FME schedule (``free_direction``, ``contact_direction``, ``mu``,
@@ -42,6 +43,7 @@ from rhi.control import (
     FMESchedule,
     ForceRendering,
     ImpedanceControl,
+    Passivity,
     JointFriction,
     JointLimitBarrier,
     Manipulability,
@@ -72,10 +74,12 @@ R = S.REQUIRED
 _FRICTION = {"viscous": (_num_or_vec, 0.0), "coulomb": (_num_or_vec, 0.0), "velocity_scale": (_pos, 0.01)}
 _COMPENSATED = {"damping": (_num_or_mat, 0.0), "coriolis": (S.boolean, True), "gravity": (S.boolean, True),
                 "friction": (S.table(_FRICTION), None)}
+_PASSIVITY = S.choice("motors", "handle", "off")  # rhi.control.passivity port, or off (the thesis's laws)
 _PRIMARY = {
     "impedance": {**_COMPENSATED, "inertia": (S.matrix, None), "sensor": (S.string, "ft")},
-    "force_rendering": {**_COMPENSATED, "gain": (_num, 1.0)},
-    "spring": {**_COMPENSATED, "stiffness": (_nonneg, R), "x0": (_vec, R), "normal": (_vec, None)},
+    "force_rendering": {**_COMPENSATED, "gain": (_num, 1.0), "passivity": (_PASSIVITY, "motors")},
+    "spring": {**_COMPENSATED, "stiffness": (_nonneg, R), "x0": (_vec, R), "normal": (_vec, None),
+               "passivity": (_PASSIVITY, "motors")},
 }
 _GAIN = {"gain": (_nonneg, R)}
 _OBJECTIVES = {
@@ -175,6 +179,8 @@ def _primary(dev: Device, p: dict):
     if law == "spring":
         _dim("controller.primary.x0", p["x0"], (dev.m,))
         _dim("controller.primary.normal", p["normal"], (dev.m,))
+    if "passivity" in p:
+        p["passivity"] = None if p["passivity"] == "off" else Passivity(port=p["passivity"])
     cls = {"impedance": ImpedanceControl, "force_rendering": ForceRendering, "spring": SpringPalpation}[law]
     return S.prefixed("controller.primary", cls, **p)
 
