@@ -172,7 +172,7 @@ def test_palpation_energy_reduced_duration():
     the hand's work stays W ≥ −1 mJ with it; the 5000 N/m wall shakes without the PC and not with it."""
     from rhi.experiments.passivity import SUMMARY, passivity
 
-    r = passivity(duration=1.5, stiff_duration=1.0, speed=0.03, cases=("objectives", "objectives_pc"))
+    r = passivity(duration=1.5, stiff_duration=2.0, speed=0.03, cases=("objectives", "objectives_pc"))
     a = r.arrays
     off = dict(zip(SUMMARY, a["objectives_summary"]))
     on = dict(zip(SUMMARY, a["objectives_pc_summary"]))
@@ -184,5 +184,5 @@ def test_palpation_energy_reduced_duration():
     assert a["objectives_pc_W"].min() >= -1e-3  # at every time (the device starts at rest)
     stiff_off = dict(zip(SUMMARY, a["stiff_objectives_summary"]))
     stiff_on = dict(zip(SUMMARY, a["stiff_objectives_pc_summary"]))
-    assert stiff_off["chatter_velocity"] > 10 * stiff_on["chatter_velocity"]
-    assert stiff_on["W"] >= -1e-3
+    assert stiff_off["W"] < -0.01 and stiff_on["W"] >= -1e-3
+    assert stiff_off["chatter_velocity"] > 2 * stiff_on["chatter_velocity"]

@@ -110,7 +110,7 @@ STEPS: list[Step] = [
          {"fig7_6": pl7p.fig7_6, "fig7_6_force_penetration": pl7p.force_penetration,
           "ch7_palpation_settling": pl7p.settling}, progress=True),
     Step("beyond", expas.passivity, {},
-         {"duration": 1.5, "stiff_duration": 1.0, "speed": 0.03, "cases": ("objectives", "objectives_pc")},
+         {"duration": 1.5, "stiff_duration": 2.0, "speed": 0.03, "cases": ("objectives", "objectives_pc")},
          {"passivity_energy": plpas.energy, "passivity_force": plpas.force, "passivity_chatter": plpas.chatter},
          progress=True),
     Step("appa", exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
