@@ -13,8 +13,8 @@ One tick (`NullSpaceController.step`) computes, from the joint sensors and the s
 4. the allocation of τ_m within the torque box: none / simple scaling / ASCM (Algorithm 1) /
    LP optimum, with force scaling α (eq. 7.9);
 5. the safety torque τ_s = −k_D q̇ − Σ w ∂ν_lim/∂q (null-space damping and every
-   `JointLimitBarrier` term) acts whatever ASCM or the LP allocation holds (simple scaling and
-   clipping hold no joint with null-space torque and keep Algorithm 2 as it is): the part of
+   `JointLimitBarrier` term) acts whatever the allocation holds or clips (simple scaling keeps
+   Algorithm 2 as it is, the balance chapter 6's FME term and barrier rely on): the part of
    N τ_s that the joints held at a limit would block (all of it when they leave no redundancy, where
    Algorithm 2 gives β = 0) is added in full, and when it does not fit in the box the
    allocated torque α a + Z y (not b) is scaled by the largest γ <= 1 that makes room
@@ -76,6 +76,9 @@ from rhi.metrics import dynamic_pinv, nullspace_projector, weighted_pinv
 
 #: Allocations that hold joints at a limit with null-space torque.
 _HOLDING = ("ascm", "lp", "active_set")
+#: Allocations after which the safety torque acts whatever the held (or clipped) joints: all but simple
+#: scaling, which keeps chapter 6's Algorithm 2 (its FME term and limit barrier balance each other there).
+_SAFE = _HOLDING + ("none",)
 
 Saturation = Literal["none", "scaling", "ascm", "lp", "active_set"]
 
@@ -416,7 +419,7 @@ class NullSpaceController:
             al = allocate_none(a, b, lo, hi)
         N = nullspace_projector(kin.J, M)
         gamma = 1.0
-        if al.saturated.any() and al.method in _HOLDING:  # safety the held joints would block
+        if al.saturated.any() and al.method in _SAFE:  # safety the held joints would block
             tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), lo, hi, skip=al.clipped)
             al = dataclasses.replace(al, tau=tau1)
         delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
@@ -456,7 +459,7 @@ class NullSpaceController:
         else:
             al = allocate_none(a, b, lo, hi)
         gamma = 1.0
-        if al.saturated.any() and al.method in _HOLDING:  # safety the held joints would block
+        if al.saturated.any() and al.method in _SAFE:  # safety the held joints would block
             Nsafe = tau_s - Jt.dot(kin.Jsharp.T.dot(tau_s)) if self._dynamic else P.dot(tau_s)
             if P is None:
                 P = _null_projector_rows(kin.JMinv)

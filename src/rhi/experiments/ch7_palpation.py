@@ -203,10 +203,15 @@ def _explanation(results: dict, cap: dict, ref: tuple[str, str]) -> list[str]:
         f"({100 * (cap['lp_pseudoinverse'] / sc - 1):+.1f} %): with J#, no allocation can render much more than "
         "scaling here, so the thesis's +73 % is only within reach of the J⁺ null space.")
     ts = [(f"{s} ({p})", m["t_lim"], m["v_self_sat"]) for (s, p), m in results.items()]
-    out.append("First joint-range limit and peak self-motion joint speed between the first torque saturation and "
-               "that limit: " + "; ".join(f"{k} {t:.3f} s, {v:.2f} rad/s" for k, t, v in ts) + ". Null-space "
-               "torque that no handle force balances drives the self-motion into a range limit; from then on the "
-               "stop carries torque (outside chapter 7's assumption), so forces after it are not compared.")
+    hit = [k for k, t, _ in ts if math.isfinite(t)]
+    out.append("First joint-range limit (none: never) and peak self-motion joint speed after the first torque "
+               "saturation: " + "; ".join(f"{k} {t:.3f} s, {v:.2f} rad/s" if math.isfinite(t) else
+                                          f"{k} none, {v:.2f} rad/s" for k, t, v in ts) + ". "
+               + (f"In {', '.join(hit)} null-space torque that no handle force balances drives the self-motion into "
+                  "a range limit; from then on the stop carries torque (outside chapter 7's assumption), so forces "
+                  "after it are not compared." if hit else
+                  "The null-space damping and joint-limit barrier act while the allocation holds two joints, so no "
+                  "case reaches a range limit and the peak force is the contact configuration's static capability."))
     return out
 
 
