@@ -8,10 +8,14 @@ Quick start::
     rhi.metrics.effective_manipulability(J, [0, 1])   # 0.375 (thesis Table 3.1: 0.371)
 """
 
-from rhi import errors, metrics
-from rhi.device import Device, available_devices, device
-from rhi.loaders import description_path, device_from_description, device_from_mjcf, device_from_urdf
-from rhi.measure import measure
+from rhi._gl import headless_default
+
+headless_default()  # before anything imports MuJoCo (see rhi._gl)
+
+from rhi import errors, metrics  # noqa: E402
+from rhi.device import Device, available_devices, device  # noqa: E402
+from rhi.loaders import description_path, device_from_description, device_from_mjcf, device_from_urdf  # noqa: E402
+from rhi.measure import measure  # noqa: E402
 
 __all__ = [
     "Device",

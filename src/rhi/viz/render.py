@@ -2,7 +2,8 @@
 
 MuJoCo picks its OpenGL backend from the environment variable ``MUJOCO_GL`` when it is first
 imported: ``egl`` (GPU or Mesa's EGL), ``osmesa`` (software, Debian package ``libosmesa6``) or
-``glfw`` (a display). Without a usable backend `render` raises `RenderUnavailable` saying so.
+``glfw`` (a display). `import rhi` picks osmesa or egl on a machine without a display where
+``MUJOCO_GL`` is unset (`rhi._gl`). Without a usable backend `render` raises `RenderUnavailable` saying so.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import mujoco
 import numpy as np
 
 from rhi.device import Device
+from rhi._gl import has_display
 from rhi.errors import InvalidInput, RhiError
 from rhi.viz.posed import Posed
 
@@ -32,6 +34,15 @@ def _camera(posed: Posed, azimuth: float | None, elevation: float | None) -> muj
     cam.azimuth = -60.0 if azimuth is None else float(azimuth)
     cam.elevation = (-60.0 if planar else -22.0) if elevation is None else float(elevation)
     return cam
+
+
+def _check_backend() -> None:
+    """glfw without a display aborts the process inside MuJoCo: refuse it with a clear error instead."""
+    gl = os.environ.get("MUJOCO_GL", "").lower()
+    if gl in ("", "glfw") and not has_display():
+        raise RenderUnavailable("no OpenGL backend for offscreen rendering: MuJoCo uses glfw (MUJOCO_GL unset) and "
+                                "there is no display; set MUJOCO_GL=egl (a GPU or Mesa's EGL) or MUJOCO_GL=osmesa "
+                                "(software: apt-get install libosmesa6) before starting Python")
 
 
 def render(device: Device | Posed, q, *, width: int = 800, height: int = 600, azimuth: float | None = None,
@@ -59,6 +70,7 @@ def render(device: Device | Posed, q, *, width: int = 800, height: int = 600, az
     m = posed.model
     m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), int(width))
     m.vis.global_.offheight = max(int(m.vis.global_.offheight), int(height))
+    _check_backend()
     try:
         renderer = mujoco.Renderer(m, int(height), int(width))
     except Exception as exc:  # ImportError, RuntimeError or mujoco.FatalError, depending on the backend
