@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from rhi import thesis as T
 from rhi.design import SerialExecutor, evaluate, optimize
 from rhi.errors import InvalidInput
 from rhi.experiments import ch4
@@ -73,12 +74,8 @@ def test_table_4_1_qualitative_result(full):
     assert rows["GC_M, C1 optimum"].ours > rows["GC_M, C2 optimum"].ours
     gmt_c1 = max(rows["GM_T, C1 optimum"].ours, rows["GM_T, mirror image (−θz) of the C1 optimum"].ours)
     assert rows["GM_T, C2 optimum"].ours > gmt_c1  # against both mirror designs of C1
-    # ... but C2 keeps l2 at its upper bound like C1 (thesis: 0.269 m), because GM_T's best value rises with l2.
-    assert rows["l2, C1 optimum"].ours == pytest.approx(0.365, abs=1e-3)
-    assert rows["l2, C2 optimum"].ours == pytest.approx(0.365, abs=1e-3)
-    assert "C1 has the larger l2 (by > 1 mm, the thesis's rounding): no" in " ".join(full.notes)
-    # the thesis's C2 design scored in our set-up reproduces its GM_T (Table 4.1: 0.0590) to 5 %
-    assert _rows(full, 1)["GM_T at the thesis's C2 design (our set-up)"].relative == pytest.approx(0, abs=0.05)
+    # C1's l2 is at its upper bound, as in the thesis (C2's: test_table_4_1_c2_l2)
+    assert T.TABLE_4_1["C1"]["l2"].within(rows["l2, C1 optimum"].ours)
     gmt_l2 = full.arrays["l2_scan_GM_T"]
     assert np.all(np.diff(gmt_l2) > 0) and gmt_l2[-1] > 1.5 * gmt_l2[0]
     assert all(np.isfinite(full.arrays[f"energy_{i}"]).all() for i in range(4))
@@ -119,3 +116,17 @@ def test_sensitivity_and_figures_draw(theta, full):
                 pl4.l2_scan(full), pl4.k2_scan(sens), pl4.convergence(sens)):
         assert fig.axes
         plt.close(fig)
+
+
+@pytest.mark.xfail(strict=True, reason="GM_T's best value rises with l2 for rhi's slave (its ME is larger than the "
+                                      "HI's over W), so C2 keeps l2 at its 0.365 m bound like C1 at every K2/K1 that "
+                                      "Table 4.1 allows (ch4 docstring); the thesis's 0.269 m needs a set-up it does "
+                                      "not publish")
+def test_table_4_1_c2_l2(full):
+    assert T.TABLE_4_1["C2"]["l2"].within(_rows(full)["l2, C2 optimum"].ours)
+
+
+@pytest.mark.xfail(strict=True, reason="scored at the thesis's C2 design rhi's GM_T is 0.0593, outside the printed "
+                                      "0.0590 ± 0.00005: the slave workspace W and placement r0 are rhi's choices")
+def test_table_4_1_gm_t_at_the_thesis_design(full):
+    assert T.TABLE_4_1["C2"]["GM_T"].within(_rows(full, 1)["GM_T at the thesis's C2 design (our set-up)"].ours)

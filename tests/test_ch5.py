@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from conftest import random_q
 
+from rhi import thesis as T
 from rhi.control import Manipulability, TMIMatching
 from rhi.control.objectives import _penalty
 from rhi.errors import InvalidInput, Unreachable
@@ -113,7 +114,7 @@ def test_objectives_reject_bad_input(devs):
 def test_fixed_point_controller_increases_tme(fixed, devs):
     """Fig. 5.3's claim: with the handle held, the TMI null-space controller enlarges the TME."""
     inc = _row(fixed, "TME area increase by the TMI").ours
-    assert inc > 5.0
+    assert inc > 0.0  # the direction of §5.4.1's +18.1 % (its size: test_fixed_point_tme_increase_value)
     a = fixed.arrays
     assert a["tmi"][-1] > a["tmi"][0]
     assert _row(fixed, "ν after").ours < 0.5 * _row(fixed, "ν before").ours
@@ -186,3 +187,17 @@ def test_figures_draw(fixed, wtraj):
         fig = fn(res)
         assert fig.axes and all(ax.lines for ax in fig.axes)
         plt.close(fig)
+
+
+@pytest.mark.xfail(strict=True, reason="the TME increase depends on the start configuration's distance from the "
+                                      "optimum and on the joint-limit penalty k_q, which the thesis does not give "
+                                      "(ch5 docstring); rhi's is larger than 18.1 %")
+def test_fixed_point_tme_increase_value(fixed):
+    assert T.TME_INCREASE.within(_row(fixed, "TME area increase by the TMI").ours)
+
+
+@pytest.mark.xfail(strict=True, reason="Table 5.1's effort order comes from human users feeling the hardware's "
+                                      "uncompensated friction; rhi's simulated hand pays mostly the rendered damping "
+                                      "B^d, which is the same in every scenario, so the order does not follow")
+def test_table_5_1_effort_order(wtraj):
+    assert _row(wtraj, "effort order 1 < 2 < 3 holds").ours == float(T.EFFORT_ORDER)

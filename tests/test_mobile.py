@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from rhi import thesis as T
 from rhi.control.mobile import (
     AMDConfig,
     AMDController,
@@ -470,10 +471,12 @@ def test_short_experiments_report_thesis_beside_ours():
 
     r = appa.dm_enhancement(dt=0.02, t_cartesian=1.0, t_null=1.0, t_long=0.0)
     rows = {row.quantity: row for t in r.tables for row in t.rows}
-    assert rows["DM along z at q0"].ours == pytest.approx(1.125, abs=0.005)
+    assert rows["DM along z at q0"].ours == pytest.approx(1.12444, abs=1e-5)  # rhi's Gen3 (thesis 1.125: xfail in test_thesis_numbers)
     assert rows["‖W_τ τ‖ for a 10 N z force at q0"].ours == pytest.approx(8.89, abs=0.01)  # = 10 N / DM
     r = appb.singularity(duration=1.0, dt=0.02)
     rows = {row.quantity: row for row in r.tables[0].rows}
-    assert rows["with avoidance: base first enabled"].thesis == 6.40
+    # the thesis enables the base at 6.40 s: not within the first second
+    assert rows["with avoidance: base first enabled"].source == T.BASE_ON_B.key
+    assert not rows["with avoidance: base first enabled"].ours <= 1.0
     assert rows["with avoidance: min σ_min(J_m)"].ours > 0.2  # 1 s into the circle the arm is far from singular
     assert r.arrays["with_sigma"].shape == r.arrays["t"].shape == (51,)

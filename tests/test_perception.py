@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from rhi import thesis as T  # noqa: E402
 from rhi.device import device  # noqa: E402
 from rhi.errors import InvalidInput  # noqa: E402
 from rhi.experiments import perception as P  # noqa: E402
@@ -57,7 +58,15 @@ def test_identified_inertia_ordering(table_3_2):
 
 def test_table_3_2_rows_carry_thesis_values(table_3_2):
     r = _row(table_3_2, "M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), Rehab at (0.49, -0.22)")
-    assert r.thesis == 0.5399 and r.unit == "kg" and np.isfinite(r.ours)
+    assert r.source == "table3_2.Rehab.0" and r.unit == "kg" and np.isfinite(r.ours)
+
+
+@pytest.mark.xfail(strict=True, reason="Table 3.2 was identified on the hardware; rhi identifies the simulated plant, "
+                                      "whose link inertias are estimates (models/rhi4/README.md): Λ differs in value, "
+                                      "the ordering RHI ≤ PHANToM < Rehab is what holds")
+def test_table_3_2_rehab_value(table_3_2):
+    r = _row(table_3_2, "M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), Rehab at (0.49, -0.22)")
+    assert T.TABLE_3_2["Rehab"][0].within(r.ours)
 
 
 def test_sysid_table_6_1(table_6_1):
@@ -130,7 +139,8 @@ def test_trial_forces_seeded_in_range():
 def test_minimum_jerk_palpation():
     h = P.MinimumJerkPalpation(np.zeros(2), [0.0, 2.0], 0.09, 0.6)
     x, v = h.reference(0.0)
-    np.testing.assert_allclose(x, 0.0) and np.testing.assert_allclose(v, 0.0)
+    np.testing.assert_allclose(x, 0.0)
+    np.testing.assert_allclose(v, 0.0)
     x, v = h.reference(0.3)
     np.testing.assert_allclose(x, [0.0, 0.045], atol=1e-12)
     assert v[1] == pytest.approx(1.875 * 0.09 / 0.6)
@@ -162,7 +172,7 @@ def test_psychophysics_pipeline_end_to_end(tiny_study):
     assert a["pse"].shape == a["jnd"].shape == a["wf"].shape == (3, 2)
     assert np.all(np.isfinite(a["pse"])) and np.all(np.isfinite(a["jnd"])) and np.all(a["jnd"] > 0)
     assert np.all((a["pse"] > 30) & (a["pse"] < 70))
-    assert _row(tiny_study, "WF mean, RHI").thesis == 0.111
+    assert _row(tiny_study, "WF mean, RHI").source == "table3_3.wf.RHI.0"
     p = _row(tiny_study, "one-way ANOVA on WF: p").ours
     assert 0.0 <= p <= 1.0
     import json
@@ -209,3 +219,9 @@ def test_figures_draw(table_3_2, table_6_1, tiny_study):
         plt.close(fig)
     with pytest.raises(InvalidInput, match="arrays"):
         plots.wf_jnd_boxes(table_3_2)
+
+
+@pytest.mark.xfail(strict=True, reason="Table 3.3 comes from 10 human subjects whose responses the thesis does not "
+                                      "publish; rhi's simulated observers have their own Weber fractions")
+def test_table_3_3_wf_rhi(tiny_study):
+    assert T.TABLE_3_3["wf"]["RHI"][0].within(_row(tiny_study, "WF mean, RHI").ours)

@@ -50,7 +50,7 @@ def base_motion(result: Result) -> Figure:
         ax.plot(t, np.linalg.norm(a[f"{key}_dq"][:, :2], axis=1) * 100, color=color, label=f"|v_b| {label}")
     ax2 = ax.twinx()
     ax2.plot(t, a["proposed_gamma"], "k:", lw=0.8, label="γ (proposed)")
-    ax2.set(ylabel="γ", ylim=(-0.05, 1.05))
+    ax2.set(ylabel="γ [1]", ylim=(-0.05, 1.05))
     ax.set(xlabel="t [s]", ylabel="base speed [cm/s]", title="commanded base speed")
     ax.legend(fontsize=7, loc="upper left")
     fig.suptitle("Fig. A.6 motion of the mobile base")

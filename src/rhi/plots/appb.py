@@ -71,13 +71,19 @@ def beyond(result: Result) -> Figure:
 def base_paths(result: Result) -> Figure:
     """Fig. B.11(b, d): base paths in the x–y plane, odometry (desired) and true."""
     a = result.arrays
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    # one scale for both panels (the proposed base moves little: a panel of its own would be squashed flat)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.8), sharex=True, sharey=True)
+    paths = [a[f"beyond_{m}_{k}"][:, :2] for m in ("traditional", "proposed") for k in ("q", "q_true")]
+    lo, hi = np.min([p.min(axis=0) for p in paths], axis=0), np.max([p.max(axis=0) for p in paths], axis=0)
+    pad = 0.08 * float(np.max(hi - lo)) + 1e-3
     for ax, method in zip(axes, ("traditional", "proposed")):
         q, qt = a[f"beyond_{method}_q"], a[f"beyond_{method}_q_true"]
         ax.plot(q[:, 0], q[:, 1], "k--", label="commanded (odometry)")
         ax.plot(qt[:, 0], qt[:, 1], "b-", label="true")
-        ax.set(xlabel="x_b [m]", ylabel="y_b [m]", aspect="equal", title=method)
-        ax.legend(fontsize=8)
+        ax.set(xlabel="x_b [m]", ylabel="y_b [m]", title=method, xlim=(lo[0] - pad, hi[0] + pad),
+               ylim=(lo[1] - pad, hi[1] + pad))
+        ax.set_aspect("equal", adjustable="box")
+        ax.legend(fontsize=9, loc="best")
     fig.suptitle("Fig. B.11 base paths beyond the workspace")
     fig.tight_layout()
     return fig

@@ -6,18 +6,24 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import TwoSlopeNorm
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from rhi.experiments.result import Result
 
 
 def workspaces(result: Result) -> Figure:
     """Fig. 3.6: the workspaces of the RHI, PHANToM and Rehab and the experiment's start point."""
-    fig, ax = plt.subplots(figsize=(5, 5))
+    fig, ax = plt.subplots(figsize=(5.5, 6))
+    handles = []
     for pts, label, color in zip(result.arrays["workspaces"], ("RHI", "PHANToM", "Rehab"), ("C0", "C1", "C2")):
-        ax.plot(pts[:, 0], pts[:, 1], ".", ms=1, alpha=0.3, color=color, label=label)
-    ax.plot([0.49], [-0.22], "k*", ms=10, label="start (0.49, −0.22)")
+        ax.plot(pts[:, 0], pts[:, 1], ".", ms=1, alpha=0.3, color=color)
+        handles.append(Line2D([], [], ls="", marker="o", ms=6, color=color, label=label))
+    ax.plot([0.49], [-0.22], "k*", ms=10)
+    handles.append(Line2D([], [], ls="", marker="*", ms=10, color="k", label="start (0.49, −0.22) m"))
     ax.set(xlabel="x [m]", ylabel="y [m]", aspect="equal", title="Fig. 3.6 workspaces")
-    ax.legend(markerscale=8, loc="upper left")
+    # legend below the axes: own-size proxy markers (markerscale would blow up the star) over no data
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, frameon=False)
+    fig.tight_layout()
     return fig
 
 
@@ -37,12 +43,12 @@ def _map(result: Result, key: str, title: str, label: str) -> Figure:
 
 def lambda_ratio(result: Result) -> Figure:
     """Fig. 3.7: Λ_RHI / Λ_PHANToM along u = [0, 1]."""
-    return _map(result, "lambda_ratio", "Fig. 3.7 effective apparent inertia ratio", "Λ_RHI / Λ_PHANToM")
+    return _map(result, "lambda_ratio", "Fig. 3.7 effective apparent inertia ratio", "Λ_RHI / Λ_PHANToM [1]")
 
 
 def rho_ratio(result: Result) -> Figure:
     """Fig. 3.8: ρ_RHI / ρ_PHANToM along u = [0, 1]."""
-    return _map(result, "rho_ratio", "Fig. 3.8 effective manipulability ratio", "ρ_RHI / ρ_PHANToM")
+    return _map(result, "rho_ratio", "Fig. 3.8 effective manipulability ratio", "ρ_RHI / ρ_PHANToM [1]")
 
 
 def configurations(result: Result) -> Figure:

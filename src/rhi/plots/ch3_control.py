@@ -35,7 +35,7 @@ def convergence(result: Result) -> Figure:
             top.plot(a[f"{run}_t"], a[f"{run}_nu"], style, label=_label(run))
             bot.plot(a[f"{run}_t"], 1e3 * a[f"{run}_drift"], style, label=_label(run))
         x = a[f"{next(r for r in _runs(result) if r.startswith(f'p{i}_'))}_point"]
-        top.set(title=f"point ({x[0]:g}, {x[1]:g}) m", ylabel="ν (JBLD, eq. 3.22)")
+        top.set(title=f"point ({x[0]:g}, {x[1]:g}) m", ylabel="ν (JBLD, eq. 3.22) [1]")
         bot.axhline(0.5, color="k", lw=0.8, ls=":", label="0.5 mm bound")
         bot.set(xlabel="t [s]", ylabel="handle drift [mm]", yscale="log")
         top.legend(fontsize=7)

@@ -40,11 +40,11 @@ def theta_sweep(result: Result) -> Figure:
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
     ax1.plot(a["theta_deg"], a["sweep_C1"], label="C1")
     ax1.plot(a["theta_deg"], a["sweep_C2"], label="C2")
-    ax1.set(ylabel="cost")
+    ax1.set(ylabel="cost [1]")
     ax1.legend()
     ax2.plot(a["theta_deg"], a["sweep_GM_T"], label="GM_T")
     ax2.plot(a["theta_deg"], a["sweep_GM_M"], label="GM_M")
-    ax2.set(xlabel="θz [deg]", ylabel="index")
+    ax2.set(xlabel="θz [deg]", ylabel="index [m²/s²·(s/rad)²]")
     ax2.legend()
     return fig
 
@@ -63,7 +63,7 @@ def fig4_6(result: Result) -> Figure:
         sc = ax.scatter(pts[:, 0], pts[:, 1], c=result.arrays[f"tmi_{which}"], s=12, marker="s", vmin=0, vmax=vmax)
         ax.set(title=f"Fig. 4.6 TMI λ, {which} optimum", xlabel="x [m]", aspect="equal")
     axes[0].set_ylabel("y [m]")
-    fig.colorbar(sc, ax=axes, label="λ")
+    fig.colorbar(sc, ax=axes, label="λ = σ₁σ₂ [m²/s² per (rad/s)²]")
     return fig
 
 
@@ -74,7 +74,7 @@ def fig4_7(result: Result) -> Figure:
 
     for i, lab in enumerate(ENERGY_LABELS):
         ax.plot(result.arrays["energy_t"], result.arrays[f"energy_{i}"], label=str(lab))
-    ax.set(xlabel="t [s]", ylabel="‖q̇‖² (eq. 4.22)", title="Fig. 4.7 joint energy A → B")
+    ax.set(xlabel="t [s]", ylabel="‖q̇‖² (eq. 4.22) [(rad/s)²]", title="Fig. 4.7 joint energy A → B")
     ax.legend()
     return fig
 
@@ -85,7 +85,7 @@ def convergence(result: Result) -> Figure:
     fig, ax = plt.subplots(figsize=(5, 4))
     for k in ("GM_T", "GM_M"):
         ax.plot(a["densities"], a[f"conv_{k}"] / a[f"conv_{k}"][-1], "o-", label=k)
-    ax.set(xscale="log", xlabel="samples per metre", ylabel="index / finest", title="sampling convergence")
+    ax.set(xscale="log", xlabel="sampling density [1/m]", ylabel="index / finest [1]", title="sampling convergence")
     ax.legend()
     return fig
 
@@ -107,7 +107,7 @@ def k2_scan(result: Result) -> Figure:
     ax2.plot(k, a["k2_GM_T_C1"], "o-", label="C1")
     ax2.plot(k, a["k2_GM_T_C1_mirror"], "o:", label="C1, mirror (−θz)")
     ax2.plot(k, a["k2_GM_T_C2"], "s-", label="C2")
-    ax2.set(xlabel="K2/K1", ylabel="GM_T at the optimum")
+    ax2.set(xlabel="K2/K1 [1]", ylabel="GM_T at the optimum [m²/s²·(s/rad)²]")
     ax2.legend()
     for ax in (ax1, ax2):
         ax.axvline(K2_MIN_TABLE_4_1, color="k", ls=":", lw=1)
@@ -120,5 +120,5 @@ def l2_scan(result: Result) -> Figure:
     a = result.arrays
     fig, ax = plt.subplots(figsize=(5, 4))
     ax.plot(a["l2_scan"], a["l2_scan_GM_T"], "o-")
-    ax.set(xlabel="l2 [m]", ylabel="max GM_T over (θz, Z_PH)", title="GM_T rises with the HI's last link")
+    ax.set(xlabel="l2 [m]", ylabel="max GM_T over (θz, Z_PH) [m²/s²·(s/rad)²]", title="GM_T rises with the HI's last link")
     return fig

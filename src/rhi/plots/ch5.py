@@ -48,9 +48,9 @@ def fixed_point_convergence(result: Result) -> Figure:
     a = result.arrays
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(6, 5), sharex=True)
     ax1.plot(a["t"], a["tmi"], "k-")
-    ax1.set(ylabel="TME area λ = σ₁σ₂")
+    ax1.set(ylabel="TME area λ = σ₁σ₂ [m²/s² per (rad/s)²]")
     ax2.plot(a["t"], a["nu"], "C0-")
-    ax2.set(xlabel="t [s]", ylabel="ν (eq. 5.11)")
+    ax2.set(xlabel="t [s]", ylabel="ν (eq. 5.11) [1]")
     fig.suptitle("Fixed point: convergence of the TMI null-space controller")
     fig.tight_layout()
     return fig

@@ -74,7 +74,7 @@ def fmax_ratio_map(result: Result) -> Figure:
         hi = max(hi, 1.001)
         norm = TwoSlopeNorm(1.0, min(lo, 1.0 / hi), hi)  # ratio 1 white, r and 1/r equally saturated
         pc = ax.pcolormesh(a["x"], a["y"], Z, shading="nearest", cmap="RdBu", norm=norm)
-        fig.colorbar(pc, ax=ax, label="F_max,Stiff / F_max,Free")
+        fig.colorbar(pc, ax=ax, label="F_max,Stiff / F_max,Free [1]")
         ax.plot([0.5], [0.1], "k*", ms=10)
         ax.set(xlabel="x [m]", aspect="equal", title=title)
     axes[0].set_ylabel("y [m]")
@@ -113,7 +113,7 @@ def transition(result: Result) -> Figure:
     ax2.plot(a["t_with"], a["force_with"], "r-", lw=0.8, label="F/T along u (with)")
     ax2.plot(a["t_without"], a["force_without"], "r--", lw=0.8, label="F/T along u (without)")
     ax2.set_ylabel("force along u [N]")
-    ax.set(title="(d) desired FME entries and the sensor force", xlabel="t [s]", ylabel="N²/(N m)²")
+    ax.set(title="(d) desired FME entries and the sensor force", xlabel="t [s]", ylabel="desired FME entry [N²/(N m)²]")
     ax.legend(fontsize=7, loc="center left")
     ax2.legend(fontsize=7, loc="center right")
     fig.suptitle("Fig. 6.11 transition between M_Free^des and M_Stiff^des while palpating (simulated rhi4)")

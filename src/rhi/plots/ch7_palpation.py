@@ -84,7 +84,7 @@ def settling(result: Result) -> Figure:
     a = result.arrays
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.2))
     ax1.plot(a["settle_t"], a["settle_nu"])
-    ax1.set(xlabel="t [s]", ylabel="ν (eq. 7.18)", title="tertiary objective while holding X₀")
+    ax1.set(xlabel="t [s]", ylabel="ν (eq. 7.18) [1]", title="tertiary objective while holding X₀")
     ax2.plot(a["settle_t"], 1e3 * a["settle_drift"])
     ax2.axhline(0.5, color="k", ls=":", lw=0.8)
     ax2.set(xlabel="t [s]", ylabel="handle drift [mm]")

@@ -28,7 +28,13 @@ def force_torque_panels(arrays: dict, titles: dict[str, str], suptitle: str, *, 
     "force_<key>" (T, 2); `fe_y` also draws F_e,y.
     """
     t, Fe = arrays["t"], arrays["Fe"]
-    fig, axes = plt.subplots(1, len(titles), figsize=(3.7 * len(titles) + 1.8, 3.6), sharey=True)
+    # at most two panels a row, so the figure keeps readable text when the report scales it to the page width
+    ncols = min(2, len(titles))
+    nrows = -(-len(titles) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(5.2 * ncols, 3.4 * nrows + 0.9), sharey=True, squeeze=False)
+    axes = axes.ravel()
+    for ax in axes[len(titles):]:
+        ax.set_visible(False)
     for ax, (key, title) in zip(axes, titles.items()):
         tau, F = arrays[f"tau_{key}"], arrays[f"force_{key}"]
         for i in range(tau.shape[1]):
@@ -38,9 +44,9 @@ def force_torque_panels(arrays: dict, titles: dict[str, str], suptitle: str, *, 
             ax.plot(t, Fe[:, 1], "k--", label="F_e,y")
         ax.plot(t, F[:, 0], "r-", label="F_out,x")
         ax.plot(t, F[:, 1], "r--", label="F_out,y")
-        ax.set(title=title, xlabel="t [s]")
-    axes[0].set_ylabel("force [N] / torque [N m]")
-    axes[-1].legend(fontsize=7, loc="upper right")
+        ax.set(title=title, xlabel="t [s]", ylabel="force [N] / torque [N m]")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 7), fontsize=10, frameon=False)
     fig.suptitle(suptitle)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.55 / (3.4 * nrows + 0.9), 1, 1))
     return fig

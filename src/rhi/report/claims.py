@@ -55,8 +55,9 @@ CLAIMS: list[Claim] = [
           shown="holds at both points"),
     Claim("Table 3.1", "ρ_RHI = 0.371 m/s at (0.49, −0.22), thesis configuration", T.TABLE_3_1_RHO["RHI"][0],
           ("ch3.table_3_1",), lambda r: r("ch3.table_3_1", f"ρ RHI at {P1} (thesis configuration)"),
-          "ρ depends on the kinematics only, which the thesis publishes (d = [0.254, 0.141, 0.21, 0.181] m)",
-          direction=None),
+          "ρ is kinematic; rhi reproduces ρ_RHI at (0.49, −0.14) ({p2:.4f}) and the PHANToM's and Rehab's to the "
+          "rounding, and the printed q reaches (0.49, −0.22) within 1 mm, so the thesis's printed q and ρ at this "
+          "point disagree slightly", details=lambda r: {"p2": r("ch3.table_3_1", f"ρ RHI at {P2} (thesis configuration)")}),
     Claim("Table 3.1", "Λ_RHI < Λ_PHANToM < Λ_Rehab at both points", T.TABLE_3_1_LAMBDA_ORDER, ("ch3.table_3_1",),
           _lambda_order, "with rhi's estimated link inertias Λ_RHI is {lam:.4f} kg at (0.49, −0.22)",
           details=lambda r: {"lam": r("ch3.table_3_1", f"Λ RHI at {P1} (thesis configuration)")},
@@ -184,7 +185,9 @@ CLAIMS: list[Claim] = [
           lambda r: r("appa.tracking", "proposed: base first commanded"),
           "the base starts when the arm's joints near their limits along the 0.25 m circle (kinematic simulation)"),
     Claim("§A.4.3", "DM along z at q0 = 1.125", T.DM_Z[0], ("appa.dm_enhancement",),
-          lambda r: r("appa.dm_enhancement", "DM along z at q0"), "kinematics of the Gen3 model and W_τ of §A.4.3"),
+          lambda r: r("appa.dm_enhancement", "DM along z at q0"),
+          "rhi's Gen3 model (Kinova's published lengths) puts x0 within 0.1 mm of the thesis's but gives DM "
+          "{ours:.4f}, 0.05 % below the printed value: the thesis's arm model is not published"),
     Claim("§A.4.3", "DM enhancement along z: 1.125 → 4.031", T.DM_Z[1], ("appa.dm_enhancement",),
           lambda r: r("appa.dm_enhancement", "DM along z after enhancement"),
           "the enhanced DM depends on how long the null-space phase runs, which the thesis does not state for z",
