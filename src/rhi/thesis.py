@@ -211,6 +211,8 @@ W_INSIDE = _claim("fig5_4.w_inside", "§5.4.2: the W trajectory is performed by 
 # ---------------------------------------------------------------- chapter 6
 #: §6.3.1 / Fig. 6.3: eigenvalues of the 3-DoF RHI's FME at the initial configuration.
 EIG_3DOF = _pair("s6_3_1.eig", ("2.6", "5.8"), "N²/(N m)²", "§6.3.1 (line 1337)")
+#: §6.3.1: amplitude of the environment force F_e = [3.5 sin(tπ/2), 0] N, rendered in full at M_Stiff^des.
+F_E_3DOF = _v("s6_3_1.F_e", "3.5", "N", "§6.3.1 (line 1337)")
 #: The desired FMEs of Fig. 6.3 with μ = 5: 𝒦 = μ λ_max = 29, ζ = λ_min/μ = 0.52.
 K_3DOF = _derived("s6_3_1.K", 5 * float(EIG_3DOF[1]), 5 * 0.05, "N²/(N m)²", "5 × 5.8, §6.3.1")
 ZETA_3DOF = _derived("s6_3_1.zeta", float(EIG_3DOF[0]) / 5, 0.05 / 5, "N²/(N m)²", "2.6 / 5, §6.3.1")

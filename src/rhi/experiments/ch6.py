@@ -320,7 +320,8 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = F_3
         label = {"initial": "initial configuration", "free": "M_Free^des configuration",
                  "stiff": "M_Stiff^des configuration"}[name]
         rows += [
-            Row(f"peak rendered |F_x|, {label}", amplitude if name == "stiff" else None, peak, "N",
+            Row(f"peak rendered |F_x|, {label}", T.F_E_3DOF if name == "stiff" and amplitude == T.F_E_3DOF else None,
+                peak, "N",
                 {"stiff": "thesis: rendered in full, without saturation, at the M_Stiff^des configuration",
                  "free": "thesis: capability decreased at the M_Free^des configuration (value not reported)",
                  "initial": "thesis: value not reported"}[name]),
