@@ -244,6 +244,7 @@ def run(
                 if state is not None:
                     row[c["V"]], row[c["omega"]], row[c["alpha"]], row[c["beta"]] = \
                         state.V, state.omega, state.alpha, state.beta
+                    row[c["E_obs"]], row[c["alpha_pc"]] = getattr(state, "E_obs", np.nan), getattr(state, "alpha_pc", np.nan)
                 row[c["wall"]], row[c["t_read"]], row[c["t_step"]] = ts - t0, tr - ts, tc - tr
                 row[c["t_write"]], row[c["t_tick"]] = te - tc, te - ts
                 row[c["late"]] = ts - deadline if realtime else 0.0

@@ -64,6 +64,8 @@ class Log:
         work: (N,) user work W = ∫ F_hᵀ ẋ dt up to each tick (eq. 5.15) [J] (simulation only).
         V, omega, alpha, beta: (N,) controller state (ASO, FME activation, force scaling,
             tertiary scaling); NaN where the controller has no such state.
+        E_obs, alpha_pc: (N,) passivity observer energy [J] and controller damping rate [1/s]
+            (`rhi.control.passivity`); NaN without a passivity controller.
         slave_x: (N, m_s) slave position [m] in teleoperation, else empty.
         seq: (N,) sequence number of the reading each tick acted on.
         wall, t_read, t_step, t_write, t_tick, late: (N,) timing [s] (see `TIMING`).
@@ -87,6 +89,8 @@ class Log:
     alpha: np.ndarray
     beta: np.ndarray
     slave_x: np.ndarray
+    E_obs: np.ndarray | None = None
+    alpha_pc: np.ndarray | None = None
     seq: np.ndarray | None = None
     wall: np.ndarray | None = None
     t_read: np.ndarray | None = None
@@ -155,7 +159,8 @@ def _events_path(path: Path) -> Path:
 def layout(n: int, m: int, m_slave: int = 0) -> list[tuple[str, int]]:
     """The columns of a log row and their widths for a device with n motors and m task rows."""
     cols = [("t", 1), ("q", n), ("dq", n), ("tau", n), ("x", m), ("xdot", m), ("F_hand", m), ("F_env", m),
-            ("ft", 6), ("work", 1), ("V", 1), ("omega", 1), ("alpha", 1), ("beta", 1)]
+            ("ft", 6), ("work", 1), ("V", 1), ("omega", 1), ("alpha", 1), ("beta", 1),
+            ("E_obs", 1), ("alpha_pc", 1)]
     if m_slave:
         cols.append(("slave_x", m_slave))
     cols += [("seq", 1)] + [(c, 1) for c in TIMING] + [("safety", 1)]
