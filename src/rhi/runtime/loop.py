@@ -153,7 +153,8 @@ def run(
         raise InvalidInput(f"duration: must be a finite time >= one period ({1.0 / rate} s) or None, got {duration!r}")
     if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
         raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
-    if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int) or not 1 <= priority <= 99):
+    if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)
+                                 or not 1 <= priority <= 99):
         raise InvalidInput(f"priority: expected a SCHED_FIFO priority in 1..99 or None, got {priority!r}")
     dev = getattr(controller, "device", None)
     if isinstance(safety, Safety):
@@ -244,7 +245,8 @@ def run(
                 if state is not None:
                     row[c["V"]], row[c["omega"]], row[c["alpha"]], row[c["beta"]] = \
                         state.V, state.omega, state.alpha, state.beta
-                    row[c["E_obs"]], row[c["alpha_pc"]] = getattr(state, "E_obs", np.nan), getattr(state, "alpha_pc", np.nan)
+                    row[c["E_obs"]] = getattr(state, "E_obs", np.nan)
+                    row[c["alpha_pc"]] = getattr(state, "alpha_pc", np.nan)
                 row[c["wall"]], row[c["t_read"]], row[c["t_step"]] = ts - t0, tr - ts, tc - tr
                 row[c["t_write"]], row[c["t_tick"]] = te - tc, te - ts
                 row[c["late"]] = ts - deadline if realtime else 0.0

@@ -192,7 +192,8 @@ def simulate(
             if state is not None:
                 row[c["V"]], row[c["omega"]], row[c["alpha"]], row[c["beta"]] = \
                     state.V, state.omega, state.alpha, state.beta
-                row[c["E_obs"]], row[c["alpha_pc"]] = getattr(state, "E_obs", np.nan), getattr(state, "alpha_pc", np.nan)
+                row[c["E_obs"]] = getattr(state, "E_obs", np.nan)
+                row[c["alpha_pc"]] = getattr(state, "alpha_pc", np.nan)
                 if state.stopped and w.fault is None:
                     w.fault = state.fault
                     w.event(t, "controller", state.fault or "controller stopped", k)
