@@ -77,7 +77,7 @@ def _reproduce(args: argparse.Namespace) -> int:
                 th = "—" if r.thesis is None else f"{r.thesis:.4g}"
                 rel = "" if r.relative is None else f"({100 * r.relative:+.1f} %)"
                 print(f"  {r.quantity:<55} thesis {th:>9}   rhi {r.ours:>9.4g} {r.unit:<4} {rel}")
-    print(f"\nreport: {path}\nnumbers: {path.parent / 'results.json'}")
+    print(f"\nreport: {path}\nnumbers: {path.parent / 'results.json'}\narrays: {path.parent / 'results.npz'}")
     return 0
 
 

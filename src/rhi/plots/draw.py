@@ -34,7 +34,7 @@ def force_torque_panels(arrays: dict, titles: dict[str, str], suptitle: str, *, 
     fig, axes = plt.subplots(nrows, ncols, figsize=(5.2 * ncols, 3.4 * nrows + 0.9), sharey=True, squeeze=False)
     axes = axes.ravel()
     for ax in axes[len(titles):]:
-        ax.set_visible(False)
+        fig.delaxes(ax)
     for ax, (key, title) in zip(axes, titles.items()):
         tau, F = arrays[f"tau_{key}"], arrays[f"force_{key}"]
         for i in range(tau.shape[1]):
