@@ -39,7 +39,7 @@ class RunResult:
     Attributes:
         log: the per-tick log (streamed to disk when a path was given).
         summary: JSON-serialisable statistics: ticks, rate, missed deadlines (count and %), p50/p99/p99.9/max
-            of the tick time and of the read→write latency [s], clamp count, fault, every safety event.
+            of the tick time and of the read→write latency (reading in hand to command sent) [s], clamp count, fault, every safety event.
     """
 
     log: Log
@@ -299,7 +299,7 @@ def _status(k: int, slot: int, stats: dict, state, guard: Safety, t: float) -> d
 
 def _summary(log: Log, stats: dict, rate: float, guard: Safety, realtime: bool) -> dict:
     k = max(stats["ticks"], 1)
-    lat = (log.t_read + log.t_step + log.t_write) if len(log) else np.zeros(0)
+    lat = (log.t_step + log.t_write) if len(log) else np.zeros(0)  # reading in hand → command sent
     out = {
         "rate": rate, "realtime": realtime, "ticks": stats["ticks"],
         "duration": float(log.wall[-1]) if len(log) else 0.0,

@@ -43,7 +43,13 @@ class UDPLink:
 
     Attributes:
         n: motors; sensors: [(name, width)] the device reports; info: the device's description.
-        stats: datagram counts: sent, received, lost (gaps in the reading sequence), reordered, invalid.
+        stats: datagram counts: sent, received, lost (gaps in the reading sequence), reordered, invalid, skipped
+            (readings superseded before the host read them: device periods the host missed).
+
+    Timing: with ``run(..., realtime=False)`` the host is paced by the device — each tick waits (up to
+    `timeout`) for the device's next reading, so host and device clocks cannot drift apart; this is the
+    mode for a free-running device. With ``realtime=True`` the host keeps its own deadlines and takes
+    whatever reading arrived within `timeout`.
 
     A reading that arrives after a newer one (network reordering) raises `LinkError`: the loop
     stops with zero torque rather than act on a network that reorders a 1 kHz stream.
@@ -61,7 +67,7 @@ class UDPLink:
         self.n = 0
         self.sensors: list[tuple[str, int]] = []
         self.info: dict = {}
-        self.stats = {"sent": 0, "received": 0, "lost": 0, "reordered": 0, "invalid": 0}
+        self.stats = {"sent": 0, "received": 0, "lost": 0, "reordered": 0, "invalid": 0, "skipped": 0}
         self._sock: socket.socket | None = None
         self._last: Reading | None = None
         self._last_seq: int | None = None
@@ -145,6 +151,8 @@ class UDPLink:
                 continue
             r = self._parse(pkt)
             if r is not None:
+                if newest is not None:
+                    self.stats["skipped"] += 1  # the host fell a device period behind
                 newest = r
         if newest is None:
             if self._last is None:
