@@ -26,8 +26,6 @@ def _robots_dir() -> Path | None:
 
 
 def _device(name: str) -> Device:
-    if name in ("panda", "ur5", "panda_tree") and _robots_dir() is None:
-        pytest.skip("example-robot-data is not installed")
     if name == "panda_tree":  # the raw model: 7 revolute joints + 2 prismatic fingers on a branch
         model = pin.buildModelFromUrdf(str(_robots_dir() / "panda_description/urdf/panda.urdf"))
         return Device(model, name=name, ee_frame="panda_hand_tcp", q_min=model.lowerPositionLimit,

@@ -13,7 +13,7 @@ import pytest
 import rhi
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
 from rhi.errors import InvalidInput
-from rhi.runtime import Reading, Safety, SafetyConfig, SimLink, Status, Telemetry, run
+from rhi.runtime import Reading, Safety, SafetyConfig, SimLink, Telemetry, run
 from rhi.runtime.inject import Inject
 from rhi.sim import Hand, Log, Path, Plant, PushForce, Wall, simulate, stop
 

@@ -171,10 +171,6 @@ def test_browser_receives_30_updates_per_second(live_view):
     rate, drawn = (len(b.ws_frames) - n0) / dt, view.frames - f0
     assert drawn > 0, "no new telemetry"
     assert (view.cpu - c0) / drawn < 1 / 30, "a frame costs more than 1/30 s of CPU"
-    if rate < 30.0 and os.getloadavg()[0] > os.cpu_count():  # more runnable work than CPUs
-        pytest.skip(f"machine overloaded (load {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs): "
-                    f"{rate:.1f} updates/s received, {drawn / dt:.1f} frames/s drawn (viser merges frames that "
-                    "queue up while its sender waits for the CPU)")
     assert rate >= 30.0, (rate, drawn / dt)
 
 

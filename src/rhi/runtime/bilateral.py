@@ -25,10 +25,10 @@ harmless: energies are cumulative and the newest packet wins.
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput
 
 _EPS_V, _EPS_F = 1e-6, 1e-6
@@ -111,10 +111,8 @@ class Slave:
 
     def __init__(self, device, end, *, kp: float = 800.0, kd: float = 20.0, passivity: bool = True,
                  dt: float = 1e-3) -> None:
-        for name, v in (("kp", kp), ("kd", kd)):
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise InvalidInput(f"{name}: must be a finite number >= 0, got {v!r}")
-        self.device, self.end, self.kp, self.kd = device, end, float(kp), float(kd)
+        self.device, self.end = device, end
+        self.kp, self.kd = scalar("kp", kp, nonnegative=True), scalar("kd", kd, nonnegative=True)
         self.passivity, self.dt = bool(passivity), float(dt)
         self.port = PortEnergy()
         self._rows = list(device.task_rows)
@@ -222,9 +220,8 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
     ms = Session(master_plant, rate=rate, hand=hand)
     ss = Session(slave_plant, rate=rate, physical=tissue)
     dt = ms.dt
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) \
-            or duration < dt:
-        raise InvalidInput(f"duration: must be a finite time >= one period ({dt} s), got {duration!r}")
+    if scalar("duration", duration) < dt:
+        raise InvalidInput(f"duration: must be at least one period ({dt} s), got {duration!r}")
     m_end, s_end = local_pair(forward or ChannelConfig(), backward or ChannelConfig(seed=1), dt)
     master = Master(master_controller, m_end, passivity=passivity, dt=dt)
     slave = Slave(slave_plant.device, s_end, kp=kp, kd=kd, passivity=passivity, dt=dt)
@@ -256,22 +253,11 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
     return log
 
 
-def run_master(plant, controller, end, *, hand=None, duration: float | None = None, passivity: bool = True,
-               **run_kw):
-    """The master side as its own process: `controller` on `plant` (with the user's `hand`) under `rhi.runtime.run`,
-    rendering what arrives on `end`. Returns (`RunResult`, the `Master`)."""
-    from rhi.runtime.loop import run
-    from rhi.runtime.simlink import SimLink
-
-    rate = run_kw.pop("rate", 1000.0)
-    master = Master(controller, end, passivity=passivity, dt=1.0 / rate)
-    return run(SimLink(plant, rate=rate, hand=hand), master, rate=rate, duration=duration, **run_kw), master
-
-
 def run_slave(plant, end, *, tissue=None, duration: float | None = None, passivity: bool = True, kp: float = 800.0,
               kd: float = 20.0, **run_kw):
     """The slave side as its own process: the PD slave on `plant` pressing on `tissue`, following what arrives on
-    `end`, under `rhi.runtime.run`. Returns (`RunResult`, the `Slave`)."""
+    `end`, under `rhi.runtime.run`. Returns (`RunResult`, the `Slave`). (The master side is
+    ``run(SimLink(plant, hand=hand), Master(controller, end))``.)"""
     from rhi.runtime.loop import run
     from rhi.runtime.simlink import SimLink
 

@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput
 
 _MAGIC, _VERSION = b"RHIT", 1
@@ -44,9 +45,7 @@ class ChannelConfig:
 
     def __post_init__(self) -> None:
         for f in ("delay", "jitter"):
-            v = getattr(self, f)
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-                raise InvalidInput(f"{f}: must be a finite time >= 0 [s], got {v!r}")
+            scalar(f, getattr(self, f), nonnegative=True)
         if isinstance(self.loss, bool) or not isinstance(self.loss, (int, float)) or not 0 <= self.loss < 1:
             raise InvalidInput(f"loss: must be a probability in [0, 1), got {self.loss!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):

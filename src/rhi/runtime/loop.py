@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
 from rhi.runtime.safety import Safety, SafetyConfig
@@ -143,14 +144,12 @@ def run(
     Raises:
         InvalidInput: a bad rate or duration (named), a controller without a device and no `Safety`.
     """
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
-        raise InvalidInput(f"rate: must be a finite number > 0 [Hz], got {rate!r}")
+    rate = scalar("rate", rate, positive=True)
     link_rate = getattr(link, "rate", None)
     if link_rate is not None and abs(link_rate - rate) > 1e-9 * rate:
         raise InvalidInput(f"rate: {rate!r} Hz differs from the link's {link_rate!r} Hz")
-    if duration is not None and (isinstance(duration, bool) or not isinstance(duration, (int, float))
-                                 or not math.isfinite(duration) or duration < 1.0 / rate):
-        raise InvalidInput(f"duration: must be a finite time >= one period ({1.0 / rate} s) or None, got {duration!r}")
+    if duration is not None and scalar("duration", duration) < 1.0 / rate:
+        raise InvalidInput(f"duration: must be at least one period ({1.0 / rate} s) or None, got {duration!r}")
     if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
         raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
     if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)

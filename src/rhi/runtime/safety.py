@@ -19,14 +19,15 @@ import math
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.runtime.link import Reading, Status
 
 
 def _positive(name: str, v, *, integer: bool = False) -> None:
-    ok = isinstance(v, int) if integer else isinstance(v, (int, float))
-    if isinstance(v, bool) or not ok or not math.isfinite(v) or v <= 0:
-        raise InvalidInput(f"{name}: must be a finite {'integer' if integer else 'number'} > 0, got {v!r}")
+    if integer and (isinstance(v, bool) or not isinstance(v, int) or v <= 0):
+        raise InvalidInput(f"{name}: must be a finite integer > 0, got {v!r}")
+    scalar(name, v, positive=True)
 
 
 _BAD_STATUS = int(Status.ESTOP | Status.WATCHDOG | Status.FAULT)

@@ -13,13 +13,13 @@ of free-running on its clock.
 
 from __future__ import annotations
 
-import math
 import select
 import socket
 import time
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.runtime import protocol as P
 from rhi.runtime.link import DeviceLink, Status
@@ -45,13 +45,11 @@ class DeviceServer:
     def __init__(self, link: DeviceLink, device, *, host: str = "127.0.0.1", port: int = 0, watchdog: float = 0.02,
                  lockstep: bool = False, drop=None, reorder_at: float | None = None, log=None,
                  exit_on_bye: bool = False) -> None:
-        if isinstance(watchdog, bool) or not isinstance(watchdog, (int, float)) or not 0 < watchdog < math.inf:
-            raise InvalidInput(f"watchdog: must be a finite time > 0 [s], got {watchdog!r}")
         if not isinstance(port, int) or not 0 <= port < 65536:
             raise InvalidInput(f"port: expected an integer in 0..65535, got {port!r}")
         self.link, self.device = link, device
         self.rate = float(getattr(link, "rate", 1000.0))
-        self.watchdog, self.lockstep = float(watchdog), bool(lockstep)
+        self.watchdog, self.lockstep = scalar("watchdog", watchdog, positive=True), bool(lockstep)
         self.drop, self.reorder_at = drop, reorder_at
         self.lo = np.asarray(device.torque_min, float)
         self.hi = np.asarray(device.torque_max, float)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import select
 import socket
 import time
@@ -10,6 +9,7 @@ import urllib.parse
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime import protocol as P
 from rhi.runtime.link import Reading
@@ -59,11 +59,10 @@ class UDPLink:
                  connect_timeout: float = 2.0) -> None:
         if not isinstance(port, int) or isinstance(port, bool) or not 0 < port < 65536:
             raise InvalidInput(f"port: expected an integer in 1..65535, got {port!r}")
-        for name, v in (("rate", rate), ("timeout", timeout), ("connect_timeout", connect_timeout)):
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-                raise InvalidInput(f"{name}: must be a finite number > 0, got {v!r}")
         self.addr = (str(host), port)
-        self.rate, self.timeout, self.connect_timeout = float(rate), float(timeout), float(connect_timeout)
+        self.rate = scalar("rate", rate, positive=True)
+        self.timeout = scalar("timeout", timeout, positive=True)
+        self.connect_timeout = scalar("connect_timeout", connect_timeout, positive=True)
         self.n = 0
         self.sensors: list[tuple[str, int]] = []
         self.info: dict = {}

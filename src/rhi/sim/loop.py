@@ -15,6 +15,7 @@ from typing import Protocol
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.sim.log import Log, LogWriter, layout
 from rhi.sim.plant import Plant, PlantUnstable
@@ -39,8 +40,7 @@ def substeps(rate: float, timestep: float) -> int:
     Raises:
         InvalidInput: a non-finite or non-positive rate, or one the plant's timestep does not divide.
     """
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate) or rate <= 0:
-        raise InvalidInput(f"rate: must be a finite number > 0 [Hz], got {rate!r}")
+    rate = scalar("rate", rate, positive=True)
     sub = round(1.0 / (rate * timestep))
     if sub < 1 or abs(sub * timestep * rate - 1.0) > 1e-9:
         ok = [round(1.0 / (k * timestep), 6) for k in (1, 2, 4, 5, 10)]
@@ -155,9 +155,8 @@ def simulate(
         InvalidInput: a bad duration or rate (named), or the controller's bad-input errors.
     """
     sess = Session(plant, rate=rate, hand=hand, physical=physical, teleop=teleop)
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) \
-            or duration < sess.dt * (1 - 1e-9):
-        raise InvalidInput(f"duration: must be a finite time >= one control period ({sess.dt} s), got {duration!r}")
+    if scalar("duration", duration) < sess.dt * (1 - 1e-9):
+        raise InvalidInput(f"duration: must be at least one control period ({sess.dt} s), got {duration!r}")
     N = int(round(duration / sess.dt))
     n, m = plant.n, plant.m
     dev = getattr(controller, "device", plant.device)
