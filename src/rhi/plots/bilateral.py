@@ -30,10 +30,12 @@ def energy(result: Result) -> Figure:
 
 def forces(result: Result) -> Figure:
     """Contact force at the slave and force rendered on the hand at the longest delay, without and with the TDPA."""
-    keys = [k for k in _keys(result) if k.startswith(max({k.split("_")[0] for k in _keys(result)}, key=lambda s: int(s[:-2])))]
-    keys = [k for k in keys if k.split("_")[1] == min((k.split("_")[1] for k in keys), key=lambda s: abs(int(s) - 1000))]
+    cases = [k.split("_") for k in _keys(result)]  # [delay "50ms", stiffness "1000", "none" | "tdpa"]
+    delay = max((c[0] for c in cases), key=lambda d: int(d[:-2]))
+    stiffness = min((c[1] for c in cases if c[0] == delay), key=lambda k: abs(int(k) - 1000))
+    keys = ["_".join(c) for c in cases if c[0] == delay and c[1] == stiffness]
     fig, axes = plt.subplots(len(keys), 1, figsize=(6.4, 2.6 * len(keys)), sharex=True, squeeze=False)
-    for ax, key in zip(axes[:, 0], keys):
+    for ax, key in zip(axes[:, 0], keys, strict=True):
         a = result.arrays
         ax.plot(a[f"{key}_t"], np.linalg.norm(a[f"{key}_F_e"], axis=1), "k-", lw=1, label="|F_e| at the slave")
         ax.plot(a[f"{key}_t"], np.linalg.norm(a[f"{key}_F_m"], axis=1), "r-", lw=0.8, label="|F_m| on the hand")

@@ -134,7 +134,6 @@ class DeviceServer:
         self._info()  # sensor layout
         k = 0
         end = None if duration is None else int(round(duration * self.rate))
-        t0 = time.monotonic()
         try:
             with _realtime(None, None):
                 # the first reading goes out as soon as a client said HELLO
