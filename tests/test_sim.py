@@ -201,7 +201,7 @@ def test_nullspace_motion_keeps_held_handle(rhi4):
     assert np.max(np.linalg.norm(log.x - x0, axis=1)) < 5e-4
 
 
-def test_teleoperation_slave_tracks_master(rhi4):
+def test_teleoperation_slave_tracks_master(rhi4, tmp_path):
     slave = Plant(device("rehab_slave"))
     x_m = rhi4.fk(Q_CH5)
     slave.reset(device("rehab_slave").ik(x_m, q0=np.array([0.0, 1.0])))
@@ -210,9 +210,21 @@ def test_teleoperation_slave_tracks_master(rhi4):
     plant.reset(Q_CH5)
     ctrl = NullSpaceController(rhi4, ControllerConfig(primary=ForceRendering()))
     hand = Hand(Path([x_m, x_m + [0.03, 0.03]], speed=0.03))
-    log = simulate(plant, ctrl, duration=2.0, hand=hand, teleop=tele)
+    log = simulate(plant, ctrl, duration=2.0, hand=hand, teleop=tele,
+                   record=lambda: {"slave_q": slave.q, "alpha2": 2 * ctrl.state.alpha})
     err = np.linalg.norm(log.slave_x - log.x, axis=1)
     assert err[-1] < 1e-3 and err.max() < 5e-3
+    # the record hook: one row per tick, after the period (the slave's encoders give its logged position)
+    assert log.extra["slave_q"].shape == (len(log), 2) and log.extra["alpha2"].shape == (len(log),)
+    np.testing.assert_allclose(slave.device.fk(log.extra["slave_q"]), log.slave_x, atol=1e-9)
+    np.testing.assert_array_equal(log.extra["alpha2"], 2 * log.alpha)
+    log.to_csv(tmp_path / "log.csv")
+    assert "slave_q2" in (tmp_path / "log.csv").read_text().splitlines()[0].split(",")
+    with pytest.raises(InvalidInput, match="record: .*'q'.* log columns"):
+        simulate(plant, ctrl, duration=0.01, record=lambda: {"q": 0.0})
+    names = iter([{"a": 0.0}, {"b": 0.0}])
+    with pytest.raises(InvalidInput, match="record: returned"):
+        simulate(plant, ctrl, duration=0.01, record=lambda: next(names))
 
 
 def test_bad_input(rhi4):

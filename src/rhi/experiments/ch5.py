@@ -167,19 +167,6 @@ class _Chain:
         return lambda k, _n: self.progress(off + k, self.total)
 
 
-class _RecordingTeleoperation(Teleoperation):
-    """Teleoperation that also records the slave's encoders after every control period."""
-
-    def __init__(self, slave: Plant, **kw) -> None:
-        super().__init__(slave, **kw)
-        self.q_log: list[np.ndarray] = []
-
-    def follow(self, x_master, dt: float) -> np.ndarray:
-        x = super().follow(x_master, dt)
-        self.q_log.append(self.slave.q)
-        return x
-
-
 def _ticks(duration: float, rate: float = 1000.0) -> int:
     return int(round(duration * rate))
 
@@ -424,7 +411,7 @@ def w_trajectory(
         dev = reh if key == "s3" else rhi
         sp = Plant(slave, friction=_friction(friction, slave))
         sp.reset(start["slave"])
-        tele = _RecordingTeleoperation(sp)
+        tele = Teleoperation(sp)
         if key == "s1":
             obj = TMIMatching(slave, lambda tele=tele: tele.slave.q, k_q=k_q)
         elif key == "s2":
@@ -434,8 +421,8 @@ def w_trajectory(
         plant = Plant(dev, friction=_friction(friction, dev))
         plant.reset(start["Rehab" if key == "s3" else "RHI"])
         log = simulate(plant, _controller(dev, obj, gain, damping), duration=duration, hand=Hand(path, **TRACK),
-                       teleop=tele, progress=chain.run(N))
-        qs = np.array(tele.q_log)
+                       teleop=tele, progress=chain.run(N), record=lambda sp=sp: {"slave_q": sp.q})
+        qs = log.extra["slave_q"]
         moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
         Jm, Js = dev.jacobian(log.q), slave.jacobian(qs)
         area = _tme_area(Jm, Js)

@@ -102,23 +102,10 @@ DECIMATE = 5
 DEPTH_COMPARE = 0.007
 
 
-class _Recorder:
-    """Wraps a controller to record ASCM's selection 𝒮 and α at every tick (the loop logs α, not 𝒮)."""
-
-    def __init__(self, ctrl: NullSpaceController) -> None:
-        self.ctrl = ctrl
-        self.device = ctrl.device
-        self.saturated: list[np.ndarray] = []
-
-    @property
-    def state(self):
-        return self.ctrl.state
-
-    def step(self, t, q, dq, sensors):
-        tau = self.ctrl.step(t, q, dq, sensors)
-        s = self.ctrl.state.saturated
-        self.saturated.append(np.zeros(self.device.n, bool) if s is None else np.array(s, dtype=bool))
-        return tau
+def _held(ctrl: NullSpaceController) -> dict[str, np.ndarray]:
+    """`simulate`'s record hook: ASCM's selection 𝒮 of the tick (the log has α, not 𝒮)."""
+    s = ctrl.state.saturated
+    return {"saturated": np.zeros(ctrl.device.n, bool) if s is None else np.array(s, dtype=bool)}
 
 
 def palpation_controller(dev: Device, saturation: str, projector: str = "dynamic", *, gain: float = GAIN,
@@ -315,13 +302,14 @@ def palpation(
     for r, (sat, proj) in enumerate(cases):
         plant = Plant(dev)
         plant.reset(q_c)
-        rec = _Recorder(palpation_controller(dev, sat, proj, gain=gain, damping=damping))
+        ctrl = palpation_controller(dev, sat, proj, gain=gain, damping=damping)
         hand = Hand(Path([x0, x0 + depth * u], speed=speed, start=t_start), stiffness=HAND_STIFFNESS,
                     damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
         off = settle_ticks + r * case_ticks
         cb = None if progress is None else (lambda k, n, off=off: progress(off + k, total))
-        log = simulate(plant, rec, duration=t_start + push + hold, hand=hand, virtual=wall, progress=cb)
-        m = _case_metrics(dev, log, np.array(rec.saturated), sat, x0, u, lo, hi, BARRIER)
+        log = simulate(plant, ctrl, duration=t_start + push + hold, hand=hand, virtual=wall, progress=cb,
+                       record=lambda ctrl=ctrl: _held(ctrl))
+        m = _case_metrics(dev, log, log.extra["saturated"].astype(bool), sat, x0, u, lo, hi, BARRIER)
         results[sat, proj] = m
         key = f"{sat}_{proj}"
         for k, v in m["series"].items():

@@ -70,25 +70,11 @@ SUMMARY = ("W", "motors", "task", "null", "wall_zoh", "friction", "force_rms_err
            "E_obs_min", "qdot_max")
 
 
-class _Recorder:
-    """Records the passivity state (E_obs, α, λ) and ASCM's held set per tick (the log does not carry them)."""
-
-    def __init__(self, ctrl: NullSpaceController) -> None:
-        self.ctrl, self.device = ctrl, ctrl.device
-        self.E, self.alpha, self.scale, self.held = [], [], [], []
-
-    @property
-    def state(self):
-        return self.ctrl.state
-
-    def step(self, t, q, dq, sensors):
-        tau = self.ctrl.step(t, q, dq, sensors)
-        s, pc = self.ctrl.state, self.ctrl.passivity
-        self.E.append(s.E_obs)
-        self.alpha.append(s.alpha_pc)
-        self.scale.append(math.nan if pc is None else pc.scale)
-        self.held.append(0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated)))))
-        return tau
+def _passivity_state(ctrl: NullSpaceController) -> dict[str, float]:
+    """`simulate`'s record hook: the passivity scale λ and ASCM's held set (as a bit mask) of the tick."""
+    s, pc = ctrl.state, ctrl.passivity
+    return {"pc_scale": math.nan if pc is None else pc.scale,
+            "held": 0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated))))}
 
 
 def controller(dev: Device, *, objectives: bool, port: str | None, saturation: str = "ascm") -> NullSpaceController:
@@ -136,9 +122,10 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     plant = Plant(dev)
     plant.reset(q0)
     objectives, port, saturation = CASES[case]
-    rec = _Recorder(controller(dev, objectives=objectives, port=port, saturation=saturation))
+    ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation)
     cb = None if progress is None else (lambda k, n: progress(offset + k, total))
-    log = simulate(plant, rec, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=cb)
+    log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=cb,
+                   record=lambda: _passivity_state(ctrl))
     en = _energies(dev, log, plant.friction, stiffness)
     pen = (log.x - x0) @ u
     F_des = stiffness * np.maximum(pen, 0.0)
@@ -149,8 +136,7 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     xd = log.xdot @ u
     hf_v = (xd - _moving_average(xd, w))[contact]
     hf_F = (F - _moving_average(F, w))[contact]
-    held = np.array(rec.held)
-    E = np.array(rec.E)
+    held, E = log.extra["held"], log.E_obs
     m = {
         **en,
         "W_min": float(np.min(log.work)),
@@ -164,13 +150,13 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
         "qdot_max": float(np.max(np.abs(log.dq))),
         "beyond_range": float(np.mean(np.any((log.q < dev.q_min) | (log.q > dev.q_max), axis=1))),
         "E_obs_min": float(np.nanmin(E)) if port is not None else math.nan,
-        "pc_active": float(np.mean(np.array(rec.alpha) > 0)) if port is not None else math.nan,
-        "pc_scaled": float(np.mean(np.array(rec.scale) < 1)) if port is not None else math.nan,
+        "pc_active": float(np.mean(log.alpha_pc > 0)) if port is not None else math.nan,
+        "pc_scaled": float(np.mean(log.extra["pc_scale"] < 1)) if port is not None else math.nan,
         "alpha_scaling_min": float(np.nanmin(log.alpha)),
         "fault": log.fault,
     }
     series = {"t": log.t, "W": log.work, "F": F, "F_des": F_des, "pen": pen, "E_obs": E,
-              "alpha_pc": np.array(rec.alpha), "xdot": xd}
+              "alpha_pc": log.alpha_pc, "xdot": xd}
     out = {k: v[::DECIMATE] for k, v in series.items()}
     out["summary"] = np.array([m[k] for k in SUMMARY])
     return m, out

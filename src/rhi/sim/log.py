@@ -72,6 +72,7 @@ class Log:
         safety: (N,) 0 while no fault is latched, else 1 (zero torque).
         fault: why the run or the controller stopped, if it did.
         events: safety and other events, in order.
+        extra: (N, ...) columns a `record` hook of `rhi.sim.simulate` added, by name (kept in memory).
     """
 
     t: np.ndarray
@@ -101,17 +102,19 @@ class Log:
     safety: np.ndarray | None = None
     fault: str | None = None
     events: list[Event] = dataclasses.field(default_factory=list)
+    extra: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.t)
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The per-tick arrays by name, each (N,) or (N, k); empty columns left out."""
+        """The per-tick arrays by name, each (N,) or (N, k), the `extra` ones last; empty columns left out."""
         out = {}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if isinstance(v, np.ndarray) and v.size:
                 out[f.name] = v
+        out.update({k: v for k, v in self.extra.items() if np.asarray(v).size})
         return out
 
     def to_csv(self, path) -> None:

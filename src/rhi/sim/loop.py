@@ -126,6 +126,7 @@ def simulate(
     progress: Callable[[int, int], None] | None = None,
     log=None,
     telemetry: Telemetry | None = None,
+    record: Callable[[], dict] | None = None,
 ) -> Log:
     """Run the controller against the plant for `duration` seconds, as fast as the machine allows.
 
@@ -150,9 +151,14 @@ def simulate(
         progress: callback(done, total) every 1 % of the ticks.
         log: a ``.rhilog`` path to stream the log to (bounded memory), or None (in memory).
         telemetry: a `Telemetry` that receives the newest tick (for a live view).
+        record: called once per tick after the plant has advanced, returning ``{name: value}``
+            of what else to log (e.g. a controller state the log has no column for); each name
+            becomes ``Log.extra[name]`` of shape (N, *value.shape). Names must not change
+            between ticks.
 
     Raises:
-        InvalidInput: a bad duration or rate (named), or the controller's bad-input errors.
+        InvalidInput: a bad duration or rate (named), a record name that is a log column or
+            changes between ticks, or the controller's bad-input errors.
     """
     sess = Session(plant, rate=rate, hand=hand, physical=physical, teleop=teleop)
     if scalar("duration", duration) < sess.dt * (1 - 1e-9):
@@ -166,6 +172,7 @@ def simulate(
     zero_m = np.zeros(m)
     every = max(1, N // 100)
     state = getattr(controller, "state", None)
+    recorded: dict[str, list] = {}
     t_start = time.perf_counter()
     try:
         for k in range(N):
@@ -200,6 +207,8 @@ def simulate(
             row[c["wall"]], row[c["t_read"]], row[c["t_step"]] = t0 - t_start, t1 - t0, t2 - t1
             row[c["t_write"]], row[c["t_tick"]], row[c["late"]] = t3 - t2, t3 - t0, 0.0
             row[c["safety"]] = 0.0 if fault is None else 1.0
+            if record is not None:
+                _record(recorded, record(), c, k)
             if telemetry is not None:
                 telemetry.publish(row, c, fault or w.fault)
             if fault is not None:
@@ -210,4 +219,19 @@ def simulate(
                 progress(k + 1, N)
     finally:
         w.close()
-    return w.to_log()
+    out = w.to_log()
+    out.extra = {name: np.array(v) for name, v in recorded.items()}
+    return out
+
+
+def _record(recorded: dict[str, list], values: dict, columns: dict, k: int) -> None:
+    """Append one tick of a `record` hook's values to `recorded` (name -> list of values)."""
+    if k == 0:
+        clash = sorted(set(values) & set(columns))
+        if clash:
+            raise InvalidInput(f"record: {clash} are log columns already; name the recorded values differently")
+        recorded.update({name: [] for name in values})
+    elif values.keys() != recorded.keys():
+        raise InvalidInput(f"record: returned {sorted(values)} at tick {k}, {sorted(recorded)} before")
+    for name, v in values.items():
+        recorded[name].append(np.array(v))
