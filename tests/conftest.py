@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
 import rhi
+
+os.environ.setdefault("MPLBACKEND", "Agg")  # tests write figures to files; never open a window
 
 
 @pytest.fixture(scope="session")

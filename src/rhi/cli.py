@@ -284,8 +284,15 @@ def _join_negative(argv: list[str]) -> list[str]:
     return out
 
 
+_EXTRAS = {"mujoco": "sim", "psignifit": "analysis", "statsmodels": "analysis", "matplotlib": "plots", "viser": "view"}
+"""The optional dependencies and the extra that installs each (pyproject.toml)."""
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `rhi` command."""
+    import os
+
+    os.environ.setdefault("MPLBACKEND", "Agg")  # this process only writes figures to files
     from rhi import __version__
     from rhi.errors import RhiError
 
@@ -334,6 +341,12 @@ def main(argv: list[str] | None = None) -> int:
         return args.func(args)
     except RhiError as exc:
         print(f"rhi: error: {exc}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as exc:
+        extra = _EXTRAS.get((exc.name or "").split(".")[0])
+        if extra is None:
+            raise
+        print(f"rhi: error: this command needs {exc.name}: pip install 'rhi[{extra}]' (or 'rhi[all]')", file=sys.stderr)
         return 2
 
 

@@ -1,7 +1,6 @@
-"""Matplotlib figures drawn from experiment result objects (no computation here)."""
+"""Matplotlib figures drawn from experiment result objects (no computation here).
 
-from __future__ import annotations
-
-import matplotlib
-
-matplotlib.use("Agg")  # headless by default; figures are saved, not shown
+Importing or using `rhi.plots` never changes matplotlib's backend: the figures are drawn with
+whatever backend is in force (the `rhi` command selects Agg for its own process, where
+``MPLBACKEND`` is unset, because it only writes files).
+"""
