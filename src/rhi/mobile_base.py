@@ -13,13 +13,13 @@ of models/wmm/device.toml.
 
 from __future__ import annotations
 
-import tomllib
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.errors import InvalidInput, ModelError, UnknownDevice
+from rhi.device_spec import bundled_spec
+from rhi.errors import InvalidInput, ModelError
 
 if TYPE_CHECKING:
     from rhi.device import Device
@@ -76,20 +76,21 @@ def mecanum_map(theta_b, *, wheel_radius: float, half_length: float, half_width:
     return JI @ JV
 
 
-def wheel_geometry(name: str = "wmm") -> dict[str, float]:
-    """The `[mobile_base]` table of a bundled device: {wheel_radius, half_length, half_width} [m]."""
-    from rhi.device import MODELS
+def wheel_geometry(device: Device | str = "wmm") -> dict[str, float]:
+    """The Mecanum geometry a device declares (its `[mobile_base]` table): {wheel_radius, half_length, half_width} [m].
 
-    path = MODELS / name / "device.toml"
-    if not path.is_file():
-        raise UnknownDevice(f"name: unknown device {name!r}")
-    try:
-        table = tomllib.loads(path.read_text()).get("mobile_base")
-    except tomllib.TOMLDecodeError as exc:
-        raise ModelError(f"{path}: cannot read device.toml ({exc})") from None
-    if not table:
-        raise ModelError(f"{name}: device.toml has no [mobile_base] table")
-    return {k: float(table[k]) for k in ("wheel_radius", "half_length", "half_width")}
+    Args:
+        device: a `Device` loaded from a bundled description (its `Device.spec`), or a bundled device's name.
+
+    Raises:
+        UnknownDevice: no bundled device has that name.
+        ModelError: the device declares no mobile base.
+    """
+    spec = bundled_spec(device) if isinstance(device, str) else device.spec
+    name = device if isinstance(device, str) else device.name
+    if spec is None or spec.mobile_base is None:
+        raise ModelError(f"device: {name} declares no [mobile_base] table in its device.toml")
+    return dict(spec.mobile_base)
 
 
 def wmm_jacobian(device: Device, q, *, wheel_radius: float, half_length: float, half_width: float) -> np.ndarray:

@@ -30,14 +30,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from typing import Literal
 
 import numpy as np
 import pinocchio as pin
 
 from rhi._validate import all_finite, as_array, unit_vector
-from rhi.device import MODELS, Device
+from rhi.device import Device
+from rhi.device import device as load
 from rhi.errors import InfeasibleLimits, InvalidInput, ModelError
 from rhi.mobile_base import BASE_JOINTS, mecanum_map, wheel_geometry
 
@@ -110,29 +110,21 @@ class JointBounds:
 
 
 def joint_bounds(device: Device | str) -> JointBounds:
-    """Position, velocity and acceleration bounds of a bundled device (thesis Table B.1 for ``wmm``).
+    """Position, velocity and acceleration bounds of a device (thesis Table B.1 for ``wmm``).
 
-    Positions come from the `Device`; velocity and acceleration limits from the
-    ``velocity_max`` / ``acceleration_max`` entries of its ``device.toml`` (symmetric).
+    Positions come from the `Device` limits, velocity and acceleration limits from its
+    `Device.velocity_max` / `Device.acceleration_max` (symmetric; device.toml for bundled devices).
 
     Args:
-        device: a bundled `Device` or its name (e.g. "wmm", "gen3").
+        device: a `Device` or a bundled device's name (e.g. "wmm", "gen3").
 
     Raises:
-        ModelError: the device file declares no velocity/acceleration limits.
+        ModelError: the device declares no velocity/acceleration limits.
     """
-    from rhi.device import device as load
-
     dev = load(device) if isinstance(device, str) else device
-    path = MODELS / dev.name / "device.toml"
-    try:
-        lim = tomllib.loads(path.read_text()).get("limits", {})
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ModelError(f"device: cannot read velocity/acceleration limits of {dev.name!r} ({exc})") from None
-    if "velocity_max" not in lim or "acceleration_max" not in lim:
-        raise ModelError(f"device: {path} declares no velocity_max/acceleration_max")
-    v = np.asarray(lim["velocity_max"], dtype=float)
-    a = np.asarray(lim["acceleration_max"], dtype=float)
+    if dev.velocity_max is None or dev.acceleration_max is None:
+        raise ModelError(f"device: {dev.name} declares no velocity_max/acceleration_max")
+    v, a = dev.velocity_max, dev.acceleration_max
     return JointBounds(dev.q_min, dev.q_max, -v, v, -a, a)
 
 

@@ -2,7 +2,7 @@
 
 * `workspace`: explicit samplings of the slave workspace (grid / Sobol', density).
 * `indices`: GM, GC (eqs. 4.8, 4.10) and GM_T (eq. 4.18) with the penalized Jacobian (4.19–4.20).
-* `kinematics`: HI models (closed-form phantom3, any bundled device) and the slave's IK.
+* `kinematics`: HI models (closed-form phantom3, any bundled device), the slave's IK, declared bounds.
 * `cost`: `DesignProblem`, `evaluate`, C1 and C2 (eqs. 4.23, 4.24), bound checks.
 * `optimize`: seeded differential evolution + Nelder–Mead refinement, `sweep`.
 * `executors`: serial, local process pool, Ray — one ``map``/``imap`` interface; `parallel_map` for maps.
@@ -10,10 +10,10 @@
 """
 
 from rhi.design.checkpoint import EvalCache
-from rhi.design.cost import DesignProblem, check_bounds, cost, declared_bounds, evaluate, evaluate_strict
+from rhi.design.cost import DesignProblem, check_bounds, cost, evaluate, evaluate_strict
 from rhi.design.executors import PoolExecutor, RayExecutor, SerialExecutor, make_executor, parallel_map, using
 from rhi.design.indices import device_indices, penalize, teleoperation_index
-from rhi.design.kinematics import DeviceMaster, Phantom3Master, Solution, slave_solution
+from rhi.design.kinematics import DeviceMaster, Phantom3Master, Solution, declared_bounds, slave_solution
 from rhi.design.optimize import Optimum, optimize, sweep
 from rhi.design.workspace import Workspace, annulus, rectangle
 

@@ -15,7 +15,6 @@ height Z_PH; ``J_M^2D = jacobian(q)[:2]`` is eq. 4.26 there, and velocities map 
 from __future__ import annotations
 
 import dataclasses
-import tomllib
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -24,21 +23,10 @@ from rhi._validate import as_array, scalar
 from rhi.design.indices import device_indices, penalize, teleoperation_index
 from rhi.design.kinematics import Solution
 from rhi.design.workspace import Workspace
-from rhi.device import MODELS
-from rhi.errors import InfeasibleLimits, InvalidInput, UnknownDevice, Unreachable
+from rhi.errors import InfeasibleLimits, InvalidInput, Unreachable
 
 #: Design parameters that are link lengths (must be > 0).
 LENGTHS = ("l1", "l2", "l3", "d1", "d2", "d3", "d4")
-
-
-def declared_bounds(name: str) -> dict[str, tuple[float, float]]:
-    """The parameter bounds a device declares in its device.toml: {name: (min, max)} [m or rad]."""
-    path = MODELS / name / "device.toml"
-    if not path.is_file():
-        raise UnknownDevice(f"name: unknown device {name!r}")
-    spec = tomllib.loads(path.read_text())
-    return {k: (float(v["min"]), float(v["max"])) for k, v in spec.get("parameters", {}).items()
-            if "min" in v and "max" in v}
 
 
 def check_bounds(bounds: Mapping[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:

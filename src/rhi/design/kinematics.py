@@ -22,7 +22,17 @@ from collections.abc import Mapping
 import numpy as np
 
 from rhi.device import Device, device
+from rhi.device_spec import bundled_spec
 from rhi.errors import InvalidInput, Unreachable
+
+
+def declared_bounds(name: str) -> dict[str, tuple[float, float]]:
+    """The parameter bounds a bundled device declares in its device.toml: {name: (min, max)} [m or rad].
+
+    Raises:
+        UnknownDevice: no bundled device has that name.
+    """
+    return bundled_spec(name).parameter_bounds
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,8 +80,6 @@ class DeviceMaster:
 
     def bounds(self) -> dict[str, tuple[float, float]]:
         """Declared parameter bounds of the device (device.toml) [m or rad]."""
-        from rhi.design.cost import declared_bounds
-
         return declared_bounds(self.name)
 
     def solve(self, params: Mapping[str, float], targets: np.ndarray) -> Solution:
@@ -102,8 +110,6 @@ class Phantom3Master:
 
     def bounds(self) -> dict[str, tuple[float, float]]:
         """Declared parameter bounds of phantom3 (eq. 4.27; Z_PH derived, see its README) [m or rad]."""
-        from rhi.design.cost import declared_bounds
-
         return declared_bounds(self.name)
 
     def _limits(self) -> tuple[np.ndarray, np.ndarray, float, float]:

@@ -171,7 +171,7 @@ class MobilePlant:
                  geometry: dict | None = None, visual: bool = True, **gains: float) -> None:
         self.device = device or load_device("wmm")
         self.slip = slip if slip is not None else SlipModel()
-        self.geometry = dict(geometry or wheel_geometry(self.device.name))
+        self.geometry = dict(geometry or wheel_geometry(self.device))
         self.JV = body_map(**self.geometry)
         self.JV_pinv = np.linalg.pinv(self.JV)
         self.spec = wmm_spec(self.device, timestep=timestep, geometry=self.geometry, visual=visual, **gains)
@@ -389,7 +389,7 @@ def simulate(
         raise InvalidInput(f"controller: unsupported type {type(controller).__name__}")
     stage_of = stage if callable(stage) else (lambda _t, s=stage: s)
     bounds = controller.bounds
-    geom = plant.geometry if plant is not None else wheel_geometry(dev.name)
+    geom = plant.geometry if plant is not None else wheel_geometry(dev)
     JV_pinv = np.linalg.pinv(body_map(**geom))
     if plant is not None:
         if plant.device.joint_names != dev.joint_names:

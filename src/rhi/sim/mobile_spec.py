@@ -100,7 +100,7 @@ def wmm_spec(device: Device, *, timestep: float = 1e-3, arm_kp: float = 4000.0, 
         add = GeomAdder(spec)
         add_scenery(spec)
         add_skeleton(add, device, bodies, skip={1, 2, 3}, base=False)  # the base joints x_b, y_b, θ_b
-        floor = add_mecanum_base(add, bodies[3], **(geometry or wheel_geometry("wmm")))
+        floor = add_mecanum_base(add, bodies[3], **(geometry or wheel_geometry(device)))
         add_floor(add, spec, floor)
         hb = ee.add_body(name="handle", pos=fr.placement.translation, quat=quat_wxyz(fr.placement.rotation))
         add_handle(add, hb, link_radius(device))

@@ -1,0 +1,288 @@
+"""`DeviceTerms`: the kinematic and dynamic terms of a device at one state, and the constant maps behind them.
+
+`Device.terms` fills a `DeviceTerms` from one Pinocchio pass; ∂J/∂q comes from the 6-D
+frame Jacobian through the constant bilinear map of `fast_maps` (one-DoF joints). The
+task-space dynamics of thesis eqs. 5.2 / 7.1 are computed on first access. Also the small
+numeric helpers the 1 kHz paths share: `eye`, `inv`, `inv_small` and the `lazy` attribute.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from rhi.errors import InvalidInput
+
+if TYPE_CHECKING:
+    from rhi.device import Device
+
+#: one-DoF joints whose kinematic Hessian has the closed form used by `Device.terms`
+ONE_DOF_JOINT = re.compile(r"JointModel(R[XYZ]|P[XYZ]|RevoluteUnaligned|PrismaticUnaligned|Helical\w*)$")
+#: (3, 3, 3) Levi-Civita symbol ε_ijk: (a × b)_i = Σ ε_ijk a_j b_k
+LEVI_CIVITA = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    LEVI_CIVITA[_i, _j, _k], LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
+
+_EYE: dict[int, np.ndarray] = {}
+
+
+class lazy:
+    """Compute an attribute on first access and store it on the instance.
+
+    functools.cached_property without the per-access lock it takes on Python 3.11
+    (several µs per attribute, too much inside a 1 kHz control tick).
+    """
+
+    def __init__(self, fn: Callable) -> None:
+        self.fn = fn
+        self.name = fn.__name__
+        self.__doc__ = fn.__doc__
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        value = obj.__dict__[self.name] = self.fn(obj)
+        return value
+
+
+def eye(n: int) -> np.ndarray:
+    """The (n, n) identity, cached and read-only (use it in expressions such as ``eye(n) − X``)."""
+    eye_n = _EYE.get(n)
+    if eye_n is None:
+        eye_n = _EYE[n] = np.eye(n)
+        eye_n.flags.writeable = False
+    return eye_n
+
+
+try:  # the gufunc behind np.linalg.inv, without its Python-level checks (~3 µs per call)
+    from numpy.linalg import _umath_linalg
+
+    _umath_linalg.inv(np.eye(2), signature="d->d")
+
+    def inv(A: np.ndarray) -> np.ndarray:
+        """Inverse of a non-singular float matrix (the gufunc of `np.linalg.inv`, without its checks)."""
+        return _umath_linalg.inv(A, signature="d->d")
+
+except (ImportError, AttributeError, TypeError):  # pragma: no cover - other NumPy builds
+    inv = np.linalg.inv
+
+
+def inv_small(A: np.ndarray) -> np.ndarray:
+    """Inverse of a small square float matrix: closed form for 2 × 2, LAPACK otherwise.
+
+    Args:
+        A: (k, k) non-singular matrix.
+
+    Returns:
+        (k, k) inverse.
+
+    Raises:
+        numpy.linalg.LinAlgError: a 2 × 2 A is singular (larger ones give non-finite entries).
+    """
+    if A.shape == (2, 2):
+        (a, b), (c, d) = A.tolist()
+        det = a * d - b * c
+        if det != 0.0 and math.isfinite(det):
+            return np.array([[d / det, -b / det], [-c / det, a / det]])
+        return np.linalg.inv(A)  # raises LinAlgError
+    return inv(A)
+
+
+@dataclasses.dataclass(frozen=True)
+class FastMaps:
+    """Constant maps and flags of `Device.terms` (built once per device by `fast_maps`)."""
+
+    rows: slice | np.ndarray
+    offset: bool
+    identity: bool
+    At: np.ndarray
+    armature: np.ndarray
+    tril: tuple[np.ndarray, np.ndarray]
+    crba_symmetric: bool
+    hessian: np.ndarray | None
+    dJ_shape: tuple[int, int, int]
+
+
+class DeviceTerms:
+    """Kinematic and dynamic terms of a device at one state (q, q̇), computed together (`Device.terms`).
+
+    The per-tick snapshot a controller and its primary law read: eager attributes come
+    from one Pinocchio pass; the Cartesian (task-space) dynamics of thesis eq. 5.2 / 7.1
+    are computed on first access and cached.
+
+    Attributes:
+        device: the device these terms belong to.
+        q: (n,) joint positions [rad or m].
+        dq: (n,) joint velocities [rad/s], or None (velocity terms then raise InvalidInput).
+        x: (m,) end-effector position [m].
+        J: (m, n) task Jacobian ∂x/∂q [m/rad].
+        dJ: (m, n, n) ∂J/∂q with [i, j, k] = ∂J_ij/∂q_k [m/rad²].
+        M: (n, n) joint-space inertia M_q incl. armature [kg m²].
+        g: (n,) gravity torque G_q [N m].
+
+    Computed on first access (cached): ``xdot`` ẋ = J q̇ (m,) [m/s]; ``Jdot`` J̇ (m, n);
+    ``C`` C_q(q, q̇) (n, n); ``Minv`` M_q⁻¹; ``JMinv`` J M_q⁻¹ (m, n); ``Lambda`` M_x (m, m)
+    [kg]; ``Jsharp`` J# (n, m); ``N`` I − JᵀJ#ᵀ (n, n); ``Cx`` C_x (m, m) [N s/m]; ``Gx`` G_x
+    (m,) [N]. The snapshot is read-only by convention: do not modify its arrays.
+    """
+
+    def __init__(
+        self,
+        device: Device,
+        q: np.ndarray,
+        dq: np.ndarray | None,
+        *,
+        x: np.ndarray,
+        J: np.ndarray,
+        dJ: np.ndarray,
+        M: np.ndarray,
+        g: np.ndarray,
+        theta: np.ndarray | None = None,
+    ) -> None:
+        self.device = device
+        self.q, self.dq, self.x, self.J, self.dJ, self.M, self.g = q, dq, x, J, dJ, M, g
+        self._theta = theta
+
+    def _need_dq(self, what: str) -> np.ndarray:
+        if self.dq is None:
+            raise InvalidInput(f"dq: {what} needs the joint velocity; call Device.terms(q, dq)")
+        return self.dq
+
+    @lazy
+    def xdot(self) -> np.ndarray:
+        """(m,) end-effector velocity ẋ = J q̇ [m/s] (eq. 6.1)."""
+        return self.J.dot(self._need_dq("xdot"))
+
+    @lazy
+    def Jdot(self) -> np.ndarray:
+        """(m, n) time derivative J̇ = Σ_k ∂J/∂q_k q̇_k [m/(rad s)]."""
+        return self.dJ.dot(self._need_dq("Jdot"))
+
+    @lazy
+    def C(self) -> np.ndarray:
+        """(n, n) joint Coriolis/centrifugal matrix C_q(q, q̇) (Ṁ − 2C skew-symmetric); C q̇ [N m]."""
+        dq = self._need_dq("C")
+        if self._theta is None:
+            return self.device.coriolis(self.q, dq)
+        return self.device.coriolis_theta(self._theta, dq)
+
+    def _cartesian(self) -> None:
+        """Compute M_q⁻¹, J M_q⁻¹, M_x and J# together (one call on first access of any)."""
+        d = self.__dict__
+        Minv = d["Minv"] = inv(self.M)
+        JMinv = d["JMinv"] = self.J.dot(Minv)
+        Lam = d["Lambda"] = inv_small(JMinv.dot(self.J.T))
+        d["Jsharp"] = JMinv.T.dot(Lam)
+
+    @lazy
+    def Minv(self) -> np.ndarray:
+        """(n, n) M_q⁻¹ [1/(kg m²)] (M_q is positive definite for any physical model)."""
+        self._cartesian()
+        return self.__dict__["Minv"]
+
+    @lazy
+    def JMinv(self) -> np.ndarray:
+        """(m, n) J M_q⁻¹."""
+        self._cartesian()
+        return self.__dict__["JMinv"]
+
+    @lazy
+    def Lambda(self) -> np.ndarray:
+        """(m, m) apparent (end-effector) inertia M_x = (J M_q⁻¹ Jᵀ)⁻¹ [kg] (eqs. 5.2, 7.1)."""
+        self._cartesian()
+        return self.__dict__["Lambda"]
+
+    @lazy
+    def Jsharp(self) -> np.ndarray:
+        """(n, m) dynamically consistent inverse J# = M_q⁻¹ Jᵀ (J M_q⁻¹ Jᵀ)⁻¹ (eq. 5.3)."""
+        self._cartesian()
+        return self.__dict__["Jsharp"]
+
+    @lazy
+    def N(self) -> np.ndarray:
+        """(n, n) dynamically consistent torque null-space projector I − Jᵀ J#ᵀ (eqs. 3.20, 5.9, 7.5)."""
+        return eye(self.J.shape[1]) - self.J.T.dot(self.Jsharp.T)
+
+    @lazy
+    def Cx(self) -> np.ndarray:
+        """(m, m) end-effector Coriolis/centrifugal matrix C_x = M_x (J M_q⁻¹ C_q − J̇) J# (eqs. 5.2, 7.1).
+
+        With the Christoffel C_q of Pinocchio, Ṁ_x = C_x + C_xᵀ along any q̇.
+        """
+        return self.Lambda.dot(self.JMinv.dot(self.C) - self.Jdot).dot(self.Jsharp)
+
+    @lazy
+    def Gx(self) -> np.ndarray:
+        """(m,) gravity force reflected at the end-effector G_x = J#ᵀ G_q [N] (eqs. 5.2, 7.1)."""
+        g = self.g
+        if g.dot(g) == 0.0:  # planar devices: no projection needed
+            return np.zeros(self.J.shape[0])
+        return self.Jsharp.T.dot(g)
+
+    def __repr__(self) -> str:
+        return f"DeviceTerms({self.device.name!r}, q={np.round(self.q, 4).tolist()})"
+
+
+def fast_maps(model: pin.Model, A: np.ndarray, b: np.ndarray, armature: np.ndarray, rows: list[int]) -> FastMaps:
+    """The constant maps and flags of `Device.terms` for a chain model with actuation map θ = A q + b.
+
+    Args:
+        model: Pinocchio model of the chain (nv = nθ).
+        A: (nθ, n) actuation map; b: (nθ,) offset.
+        armature: (n,) rotor inertia [kg m²].
+        rows: world-axis indices of the task coordinates (m of them).
+    """
+    nt, n, m = model.nv, A.shape[1], len(rows)
+    rows_idx = slice(rows[0], rows[-1] + 1) if rows == list(range(rows[0], rows[-1] + 1)) else np.array(rows)
+    data = model.createData()
+    th = np.random.default_rng(0).uniform(-1.0, 1.0, nt)
+    Mt = pin.crba(model, data, th)
+    hessian = None
+    mask = hessian_mask(model)
+    if mask is not None:
+        # dJ[i, a, c] = Σ_{p,x,r,y} K[(i,a,c), (p,x), (r,y)] ω[p, x] v[r, y], from ∂J_j/∂θ_k = ω_k × v_j if k
+        # supports j, else ω_j × v_k (one-DoF joints), and J_q = J_θ A
+        eps = LEVI_CIVITA[rows]  # (m, 3, 3): [i, p, r]
+        Mk = mask.astype(float)
+        # S[a, c, x, y] = A[y, a] A[x, c] mask[y, x] + A[x, a] A[y, c] (1 − mask[x, y])
+        S = np.einsum("ya,xc,yx->acxy", A, A, Mk) + np.einsum("xa,yc,xy->acxy", A, A, 1.0 - Mk)
+        K = np.einsum("ipr,acxy->iacpxry", eps, S)
+        hessian = np.ascontiguousarray(K.reshape(m * n * n, 3 * nt * 3 * nt))
+    return FastMaps(
+        rows=rows_idx,
+        offset=bool(np.any(b != 0)),
+        identity=A.shape == (nt, nt) and bool(np.array_equal(A, np.eye(nt))),
+        At=np.ascontiguousarray(A.T),
+        armature=np.diag(armature),
+        tril=np.tril_indices(nt, -1),
+        crba_symmetric=bool(np.array_equal(Mt, Mt.T)) and bool(np.any(np.tril(Mt, -1) != 0) or nt == 1),
+        hessian=hessian,
+        dJ_shape=(m, n, n),
+    )
+
+
+def hessian_mask(model: pin.Model) -> np.ndarray | None:
+    """(nθ, nθ) bool, [j, k]: joint k supports joint j (or is j); None if a joint is not one-DoF."""
+    if model.njoints - 1 != model.nv:
+        return None
+    vidx = {}
+    for jid in range(1, model.njoints):
+        jm = model.joints[jid]
+        if jm.nv != 1 or jm.nq != 1 or not ONE_DOF_JOINT.match(jm.shortname()):
+            return None
+        vidx[jid] = jm.idx_v
+    mask = np.zeros((model.nv, model.nv), bool)
+    for jid, j in vidx.items():
+        for kid in model.supports[jid]:
+            if kid in vidx:
+                mask[j, vidx[kid]] = True
+    return mask
