@@ -1,9 +1,9 @@
 """Omnidirectional (Mecanum) mobile base of the wheeled mobile manipulator (thesis App. A, B).
 
 The base pose q_b = [x_b, y_b, θ_b] (world frame, [m, m, rad]) moves with the wheel
-speeds v_b = [ω_fl, ω_fr, ω_bl, ω_br] [rad/s] as q̇_b = P(q_b) v_b (eq. A.3), with
+speeds v_b = (ω_fl, ω_fr, ω_bl, ω_br) [rad/s] as q̇_b = P(q_b) v_b (eq. A.3), with
 P = J_I(θ_b) J_V (eq. A.21 / B.21). The WMM Jacobian maps wheel speeds and arm joint
-rates to the end-effector velocity: ẋ = [J_b P, J_m] [v_b; q̇_m] (eq. A.5 / B.2).
+rates to the end-effector velocity: ẋ = [J_b P, J_m] · (v_b; q̇_m) (eq. A.5 / B.2).
 
 Wheel order is front-left, front-right, back-left, back-right (eq. B.21); positive wheel
 speed drives the base forward (+x_b). The geometry (R, l1 = d1, l2 = d2) is not given
@@ -99,7 +99,7 @@ def wmm_jacobian(device: Device, q, *, wheel_radius: float, half_length: float, 
     Args:
         device: a mobile manipulator whose first three coordinates are
             [x_b, y_b, θ_b] (e.g. `rhi.device("wmm")`).
-        q: (..., n) configuration [x_b, y_b, θ_b, q_m] [m, m, rad, rad].
+        q: (..., n) configuration (x_b, y_b, θ_b, q_m) [m, m, rad, rad].
         wheel_radius, half_length, half_width: Mecanum geometry (`body_map`) [m];
             `**wheel_geometry("wmm")` gives the bundled estimates.
 

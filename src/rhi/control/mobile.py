@@ -1007,7 +1007,7 @@ class AMDController(_AccelBase):
 
         Args:
             t: time [s].
-            q: (n,) configuration [x_b, y_b, θ_b, q_m] [m, m, rad, rad].
+            q: (n,) configuration (x_b, y_b, θ_b, q_m) [m, m, rad, rad].
             dq: (n,) joint velocities (the commanded, integrated ones) [m/s, rad/s].
             x_des, dx_des, ddx_des: (3,) desired end-effector position [m], velocity [m/s],
                 acceleration [m/s²] (world frame).
@@ -1205,7 +1205,7 @@ class VelocityCommand:
 
     Attributes:
         v: (b + m,) [wheel speeds (4) [rad/s]; arm joint rates [rad/s]] (eq. A.5).
-        dq: (n,) generalized velocities [ẋ_b, ẏ_b, θ̇_b, q̇_m] = [P v_b; v_m] [m/s, rad/s].
+        dq: (n,) generalized velocities (ẋ_b, ẏ_b, θ̇_b, q̇_m) = (P v_b; v_m) [m/s, rad/s].
         x: (3,) end-effector position from the kinematics [m].
         gamma: motion-distribution weight γ (A.14).
         eta: η of eq. A.15 (arm-only demand).

@@ -243,7 +243,7 @@ class MobilePlant:
 
         Args:
             wheels: (4,) commanded wheel speeds [rad/s] (front-left, front-right, back-left, back-right).
-            q_arm: callable s ↦ (m,) or (m,) arm position reference [rad], s ∈ [0, duration] [s].
+            q_arm: callable s ↦ (m,) or (m,) arm position reference [rad], 0 ≤ s ≤ duration [s].
             dq_arm: callable s ↦ (m,) or (m,) arm velocity reference [rad/s].
         """
         k = max(1, int(round(duration / self.timestep)))
