@@ -24,13 +24,12 @@ KNOWN_LONG = {
     "rhi.control.mobile",
     "rhi.control.objectives",
     "rhi.control.saturation",
-    "rhi.device",
     "rhi.experiments.ch4",
     "rhi.experiments.ch5",
     "rhi.experiments.ch6",
     "rhi.experiments.perception",
 }
-KNOWN_CYCLES = [["rhi.design.cost", "rhi.design.kinematics"]]
+KNOWN_CYCLES: list[list[str]] = []
 
 
 def modules() -> dict[str, Path]:
