@@ -9,21 +9,22 @@ import pytest
 
 from rhi import thesis as T
 from rhi.control.mobile import (
+    W_TAU_LIMITS,
     AMDConfig,
     AMDController,
     DMConfig,
     JointBounds,
     PinvAccelConfig,
     PinvAccelController,
-    W_TAU_LIMITS,
     WeightedConfig,
     WeightedDistributionController,
     WMMKinematics,
-    _det_terms,
     acceleration_bounds,
+    auxiliary_projection,
     auxiliary_projector,
     base_stop_acceleration,
     chain_jacobian_derivatives,
+    det_terms,
     distribution_gamma,
     distribution_ratio,
     dm_cartesian_gradient,
@@ -42,7 +43,14 @@ from rhi.control.mobile import (
 from rhi.device import device
 from rhi.errors import InfeasibleLimits, InvalidInput
 from rhi.metrics import directional_manipulability
-from rhi.sim.mobile import MobilePlant, SlipModel, Trajectory, circle, hold, simulate
+from rhi.sim.mobile import (
+    MobilePlant,
+    SlipModel,
+    Trajectory,
+    circle,
+    hold,
+    simulate_mobile,
+)
 
 PI = np.pi
 Q0 = np.array([0, 0, 0, 0, PI / 6, 0, PI / 2, 0, -PI / 6, 0.0])  # thesis §A.4.1 / §B.4.1
@@ -143,7 +151,7 @@ def test_det_gradient_and_hessian_B14_B18(kin):
         np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-14)
         # the controller's O(m²) path: the same H, ∇H, ∇²H q̇ and σ_min
         v = rng.normal(size=7)
-        det, g2, hv, sigma = _det_terms(kin.jacobian6(q)[1][:, 3:], v)
+        det, g2, hv, sigma = det_terms(kin.jacobian6(q)[1][:, 3:], v)
         assert det == pytest.approx(manipulability_det(Jm), rel=1e-12)
         np.testing.assert_allclose(g2, g, rtol=1e-10, atol=1e-15)
         np.testing.assert_allclose(hv, H @ v, rtol=1e-9, atol=1e-14)
@@ -280,7 +288,7 @@ def test_dm_enhancement_raises_dm_cartesian_then_null_space(wmm):
     """§A.4.3: along x the Cartesian phase lowers the end-effector and raises DM, the null space raises it further."""
     dt = 0.01
     ctl = WeightedDistributionController(wmm, WeightedConfig(dt=dt, dm=DMConfig(u=(1.0, 0, 0))))
-    log1 = simulate(ctl, hold(wmm.fk(Q0), duration=5.0, dt=dt), Q0, stage="dm_cartesian")
+    log1 = simulate_mobile(ctl, hold(wmm.fk(Q0), duration=5.0, dt=dt), Q0, stage="dm_cartesian")
     q1 = log1.q[-1] + log1.dq[-1] * dt
     d0, d1 = ctl.dm(Q0), ctl.dm(q1)
     assert d0 == pytest.approx(3.825, abs=0.005)  # thesis Fig. A.9
@@ -288,7 +296,7 @@ def test_dm_enhancement_raises_dm_cartesian_then_null_space(wmm):
     x1 = wmm.fk(q1)
     assert 0.36 <= x1[2] < wmm.fk(Q0)[2] - 0.02  # thesis: z 0.492 -> 0.456, within the bounds of A.18
     np.testing.assert_allclose(x1[:2], wmm.fk(Q0)[:2], atol=1e-4)  # only z is optimised
-    log2 = simulate(ctl, hold(x1, duration=5.0, dt=dt), q1, stage="dm_null")
+    log2 = simulate_mobile(ctl, hold(x1, duration=5.0, dt=dt), q1, stage="dm_null")
     q2 = log2.q[-1] + log2.dq[-1] * dt
     assert ctl.dm(q2) > d1 + 0.2
     assert np.abs(log2.x - x1).max() < 1e-3  # the self-motion keeps the end-effector in place
@@ -340,6 +348,29 @@ def test_auxiliary_projector_B10(kin):
     np.testing.assert_allclose(P_A[np.ix_(active, active)], np.eye(active.sum()) - np.linalg.pinv(JS) @ JS, atol=1e-12)
 
 
+def test_auxiliary_projection_is_the_B10_projector(kin, bounds):
+    """The AMD's O(r n) projection equals `auxiliary_projector` (B.10 as printed) on the SNS active sets."""
+    rng = np.random.default_rng(11)
+    enabled = np.r_[np.zeros(3, bool), np.ones(7, bool)]
+    checked = 0
+    for _ in range(20):
+        q, dq = _state(rng)
+        J = kin.jacobian6(q)[1][:3]
+        lo, hi = acceleration_bounds(q, dq, bounds, 0.005)
+        res = sns_acceleration(J, kin.drift(q, dq), rng.normal(scale=3.0, size=3), lo, hi, enabled, np.zeros(10))
+        if res.gram_inv is None:
+            continue
+        v = rng.normal(size=10)
+        P_N = np.eye(10) - np.linalg.pinv(J) @ J
+        # the reference pseudo-inverts P_N[D, D], whose condition number grows as cond(J_S)²
+        # (seen: differences up to 3e-15 cond(J_S)²)
+        tol = 1e-14 * np.linalg.cond(J[:, res.active]) ** 2
+        np.testing.assert_allclose(auxiliary_projection(J, res.active, res.gram_inv, v),
+                                   auxiliary_projector(P_N, res.active) @ v, rtol=0, atol=tol)
+        checked += 1
+    assert checked >= 10
+
+
 def test_amd_step_task_and_bounds(wmm, kin):
     """J q̈ = α ẍ − J̇q̇ to 1e-9 (the tertiary motion lies in the null space) and q̈ within B.6–B.8."""
     rng = np.random.default_rng(9)
@@ -360,12 +391,12 @@ def test_amd_step_task_and_bounds(wmm, kin):
 def test_amd_keeps_the_base_still_inside_the_workspace(wmm):
     """§B.4.3: a circle the arm can follow alone: AMD commands no base motion at all (exactly zero)."""
     ctl = AMDController(wmm, AMDConfig(dt=0.01))
-    log = simulate(ctl, circle(wmm.fk(Q0), 0.05, duration=20.0, dt=0.01), Q0)
+    log = simulate_mobile(ctl, circle(wmm.fk(Q0), 0.05, duration=20.0, dt=0.01), Q0)
     assert np.all(log.dq[:, :3] == 0) and np.all(log.ddq[:, :3] == 0)
     assert np.all(log.base_active == 0) and np.all(log.alpha == 1)
     assert np.abs(log.error).max() < 2e-3
     assert log.bounds_ok
-    trad = simulate(PinvAccelController(wmm, PinvAccelConfig(dt=0.01)),
+    trad = simulate_mobile(PinvAccelController(wmm, PinvAccelConfig(dt=0.01)),
                     circle(wmm.fk(Q0), 0.05, duration=5.0, dt=0.01), Q0)
     assert np.abs(trad.dq[:, :3]).max() > 1e-3  # the traditional controller always moves the base
 
@@ -373,8 +404,8 @@ def test_amd_keeps_the_base_still_inside_the_workspace(wmm):
 def test_amd_singularity_avoidance_B42(wmm):
     """§B.4.2: beyond the workspace, plain AMD drives the arm singular; with avoidance the base takes over."""
     traj = circle(wmm.fk(Q0), 0.25, duration=12.0, dt=0.01)
-    plain = simulate(AMDController(wmm, AMDConfig(dt=0.01, singularity_avoidance=False)), traj, Q0)
-    sa = simulate(AMDController(wmm, AMDConfig(dt=0.01)), traj, Q0)
+    plain = simulate_mobile(AMDController(wmm, AMDConfig(dt=0.01, singularity_avoidance=False)), traj, Q0)
+    sa = simulate_mobile(AMDController(wmm, AMDConfig(dt=0.01)), traj, Q0)
     assert plain.sigma.min() < 0.05 < 0.1 < sa.sigma.min()
     first = sa.t[np.argmax(sa.base_active > 0)]
     assert 4.0 < first < 9.0  # thesis: 6.40 s
@@ -417,7 +448,7 @@ def test_closed_loop_on_the_plant_bounds_and_errors(wmm):
     dt = 0.01
     ctl = AMDController(wmm, AMDConfig(dt=dt))
     plant = MobilePlant(wmm)
-    log = simulate(ctl, circle(wmm.fk(Q0), 0.25, duration=9.0, dt=dt), Q0, plant=plant)
+    log = simulate_mobile(ctl, circle(wmm.fk(Q0), 0.25, duration=9.0, dt=dt), Q0, plant=plant)
     b = ctl.bounds
     assert log.bounds_ok
     assert np.all(log.q_true[:, 3:] >= b.q_min[3:] - 1e-3) and np.all(log.q_true[:, 3:] <= b.q_max[3:] + 1e-3)
@@ -444,11 +475,11 @@ def test_bad_input_errors(wmm, bounds):
     outside = Q0.copy()
     outside[4] = 2.5  # joint q2 is bounded at ±2.2 rad (Table B.1)
     with pytest.raises(InvalidInput, match="q0"):
-        simulate(ctl, hold(wmm.fk(Q0), duration=0.1, dt=0.01), outside)
+        simulate_mobile(ctl, hold(wmm.fk(Q0), duration=0.1, dt=0.01), outside)
     with pytest.raises(InvalidInput, match="q0"):
         MobilePlant(wmm).reset(outside)
     with pytest.raises(InvalidInput, match="trajectory"):
-        simulate(ctl, hold(wmm.fk(Q0), duration=0.1, dt=0.02), Q0)
+        simulate_mobile(ctl, hold(wmm.fk(Q0), duration=0.1, dt=0.02), Q0)
     with pytest.raises(InvalidInput, match="x_des"):
         ctl.step(0.0, Q0, np.zeros(10), [np.nan, 0, 0], np.zeros(3), np.zeros(3))
     with pytest.raises(InvalidInput, match="dt"):

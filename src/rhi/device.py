@@ -20,9 +20,18 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from rhi import batch, device_ik
+from rhi import batch
 from rhi._validate import as_array, limits_pair
-from rhi.device_spec import MODELS, DeviceSpec, LinearLimits, available_devices, build_model, bundled_spec, read_spec
+from rhi.device_ik import ik as solve_ik
+from rhi.device_spec import (
+    MODELS,
+    DeviceSpec,
+    LinearLimits,
+    available_devices,
+    build_model,
+    bundled_spec,
+    read_spec,
+)
 from rhi.device_terms import DeviceTerms, FastMaps, eye, fast_maps, inv_small, lazy
 from rhi.errors import InvalidInput, ModelError
 
@@ -316,8 +325,8 @@ class Device:
         Raises:
             Unreachable: no solution within the limits was found from any start.
         """
-        return device_ik.ik(self, x, q0, weights=weights, tol=tol, max_iter=max_iter, k_null=k_null,
-                            restarts=restarts)
+        return solve_ik(self, x, q0, weights=weights, tol=tol, max_iter=max_iter, k_null=k_null,
+                        restarts=restarts)
 
     # ---------------------------------------------------------------- locking
     def lock(self, values: Mapping[str | int, float] | None = None, *, name: str | None = None, **kw: float) -> Device:

@@ -17,7 +17,6 @@ import numpy as np
 import pinocchio as pin
 
 from rhi._validate import as_array
-
 from rhi.errors import InvalidInput, ModelError, UnknownDevice
 
 MODELS = Path(__file__).parent / "models"

@@ -21,7 +21,7 @@ from rhi import thesis as T
 from rhi.control.mobile import DMConfig, WeightedConfig, WeightedDistributionController, W_TAU_LIMITS
 from rhi.device import device
 from rhi.experiments.result import Result, Row, Table
-from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, hold, simulate
+from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, hold, simulate_mobile
 
 PI = math.pi
 #: Thesis start configuration q0 = [0, 0, 0, 0, π/6, 0, π/2, 0, −π/6, 0] (§A.4.1, §B.4.1).
@@ -77,7 +77,7 @@ def tracking(
     logs: dict[str, MobileLog] = {}
     for i, (name, dist) in enumerate(methods.items()):
         ctl = WeightedDistributionController(dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, distribution=dist))
-        logs[name] = simulate(ctl, traj, Q0, plant=MobilePlant(dev, slip=slip), progress=prog.run(i))
+        logs[name] = simulate_mobile(ctl, traj, Q0, plant=MobilePlant(dev, slip=slip), progress=prog.run(i))
     thesis = {m: {**T.TABLE_A_1[m], "err": T.ERROR_A[m]} for m in ("proposed", "traditional")}
     comps = (("v_xb", CM, "cm/s"), ("v_yb", CM, "cm/s"), ("ω_b", DEG, "°/s"))
     rows, err_rows = [], []
@@ -135,11 +135,11 @@ def _dm_phase(ctl: WeightedDistributionController, q0: np.ndarray, t_cart: float
     """Cartesian phase then null-space phase, kinematic; returns time series and configurations."""
     dev = ctl.device
     x0 = dev.fk(q0)
-    log1 = simulate(ctl, hold(x0, duration=t_cart, dt=dt), q0, stage="dm_cartesian")
+    log1 = simulate_mobile(ctl, hold(x0, duration=t_cart, dt=dt), q0, stage="dm_cartesian")
     tick()
     q1 = log1.q[-1] + log1.dq[-1] * dt
     x1 = dev.fk(q1)
-    log2 = simulate(ctl, hold(x1, duration=t_null, dt=dt), q1, stage="dm_null")
+    log2 = simulate_mobile(ctl, hold(x1, duration=t_null, dt=dt), q1, stage="dm_null")
     tick()
     q2 = log2.q[-1] + log2.dq[-1] * dt
     t = np.concatenate([log1.t, t_cart + dt + log2.t])

@@ -23,7 +23,7 @@ from rhi.control.mobile import AMDConfig, AMDController, PinvAccelConfig, PinvAc
 from rhi.device import device
 from rhi.experiments.appa import CM, DEG, Q0, _Progress, _slip_note
 from rhi.experiments.result import Result, Row, Table
-from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, simulate
+from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, simulate_mobile
 
 #: σ_min(J_m) below which we call the arm singular in §B.4.2 [m/rad] (a fifth of its start value 0.245).
 SINGULAR_SIGMA = 0.05
@@ -69,7 +69,7 @@ def best_sigma(x, starts: int = 6, seed: int = 0) -> float:
 def _run(controller, radius: float, duration: float, dt: float, slip: SlipModel, progress) -> MobileLog:
     dev = controller.device
     traj = circle(dev.fk(Q0), radius, duration=duration, dt=dt)
-    return simulate(controller, traj, Q0, plant=MobilePlant(dev, slip=slip), progress=progress)
+    return simulate_mobile(controller, traj, Q0, plant=MobilePlant(dev, slip=slip), progress=progress)
 
 
 def singularity(

@@ -19,7 +19,7 @@ gravity compensated, torques within 32/13 N m) track the integrated command.
 base's true pose: slip therefore shows up as end-effector tracking error, measured on
 the true end-effector (the motion-capture role of §A.4.1, §B.4.1).
 
-**Loop.** `simulate` runs a velocity-level (App. A) or acceleration-level (App. B)
+**Loop.** `simulate_mobile` runs a velocity-level (App. A) or acceleration-level (App. B)
 controller at its sampling time over a sampled `Trajectory` and returns a `MobileLog`.
 Without a plant (``plant=None``) the robot follows its command exactly (kinematic
 simulation, as the thesis's §A.4.3 simulation).
@@ -30,6 +30,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -40,6 +41,9 @@ from rhi.device import device as load_device
 from rhi.errors import InvalidInput, ModelError
 from rhi.mobile_base import body_map, wheel_geometry
 from rhi.sim.mobile_spec import wmm_spec
+
+if TYPE_CHECKING:
+    from rhi.control.mobile import MobileController
 
 # ================================================================== trajectories
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -338,8 +342,8 @@ class MobileLog:
 
 
 # ========================================================================= loop
-def simulate(
-    controller,
+def simulate_mobile(
+    controller: MobileController,
     trajectory: Trajectory,
     q0,
     *,
@@ -349,14 +353,15 @@ def simulate(
 ) -> MobileLog:
     """Run a mobile-manipulator controller over a trajectory.
 
-    The controller runs at its sampling time ``controller.config.dt``, which must equal the
-    trajectory's. Acceleration-level controllers (`rhi.control.mobile.AMDController`,
+    The controller (`rhi.control.mobile.MobileController`) runs at its sampling time
+    ``controller.config.dt``, which must equal the trajectory's; each sample it returns a
+    `MobileStep`. Acceleration-level controllers (`rhi.control.mobile.AMDController`,
     `PinvAccelController`) are integrated as the thesis does (§B.4.1: the integral of the
     computed acceleration is commanded): q̇⁺ = q̇ + q̈T, q⁺ = q + q̇T + q̈T²/2. Velocity-level
     controllers (`WeightedDistributionController`) command v = [v_b; q̇_m] directly.
 
     Args:
-        controller: the controller (its ``step`` is called once per sample).
+        controller: the controller (its ``advance`` is called once per sample).
         trajectory: desired end-effector motion, sampled at the control period.
         q0: (n,) start configuration [x_b, y_b, θ_b, q_m]; the robot starts at rest.
         plant: MuJoCo plant (reset to q0 here), or None for a kinematic run.
@@ -370,8 +375,6 @@ def simulate(
         InvalidInput: q0 outside the joint limits, a trajectory sampled at another period,
             or a controller without a supported interface.
     """
-    from rhi.control.mobile import AMDController, PinvAccelController, WeightedDistributionController
-
     dev = controller.device
     n = dev.n
     q0 = as_array("q0", q0, shape_tail=(n,))
@@ -384,9 +387,9 @@ def simulate(
     dt = float(controller.config.dt)
     if trajectory.t.size > 1 and abs(trajectory.dt - dt) > 1e-9 * max(dt, 1.0):
         raise InvalidInput(f"trajectory: sampled every {trajectory.dt} s but the controller runs every {dt} s")
-    accel = isinstance(controller, (AMDController, PinvAccelController))
-    if not accel and not isinstance(controller, WeightedDistributionController):
-        raise InvalidInput(f"controller: unsupported type {type(controller).__name__}")
+    if not callable(getattr(controller, "advance", None)):
+        raise InvalidInput(f"controller: {type(controller).__name__} has no advance method "
+                           "(rhi.control.mobile.MobileController)")
     stage_of = stage if callable(stage) else (lambda _t, s=stage: s)
     bounds = controller.bounds
     geom = plant.geometry if plant is not None else wheel_geometry(dev)
@@ -395,8 +398,7 @@ def simulate(
         if plant.device.joint_names != dev.joint_names:
             raise InvalidInput("plant: simulates another device than the controller's")
         plant.reset(q0)
-    if hasattr(controller, "reset"):
-        controller.reset()
+    controller.reset()
     K = trajectory.t.size
     nan = np.full(K, np.nan)
     log = {k: np.empty((K, n)) for k in ("q", "q_true", "dq")}
@@ -415,23 +417,18 @@ def simulate(
         q_meas = q_ref.copy()
         if plant is not None:
             q_meas[3:] = plant.q[3:]
-        if accel:
-            cmd = controller.step(t, q_meas, dq, xd, dxd, ddxd)
-            ddq = cmd.ddq
+        cmd = controller.advance(t, q_meas, dq, xd, dxd, ddxd, stage=stage_of(t))
+        dq_new, ddq = cmd.dq, cmd.ddq
+        if ddq is not None:
             ok &= bool(np.all(ddq >= bounds.ddq_min - 1e-9) & np.all(ddq <= bounds.ddq_max + 1e-9))
-            dq_new = dq + ddq * dt
             q_next = q_ref + dq * dt + 0.5 * ddq * dt * dt
             dq_mid = 0.5 * (dq + dq_new)
             log["ddq"][k] = ddq
-            scal["base_active"][k] = float(cmd.base_active)
-            scal["alpha"][k], scal["beta"][k], scal["sigma"][k] = cmd.alpha, cmd.beta, cmd.sigma
         else:
-            cmd = controller.step(t, q_meas, xd, dxd, stage=stage_of(t))
-            dq_new = cmd.dq
             dq_mid = dq_new
-            ddq = None
             q_next = q_ref + dq_new * dt
-            scal["gamma"][k], scal["eta"][k], scal["dm"][k] = cmd.gamma, cmd.eta, cmd.dm
+        for key, value in cmd.record.items():
+            scal[key][k] = value
         ok &= bool(np.all(dq_new >= bounds.dq_min - 1e-9) & np.all(dq_new <= bounds.dq_max + 1e-9))
         ok &= bool(bounds.contains(q_next, 1e-9))
         th_mid = q_ref[2] + 0.5 * dq_mid[2] * dt
