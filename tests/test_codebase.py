@@ -21,7 +21,6 @@ MAX_LINES = 500
 KNOWN_LONG = {
     "rhi.analysis.psychophysics",
     "rhi.analysis.sysid",
-    "rhi.control.mobile",
     "rhi.control.objectives",
     "rhi.control.saturation",
     "rhi.experiments.ch4",
