@@ -2,34 +2,41 @@
 
 The hand pushes into a rendered 1000 N/m wall (§6.4 set-up) while the full controller runs
 (force rendering + FME matching with ASO/transition + ASCM + tertiary). Baselines measured in
-the same run: the same loop with a zero-torque controller (plant + hand + loop cost alone) and
-bare MuJoCo stepping. Target: simulated/wall ≥ 5.
+the same run: bare MuJoCo stepping of the same plant, the same loop with a zero-torque controller
+(plant + hand + environment + log: the loop's own cost), and that zero-controller loop as the
+previous implementation ran it (the package at git revision PREVIOUS, extracted with `git archive`
+and run in a subprocess; skipped outside a git checkout). Target (issue 14): the full loop
+≥ 25× faster than real time.
 
-    PYTHONPATH=src python benchmarks/bench_sim.py [seconds]
+Times are wall clock and CPU time of the process (the CPU time is steadier on a shared machine);
+each loop is timed `--repeat` times, best kept.
+
+    PYTHONPATH=src python benchmarks/bench_sim.py [seconds] [--previous REV] [--repeat K]
 """
 
 from __future__ import annotations
 
+import argparse
+import io
+import os
+import subprocess
 import sys
+import tarfile
+import tempfile
 import time
+from pathlib import Path as FilePath
 
 import mujoco
 import numpy as np
 
 import rhi
-from rhi.control import (
-    ControllerConfig,
-    FMESchedule,
-    ForceRendering,
-    NullSpaceController,
-    desired_fme_free,
-    desired_fme_stiff,
-    fme_shape,
-)
 from rhi.sim import Hand, Path, Plant, Wall, simulate
 
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
-TARGET = 5.0
+TARGET = 25.0
+#: main before the loop's speed work of issue 14
+PREVIOUS = "2e43554"
+ROOT = FilePath(__file__).resolve().parents[1]
 
 
 class Zero:
@@ -37,18 +44,35 @@ class Zero:
         return np.zeros(4)
 
 
-def run(controller, seconds: float) -> tuple[float, str | None]:
+def run(controller, seconds: float) -> tuple[float, float, str | None]:
+    """(wall [s], CPU [s], fault) of the palpation scenario."""
     dev = rhi.device("rhi4")
     plant = Plant(dev)
     plant.reset(Q0)
     x0 = dev.fk(Q0)
     hand = Hand(Path([x0, x0 + [0.0, 0.03]], speed=0.01), stiffness=300.0)
-    t0 = time.perf_counter()
+    w0, c0 = time.perf_counter(), time.process_time()
     log = simulate(plant, controller, duration=seconds, hand=hand, virtual=Wall(x0 + [0.0, 0.005], [0, 1], 1000.0))
-    return time.perf_counter() - t0, log.fault
+    return time.perf_counter() - w0, time.process_time() - c0, log.fault
 
 
-def full_controller() -> NullSpaceController:
+def best(fn, repeat: int) -> tuple[float, float]:
+    """Smallest wall and CPU time of `repeat` calls of fn() -> (wall, cpu, ...)."""
+    runs = [fn()[:2] for _ in range(repeat)]
+    return min(r[0] for r in runs), min(r[1] for r in runs)
+
+
+def full_controller():
+    from rhi.control import (
+        ControllerConfig,
+        FMESchedule,
+        ForceRendering,
+        NullSpaceController,
+        desired_fme_free,
+        desired_fme_stiff,
+        fme_shape,
+    )
+
     dev = rhi.device("rhi4")
     K, z = fme_shape(dev.jacobian(np.zeros(4)), dev.torque_max, 5.0)
     cfg = ControllerConfig(ForceRendering(damping=0.01),
@@ -57,23 +81,71 @@ def full_controller() -> NullSpaceController:
     return NullSpaceController(dev, cfg)
 
 
-def main(seconds: float = 10.0) -> None:
+def bare(seconds: float) -> tuple[float, float]:
     plant = Plant(rhi.device("rhi4"))
     plant.reset(Q0)
-    steps = int(seconds / plant.timestep)
-    t0 = time.perf_counter()
+    m, d = plant.model, plant.data
+    steps = int(round(seconds / plant.timestep))
+    w0, c0 = time.perf_counter(), time.process_time()
     for _ in range(steps):
-        mujoco.mj_step(plant.model, plant.data)
-    bare = time.perf_counter() - t0
-    zero, _ = run(Zero(), seconds)
-    full, fault = run(full_controller(), seconds)
-    print(f"{seconds:g} s simulated at 1 kHz (plant step {plant.timestep * 1e3:g} ms), rhi4 palpation")
-    print(f"  bare MuJoCo stepping        {bare:7.2f} s wall   {seconds / bare:8.1f}x real time")
-    print(f"  loop + zero controller      {zero:7.2f} s wall   {seconds / zero:8.1f}x real time")
-    print(f"  loop + full controller      {full:7.2f} s wall   {seconds / full:8.1f}x real time "
-          f"(target >= {TARGET:g}x: {'met' if seconds / full >= TARGET else 'NOT met'})")
-    print(f"  controller share of the loop: {(full - zero) / full:.0%}; fault: {fault}")
+        mujoco.mj_step(m, d)
+    return time.perf_counter() - w0, time.process_time() - c0
+
+
+def previous(rev: str, seconds: float, repeat: int) -> tuple[float, float] | str:
+    """Best (wall, CPU) of the zero-controller loop in the package at `rev`, or why it could not run."""
+    try:
+        tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "src"], capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError) as exc:
+        return f"skipped (no git revision {rev}: {exc})"
+    with tempfile.TemporaryDirectory() as tmp:
+        tarfile.open(fileobj=io.BytesIO(tar)).extractall(tmp, filter="data")
+        env = {**os.environ, "PYTHONPATH": os.path.join(tmp, "src")}
+        out = subprocess.run([sys.executable, __file__, str(seconds), "--zero-only", "--repeat", str(repeat)],
+                             capture_output=True, text=True, env=env, cwd=tmp)
+    if out.returncode != 0:
+        return f"failed: {out.stderr.strip().splitlines()[-1] if out.stderr.strip() else out.returncode}"
+    wall, cpu = map(float, out.stdout.split())
+    return wall, cpu
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("seconds", nargs="?", type=float, default=10.0)
+    ap.add_argument("--previous", default=PREVIOUS, help="git revision of the previous implementation")
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--zero-only", action="store_true", help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    s, r = a.seconds, a.repeat
+    if a.zero_only:  # the previous implementation's run (a subprocess of the benchmark)
+        print(*best(lambda: run(Zero(), s), r))
+        return
+    rows = [("bare MuJoCo stepping", best(lambda: bare(s), r))]
+    prev = previous(a.previous, s, r)
+    if isinstance(prev, tuple):
+        rows.append((f"loop + zero controller @{a.previous}", prev))
+    rows.append(("loop + zero controller", best(lambda: run(Zero(), s), r)))
+    full = run(full_controller(), s)
+    rows.append(("loop + full controller", full[:2]))
+    ticks = round(s * 1000)
+    print(f"{s:g} s simulated at 1 kHz (plant step 0.5 ms), rhi4 palpation; load average "
+          f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; best of {r}")
+    print(f"  {'':34s} {'wall [s]':>9s} {'x real':>7s} {'CPU [s]':>9s} {'x real':>7s}  {'CPU/tick beyond MuJoCo':>22s}")
+    b_cpu = rows[0][1][1]
+    for name, (wall, cpu) in rows:
+        extra = "" if name.startswith("bare") else f"{(cpu - b_cpu) / ticks * 1e6:16.1f} µs"
+        print(f"  {name:34s} {wall:9.3f} {s / wall:7.1f} {cpu:9.3f} {s / cpu:7.1f}  {extra}")
+    zero = rows[-2][1]
+    if isinstance(prev, tuple):
+        print(f"  zero-controller loop vs @{a.previous}: {prev[0] / zero[0]:.2f}x faster (wall), "
+              f"{prev[1] / zero[1]:.2f}x (CPU); loop overhead beyond MuJoCo "
+              f"{(prev[1] - b_cpu) / (zero[1] - b_cpu):.2f}x smaller")
+    else:
+        print(f"  previous implementation: {prev}")
+    print(f"  full loop: {s / full[0]:.1f}x real time (target >= {TARGET:g}x: "
+          f"{'met' if s / full[0] >= TARGET else 'NOT met'}); controller share {(full[1] - zero[1]) / full[1]:.0%} "
+          f"of its CPU; fault: {full[2]}")
 
 
 if __name__ == "__main__":
-    main(float(sys.argv[1]) if len(sys.argv) > 1 else 10.0)
+    main()

@@ -54,13 +54,22 @@ class Wall:
         object.__setattr__(self, "normal", unit_vector("normal", self.normal, p.shape[-1]))
         object.__setattr__(self, "stiffness", _gain("stiffness", self.stiffness))
         object.__setattr__(self, "damping", _gain("damping", self.damping))
+        object.__setattr__(self, "_p", p.tolist())
+        object.__setattr__(self, "_n", self.normal.tolist())
 
     def force(self, x, xdot) -> np.ndarray:
         x = np.asarray(x)
-        if x.ndim == 1:  # one point: the simulation loop's case, kept cheap
-            d = float((x - self.point) @ self.normal)
-            push = self.stiffness * d + self.damping * float(np.asarray(xdot) @ self.normal) if d > 0 else 0.0
-            return -max(push, 0.0) * self.normal
+        if x.shape == self.point.shape:  # one point: the simulation loop's case, on plain floats
+            n = self._n
+            d = sum((a - b) * c for a, b, c in zip(x.tolist(), self._p, n))
+            if d > 0:
+                v = np.asarray(xdot)
+                if v.shape != x.shape:
+                    raise InvalidInput(f"xdot: expected shape {x.shape} like x, got {v.shape}")
+                push = max(self.stiffness * d + self.damping * sum(a * c for a, c in zip(v.tolist(), n)), 0.0)
+            else:
+                push = 0.0
+            return np.array([-push * c for c in n])
         d = (x - self.point) @ self.normal
         dd = np.asarray(xdot) @ self.normal
         push = np.where(d > 0, self.stiffness * d + self.damping * dd, 0.0)

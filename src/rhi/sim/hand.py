@@ -46,8 +46,13 @@ class Path:
         object.__setattr__(self, "start", scalar("start", self.start))
         object.__setattr__(self, "points", P)
         seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        u = np.diff(P, axis=0) / np.where(seg > 0, seg, 1.0)[:, None]
+        # plain floats for `at`, which the simulation calls at every physics step
         object.__setattr__(self, "_s", np.concatenate([[0.0], np.cumsum(seg)]).tolist())
-        object.__setattr__(self, "_u", np.diff(P, axis=0) / np.where(seg > 0, seg, 1.0)[:, None])
+        object.__setattr__(self, "_P", P.tolist())
+        object.__setattr__(self, "_u", u.tolist())
+        object.__setattr__(self, "_v", (speed * u).tolist())
+        object.__setattr__(self, "_rest", [0.0] * P.shape[1])
 
     @property
     def length(self) -> float:
@@ -61,15 +66,21 @@ class Path:
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference position (m,) [m] and velocity (m,) [m/s] at time t [s]."""
-        P, s = self.points, self._s
+        x, v = self.at(t)
+        return np.array(x), np.array(v)
+
+    def at(self, t: float) -> tuple[list[float], list[float]]:
+        """`__call__` on plain floats: position (m,) [m] and velocity (m,) [m/s] at time t [s] as lists
+        (the hand's per-step path: no array overhead). The lists may be shared: do not modify them."""
+        P, s = self._P, self._s
         if len(P) == 1 or t <= self.start:
-            return P[0].copy(), np.zeros(P.shape[1])
+            return P[0], self._rest
         d = (t - self.start) * self.speed
         if d >= s[-1]:
-            return P[-1].copy(), np.zeros(P.shape[1])
+            return P[-1], self._rest
         i = bisect.bisect_right(s, d) - 1  # the segment holding d (zero-length segments skipped)
-        u = self._u[i]
-        return P[i] + (d - s[i]) * u, self.speed * u
+        di = d - s[i]
+        return [p + di * u for p, u in zip(P[i], self._u[i])], self._v[i]
 
     def sample(self, step: float) -> np.ndarray:
         """Points along the path every `step` metres: (k, m) [m]."""
@@ -118,13 +129,29 @@ class Hand:
 
     def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
         """F_h: (m,) [N] the hand applies to the handle at position x (m,) [m], velocity ẋ (m,) [m/s]."""
-        xr, vr = self.path(t)
-        F = self.stiffness * (xr - x) + self.damping * (vr - xdot)
+        xr, vr = self.path.at(t)
+        K, B = self.stiffness, self.damping
+        # on plain floats: the simulation calls this at every physics step
+        m = len(xr)
+        F = [K * (a - b) + B * (c - d) for a, b, c, d in zip(xr, _vector("x", x, m), vr, _vector("xdot", xdot, m))]
         if self.max_force is not None:
-            nf = math.sqrt(float(F @ F))
+            nf = math.hypot(*F)
             if nf > self.max_force:
-                F *= self.max_force / nf
-        return F
+                r = self.max_force / nf
+                F = [f * r for f in F]
+        return np.array(F)
+
+
+def _vector(name: str, v, m: int) -> list[float]:
+    """An (m,) vector as a list of floats.
+
+    Raises:
+        InvalidInput: v is not of shape (m,) (named).
+    """
+    a = v if type(v) is np.ndarray else np.asarray(v, dtype=float)
+    if a.shape != (m,):
+        raise InvalidInput(f"{name}: expected shape ({m},) (the path's dimension), got {a.shape}")
+    return a.tolist()
 
 
 @dataclasses.dataclass(frozen=True)

@@ -13,12 +13,14 @@ import time
 from collections.abc import Callable
 from typing import Protocol
 
+import mujoco
 import numpy as np
+import pinocchio as pin
 
 from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.sim.log import Log, LogWriter, layout
-from rhi.sim.plant import Plant, PlantUnstable
+from rhi.sim.plant import Plant, _index, unstable
 from rhi.sim.telemetry import Telemetry
 
 
@@ -86,22 +88,41 @@ class Session:
         if self.fault is not None:
             return self.fault
         p, hand, phys, h = self.plant, self.hand, self.physical, self.plant.timestep
-        zero = self._zero
-        F_h = zero
+        # The plant's persistent MjData views (see `Plant.step`): the torque is set once for the period,
+        # the handle force at every physics step, then mj_step2 + mj_step1 with the divergence check.
+        p.apply(tau)
+        model, data, sd, pos, vel = p.model, p.data, p._sd, p._pos, p._vel
+        xfrc, task, wn = p._xfrc, p._task, p._wnum
+        i, j, k = p._bad
+        step1, step2 = mujoco.mj_step1, mujoco.mj_step2
+        forces = hand is not None or phys is not None
+        F_h = self._zero
         t0 = self.t
-        try:
-            for s in range(self.sub):
-                x, xdot = p.x, p.xdot
-                F_h = hand.force(t0 + s * h, x, xdot) if hand is not None else zero
-                F = F_h + phys.force(x, xdot) if phys is not None else F_h
-                if not math.isfinite(float(F @ F)):
-                    return self._stop(f"hand/environment: non-finite force {np.asarray(F).tolist()} on the handle "
-                                      f"at t={t0 + s * h:.4f} s")
-                p.apply(tau, F)
-                p.step()
-                self.work += float(F_h @ p.xdot) * h
-        except PlantUnstable as exc:
-            return self._stop(str(exc))
+        work = self.work
+        xdot = sd[vel].copy() if forces else None
+        for s in range(self.sub):
+            if forces:
+                x = sd[pos].copy()
+                if hand is not None:
+                    F_h = hand.force(t0 + s * h, x, xdot)
+                    F = F_h + phys.force(x, xdot) if phys is not None else F_h
+                else:
+                    F = phys.force(x, xdot)
+                if not math.isfinite(F.dot(F)):
+                    self.work = work
+                    return self._stop(f"hand/environment: non-finite force {np.asarray(F).tolist()} on the "
+                                      f"handle at t={t0 + s * h:.4f} s")
+                xfrc[task] = F
+            step2(model, data)
+            step1(model, data)
+            if wn[i] or wn[j] or wn[k]:
+                self.work = work
+                return self._stop(str(unstable(t0 + s * h)))
+            if forces:
+                xdot = sd[vel].copy()  # the velocity after the step: the user's work, the next step's hand
+                if hand is not None:
+                    work += float(F_h.dot(xdot)) * h
+        self.work = work
         self.t = t0 + self.dt
         self.F_hand = F_h
         if self.teleop is not None and x_master is not None:
@@ -169,44 +190,55 @@ def simulate(
     ms = teleop.slave.m if teleop is not None else 0
     w = LogWriter(layout(n, m, ms), log, meta={"device": dev.name, "rate": float(rate), "source": "simulate"})
     c = w.cols
+    # Row blocks (see `layout`): the arrays from q to ft, the scalars from work to alpha_pc, then seq,
+    # the timing columns and safety: one write each.
+    i_arr, i_sc = c["q"].start, c["work"]
+    i_seq = c["seq"]
+    if (c["ft"].stop, c["alpha_pc"] - i_sc, c["safety"] - i_seq) != (i_sc, 6, 7):
+        raise AssertionError(f"log layout changed: {w.columns}")  # pragma: no cover - a bug, not an input
+    arrays, scalars, tail = slice(i_arr, i_sc), slice(i_sc, i_sc + 7), slice(i_seq, i_seq + 8)
+    slave = c.get("slave_x")
+    kin = Kinematics(dev) if (virtual is not None or teleop is not None) else None
     zero_m = np.zeros(m)
+    nan = math.nan
     every = max(1, N // 100)
     state = getattr(controller, "state", None)
     recorded: dict[str, list] = {}
-    t_start = time.perf_counter()
+    step = controller.step
+    pos, vel, sd = plant._pos, plant._vel, plant._sd
+    concat, perf = np.concatenate, time.perf_counter
+    t_start = perf()
     try:
         for k in range(N):
-            t0 = time.perf_counter()
+            t0 = perf()
             t = sess.t
             q, dq = plant.q, plant.dq
             ft = plant.ft()
-            if virtual is not None:
-                kin = dev.terms(q, dq, check=False)
-                F_env = virtual.force(kin.x, kin.xdot)
+            x_m = None
+            if kin is not None:
+                x_m, xdot_m = kin(q, dq)
+                F_env = virtual.force(x_m, xdot_m) if virtual is not None else zero_m
             else:
                 F_env = zero_m
-            t1 = time.perf_counter()
-            tau = np.asarray(controller.step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
-            t2 = time.perf_counter()
-            fault = sess.advance(tau, dev.fk(q) if teleop is not None else None)
+            t1 = perf()
+            tau = np.asarray(step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
+            t2 = perf()
+            fault = sess.advance(tau, x_m)
             row = w.row()
-            row[c["t"]], row[c["q"]], row[c["dq"]], row[c["tau"]] = t, q, dq, tau
-            row[c["x"]], row[c["xdot"]], row[c["F_hand"]], row[c["F_env"]] = plant.x, plant.xdot, sess.F_hand, F_env
-            row[c["ft"]], row[c["work"]], row[c["seq"]] = ft, sess.work, k
+            row[0] = t
+            concat((q, dq, tau, sd[pos], sd[vel], sess.F_hand, F_env, ft), out=row[arrays])
             if ms:
-                row[c["slave_x"]] = sess.slave_x
+                row[slave] = sess.slave_x
             if state is not None:
-                row[c["V"]], row[c["omega"]], row[c["alpha"]], row[c["beta"]] = \
-                    state.V, state.omega, state.alpha, state.beta
-                row[c["E_obs"]] = getattr(state, "E_obs", np.nan)
-                row[c["alpha_pc"]] = getattr(state, "alpha_pc", np.nan)
+                row[scalars] = (sess.work, state.V, state.omega, state.alpha, state.beta,
+                                getattr(state, "E_obs", nan), getattr(state, "alpha_pc", nan))
                 if state.stopped and w.fault is None:
                     w.fault = state.fault
                     w.event(t, "controller", state.fault or "controller stopped", k)
-            t3 = time.perf_counter()
-            row[c["wall"]], row[c["t_read"]], row[c["t_step"]] = t0 - t_start, t1 - t0, t2 - t1
-            row[c["t_write"]], row[c["t_tick"]], row[c["late"]] = t3 - t2, t3 - t0, 0.0
-            row[c["safety"]] = 0.0 if fault is None else 1.0
+            else:
+                row[i_sc] = sess.work
+            t3 = perf()
+            row[tail] = (k, t0 - t_start, t1 - t0, t2 - t1, t3 - t2, t3 - t0, 0.0, 0.0 if fault is None else 1.0)
             if record is not None:
                 _record(recorded, record(), c, k)
             if telemetry is not None:
@@ -235,3 +267,34 @@ def _record(recorded: dict[str, list], values: dict, columns: dict, k: int) -> N
         raise InvalidInput(f"record: returned {sorted(values)} at tick {k}, {sorted(recorded)} before")
     for name, v in values.items():
         recorded[name].append(np.array(v))
+
+
+class Kinematics:
+    """The handle position and velocity on the controller's model, from the encoders: what a haptic
+    rendering loop computes before its controller runs.
+
+    One Pinocchio forward-kinematics pass with velocities, on a `pin.Data` of its own (the device's
+    and its `terms` snapshot stay untouched). Equal to `Device.fk(q)` and `Device.terms(q, dq).xdot`
+    (to rounding).
+
+    Args:
+        device: the controller's device.
+    """
+
+    def __init__(self, device) -> None:
+        self.model = device.model
+        self.data = device.model.createData()
+        self.frame = device.model.getFrameId(device.ee_frame)
+        self.rows = _index(device.task_rows)
+        self.A = device.A
+        self.b = device.b if np.any(device.b != 0) else None
+
+    def __call__(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x: (m,) [m] and ẋ: (m,) [m/s] at motor angles q: (n,) [rad] and velocities dq: (n,) [rad/s]."""
+        model, data, f, A, rows = self.model, self.data, self.frame, self.A, self.rows
+        th = A.dot(q)
+        if self.b is not None:
+            th += self.b
+        pin.forwardKinematics(model, data, th, A.dot(dq))
+        x = pin.updateFramePlacement(model, data, f).translation[rows]
+        return x, pin.getFrameVelocity(model, data, f, pin.LOCAL_WORLD_ALIGNED).linear[rows]

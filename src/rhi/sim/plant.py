@@ -23,6 +23,13 @@ _AXES = {"x": 0, "y": 1, "z": 2}
 MAX_TIMESTEP = 5e-3
 
 
+def _index(rows: list[int]) -> slice | np.ndarray:
+    """Indices as a slice when they are consecutive (a view, no gather), else an index array."""
+    if rows == list(range(rows[0], rows[0] + len(rows))):
+        return slice(rows[0], rows[0] + len(rows))
+    return np.array(rows)
+
+
 class PlantUnstable(ModelError):
     """The physics diverged (MuJoCo flagged bad accelerations, velocities or positions and reset).
 
@@ -33,6 +40,12 @@ class PlantUnstable(ModelError):
     def __init__(self, message: str, t: float) -> None:
         super().__init__(message)
         self.t = t
+
+
+def unstable(t: float) -> PlantUnstable:
+    """The error of a physics step at time t [s] that MuJoCo flagged as diverged."""
+    return PlantUnstable(f"plant: MuJoCo reported unstable physics at t={t:.4f} s "
+                         "(bad accelerations, velocities or positions; it reset the state)", t)
 
 
 def device_friction(device: Device) -> PlantFriction:
@@ -91,17 +104,25 @@ class Plant:
         self._body = self.model.body("handle").id
         self._site = self.model.site("handle").id
         adr = {k: int(self.model.sensor(k).adr[0]) for k in ("ft_force", "ft_torque", "handle_pos", "handle_vel")}
-        self._ft = (slice(adr["ft_force"], adr["ft_force"] + 3), slice(adr["ft_torque"], adr["ft_torque"] + 3))
-        self._pos = np.array(self._rows) + adr["handle_pos"]
-        self._vel = np.array(self._rows) + adr["handle_vel"]
         self._jac = np.zeros((3, self.model.nv))
         self._weight = self.model.body_mass[self._body] * self.model.opt.gravity
         self.timestep = float(self.model.opt.timestep)
-        # views into MjData's persistent buffers, for a cheap `apply`/`step` in the 1 kHz loop
-        self._ctrl = self.data.ctrl
-        self._xfrc = self.data.xfrc_applied[self._body]
+        # Views into MjData's persistent buffers (they never move), for a cheap read/apply/step in the
+        # 1 kHz loop: task rows as slices when they are contiguous (no fancy-index gather).
+        d, rows = self.data, self._rows
+        self._task = _index(rows)
+        self._sd = d.sensordata
+        self._pos = _index([adr["handle_pos"] + r for r in rows])
+        self._vel = _index([adr["handle_vel"] + r for r in rows])
+        self._ten = d.ten_length[: self.n]
+        self._tenv = d.ten_velocity[: self.n]
+        self._R = d.site_xmat[self._site]
+        self._ff = d.sensordata[adr["ft_force"]: adr["ft_force"] + 3]
+        self._ft = d.sensordata[adr["ft_torque"]: adr["ft_torque"] + 3]
+        self._ctrl = d.ctrl
+        self._xfrc = d.xfrc_applied[self._body]
         # live view of MjData's warning counters; BADQACC, BADQVEL, BADQPOS flag diverged physics
-        self._wnum = self.data.warning.number
+        self._wnum = d.warning.number
         self._bad = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL,
                                            mujoco.mjtWarning.mjWARN_BADQPOS))
 
@@ -125,30 +146,35 @@ class Plant:
     @property
     def q(self) -> np.ndarray:
         """Motor encoders: (n,) [rad]."""
-        return self.data.ten_length[: self.n] - self._const
+        return self._ten - self._const
 
     @property
     def dq(self) -> np.ndarray:
         """Motor velocities: (n,) [rad/s]."""
-        return self.data.ten_velocity[: self.n].copy()
+        return self._tenv.copy()
 
     def ft(self) -> np.ndarray:
         """The handle's 6-axis F/T sensor in world axes, tared (the handle's weight removed):
         (6,) force [N] and torque [N m] the hand applies to the device."""
-        R = self.data.site_xmat[self._site].reshape(3, 3)
-        s = self.data.sensordata
-        return np.concatenate([-(R @ s[self._ft[0]]) - self._weight, -(R @ s[self._ft[1]])])
+        # R f and R t written out on floats: a third of the cost of two 3 × 3 NumPy products and a concatenate
+        r0, r1, r2, r3, r4, r5, r6, r7, r8 = self._R.tolist()
+        fx, fy, fz = self._ff.tolist()
+        tx, ty, tz = self._ft.tolist()
+        w0, w1, w2 = self._weight.tolist()
+        return np.array([-(r0 * fx + r1 * fy + r2 * fz) - w0, -(r3 * fx + r4 * fy + r5 * fz) - w1,
+                         -(r6 * fx + r7 * fy + r8 * fz) - w2,
+                         -(r0 * tx + r1 * ty + r2 * tz), -(r3 * tx + r4 * ty + r5 * tz), -(r6 * tx + r7 * ty + r8 * tz)])
 
     # ----------------------------------------------------------- ground truth
     @property
     def x(self) -> np.ndarray:
         """True handle position on the task axes: (m,) [m]."""
-        return self.data.sensordata[self._pos]
+        return self._sd[self._pos].copy()
 
     @property
     def xdot(self) -> np.ndarray:
         """True handle velocity on the task axes: (m,) [m/s]."""
-        return self.data.sensordata[self._vel]
+        return self._sd[self._vel].copy()
 
     def site_jacobian(self) -> np.ndarray:
         """Translational Jacobian of the handle w.r.t. the chain velocities: (3, nv)."""
@@ -173,7 +199,7 @@ class Plant:
         f = self._xfrc
         f[:] = 0.0
         if force is not None:
-            f[self._rows] = force
+            f[self._task] = force
 
     def step(self, steps: int = 1) -> None:
         """Advance the physics by `steps` timesteps.
@@ -193,5 +219,4 @@ class Plant:
             mujoco.mj_step2(m, d)
             mujoco.mj_step1(m, d)
             if wn[i] or wn[j] or wn[k]:
-                raise PlantUnstable(f"plant: MuJoCo reported unstable physics at t={t:.4f} s "
-                                    "(bad accelerations, velocities or positions; it reset the state)", t)
+                raise unstable(t)
