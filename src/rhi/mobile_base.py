@@ -93,6 +93,31 @@ def wheel_geometry(device: Device | str = "wmm") -> dict[str, float]:
     return dict(spec.mobile_base)
 
 
+def check_mobile_manipulator(device: Device) -> None:
+    """Require coordinates [x_b, y_b, θ_b, arm...]: a base pose then at least one arm joint.
+
+    Raises:
+        InvalidInput: naming `device`, if its coordinates are not those.
+    """
+    if tuple(device.joint_names[:3]) != BASE_JOINTS or device.n < 4:
+        raise InvalidInput(
+            f"device: expected coordinates starting with {list(BASE_JOINTS)} and an arm, got {device.joint_names}"
+        )
+
+
+def wheel_jacobian(Jq: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """J = [J_b P, J_m] from the generalized Jacobian J_q = [J_b, J_m] (thesis eq. A.5 / B.2).
+
+    Args:
+        Jq: (..., m, n) Jacobian of the coordinates [x_b, y_b, θ_b, q_m].
+        P: (..., 3, 4) base velocity map of `mecanum_map`.
+
+    Returns:
+        (..., m, 4 + n − 3) Jacobian of [wheel speeds; arm rates].
+    """
+    return np.concatenate([Jq[..., :3] @ P, Jq[..., 3:]], axis=-1)
+
+
 def wmm_jacobian(device: Device, q, *, wheel_radius: float, half_length: float, half_width: float) -> np.ndarray:
     """WMM Jacobian J = [J_b P(q_b), J_m] (thesis eq. A.5 / B.2).
 
@@ -107,11 +132,8 @@ def wmm_jacobian(device: Device, q, *, wheel_radius: float, half_length: float, 
         J: (..., m, 4 + n - 3) mapping [v_b; q̇_m] (wheel speeds [rad/s], arm rates [rad/s])
         to the end-effector velocity [m/s] in the world frame.
     """
-    if tuple(device.joint_names[:3]) != BASE_JOINTS or device.n < 4:
-        raise InvalidInput(
-            f"device: expected coordinates starting with {list(BASE_JOINTS)} and an arm, got {device.joint_names}"
-        )
+    check_mobile_manipulator(device)
     Jq = device.jacobian(q)
     q = np.asarray(q, dtype=float)
     P = mecanum_map(q[..., 2], wheel_radius=wheel_radius, half_length=half_length, half_width=half_width)
-    return np.concatenate([Jq[..., :3] @ P, Jq[..., 3:]], axis=-1)
+    return wheel_jacobian(Jq, P)

@@ -155,6 +155,16 @@ class SlipModel:
         return 1.0 - np.array([self.longitudinal, self.lateral, self.yaw])
 
 
+def base_to_wheels(JV_pinv: np.ndarray, dq_b, theta_b: float) -> np.ndarray:
+    """Wheel speeds (4,) [rad/s] of the generalized base velocity dq_b = [ẋ_b, ẏ_b, θ̇_b] at heading θ_b [rad].
+
+    The world velocity is rotated into the base frame and mapped by JV_pinv, the
+    pseudoinverse of `rhi.mobile_base.body_map` (eq. A.21 inverted; no slip).
+    """
+    c, s = math.cos(theta_b), math.sin(theta_b)
+    return JV_pinv @ np.array([c * dq_b[0] + s * dq_b[1], -s * dq_b[0] + c * dq_b[1], dq_b[2]])
+
+
 # ======================================================================== plant
 class MobilePlant:
     """The wmm in MuJoCo: a slipping velocity-commanded base carrying a servoed arm.
@@ -264,9 +274,7 @@ class MobilePlant:
 
     def wheel_speeds(self, dq_b, theta_b: float) -> np.ndarray:
         """Wheel speeds (4,) [rad/s] that realise the generalized base velocity dq_b = [ẋ_b, ẏ_b, θ̇_b] at heading θ_b (no slip)."""
-        c, s = math.cos(theta_b), math.sin(theta_b)
-        body = np.array([c * dq_b[0] + s * dq_b[1], -s * dq_b[0] + c * dq_b[1], dq_b[2]])
-        return self.JV_pinv @ body
+        return base_to_wheels(self.JV_pinv, dq_b, theta_b)
 
 
 # ========================================================================== log
@@ -432,8 +440,7 @@ def simulate_mobile(
         ok &= bool(np.all(dq_new >= bounds.dq_min - 1e-9) & np.all(dq_new <= bounds.dq_max + 1e-9))
         ok &= bool(bounds.contains(q_next, 1e-9))
         th_mid = q_ref[2] + 0.5 * dq_mid[2] * dt
-        c, s = math.cos(th_mid), math.sin(th_mid)
-        wheels = JV_pinv @ np.array([c * dq_mid[0] + s * dq_mid[1], -s * dq_mid[0] + c * dq_mid[1], dq_mid[2]])
+        wheels = base_to_wheels(JV_pinv, dq_mid, th_mid)
         log["q"][k], log["dq"][k], log["x_est"][k], log["wheels"][k] = q_meas, dq_new, cmd.x, wheels
         if plant is not None:
             log["q_true"][k], log["x"][k] = plant.q, plant.x

@@ -21,7 +21,7 @@ from rhi.control.mobile.bounds import EPS
 from rhi.device import Device
 from rhi.device_terms import LEVI_CIVITA
 from rhi.errors import InvalidInput, ModelError
-from rhi.mobile_base import BASE_JOINTS
+from rhi.mobile_base import BASE_JOINTS, check_mobile_manipulator
 
 
 class WMMKinematics:
@@ -70,11 +70,10 @@ def check_vector(name: str, v, n: int) -> np.ndarray:
 
 
 def check_base(device: Device, n_base: int) -> None:
-    """Require coordinates [x_b, y_b, θ_b, arm...] (InvalidInput naming `device` otherwise)."""
-    if n_base != len(BASE_JOINTS) or tuple(device.joint_names[:n_base]) != BASE_JOINTS or device.n <= n_base:
-        raise InvalidInput(
-            f"device: expected coordinates starting with {list(BASE_JOINTS)} and an arm, got {device.joint_names}"
-        )
+    """Require a mobile manipulator with ``n_base`` = 3 base coordinates (InvalidInput naming `device`)."""
+    if n_base != len(BASE_JOINTS):
+        raise InvalidInput(f"device: the base has {len(BASE_JOINTS)} coordinates {list(BASE_JOINTS)}, got n_base={n_base}")
+    check_mobile_manipulator(device)
 
 
 _CHAIN_INDEX: dict[int, tuple[np.ndarray, ...]] = {}

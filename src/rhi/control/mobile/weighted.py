@@ -32,7 +32,7 @@ from rhi.control.mobile.measures import dm_cartesian_gradient, dm_gradient, dm_v
 from rhi.control.mobile.protocol import MobileStep
 from rhi.device import Device
 from rhi.errors import InfeasibleLimits, InvalidInput
-from rhi.mobile_base import mecanum_map, wheel_geometry
+from rhi.mobile_base import mecanum_map, wheel_geometry, wheel_jacobian
 
 #: App. A.4.3: W_τ = diag(1, 1, 1, 1, 2.5, 2.5, 2.5) = diag(1/τ_lim) with τ_lim below.
 W_TAU_LIMITS = (1.0, 1.0, 1.0, 1.0, 0.4, 0.4, 0.4)
@@ -259,7 +259,7 @@ class WeightedDistributionController:
         q = check_vector("q", q, self.device.n)
         terms = self.device.terms(q, check=False)
         P = mecanum_map(q[2], **self.geometry)
-        return terms.x, np.concatenate([terms.J[:, :3] @ P, terms.J[:, 3:]], axis=1), P
+        return terms.x, wheel_jacobian(terms.J, P), P
 
     def dm(self, q) -> float:
         """H₂ of the arm at q (A.8) for the configured direction [N]."""
@@ -317,7 +317,7 @@ class WeightedDistributionController:
         terms = self.device.terms(q, check=False)
         x, Jq = terms.x, terms.J  # generalized Jacobian [J_b, J_m] (3, n)
         P = mecanum_map(q[2], **self.geometry)
-        J = np.concatenate([Jq[:, :3] @ P, Jq[:, 3:]], axis=1)
+        J = wheel_jacobian(Jq, P)  # A.5
         nw, m = self.n_wheels, self.m
         h = math.nan
         grad = None
