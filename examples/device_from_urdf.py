@@ -58,5 +58,5 @@ print(f"n = {arm.n}")
 print(f"m = {J.shape[0]}")
 print(f"jacobian_error = {np.abs(J - J_ref).max():.2e}")
 print(f"manipulability = {metrics.manipulability(J):.4f}")
-lo, hi = arm.torque_min, arm.torque_max
-print(f"max_force_x_N = {metrics.max_force(J, [1, 0], torque_min=lo, torque_max=hi, projector='dynamic', M=arm.mass_matrix(q)):.4f}")
+lo, hi, M = arm.torque_min, arm.torque_max, arm.mass_matrix(q)
+print(f"max_force_x_N = {metrics.max_force(J, [1, 0], torque_min=lo, torque_max=hi, projector='dynamic', M=M):.4f}")

@@ -86,8 +86,10 @@ def unit_vector(name: str, u, m: int | None = None) -> np.ndarray:
 
 
 def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, allow_inf: bool = False) -> float:
-    """Return `value` as a float, refusing None, strings, complex numbers, arrays and NaN (and ±inf
-    unless `allow_inf`); `positive` requires > 0, `nonnegative` >= 0."""
+    """Return `value` as a float, refusing None, strings, complex numbers, arrays and NaN.
+
+    ±inf is refused unless `allow_inf`; `positive` requires > 0, `nonnegative` >= 0.
+    """
     if value is None or isinstance(value, (str, bytes, complex, np.complexfloating)) or np.ndim(value) != 0:
         raise InvalidInput(f"{name}: expected a real number, got {value!r:.60}")
     try:

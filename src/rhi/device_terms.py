@@ -237,7 +237,8 @@ def fast_maps(model: pin.Model, A: np.ndarray, b: np.ndarray, armature: np.ndarr
 
     Args:
         model: Pinocchio model of the chain (nv = nθ).
-        A: (nθ, n) actuation map; b: (nθ,) offset.
+        A: (nθ, n) actuation map.
+        b: (nθ,) actuation offset.
         armature: (n,) rotor inertia [kg m²].
         rows: world-axis indices of the task coordinates (m of them).
     """

@@ -65,8 +65,9 @@ def device_from_urdf(
         ee_offset: (3,) tool point in `ee_frame` coordinates [m] (default: the frame origin).
         lock: {joint name: value [rad or m]} joints to hold fixed besides those off the path.
         armature: scalar or (n,) rotor inertia per motor [kg m²] (default 0).
-        torque_min, torque_max: scalar or (n,) actuator limits [N m or N] (default: ∓ the URDF
-            effort limits; a motor without one needs `torque_max`).
+        torque_min: scalar or (n,) lower actuator limits [N m or N] (default: − the URDF effort limits).
+        torque_max: scalar or (n,) upper actuator limits [N m or N] (default: the URDF effort limits; a motor
+            without one needs `torque_max`).
         friction: {"damping": (n,) [N m s/rad], "frictionloss": (n,) [N m]} for the plant
             (default: the URDF `<dynamics damping friction>` of each motor).
         name: device name (default: the file stem).

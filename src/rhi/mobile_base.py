@@ -61,7 +61,9 @@ def mecanum_map(theta_b, *, wheel_radius: float, half_length: float, half_width:
 
     Args:
         theta_b: (...,) base heading [rad].
-        wheel_radius, half_length, half_width: see `body_map` [m].
+        wheel_radius: wheel radius R [m] (see `body_map`).
+        half_length: half the wheelbase l1 [m] (see `body_map`).
+        half_width: half the track l2 [m] (see `body_map`).
 
     Returns:
         P: (..., 3, 4) mapping wheel speeds [rad/s] to [ẋ_b, ẏ_b, θ̇_b] (world frame) [m/s, m/s, rad/s].
@@ -125,8 +127,9 @@ def wmm_jacobian(device: Device, q, *, wheel_radius: float, half_length: float, 
         device: a mobile manipulator whose first three coordinates are
             [x_b, y_b, θ_b] (e.g. `rhi.device("wmm")`).
         q: (..., n) configuration (x_b, y_b, θ_b, q_m) [m, m, rad, rad].
-        wheel_radius, half_length, half_width: Mecanum geometry (`body_map`) [m];
-            `**wheel_geometry("wmm")` gives the bundled estimates.
+        wheel_radius: wheel radius R [m] (`body_map`; `**wheel_geometry("wmm")` gives the bundled estimates).
+        half_length: half the wheelbase l1 [m] (`body_map`).
+        half_width: half the track l2 [m] (`body_map`).
 
     Returns:
         J: (..., m, 4 + n - 3) mapping [v_b; q̇_m] (wheel speeds [rad/s], arm rates [rad/s])

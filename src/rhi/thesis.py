@@ -38,6 +38,7 @@ class ThesisValue(float):
 
     def __new__(cls, text: str, key: str, unit: str, source: str, *, tol: float | None = None,
                 relative: bool | None = None, claim: bool = False) -> ThesisValue:
+        """A float with the thesis's key, unit, source and rounding tolerance."""
         self = super().__new__(cls, float(text))
         self.key, self.unit, self.source, self.claim = key, unit, source, claim
         self.tol = _rounding(text) if tol is None else float(tol)
@@ -279,7 +280,8 @@ _TB2 = "Table B.2 (line 2501)"
 TABLE_B_2 = {
     (w, m): (tuple(_v(f"tableB_2.{w}.{m}.rms.{c}", t, u, _TB2, relative=(t != "0"))
                    for c, u, t in zip(("x", "y", "th"), ("cm/s", "cm/s", "°/s"), rms)),
-             tuple(_v(f"tableB_2.{w}.{m}.duration.{c}", t, "s", _TB2, relative=(t != "0")) for c, t in zip(("x", "y", "th"), dur)))
+             tuple(_v(f"tableB_2.{w}.{m}.duration.{c}", t, "s", _TB2, relative=(t != "0"))
+                   for c, t in zip(("x", "y", "th"), dur)))
     for (w, m), rms, dur in (
         (("within", "proposed"), ("0", "0", "0"), ("0", "0", "0")),
         (("within", "traditional"), ("1.10", "0.75", "0.287"), ("80", "80", "80")),

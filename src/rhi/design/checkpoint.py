@@ -20,7 +20,6 @@ import numpy as np
 
 from rhi.errors import InvalidInput
 
-
 SCHEMA = "rhi.design.checkpoint"
 VERSION = 1
 
@@ -76,6 +75,7 @@ class EvalCache:
         return len(self.data)
 
     def save(self) -> None:
+        """Write the evaluations to the checkpoint file (atomically: a temporary file, then a rename)."""
         if self.path is None:
             return
         self.path.parent.mkdir(parents=True, exist_ok=True)

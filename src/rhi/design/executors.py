@@ -39,6 +39,7 @@ class SerialExecutor:
     workers = 1
 
     def map(self, fn: Callable[[Any], Any], items: Iterable[Any]) -> list[Any]:
+        """``[fn(x) for x in items]``, in this process."""
         return [fn(x) for x in items]
 
     def imap(self, fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
@@ -46,6 +47,7 @@ class SerialExecutor:
         return (fn(x) for x in items)
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
     def __enter__(self):
@@ -117,6 +119,7 @@ class PoolExecutor(SerialExecutor):
         self._pool: ProcessPoolExecutor | None = None
 
     def map(self, fn, items):
+        """``[fn(x) for x in items]`` on the process pool, in chunks, in order."""
         items = list(items)
         if self.workers == 1 or len(items) <= 1:
             return [fn(x) for x in items]
@@ -135,6 +138,7 @@ class PoolExecutor(SerialExecutor):
         return self._pool.map(fn, items, chunksize=1)
 
     def close(self) -> None:
+        """Shut the pool down, cancelling queued work."""
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)  # an interrupted map leaves no queued work behind
             self._pool = None
@@ -168,6 +172,7 @@ class RayExecutor(SerialExecutor):
         self._remote = ray.remote(_ray_apply)
 
     def map(self, fn, items):
+        """``[fn(x) for x in items]`` as Ray tasks, in chunks, in order."""
         items = list(items)
         if not items:
             return []
@@ -186,6 +191,7 @@ class RayExecutor(SerialExecutor):
         return (self._ray.get(r)[0] for r in refs)
 
     def close(self) -> None:
+        """Shut down the Ray instance this executor started (not one it connected to)."""
         if self._owner and self._ray.is_initialized():
             self._ray.shutdown()
 
@@ -290,7 +296,8 @@ def parallel_map(
     Args:
         fn: picklable function (module level, or a ``functools.partial`` of one).
         items: the work items, e.g. one grid row each.
-        executor, workers: where to run (`using`).
+        executor: where to run (an executor or its name; see `using`).
+        workers: processes of a local pool (see `using`).
         progress: ``progress(done, total)`` after each finished item, counted in units.
         units: (len(items),) work units per item (e.g. grid points per row); default 1 each.
 

@@ -151,7 +151,10 @@ def optimize(
         which: "C1" (eq. 4.23) or "C2" (eq. 4.24).
         executor: evaluates each DE generation and the refinement starts (default serial).
         seed: seed of differential evolution (results are reproducible bit for bit).
-        popsize, maxiter, tol, strategy: differential-evolution settings (SciPy's meaning).
+        popsize: differential-evolution population size multiplier (SciPy's meaning).
+        maxiter: differential-evolution generations at most (SciPy's meaning).
+        tol: differential-evolution relative convergence tolerance (SciPy's meaning).
+        strategy: differential-evolution strategy (SciPy's meaning; see below).
         refine: polish with bounded Nelder–Mead.
         starts: number of Nelder–Mead starts (1: the DE optimum only).
         separation: minimum distance between starts, as a fraction of each parameter's range (∞-norm).

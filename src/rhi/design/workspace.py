@@ -27,7 +27,8 @@ class Workspace:
             consecutive points are neighbours (serpentine), which lets IK warm-start.
         weights: (N,) area each sample stands for [m²]; they sum to the area of W.
         kind: "grid" (midpoint rule) or "sobol" (scrambled Sobol' points, seeded).
-        density: samples per metre along each axis (grid) or sqrt(N / area) requested (sobol; N is rounded up to a power of 2) [1/m].
+        density: samples per metre along each axis (grid) or sqrt(N / area) requested (sobol; N is rounded up
+            to a power of 2) [1/m].
         description: human-readable summary.
     """
 
@@ -73,7 +74,8 @@ def rectangle(
     """Rectangle ``[x0, x1] × [y0, y1]`` sampled on a midpoint grid or by scrambled Sobol' points.
 
     Args:
-        xlim, ylim: (min, max) extents [m].
+        xlim: (min, max) extent along x [m].
+        ylim: (min, max) extent along y [m].
         density: samples per metre along each axis [1/m]; N ≈ area · density².
         kind: "grid" (cell centres, equal weights: midpoint rule, error O(h²)) or "sobol".
         seed: seed of the Sobol' scrambling.
@@ -108,7 +110,8 @@ def annulus(
 
     Args:
         center: (2,) centre [m].
-        r_in, r_out: inner and outer radii [m], 0 <= r_in < r_out.
+        r_in: inner radius [m], 0 <= r_in < r_out.
+        r_out: outer radius [m].
         density: samples per metre radially and along the mid-circle [1/m].
         kind: "grid" (polar cells, weight = exact cell area) or "sobol" (area-uniform, equal weights).
         seed: seed of the Sobol' scrambling.

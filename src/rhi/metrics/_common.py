@@ -49,7 +49,7 @@ def square(name: str, A: ArrayLike, size: int | None = None) -> FloatArray:
 
 
 def direction(name: str, u: ArrayLike, m: int | None) -> FloatArray:
-    """Return the direction(s) ``u`` of shape ``(..., m)`` (any m if None) normalised to unit length."""
+    """Unit vectors: ``u`` of shape ``(..., m)`` (any m if None) normalised to unit length."""
     return unit_vector(name, u, m)
 
 

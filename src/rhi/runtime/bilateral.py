@@ -70,6 +70,7 @@ class Master:
         self.received = np.zeros(self.device.m)  # the last force received from the slave [N]
 
     def step(self, t: float, q, dq, sensors) -> np.ndarray:
+        """One master tick: render the force received from the slave, TDPA-damped when passivity is on; send x and energy."""
         m = self.device.m
         self.end.tick()
         pkt = self.end.latest()
@@ -124,6 +125,7 @@ class Slave:
         self.drift = np.zeros(device.m)
 
     def step(self, t: float, q, dq, sensors) -> np.ndarray:
+        """One slave tick: PD toward the master's (delayed) position, TDPA-limited; send the contact force and energy."""
         m = self.device.m
         kin = self.device.terms(q, dq, check=False)
         if self._x_s0 is None:
@@ -198,18 +200,22 @@ class BilateralLog:
 def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration: float, hand=None, tissue=None,
                        forward=None, backward=None, passivity: bool = True, kp: float = 800.0, kd: float = 20.0,
                        rate: float = 1000.0, tmi_every: int = 20) -> BilateralLog:
-    """Both sides in one lock-step loop over a seeded delayed channel (deterministic; the two-process
-    version runs the same `Master` and `Slave` over `UDPEnd`s with `rhi.runtime.run`).
+    """Both sides in one lock-step loop over a seeded delayed channel (deterministic).
+
+    The two-process version runs the same `Master` and `Slave` over `UDPEnd`s with `rhi.runtime.run`.
 
     Args:
-        master_plant, slave_plant: the two MuJoCo plants (already reset).
+        master_plant: the master's MuJoCo plant (already reset).
+        slave_plant: the slave's MuJoCo plant (already reset).
         master_controller: renders sensors["force"] on the master (e.g. `ForceRendering`).
         duration: simulated time [s].
         hand: the user on the master, `force(t, x, ẋ)`.
         tissue: the slave's contact environment, `force(x, ẋ)` (applied in the slave plant).
-        forward, backward: `ChannelConfig` master→slave and slave→master (default: no delay).
+        forward: `ChannelConfig` master→slave (default: no delay).
+        backward: `ChannelConfig` slave→master (default: no delay).
         passivity: run the TDPA on both sides.
-        kp, kd: the slave's Cartesian PD gains [N/m], [N s/m].
+        kp: the slave's Cartesian stiffness gain [N/m].
+        kd: the slave's Cartesian damping gain [N s/m].
         rate: control rate of both sides [Hz].
         tmi_every: compute the TMI every this many ticks.
     """
@@ -255,9 +261,11 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
 
 def run_slave(plant, end, *, tissue=None, duration: float | None = None, passivity: bool = True, kp: float = 800.0,
               kd: float = 20.0, **run_kw):
-    """The slave side as its own process: the PD slave on `plant` pressing on `tissue`, following what arrives on
-    `end`, under `rhi.runtime.run`. Returns (`RunResult`, the `Slave`). (The master side is
-    ``run(SimLink(plant, hand=hand), Master(controller, end))``.)"""
+    """The slave side as its own process, under `rhi.runtime.run`.
+
+    The PD slave on `plant` presses on `tissue`, following what arrives on `end`. Returns
+    (`RunResult`, the `Slave`). (The master side is ``run(SimLink(plant, hand=hand), Master(controller, end))``.)
+    """
     from rhi.runtime.loop import run
     from rhi.runtime.simlink import SimLink
 

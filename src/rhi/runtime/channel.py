@@ -71,6 +71,7 @@ class DelayLine:
         self.sent = self.lost = 0
 
     def send(self, tick: int, seq: int, values: np.ndarray) -> None:
+        """Queue `values` sent at `tick`: delivered after the delay and jitter, or lost."""
         c = self.config
         self.sent += 1
         extra = self._rng.uniform(0.0, c.jitter) if c.jitter > 0 else 0.0
@@ -81,6 +82,7 @@ class DelayLine:
         heapq.heappush(self._queue, (due, seq, np.array(values, dtype=float)))
 
     def arrived(self, tick: int) -> list[tuple[int, np.ndarray]]:
+        """The packets due by `tick`: [(seq, values)], in delivery order."""
         out = []
         while self._queue and self._queue[0][0] <= tick:
             _, seq, v = heapq.heappop(self._queue)
@@ -98,12 +100,14 @@ class LocalEnd:
         self._best: tuple[int, np.ndarray] | None = None
 
     def tick(self) -> None:
+        """Advance one tick and keep the newest packet that arrived."""
         self._k += 1
         for seq, v in self.inp.arrived(self._k):
             if self._best is None or seq > self._best[0]:
                 self._best = (seq, v)
 
     def send(self, values: np.ndarray) -> None:
+        """Send `values` to the other end (through the channel's delay, jitter and loss)."""
         self._seq += 1
         self.out.send(self._k, self._seq, values)
 
@@ -142,6 +146,7 @@ class UDPEnd:
         self.stats = {"sent": 0, "lost": 0, "received": 0, "late": 0}
 
     def tick(self) -> None:
+        """Send the datagrams that are due and keep the newest one received."""
         now = time.monotonic()
         while self._queue and self._queue[0][0] <= now and self.peer is not None:
             _, _, pkt = heapq.heappop(self._queue)
@@ -168,6 +173,7 @@ class UDPEnd:
                 self.stats["late"] += 1
 
     def send(self, values: np.ndarray) -> None:
+        """Send `values` to the peer after the configured delay and jitter (or drop it, at the loss rate)."""
         c = self.config
         self._seq += 1
         self.stats["sent"] += 1
@@ -180,7 +186,9 @@ class UDPEnd:
         heapq.heappush(self._queue, (due, self._seq, pkt))
 
     def latest(self) -> np.ndarray | None:
+        """The newest packet received so far (None before the first)."""
         return None if self._best is None else self._best[1]
 
     def close(self) -> None:
+        """Close the socket."""
         self.sock.close()

@@ -43,12 +43,12 @@ from rhi.control import (
     FMESchedule,
     ForceRendering,
     ImpedanceControl,
-    Passivity,
     JointFriction,
     JointLimitBarrier,
     Manipulability,
     NullSpaceController,
     ObjectiveTerm,
+    Passivity,
     SpringPalpation,
     TMIMatching,
     TransitionConfig,
@@ -317,7 +317,8 @@ def parse_config(data: dict, *, name: str = "config", source: str = "<dict>",
 
     Args:
         data: the document (e.g. from `tomllib.loads`).
-        name, source: for messages and the run summary.
+        name: the configuration's name (for messages and the run summary).
+        source: where it was read from (for messages and the run summary).
         device_name: the device asked for (e.g. `rhi run DEVICE`); must match ``[device] name`` if the file names one.
 
     Raises:

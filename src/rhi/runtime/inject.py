@@ -1,7 +1,9 @@
 """Fault injection: a link wrapper that corrupts readings on schedule, to test a safety configuration.
 
-    link = Inject(SimLink(plant, hand=hand), freeze=(0.5, 0.6))   # encoders and F/T frozen 100 ms
-    res = run(link, controller, realtime=False)                    # → a "stale" fault at t = 0.503 s
+```python
+link = Inject(SimLink(plant, hand=hand), freeze=(0.5, 0.6))   # encoders and F/T frozen 100 ms
+res = run(link, controller, realtime=False)                    # → a "stale" fault at t = 0.503 s
+```
 """
 
 from __future__ import annotations
@@ -55,9 +57,11 @@ class Inject:
         return w is not None and w[0] <= t < w[1]
 
     def open(self) -> None:
+        """Open the wrapped link."""
         self.link.open()
 
     def read(self) -> Reading:
+        """The wrapped link's reading, corrupted as scheduled (silence, freeze, NaN, reorder...)."""
         r = self.link.read()
         if self._in(self.silence, r.t):
             raise LinkError(f"no reading (injected silence at t={r.t:.4f} s)")
@@ -77,7 +81,9 @@ class Inject:
         return r
 
     def write(self, tau, *, enable: bool) -> None:
+        """Pass the command through to the wrapped link."""
         self.link.write(tau, enable=enable)
 
     def close(self) -> None:
+        """Close the wrapped link."""
         self.link.close()

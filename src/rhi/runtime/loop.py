@@ -40,7 +40,8 @@ class RunResult:
     Attributes:
         log: the per-tick log (streamed to disk when a path was given).
         summary: JSON-serialisable statistics: ticks, rate, missed deadlines (count and %), p50/p99/p99.9/max
-            of the tick time and of the read→write latency (reading in hand to command sent) [s], clamp count, fault, every safety event.
+            of the tick time and of the read→write latency (reading in hand to command sent) [s], clamp count,
+            fault, every safety event.
     """
 
     log: Log
@@ -48,6 +49,7 @@ class RunResult:
 
     @property
     def fault(self) -> str | None:
+        """Why the run stopped (the log's fault), or None."""
         return self.log.fault
 
 
@@ -134,8 +136,8 @@ def run(
         realtime: pace ticks on the wall clock; False: as fast as the link answers.
         stop_on_fault: end the run at the first fault (after commanding zero torque); False: keep
             ticking with zero torque until `Safety.reset` or the end.
-        cpu: pin the loop to this CPU; priority: SCHED_FIFO priority (1–99). A clear warning where
-            the OS refuses either.
+        cpu: pin the loop to this CPU (a clear warning where the OS refuses).
+        priority: SCHED_FIFO priority (1–99) (a clear warning where the OS refuses).
         progress: called about twice a second with a status dict (rate, misses, max |τ|/limit, V, fault).
 
     Returns:

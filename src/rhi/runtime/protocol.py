@@ -30,21 +30,25 @@ _ERR = struct.Struct("<4sHH")  # magic, version, reserved; + UTF-8 message
 
 
 def hello() -> bytes:
+    """A HELLO packet (host → device)."""
     return _HELLO.pack(HELLO, VERSION, 0)
 
 
 def info(n: int, sensors: list[tuple[str, int]], rate: float, watchdog: float, meta: dict) -> bytes:
+    """An INFO packet (device → host): n motors, sensor widths, rate [Hz], watchdog [s] and a JSON description."""
     k = sum(w for _, w in sensors)
     body = json.dumps({**meta, "sensors": sensors}).encode()
     return _INFO.pack(INFO, VERSION, n, k, 0, rate, watchdog) + body
 
 
 def command(seq: int, ack: int, flags: int, t_host: float, tau: np.ndarray) -> bytes:
+    """A COMMAND packet (host → device): sequence numbers, flags, host time [s] and torques τ (n,) [N m]."""
     tau = np.ascontiguousarray(tau, dtype="<f8")
     return _CMD.pack(COMMAND, VERSION, flags, seq & NO_SEQ, ack & NO_SEQ, len(tau), 0, t_host) + tau.tobytes()
 
 
 def reading(seq: int, cmd_seq: int, status: int, t_dev: float, q, dq, s) -> bytes:
+    """A READING packet (device → host): sequence numbers, status, device time [s], q (n,), q̇ (n,), sensors (k,)."""
     q = np.ascontiguousarray(q, dtype="<f8")
     body = q.tobytes() + np.ascontiguousarray(dq, dtype="<f8").tobytes() + np.ascontiguousarray(s, dtype="<f8").tobytes()
     return _READ.pack(READING, VERSION, status, seq & NO_SEQ, cmd_seq & NO_SEQ, len(q), len(s) if s is not None else 0,
@@ -52,6 +56,7 @@ def reading(seq: int, cmd_seq: int, status: int, t_dev: float, q, dq, s) -> byte
 
 
 def error(message: str) -> bytes:
+    """An ERROR packet (device → host) carrying `message` (at most 1000 bytes)."""
     return _ERR.pack(ERROR, VERSION, 0) + message.encode()[:1000]
 
 
@@ -61,6 +66,7 @@ def kind(pkt: bytes) -> bytes:
 
 
 def version(pkt: bytes) -> int:
+    """The packet's protocol version (its header's second field)."""
     return struct.unpack_from("<H", pkt, 4)[0]
 
 
@@ -85,8 +91,10 @@ def parse_info(pkt: bytes) -> dict:
 
 
 def parse_command(pkt: bytes, n: int) -> tuple[int, int, int, float, np.ndarray] | None:
-    """COMMAND → (seq, ack, flags, t_host, tau (n,)), or None if it is not a valid version-1 command for n
-    motors with finite torques (such a packet is ignored and does not feed the watchdog)."""
+    """COMMAND → (seq, ack, flags, t_host, tau (n,)), or None if it is not a valid command.
+
+    Valid: version 1, n motors, finite torques (an invalid packet is ignored and does not feed the watchdog).
+    """
     if len(pkt) != _CMD.size + 8 * n or pkt[:4] != COMMAND:
         return None
     magic, ver, flags, seq, ack, nn, _, t_host = _CMD.unpack_from(pkt)

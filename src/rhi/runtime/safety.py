@@ -142,8 +142,11 @@ class Safety:
 
     # ------------------------------------------------------------------ checks
     def check(self, r: Reading, now: float | None, xdot: np.ndarray | None = None) -> bool:
-        """Check a reading taken at wall time `now` [s] (None: not in real time, no silence check);
-        ẋ: (m,) [m/s] if known. Returns whether the controller may act (no fault latched)."""
+        """Check a reading; return whether the controller may act (no fault latched).
+
+        The reading was taken at wall time `now` [s] (None: not in real time, no silence check);
+        ẋ: (m,) [m/s] if known.
+        """
         if self._estop is not None:
             self.trip("estop", f"emergency stop: {self._estop}")
         st = int(r.status)

@@ -55,7 +55,7 @@ def integer(*, low: int | None = None) -> Check:
 
 
 def boolean(path: str, v) -> bool:
-    """true or false."""
+    """True or false."""
     if not isinstance(v, bool):
         raise _fail(path, "true or false", v)
     return v

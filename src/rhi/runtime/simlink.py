@@ -39,10 +39,12 @@ class SimLink:
 
     @property
     def fault(self) -> str | None:
+        """Why the simulation stopped (non-finite force, unstable physics), else None."""
         return self.session.fault
 
     @property
     def hand(self):
+        """The simulated hand (replaceable while running, e.g. by a `DraggableHand`)."""
         return self.session.hand
 
     @hand.setter
@@ -53,6 +55,7 @@ class SimLink:
         """Nothing to connect."""
 
     def read(self) -> Reading:
+        """The plant's encoders, F/T sensor and ground truth (flagged `Status.SIMULATED`)."""
         p, s = self.plant, self.session
         status = Status.SIMULATED | (Status.ENABLED if self.enabled else 0) | (Status.FAULT if s.fault else 0)
         sensors = {"ft": p.ft(), "x": p.x.copy(), "xdot": p.xdot.copy(), "F_hand": s.F_hand,
@@ -62,6 +65,7 @@ class SimLink:
         return Reading(s.t, self.seq, p.q, p.dq, sensors, int(status), self.cmd_seq, s.fault or "")
 
     def write(self, tau, *, enable: bool) -> None:
+        """Apply τ for one control period (zero when disabled or faulted) and advance the plant."""
         s = self.session
         self.enabled = bool(enable) and s.fault is None
         x_m = self.plant.device.fk(self.plant.q) if s.teleop is not None else None

@@ -74,6 +74,7 @@ class UDPLink:
 
     @classmethod
     def from_url(cls, url: str, **kw) -> UDPLink:
+        """A link to ``udp://HOST:PORT``; keywords as for the constructor."""
         host, port = parse_url(url)
         return cls(host, port, **kw)
 

@@ -1,5 +1,7 @@
-"""Simulation: MuJoCo plants generated from the device descriptions, a simulated hand,
-virtual and physical environments, teleoperation, and the 1 kHz simulation loop."""
+"""Simulation: MuJoCo plants generated from the device descriptions, a simulated hand, environments.
+
+Virtual and physical environments, teleoperation, and the 1 kHz simulation loop.
+"""
 
 from rhi.sim.environment import Fixture, Spring, Wall, compose, stop
 from rhi.sim.hand import DraggableHand, Hand, Path, PushForce, check_path_in_workspace, w_path

@@ -28,6 +28,7 @@ _G = mujoco.mjtGeom
 
 
 def quat_wxyz(R: np.ndarray) -> list[float]:
+    """Quaternion (w, x, y, z) of a rotation matrix R: (3, 3)."""
     q = pin.Quaternion(np.asarray(R))
     return [q.w, q.x, q.y, q.z]
 
@@ -48,6 +49,7 @@ class GeomAdder:
         self.count = 0
 
     def __call__(self, body, kind, *, rgba, **attrs):
+        """Add a geom of type `kind` to `body` (visual only unless collision is on) and return it."""
         g = body.add_geom(type=kind, rgba=list(rgba), **attrs)
         g.name = f"vis{self.count}"
         self.count += 1
@@ -67,6 +69,7 @@ def link_radius(device) -> float:
 
 
 def joint_axis(jm) -> tuple[str, np.ndarray]:
+    """MuJoCo joint type ("hinge" or "slide") and axis (3,) of a one-DoF Pinocchio joint model."""
     name = jm.shortname()
     fixed = {"JointModelRX": ("hinge", 0), "JointModelRY": ("hinge", 1), "JointModelRZ": ("hinge", 2),
              "JointModelPX": ("slide", 0), "JointModelPY": ("slide", 1), "JointModelPZ": ("slide", 2)}

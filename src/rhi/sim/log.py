@@ -1,11 +1,11 @@
-"""Run logs: one row per control tick, streamed to disk in chunks, loadable while the run goes on.
+r"""Run logs: one row per control tick, streamed to disk in chunks, loadable while the run goes on.
 
 `LogWriter` fills a preallocated chunk of rows and, when it is full, appends it to a file
 (or keeps it in memory when no file is given), so a streamed run's memory does not grow
 with its length. Safety and other events go to a JSON-lines file beside the log, written
 at once, so they survive a crash of the writing process.
 
-File format (``*.rhilog``, little-endian): the 8 bytes ``b"RHILOG1\\n"``, a uint64 header
+File format (``*.rhilog``, little-endian): the 8 bytes ``b"RHILOG1\n"``, a uint64 header
 length L, L bytes of UTF-8 JSON (``{"columns": [[name, width], ...], "meta": {...}}``,
 padded with spaces to a multiple of 8 bytes), then rows of float64, each the columns'
 widths summed. A reader takes the whole rows present (`Log.load`); events are in
@@ -139,8 +139,9 @@ class Log:
 
     @classmethod
     def load(cls, path) -> Log:
-        """Read a streamed log (``.rhilog``: the whole rows written so far, memory-mapped) or a CSV written
-        by `to_csv`.
+        """Read a streamed log or a CSV written by `to_csv`.
+
+        A ``.rhilog`` is read as the whole rows written so far, memory-mapped.
 
         Raises:
             InvalidInput: the path does not exist or is not a log (named in the message).

@@ -11,9 +11,9 @@ its range (the motor's joint limits) and a torque-limited motor actuator. R is t
 of A restricted to the joints on the path to the end effector when those rows span the motors
 (`motor_inverse`), else A⁺. Tendon forces act on θ through Rᵀ, so the plant's inertia in motor
 coordinates is Aᵀ M_θ A + diag(armature), exactly the device's `mass_matrix` (MuJoCo keeps the
-armature term Rᵀ diag(a) R only between joints of one branch, which the path choice respects). Chain joints that the motors do not span (side-branch
-parallelograms, `A` with more rows than columns) are tied by tendon equalities
-G(θ − b) = 0 with G spanning the left null space of A. Linear joint limits become
+armature term Rᵀ diag(a) R only between joints of one branch, which the path choice respects).
+Chain joints that the motors do not span (side-branch parallelograms, `A` with more rows than
+columns) are tied by tendon equalities G(θ − b) = 0 with G spanning the left null space of A. Linear joint limits become
 tendon ranges. A body "handle" with a site carries the 6-axis force/torque sensor. Visual geometry
 (massless, no contacts unless asked for) comes from `rhi.sim.geometry`.
 """
@@ -28,8 +28,17 @@ import pinocchio as pin
 
 from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError
-from rhi.sim.geometry import GeomAdder, add_scenery, add_handle, add_skeleton, add_urdf_visuals, joint_axis, link_radius, quat_wxyz, \
-    urdf_visuals
+from rhi.sim.geometry import (
+    GeomAdder,
+    add_handle,
+    add_scenery,
+    add_skeleton,
+    add_urdf_visuals,
+    joint_axis,
+    link_radius,
+    quat_wxyz,
+    urdf_visuals,
+)
 
 _MIN_MASS = 1e-6  # [kg] MuJoCo needs mass on bodies with joints; used where Pinocchio has none
 _MIN_INERTIA = 1e-9  # [kg m²]
@@ -49,9 +58,11 @@ class PlantFriction:
 
     @classmethod
     def zero(cls, n: int) -> PlantFriction:
+        """No friction for n motors."""
         return cls(np.zeros(n), np.zeros(n))
 
     def check(self, n: int) -> PlantFriction:
+        """The friction as (n,) arrays (a scalar is broadcast); raise InvalidInput unless finite and >= 0."""
         out = {}
         for f in ("damping", "frictionloss"):
             v = np.asarray(getattr(self, f), dtype=float)

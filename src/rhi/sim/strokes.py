@@ -42,10 +42,18 @@ def synthetic_strokes(count: int, *, m: int = 2, seed: int = 0, dt: float = 1e-3
     """`count` seeded strokes in m = 2 or 3 dimensions (module docstring); consecutive axes differ by ≥ `turn_min`.
 
     Args:
-        count: number of strokes (>= 1). m: task dimensions. seed: NumPy generator seed. dt: sample period [s].
-        length, peak_speed, pause: (min, max) of the uniform draws [m], [m/s], [s].
-        mass [kg], damping [N s/m], coulomb [N]: the device the hand moves.
-        force_noise [N], speed_noise [m/s]: Gaussian noise σ.
+        count: number of strokes (>= 1).
+        m: task dimensions.
+        seed: NumPy generator seed.
+        dt: sample period [s].
+        length: (min, max) of the uniform draw of a stroke's length [m].
+        peak_speed: (min, max) of the uniform draw of a stroke's peak speed [m/s].
+        pause: (min, max) of the uniform draw of the pause after a stroke [s].
+        mass: mass of the device the hand moves [kg].
+        damping: viscous damping of the device [N s/m].
+        coulomb: Coulomb friction of the device [N].
+        force_noise: Gaussian noise σ of the force reading [N].
+        speed_noise: Gaussian noise σ of the speed reading [m/s].
         turn_min: smallest axial angle between consecutive strokes [rad].
     """
     if not isinstance(count, (int, np.integer)) or count < 1:

@@ -42,8 +42,10 @@ class Teleoperation:
         return self.scale * self.R @ np.asarray(x_master) + self.p
 
     def follow(self, x_master, dt: float) -> np.ndarray:
-        """Track the master's position x_m (m,) [m] for one control period dt [s]; returns the slave's
-        true position (m,) [m]."""
+        """Track the master's position x_m (m,) [m] for one control period dt [s].
+
+        Returns the slave's true position (m,) [m].
+        """
         s, dev = self.slave, self.slave.device
         q, dq = s.q, s.dq
         J = dev.jacobian(q)

@@ -32,8 +32,10 @@ from rhi.viz.posed import rest_configuration
 
 
 def demo_setup(dev: Device, q0=None) -> tuple[Plant, NullSpaceController, Wall, np.ndarray]:
-    """Plant at q0 (default: mid-range), the ch7 controller and a 1000 N/m wall 1 cm beyond the handle
-    along the task's second axis. Returns (plant, controller, wall, q0)."""
+    """Plant at q0 (default: mid-range), the ch7 controller and a 1000 N/m wall.
+
+    The wall is 1 cm beyond the handle along the task's second axis. Returns (plant, controller, wall, q0).
+    """
     if tuple(dev.joint_names[:3]) == BASE_JOINTS:
         raise InvalidInput(f"device: {dev.name} is velocity-commanded (App. A/B); the live demo needs a "
                            "torque-controlled device")
@@ -59,7 +61,8 @@ def live(dev: Device, *, duration: float | None = 3600.0, host: str = "127.0.0.1
     Args:
         dev: a torque-controlled device (rhi4, planar3r, phantom, gen3, a user URDF...).
         duration: run time [s]; None: until Ctrl-C.
-        host, port: where the view listens.
+        host: the address the view listens on.
+        port: the port the view listens on.
         on_start: called with the `RemoteView` once it serves (e.g. to print its address).
 
     Returns:

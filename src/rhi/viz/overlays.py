@@ -70,8 +70,10 @@ def handle_measures(device: Device, q: np.ndarray, u: np.ndarray, *, lp: bool = 
 
 
 def ellipsoid_pose(A: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """Semi-axes (3,) and orientation wxyz (4,) of the ellipsoid xᵀA⁻¹x <= 1 of a (m, m) PSD A, in 3-D
-    (for m = 2 an ellipse in the task plane: the third scale is 1, applied to a flat ring)."""
+    """Semi-axes (3,) and orientation wxyz (4,) of the ellipsoid xᵀA⁻¹x <= 1 of a (m, m) PSD A, in 3-D.
+
+    For m = 2 it is an ellipse in the task plane: the third scale is 1, applied to a flat ring.
+    """
     w, V = np.linalg.eigh(0.5 * (A + A.T))
     axes = np.sqrt(np.clip(w, 0.0, None))
     R = np.eye(3)
@@ -161,12 +163,14 @@ class Overlays:
             coil.points = np.array([[rest, handle]], dtype=np.float32)
 
     def _draw_arrows(self, handle: np.ndarray, snap, meas: HandleMeasures) -> None:
-        """One arrow node per force, created once and then only moved (viser fades a scene in whenever a node
-        is added, so nothing is re-created per frame)."""
+        """One arrow node per force, created once and then only moved.
+
+        Viser fades a scene in whenever a node is added, so nothing is re-created per frame.
+        """
         k = self.force_scale
         vecs = {"F_hand": (HAND_RGB, getattr(snap, "F_hand", None)), "F_env": (ENV_RGB, getattr(snap, "F_env", None)),
-                "scaling": (SCALING_RGB, meas.f_scaling * meas.u if np.isfinite(meas.f_scaling) else None), "lp": (LP_RGB, None if meas.f_lp is None else
-                                                                        meas.f_lp * meas.u)}
+                "scaling": (SCALING_RGB, meas.f_scaling * meas.u if np.isfinite(meas.f_scaling) else None),
+                "lp": (LP_RGB, None if meas.f_lp is None else meas.f_lp * meas.u)}
         r = 0.012 * self.size
         for name, (rgb, v) in vecs.items():
             vec3 = None if v is None else k * self._world(np.asarray(v, dtype=float))

@@ -60,6 +60,7 @@ class SharedTelemetry:
 
     @property
     def name(self) -> str:
+        """Name of the shared-memory block (give it to the reader's process)."""
         return self.shm.name
 
     def publish(self, row: np.ndarray, cols: dict, fault: str | None = None) -> None:
@@ -123,10 +124,12 @@ class SharedDraggableHand(DraggableHand):
 
     @property
     def name(self) -> str:
+        """Name of the shared-memory block (give it to the other process)."""
         return self.shm.name
 
     @property
     def target(self) -> np.ndarray | None:
+        """The hand's target position (m,) [m] set by the mouse, or None."""
         b = self._buf
         return None if b[0] != b[0] else b[1:].copy()  # NaN flag: no target
 
@@ -207,6 +210,7 @@ class RemoteView:
 
     @property
     def url(self) -> str:
+        """The view's address in a browser."""
         return f"http://127.0.0.1:{self.port}"
 
     def close(self) -> None:

@@ -14,8 +14,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from rhi.device import Device
 from rhi._gl import has_display
+from rhi.device import Device
 from rhi.errors import InvalidInput, RhiError
 from rhi.viz.posed import Posed
 
@@ -37,7 +37,7 @@ def _camera(posed: Posed, azimuth: float | None, elevation: float | None) -> muj
 
 
 def _check_backend() -> None:
-    """glfw without a display aborts the process inside MuJoCo: refuse it with a clear error instead."""
+    """Refuse glfw without a display with a clear error (inside MuJoCo it would abort the process)."""
     gl = os.environ.get("MUJOCO_GL", "").lower()
     if gl in ("", "glfw") and not has_display():
         raise RenderUnavailable("no OpenGL backend for offscreen rendering: MuJoCo uses glfw (MUJOCO_GL unset) and "
@@ -52,8 +52,10 @@ def render(device: Device | Posed, q, *, width: int = 800, height: int = 600, az
     Args:
         device: the device (or an already built `Posed`).
         q: (n,) motor coordinates [rad or m].
-        width, height: image size [pixels].
-        azimuth, elevation: camera angles [deg]; None: a three-quarter view (from above for planar devices).
+        width: image width [pixels].
+        height: image height [pixels].
+        azimuth: camera azimuth [deg]; None: a three-quarter view (from above for planar devices).
+        elevation: camera elevation [deg]; None: as for `azimuth`.
 
     Returns:
         (height, width, 3) uint8 image.

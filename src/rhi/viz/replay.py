@@ -63,6 +63,7 @@ class LogPlayer:
             self.playing = True
 
     def pause(self) -> None:
+        """Stop at the current time."""
         t = self.time
         with self._lock:
             self.playing = False

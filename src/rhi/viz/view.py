@@ -88,10 +88,12 @@ class View:
     # ----------------------------------------------------------------- set-up
     @property
     def port(self) -> int:
+        """The port the view's server listens on."""
         return int(self.server.get_port())
 
     @property
     def url(self) -> str:
+        """The view's address in a browser."""
         return f"http://127.0.0.1:{self.port}"
 
     def _camera(self, lo: np.ndarray, hi: np.ndarray) -> None:
