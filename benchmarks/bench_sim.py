@@ -2,9 +2,11 @@
 
 The hand pushes into a rendered 1000 N/m wall (§6.4 set-up) while the full controller runs
 (force rendering + FME matching with ASO/transition + ASCM + tertiary). Baselines measured in
-the same run: bare MuJoCo stepping of the same plant, the same loop with a zero-torque controller
-(plant + hand + environment + log: the loop's own cost), and that zero-controller loop as the
-previous implementation ran it (the package at git revision PREVIOUS, extracted with `git archive`
+the same run: bare MuJoCo stepping of the same plant at rest, MuJoCo alone through the loop's
+motion (the hand force of every physics step replayed: the floor of any loop; a moving plant
+costs MuJoCo more than one at rest), the same loop with a zero-torque controller (plant + hand +
+environment + log: the loop's own cost), and that zero-controller loop as the previous
+implementation ran it (the package at git revision PREVIOUS, extracted with `git archive`
 and run in a subprocess; skipped outside a git checkout). Target (issue 14): the full loop
 ≥ 25× faster than real time.
 
@@ -44,16 +46,30 @@ class Zero:
         return np.zeros(4)
 
 
-def run(controller, seconds: float) -> tuple[float, float, str | None]:
-    """(wall [s], CPU [s], fault) of the palpation scenario."""
+class Recorder:
+    """A hand that records the force of every physics step."""
+
+    def __init__(self, hand) -> None:
+        self.hand, self.forces = hand, []
+
+    def force(self, t, x, xdot):
+        F = self.hand.force(t, x, xdot)
+        self.forces.append(F)
+        return F
+
+
+def run(controller, seconds: float, record: bool = False):
+    """(wall [s], CPU [s], fault) of the palpation scenario (record: the hand's force of every step, untimed)."""
     dev = rhi.device("rhi4")
     plant = Plant(dev)
     plant.reset(Q0)
     x0 = dev.fk(Q0)
     hand = Hand(Path([x0, x0 + [0.0, 0.03]], speed=0.01), stiffness=300.0)
+    if record:
+        hand = Recorder(hand)
     w0, c0 = time.perf_counter(), time.process_time()
     log = simulate(plant, controller, duration=seconds, hand=hand, virtual=Wall(x0 + [0.0, 0.005], [0, 1], 1000.0))
-    return time.perf_counter() - w0, time.process_time() - c0, log.fault
+    return time.perf_counter() - w0, time.process_time() - c0, (hand.forces if record else log.fault)
 
 
 def best(fn, repeat: int) -> tuple[float, float]:
@@ -82,6 +98,7 @@ def full_controller():
 
 
 def bare(seconds: float) -> tuple[float, float]:
+    """MuJoCo stepping the plant at rest, no force."""
     plant = Plant(rhi.device("rhi4"))
     plant.reset(Q0)
     m, d = plant.model, plant.data
@@ -89,6 +106,21 @@ def bare(seconds: float) -> tuple[float, float]:
     w0, c0 = time.perf_counter(), time.process_time()
     for _ in range(steps):
         mujoco.mj_step(m, d)
+    return time.perf_counter() - w0, time.process_time() - c0
+
+
+def replay(forces: list[np.ndarray]) -> tuple[float, float]:
+    """MuJoCo alone through the loop's motion: the hand force of every physics step replayed, zero torque."""
+    plant = Plant(rhi.device("rhi4"))
+    plant.reset(Q0)
+    m, d = plant.model, plant.data
+    xfrc = d.xfrc_applied[m.body("handle").id]
+    rows = np.array(plant.device.task_rows)
+    w0, c0 = time.perf_counter(), time.process_time()
+    for F in forces:
+        xfrc[rows] = F
+        mujoco.mj_step2(m, d)
+        mujoco.mj_step1(m, d)
     return time.perf_counter() - w0, time.process_time() - c0
 
 
@@ -120,7 +152,10 @@ def main() -> None:
     if a.zero_only:  # the previous implementation's run (a subprocess of the benchmark)
         print(*best(lambda: run(Zero(), s), r))
         return
-    rows = [("bare MuJoCo stepping", best(lambda: bare(s), r))]
+    load = os.getloadavg()[0]
+    forces = run(Zero(), s, record=True)[2]
+    rows = [("bare MuJoCo stepping, at rest", best(lambda: bare(s), r)),
+            ("MuJoCo alone, the loop's motion", best(lambda: replay(forces), r))]
     prev = previous(a.previous, s, r)
     if isinstance(prev, tuple):
         rows.append((f"loop + zero controller @{a.previous}", prev))
@@ -129,12 +164,12 @@ def main() -> None:
     rows.append(("loop + full controller", full[:2]))
     ticks = round(s * 1000)
     print(f"{s:g} s simulated at 1 kHz (plant step 0.5 ms), rhi4 palpation; load average "
-          f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; best of {r}")
-    print(f"  {'':34s} {'wall [s]':>9s} {'x real':>7s} {'CPU [s]':>9s} {'x real':>7s}  {'CPU/tick beyond MuJoCo':>22s}")
-    b_cpu = rows[0][1][1]
+          f"{load:.2f} -> {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores; best of {r}")
+    print(f"  {'':36s} {'wall [s]':>9s} {'x real':>7s} {'CPU [s]':>9s} {'x real':>7s}  CPU/tick beyond MuJoCo")
+    b_cpu = rows[1][1][1]
     for name, (wall, cpu) in rows:
-        extra = "" if name.startswith("bare") else f"{(cpu - b_cpu) / ticks * 1e6:16.1f} µs"
-        print(f"  {name:34s} {wall:9.3f} {s / wall:7.1f} {cpu:9.3f} {s / cpu:7.1f}  {extra}")
+        extra = "" if name.startswith(("bare", "MuJoCo")) else f"{(cpu - b_cpu) / ticks * 1e6:16.1f} µs"
+        print(f"  {name:36s} {wall:9.3f} {s / wall:7.1f} {cpu:9.3f} {s / cpu:7.1f}  {extra}")
     zero = rows[-2][1]
     if isinstance(prev, tuple):
         print(f"  zero-controller loop vs @{a.previous}: {prev[0] / zero[0]:.2f}x faster (wall), "

@@ -61,14 +61,18 @@ class Wall:
         x = np.asarray(x)
         if x.shape == self.point.shape:  # one point: the simulation loop's case, on plain floats
             n = self._n
-            d = sum((a - b) * c for a, b, c in zip(x.tolist(), self._p, n))
+            d = 0.0
+            for a, b, c in zip(x.tolist(), self._p, n):
+                d += (a - b) * c
+            push = 0.0
             if d > 0:
                 v = np.asarray(xdot)
                 if v.shape != x.shape:
                     raise InvalidInput(f"xdot: expected shape {x.shape} like x, got {v.shape}")
-                push = max(self.stiffness * d + self.damping * sum(a * c for a, c in zip(v.tolist(), n)), 0.0)
-            else:
-                push = 0.0
+                dd = 0.0
+                for a, c in zip(v.tolist(), n):
+                    dd += a * c
+                push = max(self.stiffness * d + self.damping * dd, 0.0)
             return np.array([-push * c for c in n])
         d = (x - self.point) @ self.normal
         dd = np.asarray(xdot) @ self.normal

@@ -47,7 +47,7 @@ class Path:
         object.__setattr__(self, "points", P)
         seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
         u = np.diff(P, axis=0) / np.where(seg > 0, seg, 1.0)[:, None]
-        # plain floats for `at`, which the simulation calls at every physics step
+        # plain floats for `segment`, which the simulation's hand calls at every physics step
         object.__setattr__(self, "_s", np.concatenate([[0.0], np.cumsum(seg)]).tolist())
         object.__setattr__(self, "_P", P.tolist())
         object.__setattr__(self, "_u", u.tolist())
@@ -66,21 +66,25 @@ class Path:
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference position (m,) [m] and velocity (m,) [m/s] at time t [s]."""
-        x, v = self.at(t)
-        return np.array(x), np.array(v)
+        p, u, d, v = self.segment(t)
+        return np.array([a + d * b for a, b in zip(p, u)]), np.array(v)
 
-    def at(self, t: float) -> tuple[list[float], list[float]]:
-        """`__call__` on plain floats: position (m,) [m] and velocity (m,) [m/s] at time t [s] as lists
-        (the hand's per-step path: no array overhead). The lists may be shared: do not modify them."""
-        P, s = self._P, self._s
+    def segment(self, t: float) -> tuple[list[float], list[float], float, list[float]]:
+        """The reference at time t [s] as (p, u, d, v) on plain floats: position p + d u [m], velocity v [m/s].
+
+        p: (m,) start of the current segment [m], u: (m,) its direction, d: distance travelled along it [m],
+        v: (m,) the velocity [m/s] (before the start and after the end: p the held point, d = 0, u = v = 0).
+        What the hand evaluates at every physics step, without array overhead; the lists are shared:
+        do not modify them.
+        """
+        P, s, rest = self._P, self._s, self._rest
         if len(P) == 1 or t <= self.start:
-            return P[0], self._rest
+            return P[0], rest, 0.0, rest
         d = (t - self.start) * self.speed
         if d >= s[-1]:
-            return P[-1], self._rest
+            return P[-1], rest, 0.0, rest
         i = bisect.bisect_right(s, d) - 1  # the segment holding d (zero-length segments skipped)
-        di = d - s[i]
-        return [p + di * u for p, u in zip(P[i], self._u[i])], self._v[i]
+        return P[i], self._u[i], d - s[i], self._v[i]
 
     def sample(self, step: float) -> np.ndarray:
         """Points along the path every `step` metres: (k, m) [m]."""
@@ -129,11 +133,12 @@ class Hand:
 
     def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
         """F_h: (m,) [N] the hand applies to the handle at position x (m,) [m], velocity ẋ (m,) [m/s]."""
-        xr, vr = self.path.at(t)
+        p, u, d, v = self.path.segment(t)
         K, B = self.stiffness, self.damping
-        # on plain floats: the simulation calls this at every physics step
-        m = len(xr)
-        F = [K * (a - b) + B * (c - d) for a, b, c, d in zip(xr, _vector("x", x, m), vr, _vector("xdot", xdot, m))]
+        # on plain floats (the simulation calls this at every physics step): K (x_r − x) + B (ẋ_r − ẋ), x_r = p + d u
+        m = len(p)
+        F = [K * ((pi + d * ui) - xi) + B * (vi - wi)
+             for pi, ui, xi, vi, wi in zip(p, u, _vector("x", x, m), v, _vector("xdot", xdot, m))]
         if self.max_force is not None:
             nf = math.hypot(*F)
             if nf > self.max_force:

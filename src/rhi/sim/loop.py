@@ -20,7 +20,7 @@ import pinocchio as pin
 from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.sim.log import Log, LogWriter, layout
-from rhi.sim.plant import Plant, _index, unstable
+from rhi.sim.plant import Plant, unstable
 from rhi.sim.telemetry import Telemetry
 
 
@@ -89,20 +89,21 @@ class Session:
             return self.fault
         p, hand, phys, h = self.plant, self.hand, self.physical, self.plant.timestep
         # The plant's persistent MjData views (see `Plant.step`): the torque is set once for the period,
-        # the handle force at every physics step, then mj_step2 + mj_step1 with the divergence check.
-        p.apply(tau)
+        # the handle force on the task axes at every physics step (or zero), then mj_step2 + mj_step1
+        # with the divergence check.
         model, data, sd, pos, vel = p.model, p.data, p._sd, p._pos, p._vel
         xfrc, task, wn = p._xfrc, p._task, p._wnum
         i, j, k = p._bad
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2
         forces = hand is not None or phys is not None
+        p.apply(tau)
         F_h = self._zero
         t0 = self.t
         work = self.work
-        xdot = sd[vel].copy() if forces else None
+        xdot = sd[vel] if forces else None  # index arrays: each read is a fresh array
         for s in range(self.sub):
             if forces:
-                x = sd[pos].copy()
+                x = sd[pos]
                 if hand is not None:
                     F_h = hand.force(t0 + s * h, x, xdot)
                     F = F_h + phys.force(x, xdot) if phys is not None else F_h
@@ -119,7 +120,7 @@ class Session:
                 self.work = work
                 return self._stop(str(unstable(t0 + s * h)))
             if forces:
-                xdot = sd[vel].copy()  # the velocity after the step: the user's work, the next step's hand
+                xdot = sd[vel]  # the velocity after the step: the user's work, the next step's hand
                 if hand is not None:
                     work += float(F_h.dot(xdot)) * h
         self.work = work
@@ -285,7 +286,7 @@ class Kinematics:
         self.model = device.model
         self.data = device.model.createData()
         self.frame = device.model.getFrameId(device.ee_frame)
-        self.rows = _index(device.task_rows)
+        self.rows = np.array(device.task_rows)
         self.A = device.A
         self.b = device.b if np.any(device.b != 0) else None
 

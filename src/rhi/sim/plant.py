@@ -23,13 +23,6 @@ _AXES = {"x": 0, "y": 1, "z": 2}
 MAX_TIMESTEP = 5e-3
 
 
-def _index(rows: list[int]) -> slice | np.ndarray:
-    """Indices as a slice when they are consecutive (a view, no gather), else an index array."""
-    if rows == list(range(rows[0], rows[0] + len(rows))):
-        return slice(rows[0], rows[0] + len(rows))
-    return np.array(rows)
-
-
 class PlantUnstable(ModelError):
     """The physics diverged (MuJoCo flagged bad accelerations, velocities or positions and reset).
 
@@ -107,13 +100,13 @@ class Plant:
         self._jac = np.zeros((3, self.model.nv))
         self._weight = self.model.body_mass[self._body] * self.model.opt.gravity
         self.timestep = float(self.model.opt.timestep)
-        # Views into MjData's persistent buffers (they never move), for a cheap read/apply/step in the
-        # 1 kHz loop: task rows as slices when they are contiguous (no fancy-index gather).
-        d, rows = self.data, self._rows
-        self._task = _index(rows)
+        # Views into MjData's persistent buffers (they never move) and index arrays (a gather into a fresh
+        # array is cheaper than a slice and a copy), for a cheap read/apply/step in the 1 kHz loop.
+        d, rows = self.data, np.array(self._rows)
+        self._task = rows
         self._sd = d.sensordata
-        self._pos = _index([adr["handle_pos"] + r for r in rows])
-        self._vel = _index([adr["handle_vel"] + r for r in rows])
+        self._pos = rows + adr["handle_pos"]
+        self._vel = rows + adr["handle_vel"]
         self._ten = d.ten_length[: self.n]
         self._tenv = d.ten_velocity[: self.n]
         self._R = d.site_xmat[self._site]
@@ -169,12 +162,12 @@ class Plant:
     @property
     def x(self) -> np.ndarray:
         """True handle position on the task axes: (m,) [m]."""
-        return self._sd[self._pos].copy()
+        return self._sd[self._pos]
 
     @property
     def xdot(self) -> np.ndarray:
         """True handle velocity on the task axes: (m,) [m/s]."""
-        return self._sd[self._vel].copy()
+        return self._sd[self._vel]
 
     def site_jacobian(self) -> np.ndarray:
         """Translational Jacobian of the handle w.r.t. the chain velocities: (3, nv)."""
