@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -329,7 +330,7 @@ class Device:
                         restarts=restarts)
 
     # ---------------------------------------------------------------- locking
-    def lock(self, values: Mapping[str | int, float] | None = None, *, name: str | None = None, **kw: float) -> Device:
+    def lock(self, values: Mapping[Any, float] | None = None, *, name: str | None = None, **kw: float) -> Device:
         """Fix some motor coordinates and return the non-redundant (or less redundant) device.
 
         Args:
@@ -461,11 +462,12 @@ def from_spec(spec: DeviceSpec, **params: float) -> Device:
     """
     if spec.base is not None:  # a device derived from another by locking joints
         return device(spec.base, **params).lock(spec.lock, name=spec.name)
+    urdf, ee_frame = spec.chain()
     model, values = build_model(spec, params)
     dev = Device(
         model,
         name=spec.name,
-        ee_frame=spec.ee_frame,
+        ee_frame=ee_frame,
         task_axes=spec.task,
         actuation=spec.actuation,
         offset=spec.offset,
@@ -483,5 +485,5 @@ def from_spec(spec: DeviceSpec, **params: float) -> Device:
         acceleration_max=spec.acceleration_max,
     )
     dev.spec = spec
-    dev.visual_description = (spec.urdf.read_text(), (str(spec.folder),))
+    dev.visual_description = (urdf.read_text(), (str(spec.folder),))
     return dev

@@ -131,6 +131,16 @@ class DeviceSpec:
     base: str | None = None
     lock: dict[str, float] = dataclasses.field(default_factory=dict)
 
+    def chain(self) -> tuple[Path, str]:
+        """(URDF path, end-effector frame) of a spec that is not derived.
+
+        Raises:
+            ModelError: a derived spec (``base = ...``) has neither.
+        """
+        if self.urdf is None or self.ee_frame is None:
+            raise ModelError(f"{self.name}: a device derived from {self.base!r} has no URDF of its own")
+        return self.urdf, self.ee_frame
+
     @property
     def parameter_bounds(self) -> dict[str, tuple[float, float]]:
         """{name: (min, max)} of the parameters that declare bounds [m or rad]."""
@@ -189,16 +199,18 @@ def _parse(folder: Path, doc: dict) -> DeviceSpec:
     lim = doc.get("limits", {})
     deg = lim.get("unit", "deg") == "deg"
 
-    def angles(key: str, table: dict = lim) -> np.ndarray | None:
-        v = _floats(table.get(key))
-        return np.deg2rad(v) if deg and v is not None else v
+    def to_rad(values) -> np.ndarray:
+        v = np.array(values, dtype=float)
+        return np.deg2rad(v) if deg else v
+
+    def angles(key: str) -> np.ndarray | None:
+        return None if lim.get(key) is None else to_rad(lim[key])
 
     lin = None
     if "linear" in lim:
         rows = lim["linear"]
         lin = LinearLimits(np.array([r["coefficients"] for r in rows], dtype=float),
-                           angles("min", {"min": [r["min"] for r in rows]}),
-                           angles("max", {"max": [r["max"] for r in rows]}))
+                           to_rad([r["min"] for r in rows]), to_rad([r["max"] for r in rows]))
     params = {}
     for pname, p in doc.get("parameters", {}).items():
         bounds = (float(p["min"]), float(p["max"])) if "min" in p and "max" in p else None
@@ -244,7 +256,7 @@ def build_model(spec: DeviceSpec, params: dict[str, float]) -> tuple[pin.Model, 
         InvalidInput: an unknown parameter, or a value that is not one finite number within its bounds.
         ModelError: the URDF is missing or malformed, or a parameter names an unknown target.
     """
-    model = load_urdf(spec.urdf)
+    model = load_urdf(spec.chain()[0])
     unknown = set(params) - set(spec.parameters)
     if unknown:
         raise InvalidInput(f"params: unknown parameter(s) {sorted(unknown)} for {spec.name}; "

@@ -73,7 +73,10 @@ try:  # the gufunc behind np.linalg.inv, without its Python-level checks (~3 µs
         return _umath_linalg.inv(A, signature="d->d")
 
 except (ImportError, AttributeError, TypeError):  # pragma: no cover - other NumPy builds
-    inv = np.linalg.inv
+
+    def inv(A: np.ndarray) -> np.ndarray:
+        """Inverse of a non-singular float matrix (`np.linalg.inv`)."""
+        return np.linalg.inv(A)
 
 
 def inv_small(A: np.ndarray) -> np.ndarray:

@@ -411,8 +411,8 @@ def simulate_mobile(
     nan = np.full(K, np.nan)
     log = {k: np.empty((K, n)) for k in ("q", "q_true", "dq")}
     log["ddq"] = np.full((K, n), np.nan)
-    for k in ("x", "x_est"):
-        log[k] = np.empty((K, 3))
+    for name in ("x", "x_est"):
+        log[name] = np.empty((K, 3))
     log["wheels"] = np.empty((K, 4))
     scal = {k: nan.copy() for k in ("base_active", "alpha", "beta", "gamma", "eta", "sigma", "dm")}
     q_ref = q0.copy()  # base: odometry; arm: integrated reference

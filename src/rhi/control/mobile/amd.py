@@ -11,6 +11,7 @@ baseline of `rhi.control.mobile.baselines`).
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 import math
 
@@ -263,7 +264,7 @@ class AccelCommand:
     hi: np.ndarray
 
 
-class AccelControllerBase:
+class AccelControllerBase(abc.ABC):
     """Shared parts of the acceleration-level controllers."""
 
     def __init__(self, device: Device, config, n_base: int = 3) -> None:
@@ -299,6 +300,10 @@ class AccelControllerBase:
         c, nb = self.config, self.n_base
         _, grad, hvp, sigma = det_terms(J6[:, nb:], dq[nb:])
         return tertiary_acceleration(grad, hvp, dq[nb:], gamma1=c.gamma1, gamma2=c.gamma2, n_base=nb), sigma
+
+    @abc.abstractmethod
+    def step(self, t: float, q, dq, x_des, dx_des, ddx_des) -> AccelCommand:
+        """One control step: the joint accelerations for the desired end-effector motion."""
 
     def advance(self, t: float, q, dq, x_des, dx_des, ddx_des, *, stage: str = "track") -> MobileStep:
         """One sample for `rhi.sim.mobile.simulate_mobile`: `step`, integrated as q̇⁺ = q̇ + q̈T (no stages)."""
@@ -357,7 +362,7 @@ class AMDController(AccelControllerBase):
         release = c.sigma_min if c.sigma_release is None else c.sigma_release
         threshold = release if st.base_active else c.sigma_min
         near_singular = c.singularity_avoidance and sigma < threshold
-        res = None
+        res: SNSResult | None = None
         if not near_singular:
             fixed = np.zeros(n)
             fixed[:nb] = base_stop_acceleration(dq[:nb], lo[:nb], hi[:nb], c.dt)
@@ -365,7 +370,7 @@ class AMDController(AccelControllerBase):
             if not res.feasible:
                 res = None
         base_active = res is None
-        if base_active:
+        if res is None:
             res = sns_acceleration(J, b, ddx, lo, hi, self._all_mask, self._zeros)
             st.stop_t0, st.stop_v = None, None
         elif st.base_active or (st.stop_t0 is None and np.any(dq[:nb] != 0)):

@@ -43,10 +43,12 @@ class JointBounds:
     dq_max: np.ndarray
     ddq_min: np.ndarray
     ddq_max: np.ndarray
+    #: the six bounds as Python lists (for the per-joint kernel of `acceleration_bounds_unchecked`)
+    _lists: tuple[list[float], ...] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         arrs = {}
-        for f in dataclasses.fields(self):
+        for f in self._bound_fields():
             a = np.array(getattr(self, f.name), dtype=float, ndmin=1)
             if a.ndim != 1:
                 raise InvalidInput(f"{f.name}: expected shape (n,), got {a.shape}")
@@ -70,7 +72,11 @@ class JointBounds:
         for name, a in arrs.items():
             a.setflags(write=False)
             object.__setattr__(self, name, a)
-        object.__setattr__(self, "_lists", tuple(arrs[f.name].tolist() for f in dataclasses.fields(self)))
+        object.__setattr__(self, "_lists", tuple(arrs[f.name].tolist() for f in self._bound_fields()))
+
+    @classmethod
+    def _bound_fields(cls) -> list[dataclasses.Field]:
+        return [f for f in dataclasses.fields(cls) if f.init]
 
     @property
     def n(self) -> int:

@@ -30,7 +30,7 @@ from rhi.control.mobile.bounds import (
 from rhi.control.mobile.kinematics import check_base, check_vector, gram_inverse
 from rhi.control.mobile.measures import dm_cartesian_gradient, dm_gradient, dm_value
 from rhi.control.mobile.protocol import MobileStep
-from rhi.device import Device
+from rhi.device import Device, DeviceTerms
 from rhi.errors import InfeasibleLimits, InvalidInput
 from rhi.mobile_base import mecanum_map, wheel_geometry, wheel_jacobian
 
@@ -263,16 +263,15 @@ class WeightedDistributionController:
 
     def dm(self, q) -> float:
         """H₂ of the arm at q (A.8) for the configured direction [N]."""
-        if self.config.dm is None:
-            raise InvalidInput("config.dm: no DMConfig given")
-        J = self.device.terms(check_vector("q", q, self.device.n), check=False).J
-        return float(dm_value(J[:, 3:], self.config.dm.u, self.config.dm.torque_limits))
+        return self._dm_terms(self.device.terms(check_vector("q", q, self.device.n), check=False))[1]
 
-    def _dm_terms(self, terms):
-        """(H₂, J_m, ∂J_m/∂q_m) of the arm from a terms snapshot (∂J/∂q from `Device.terms`)."""
+    def _dm_terms(self, terms: DeviceTerms) -> tuple[DMConfig, float, np.ndarray, np.ndarray]:
+        """(config.dm, H₂, J_m, ∂J_m/∂q_m) of the arm from a terms snapshot (∂J/∂q from `Device.terms`)."""
         d = self.config.dm
+        if d is None:
+            raise InvalidInput("config.dm: no DMConfig given")
         Jm = terms.J[:, 3:]
-        return float(dm_value(Jm, d.u, d.torque_limits)), Jm, terms.dJ[:, 3:, 3:]
+        return d, float(dm_value(Jm, d.u, d.torque_limits)), Jm, terms.dJ[:, 3:, 3:]
 
     def advance(self, t: float, q, dq, x_des, dx_des, ddx_des, *, stage: str = "track") -> MobileStep:
         """One sample for `rhi.sim.mobile.simulate_mobile`: the velocity `step` commands (dq, ddx_des unused)."""
@@ -322,10 +321,9 @@ class WeightedDistributionController:
         h = math.nan
         grad = None
         if stage == "dm_cartesian":
-            h, Jm, dJm = self._dm_terms(terms)
-            gx = dm_cartesian_gradient(Jm, dJm, c.dm.u, c.dm.torque_limits)  # A.10
+            d, h, Jm, dJm = self._dm_terms(terms)
+            gx = dm_cartesian_gradient(Jm, dJm, d.u, d.torque_limits)  # A.10
             dx = np.zeros(3)
-            d = c.dm
             for i, ax in enumerate(d.axes):
                 k = "xyz".index(ax)
                 if d.x_min[i] <= x[k] <= d.x_max[i]:
@@ -335,9 +333,8 @@ class WeightedDistributionController:
             dx_des = check_vector("dx_des", dx_des, 3)
             dx = dx_des + c.k_x * (x_des - x)
             if stage == "dm_null":
-                h, Jm, dJm = self._dm_terms(terms)
-                g = dm_gradient(Jm, dJm, c.dm.u, c.dm.torque_limits)  # A.9
-                grad = c.dm.k_n * g  # v_n of A.20 (arm part)
+                d, h, Jm, dJm = self._dm_terms(terms)
+                grad = d.k_n * dm_gradient(Jm, dJm, d.u, d.torque_limits)  # v_n of A.20 (arm part), A.9
             elif c.dm is not None:
                 h = float(dm_value(Jq[:, 3:], c.dm.u, c.dm.torque_limits))
         vlo, vhi = velocity_bounds_unchecked(q, self.bounds, c.dt)
