@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path as FilePath
 
+import mujoco
 import numpy as np
 
 import rhi
@@ -23,6 +24,7 @@ from rhi.control import (
     fme_shape,
 )
 from rhi.sim import Hand, Path, Plant, Wall, simulate
+from rhi.sim.loop import Kinematics
 
 REFERENCE = FilePath(__file__).parent / "data" / "sim_palpation_rhi4.npz"
 FIELDS = ["t", "q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "ft", "work", "V", "omega", "alpha", "beta"]
@@ -68,3 +70,56 @@ def test_path_segment_lookup_matches_linear_scan():
         u = (P[i + 1] - P[i]) / (s[i + 1] - s[i])
         np.testing.assert_allclose(x, P[i] + (d - s[i]) * u, atol=1e-15)
         np.testing.assert_allclose(v, 0.05 * u, atol=1e-15)
+
+
+def test_loop_kinematics_equal_device_terms():
+    """The loop's FK with velocities (virtual environment, teleoperation) against Device.terms on every device."""
+    rng = np.random.default_rng(7)
+    for name in rhi.available_devices():
+        dev = rhi.device(name)
+        kin = Kinematics(dev)
+        for _ in range(3):
+            q, dq = rng.uniform(-0.5, 0.5, dev.n), rng.normal(size=dev.n)
+            x, xdot = kin(q, dq)
+            ref = dev.terms(q, dq)
+            np.testing.assert_allclose(x, ref.x, rtol=0, atol=1e-12, err_msg=name)
+            np.testing.assert_allclose(xdot, ref.xdot, rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_hand_and_wall_floats_equal_array_formulas():
+    """Hand and Wall evaluate one point on plain floats; the array formulas are the reference."""
+    rng = np.random.default_rng(3)
+    P = np.array([[0.0, 0.0], [0.02, 0.0], [0.02, 0.03]])
+    hand = Hand(Path(P, speed=0.02, start=0.1), stiffness=300.0, damping=10.0, max_force=2.0)
+    wall = Wall([0.01, 0.005], [0.6, 0.8], 1000.0, damping=5.0)
+    saturated = 0
+    for t in np.linspace(0.0, 3.0, 61):
+        x, xdot = rng.normal(scale=0.01, size=2) + 0.01, rng.normal(scale=0.05, size=2)
+        xr, vr = hand.path(t)
+        F = 300.0 * (xr - x) + 10.0 * (vr - xdot)
+        if np.linalg.norm(F) > 2.0:
+            F *= 2.0 / np.linalg.norm(F)
+            saturated += 1
+        np.testing.assert_allclose(hand.force(t, x, xdot), F, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(wall.force(x, xdot), wall.force(x[None], xdot[None])[0], rtol=0, atol=1e-12)
+    assert 0 < saturated < 61
+
+
+def test_contact_stage_skipped_only_when_nothing_collides(rhi4):
+    """Without colliding geometry MuJoCo's collision stage is skipped: the same trajectory, bit for bit."""
+    contact = int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    assert not Plant(rhi4, collision=True).model.opt.disableflags & contact
+    plants = [Plant(rhi4), Plant(rhi4)]
+    assert plants[0].model.opt.disableflags & contact
+    plants[1].model.opt.disableflags &= ~contact
+    traj = []
+    for plant in plants:
+        plant.reset(Q0)
+        rng = np.random.default_rng(0)
+        rows = []
+        for _ in range(300):
+            plant.apply(rng.normal(scale=0.05, size=4), rng.normal(scale=2.0, size=2))
+            plant.step(2)
+            rows.append(np.r_[plant.q, plant.dq, plant.ft()])
+        traj.append(np.array(rows))
+    np.testing.assert_array_equal(traj[0], traj[1])

@@ -58,6 +58,7 @@ class Wall:
         object.__setattr__(self, "_n", self.normal.tolist())
 
     def force(self, x, xdot) -> np.ndarray:
+        """Force on the handle: (..., m) [N] at positions x: (..., m) [m] moving at ẋ: (..., m) [m/s]."""
         x = np.asarray(x)
         if x.shape == self.point.shape:  # one point: the simulation loop's case, on plain floats
             n = self._n
@@ -87,7 +88,8 @@ def stop(point, normal, *, stiffness: float = 2.0e4, damping: float = 50.0) -> W
 
 @dataclasses.dataclass(frozen=True)
 class Spring:
-    """A two-sided spring–damper to a point, optionally only along a direction u:
+    """A two-sided spring–damper to a point, optionally only along a direction u.
+
     F = −K P (x − point) − B P ẋ with P = u uᵀ (or I).
 
     Attributes:
@@ -112,12 +114,14 @@ class Spring:
         object.__setattr__(self, "_P", P)
 
     def force(self, x, xdot) -> np.ndarray:
+        """Force on the handle: (..., m) [N] at positions x: (..., m) [m] moving at ẋ: (..., m) [m/s]."""
         return -(self.stiffness * (np.asarray(x) - self.point) + self.damping * np.asarray(xdot)) @ self._P
 
 
 @dataclasses.dataclass(frozen=True)
 class Fixture:
-    """A virtual fixture keeping the hand on the line through `point` along `direction` (§3.5):
+    """A virtual fixture keeping the hand on the line through `point` along `direction` (§3.5).
+
     F = −(I − u uᵀ)(K (x − point) + B ẋ).
 
     Attributes:
@@ -142,6 +146,7 @@ class Fixture:
         object.__setattr__(self, "_P", np.eye(p.shape[-1]) - np.outer(u, u))
 
     def force(self, x, xdot) -> np.ndarray:
+        """Force on the handle: (..., m) [N] at positions x: (..., m) [m] moving at ẋ: (..., m) [m/s]."""
         return -(self.stiffness * (np.asarray(x) - self.point) + self.damping * np.asarray(xdot)) @ self._P
 
 
@@ -152,6 +157,7 @@ class Compose:
     parts: tuple
 
     def force(self, x, xdot) -> np.ndarray:
+        """Force on the handle: (..., m) [N] at positions x: (..., m) [m] moving at ẋ: (..., m) [m/s]."""
         F = 0.0
         for p in self.parts:
             F = F + p.force(x, xdot)

@@ -21,8 +21,9 @@ from rhi.errors import InvalidInput, Unreachable
 
 @dataclasses.dataclass(frozen=True)
 class Path:
-    """A polyline through `points` travelled at constant `speed`, starting at `start` [s],
-    then held at its last point. A single point is a hold.
+    """A polyline through `points` travelled at constant `speed` from time `start` [s], then held.
+
+    After its last point the reference stays there; a single point is a hold.
 
     Attributes:
         points: (k, m) waypoints [m].
@@ -173,12 +174,19 @@ class PushForce:
         object.__setattr__(self, "start", scalar("start", self.start))
 
     def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+        """F: (m,) [N] on the handle at time t [s] (x, ẋ unused)."""
         return self.magnitude * self.direction if t >= self.start else np.zeros_like(self.direction)
 
 
 def check_path_in_workspace(device, path: Path, *, q0=None, step: float = 0.005) -> np.ndarray:
-    """IK along the path (every `step` [m]); raises `Unreachable` naming the first point outside the
-    device's workspace. Returns the joint path (k, n) [rad]."""
+    """IK along the path, every `step` [m].
+
+    Returns:
+        The joint path (k, n) [rad].
+
+    Raises:
+        Unreachable: naming the first point outside the device's workspace.
+    """
     if q0 is None:
         lo, hi = device.joint_limits
         q0 = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
@@ -194,8 +202,9 @@ def check_path_in_workspace(device, path: Path, *, q0=None, step: float = 0.005)
 
 
 class DraggableHand:
-    """A hand holding the handle and pulled towards a target that can be moved while the simulation runs
-    (the browser view's gizmo: the mouse as the hand).
+    """A hand holding the handle, pulled towards a target that can move while the simulation runs.
+
+    The browser view's gizmo: the mouse as the hand.
 
     F_h = K_h (x_t − x) − B_h ẋ, saturated at `max_force`; zero while no target is set. Setting the
     target is one reference assignment (safe from another thread, never blocks the loop).

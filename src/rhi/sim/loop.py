@@ -27,13 +27,15 @@ from rhi.sim.telemetry import Telemetry
 class Controller(Protocol):
     """Anything with `step(t, q, dq, sensors) -> tau` (e.g. `rhi.control.NullSpaceController`)."""
 
-    def step(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: dict) -> np.ndarray: ...
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: dict) -> np.ndarray:
+        """Torques τ: (n,) [N m] at time t [s] from encoders q: (n,) [rad], dq: (n,) [rad/s] and the sensors."""
 
 
 class ForceField(Protocol):
     """An environment or hand: the force on the handle."""
 
-    def force(self, *args) -> np.ndarray: ...
+    def force(self, *args) -> np.ndarray:
+        """The force on the handle: (m,) [N]."""
 
 
 def substeps(rate: float, timestep: float) -> int:
@@ -271,12 +273,11 @@ def _record(recorded: dict[str, list], values: dict, columns: dict, k: int) -> N
 
 
 class Kinematics:
-    """The handle position and velocity on the controller's model, from the encoders: what a haptic
-    rendering loop computes before its controller runs.
+    """The handle position and velocity on the controller's model, from the encoders.
 
-    One Pinocchio forward-kinematics pass with velocities, on a `pin.Data` of its own (the device's
-    and its `terms` snapshot stay untouched). Equal to `Device.fk(q)` and `Device.terms(q, dq).xdot`
-    (to rounding).
+    What a haptic rendering loop computes before its controller runs: one Pinocchio forward-kinematics
+    pass with velocities, on a `pin.Data` of its own (the device's and its `terms` snapshot stay
+    untouched). Equal to `Device.fk(q)` and `Device.terms(q, dq).xdot` (to rounding).
 
     Args:
         device: the controller's device.

