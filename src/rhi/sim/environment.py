@@ -47,6 +47,8 @@ class Wall:
     normal: np.ndarray
     stiffness: float
     damping: float = 0.0
+    _p: list[float] = dataclasses.field(init=False, repr=False, compare=False)  # point and normal as floats
+    _n: list[float] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         p = _point("point", self.point)
@@ -75,10 +77,10 @@ class Wall:
                     dd += a * c
                 push = max(self.stiffness * d + self.damping * dd, 0.0)
             return np.array([-push * c for c in n])
-        d = (x - self.point) @ self.normal
-        dd = np.asarray(xdot) @ self.normal
-        push = np.where(d > 0, self.stiffness * d + self.damping * dd, 0.0)
-        return -np.maximum(push, 0.0)[..., None] * self.normal
+        depth = (x - self.point) @ self.normal
+        rate = np.asarray(xdot) @ self.normal
+        pushes = np.where(depth > 0, self.stiffness * depth + self.damping * rate, 0.0)
+        return -np.maximum(pushes, 0.0)[..., None] * self.normal
 
 
 def stop(point, normal, *, stiffness: float = 2.0e4, damping: float = 50.0) -> Wall:
@@ -103,6 +105,7 @@ class Spring:
     stiffness: float
     damping: float = 0.0
     direction: np.ndarray | None = None
+    _P: np.ndarray = dataclasses.field(init=False, repr=False, compare=False)  # the projector P
 
     def __post_init__(self) -> None:
         p = _point("point", self.point)
@@ -135,6 +138,7 @@ class Fixture:
     direction: np.ndarray
     stiffness: float = 1000.0
     damping: float = 5.0
+    _P: np.ndarray = dataclasses.field(init=False, repr=False, compare=False)  # the projector I − u uᵀ
 
     def __post_init__(self) -> None:
         p = _point("point", self.point)
@@ -158,10 +162,10 @@ class Compose:
 
     def force(self, x, xdot) -> np.ndarray:
         """Force on the handle: (..., m) [N] at positions x: (..., m) [m] moving at ẋ: (..., m) [m/s]."""
-        F = 0.0
+        F: float | np.ndarray = 0.0
         for p in self.parts:
             F = F + p.force(x, xdot)
-        return np.broadcast_to(F, np.shape(x)).copy() if np.ndim(F) == 0 else F
+        return np.broadcast_to(F, np.shape(x)).copy() if np.ndim(F) == 0 else np.asarray(F)
 
 
 def compose(*parts) -> Compose:

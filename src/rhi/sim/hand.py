@@ -34,6 +34,13 @@ class Path:
     points: np.ndarray
     speed: float = 0.0
     start: float = 0.0
+    # derived in __post_init__, plain floats for `segment`: arc length at each point, the points, segment
+    # directions and velocities, a zero vector
+    _s: list[float] = dataclasses.field(init=False, repr=False, compare=False)
+    _P: list[list[float]] = dataclasses.field(init=False, repr=False, compare=False)
+    _u: list[list[float]] = dataclasses.field(init=False, repr=False, compare=False)
+    _v: list[list[float]] = dataclasses.field(init=False, repr=False, compare=False)
+    _rest: list[float] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         P = as_array("points", self.points, ndim_min=1)

@@ -195,11 +195,11 @@ def simulate(
     c = w.cols
     # Row blocks (see `layout`): the arrays from q to ft, the scalars from work to alpha_pc, then seq,
     # the timing columns and safety: one write each.
-    i_arr, i_sc = c["q"].start, c["work"]
-    i_seq = c["seq"]
-    if (c["ft"].stop, c["alpha_pc"] - i_sc, c["safety"] - i_seq) != (i_sc, 6, 7):
+    at = dict(zip([name for name, _ in w.columns], np.cumsum([0] + [width for _, width in w.columns]).tolist()))
+    i_sc, i_seq = at["work"], at["seq"]
+    if (at["ft"] + 6, at["alpha_pc"] - i_sc, at["safety"] - i_seq) != (i_sc, 6, 7):
         raise AssertionError(f"log layout changed: {w.columns}")  # pragma: no cover - a bug, not an input
-    arrays, scalars, tail = slice(i_arr, i_sc), slice(i_sc, i_sc + 7), slice(i_seq, i_seq + 8)
+    arrays, scalars, tail = slice(at["q"], i_sc), slice(i_sc, i_sc + 7), slice(i_seq, i_seq + 8)
     slave = c.get("slave_x")
     kin = Kinematics(dev) if (virtual is not None or teleop is not None) else None
     zero_m = np.zeros(m)
