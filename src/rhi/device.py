@@ -336,6 +336,7 @@ class Device:
         Args:
             values: {joint name or index: value [rad]}; keywords work too (`lock(q1=0, q2=0)`).
             name: name of the new device.
+            **kw: joints to lock by name, as keywords [rad].
         """
         if values is not None and not isinstance(values, Mapping):
             raise InvalidInput(f"values: expected a dict {{joint name or index: value}}, got {type(values).__name__}")
@@ -391,7 +392,7 @@ class Device:
         return (self.m,)
 
     def _map(self, q, shape: tuple[int, ...], fn: Callable[[np.ndarray], np.ndarray], term: str) -> np.ndarray:
-        """fn per configuration, or the vectorized `rhi.batch` term for batches of >= BATCH_MIN configurations."""
+        """Fn per configuration, or the vectorized `rhi.batch` term for batches of >= BATCH_MIN configurations."""
         th = self.theta(q)
         if th.ndim == 1:
             return fn(th)

@@ -36,8 +36,7 @@ import mujoco
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device import Device
-from rhi.device import device as load_device
+from rhi.device import Device, device as load_device
 from rhi.errors import InvalidInput, ModelError
 from rhi.mobile_base import body_map, wheel_geometry
 from rhi.sim.mobile_spec import wmm_spec
@@ -259,6 +258,7 @@ class MobilePlant:
             wheels: (4,) commanded wheel speeds [rad/s] (front-left, front-right, back-left, back-right).
             q_arm: callable s ↦ (m,) or (m,) arm position reference [rad], 0 ≤ s ≤ duration [s].
             dq_arm: callable s ↦ (m,) or (m,) arm velocity reference [rad/s].
+            duration: time to advance [s].
         """
         k = max(1, int(round(duration / self.timestep)))
         twist = self.realised_twist(np.asarray(wheels, dtype=float), duration)
@@ -273,7 +273,7 @@ class MobilePlant:
             mujoco.mj_step(self.model, d)
 
     def wheel_speeds(self, dq_b, theta_b: float) -> np.ndarray:
-        """Wheel speeds (4,) [rad/s] that realise the generalized base velocity dq_b = [ẋ_b, ẏ_b, θ̇_b] at heading θ_b (no slip)."""
+        """Wheel speeds (4,) [rad/s] realising the generalized base velocity dq_b = [ẋ_b, ẏ_b, θ̇_b] at heading θ_b (no slip)."""
         return base_to_wheels(self.JV_pinv, dq_b, theta_b)
 
 

@@ -88,7 +88,8 @@ def tertiary_acceleration(grad, hess_dq, dq_m, *, gamma1: float, gamma2: float, 
         grad: (m,) ∇_{q_m} H.
         hess_dq: (m,) ∇²_{q_m} H q̇_m (`manipulability_det_hessian` @ q̇_m, or `det_terms`).
         dq_m: (m,) arm joint velocities [rad/s].
-        gamma1, gamma2: positive gains (thesis: 5, 0.5).
+        gamma1: positive gain γ₁ (thesis: 5).
+        gamma2: positive gain γ₂ (thesis: 0.5).
         n_base: number of base coordinates (zero entries).
 
     Returns:
@@ -132,7 +133,8 @@ def sns_acceleration(J, b, ddx, lo, hi, enabled, fixed, *, rank_tol: float = 1e-
         J: (r, n) Jacobian.
         b: (r,) drift J̇q̇ [m/s²].
         ddx: (r,) desired task acceleration ẍ [m/s²].
-        lo, hi: (n,) acceleration bounds (B.6–B.8).
+        lo: (n,) lower acceleration bounds (B.6–B.8).
+        hi: (n,) upper acceleration bounds.
         enabled: (n,) bool, joints allowed to take part (the base is disabled initially).
         fixed: (n,) accelerations of the joints that are not enabled.
         rank_tol: J_S counts as rank deficient where λ_min(J_S J_Sᵀ) ≤ rank_tol λ_max, i.e.
@@ -348,8 +350,9 @@ class AMDController(AccelControllerBase):
             t: time [s].
             q: (n,) configuration (x_b, y_b, θ_b, q_m) [m, m, rad, rad].
             dq: (n,) joint velocities (the commanded, integrated ones) [m/s, rad/s].
-            x_des, dx_des, ddx_des: (3,) desired end-effector position [m], velocity [m/s],
-                acceleration [m/s²] (world frame).
+            x_des: (3,) desired end-effector position [m] (world frame).
+            dx_des: (3,) desired end-effector velocity [m/s].
+            ddx_des: (3,) desired end-effector acceleration [m/s²].
 
         Returns:
             `AccelCommand`; integrate q̈ over one sample (q̇⁺ = q̇ + q̈T) to keep every bound.

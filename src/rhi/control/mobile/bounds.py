@@ -14,8 +14,7 @@ import math
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device import Device
-from rhi.device import device as load
+from rhi.device import Device, device as load
 from rhi.errors import InfeasibleLimits, InvalidInput, ModelError
 
 #: Components below this magnitude count as zero in the scaling of Fig. B.4.
@@ -181,7 +180,7 @@ def acceleration_bounds_unchecked(q, dq, b: JointBounds, T: float) -> tuple[np.n
 
 
 def _acc_bounds_1d(q: np.ndarray, dq: np.ndarray, b: JointBounds, T: float) -> tuple[np.ndarray, np.ndarray]:
-    """`acceleration_bounds_unchecked` for one configuration, joint by joint in Python floats (n ≈ 10: faster than NumPy calls)."""
+    """`acceleration_bounds_unchecked` for one configuration, joint by joint in Python floats (n ≈ 10: faster than NumPy)."""
     lo_out, hi_out = [], []
     T2 = T * T
     for qi, vi, qmin, qmax, vmin, vmax, amin, amax in zip(q.tolist(), dq.tolist(), *b._lists):
@@ -248,7 +247,8 @@ def scale_factor(a, c, lo, hi, active=None) -> tuple[float, int]:
     Args:
         a: (n,) scalable part λ.
         c: (n,) fixed part ξ.
-        lo, hi: (n,) bounds.
+        lo: (n,) lower bounds.
+        hi: (n,) upper bounds.
         active: (n,) bool, joints that take part (default all).
 
     Returns:
@@ -297,7 +297,8 @@ def base_stop_acceleration(dq_b, ddq_min, ddq_max, dt: float) -> np.ndarray:
 
     Args:
         dq_b: (n_b,) current base velocity [m/s, rad/s].
-        ddq_min, ddq_max: (n_b,) base acceleration bounds A_min,b < 0 < A_max,b.
+        ddq_min: (n_b,) base acceleration lower bounds A_min,b < 0.
+        ddq_max: (n_b,) base acceleration upper bounds A_max,b > 0.
         dt: sampling time [s].
 
     Returns:

@@ -88,7 +88,8 @@ def distribution_ratio(dq_m, dq_min, dq_max) -> np.ndarray:
 
     Args:
         dq_m: (..., m) arm joint velocities [rad/s].
-        dq_min, dq_max: (..., m) local bounds of eq. A.13 [rad/s].
+        dq_min: (..., m) local lower bounds of eq. A.13 [rad/s].
+        dq_max: (..., m) local upper bounds of eq. A.13 [rad/s].
 
     Returns:
         (...,) η ≥ 0.
@@ -301,7 +302,8 @@ class WeightedDistributionController:
         Args:
             t: time [s] (unused by the law; kept for a uniform controller interface).
             q: (n,) configuration [x_b, y_b, θ_b, q_m].
-            x_des, dx_des: (3,) desired position [m] and velocity [m/s] (not used by "dm_cartesian").
+            x_des: (3,) desired position [m] (not used by "dm_cartesian").
+            dx_des: (3,) desired velocity [m/s] (not used by "dm_cartesian").
             stage: "track", "dm_cartesian" or "dm_null".
 
         Returns:
