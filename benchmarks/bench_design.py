@@ -34,7 +34,7 @@ def rate(executor, prob, xs) -> float:
 
 
 def table_4_1(executor) -> float:
-    prob = ch4.problem("full", density=100)
+    prob = ch4.setup.problem("full", density=100)
     t = time.perf_counter()
     for which in ("C1", "C2"):
         o = optimize(prob, which, executor=executor, seed=0)
@@ -67,11 +67,11 @@ def main() -> None:
     args = ap.parse_args()
     print(f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start")
     rng = np.random.default_rng(0)
-    prob = ch4.problem("full", density=100)
+    prob = ch4.setup.problem("full", density=100)
     lo = np.array([b[0] for b in prob.bounds.values()])
     hi = np.array([b[1] for b in prob.bounds.values()])
     xs = list(rng.uniform(lo, hi, size=(800, 3)))
-    slow = dataclasses.replace(ch4.problem("full", density=25), master=DeviceMaster("phantom3"), r0=0.3)
+    slow = dataclasses.replace(ch4.setup.problem("full", density=25), master=DeviceMaster("phantom3"), r0=0.3)
     with PoolExecutor(args.workers) as pool:
         for name, p, x in (("closed-form phantom3, 400 samples", prob, xs),
                            ("Device.ik phantom3, 25 samples", slow, xs[:32])):

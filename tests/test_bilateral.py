@@ -9,7 +9,7 @@ import pytest
 
 import rhi
 from rhi.errors import InvalidInput
-from rhi.experiments.bilateral import Q_MASTER, Q_SLAVE, metrics, scenario
+from rhi.experiments.beyond.bilateral import Q_MASTER, Q_SLAVE, metrics, scenario
 from rhi.runtime.bilateral import Master, Slave, run_slave
 from rhi.runtime.channel import ChannelConfig, UDPEnd
 from rhi.sim import Hand, Path, Plant, Wall

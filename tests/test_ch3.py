@@ -28,13 +28,13 @@ def test_table_3_1():
         if key.startswith("ρ") and "our optimum" not in key:
             assert abs(row.ours - row.thesis) <= 0.005, key  # the thesis's 3-digit rounding + config rounding
     # our optimum of eq. 3.22 is at least as good for the objective as the thesis's configuration
-    dev = ch3.devices()["RHI"]
-    ob = VMEMatching(tuple(ch3.U), ch3.BETA)
-    for i, x in enumerate(ch3.POINTS):
+    dev = ch3.measures.devices()["RHI"]
+    ob = VMEMatching(tuple(ch3.measures.U), ch3.measures.BETA)
+    for i, x in enumerate(ch3.measures.POINTS):
         q = res.arrays[f"q_opt_{i}"]
         np.testing.assert_allclose(dev.fk(q), x, atol=1e-8)
         assert dev.within_limits(q)
-        assert ob.value(dev, q) <= ob.value(dev, np.array(ch3.THESIS_Q[i])) + 1e-12
+        assert ob.value(dev, q) <= ob.value(dev, np.array(ch3.measures.THESIS_Q[i])) + 1e-12
     # Λ ordering RHI < Rehab at both points (inertial model is ours)
     for where in ("(0.49, -0.22)", "(0.49, -0.14)"):
         assert rows[f"Λ RHI at {where} (thesis configuration)"].ours < rows[f"Λ Rehab at {where}"].ours
@@ -62,14 +62,14 @@ def test_ratio_maps_serial_equals_local_pool():
 
 
 def test_workspace_screen_keeps_every_reachable_point(rng):
-    ph = ch3.devices()["PHANToM"]
+    ph = ch3.measures.devices()["PHANToM"]
     q = rng.uniform(ph.q_min, ph.q_max, size=(4000, 2))
     q = q[ph.within_limits(q)]
     assert len(q) > 1000
-    assert ch3.maybe_reachable(ph, ph.fk(q)).all()  # no reachable point is screened out
+    assert ch3.measures.maybe_reachable(ph, ph.fk(q)).all()  # no reachable point is screened out
     # and it does screen: the far corners of the ratio-map grid are out of reach
     far = np.array([[0.25, 0.05], [0.70, 0.05], [0.0, 0.0]])
-    assert not ch3.maybe_reachable(ph, far).any()
+    assert not ch3.measures.maybe_reachable(ph, far).any()
     with pytest.raises(Unreachable):
         ph.ik(far[0], np.array([0.5, 0.3]), restarts=2)
 

@@ -10,8 +10,8 @@ import pytest
 from conftest import fd_jacobian, random_q
 
 from rhi.errors import InvalidInput
-from rhi.experiments import ch3_control as ex
-from rhi.experiments.ch3 import POINTS, THESIS_RHO, devices, measures
+from rhi.experiments.ch3 import nullspace as ex
+from rhi.experiments.ch3.measures import POINTS, THESIS_RHO, devices, measures
 from rhi.plots import ch3_control as pl
 
 matplotlib.use("Agg")

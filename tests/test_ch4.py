@@ -28,7 +28,7 @@ def test_theta_z_optimum_of_c2_and_the_explained_difference(theta):
     assert abs(th2 - best) <= 5.0
     # ... and lies about 10–15° from the thesis's 2° (see ch4.sensitivity). The difference is explained by a
     # plateau: GM_T at the thesis's θz = 2° is within a quarter of GM_T's range over θz from its maximum.
-    prob = ch4.problem("theta_z", density=40)
+    prob = ch4.setup.problem("theta_z", density=40)
     at2, ours = evaluate(prob, [np.deg2rad(2.0)]), evaluate(prob, [np.deg2rad(th2)])
     gmt = theta.arrays["sweep_GM_T"]
     assert ours["C2"] >= at2["C2"]
@@ -60,11 +60,11 @@ def full() -> object:
 
 def test_baseline_weights_satisfy_table_4_1():
     # Table 4.1's C2 design beats its C1 design on C2 only for K2/K1 >= 11.46; our baseline respects that.
-    t = ch4.THESIS_TABLE
-    k = ch4.K2_MIN_TABLE_4_1
+    t = ch4.setup.THESIS_TABLE
+    k = ch4.setup.K2_MIN_TABLE_4_1
     assert k == pytest.approx(11.46, abs=0.01)
-    c2 = {w: ch4.K1 * t[w]["GC_M"] + ch4.K2 * t[w]["GM_T"] for w in ("C1", "C2")}
-    assert ch4.K2 / ch4.K1 > k and c2["C2"] > c2["C1"]
+    c2 = {w: ch4.setup.K1 * t[w]["GC_M"] + ch4.setup.K2 * t[w]["GM_T"] for w in ("C1", "C2")}
+    assert ch4.setup.K2 / ch4.setup.K1 > k and c2["C2"] > c2["C1"]
 
 
 def test_table_4_1_qualitative_result(full):
@@ -85,10 +85,10 @@ def test_with_equal_weights_c2_shortens_l2_but_loses_gm_t():
     # K2/K1 = 10 (below Table 4.1's bound of 11.5): C2's optimum moves to the short-l2, high-GC basin, so the
     # thesis's "C1 has the larger l2" holds, but GC_M is ordered against the thesis and C2's GM_T falls below
     # that of one of C1's two mirror designs (ch4 module docstring).
-    prob = ch4.problem("full", density=40, K2=10.0)
+    prob = ch4.setup.problem("full", density=40, K2=10.0)
     o1 = optimize(prob, "C1", seed=0, maxiter=15, popsize=8)
     o2 = optimize(prob, "C2", seed=0, maxiter=15, popsize=8)
-    mirror = evaluate(prob, ch4.mirror(prob, o1.x))
+    mirror = evaluate(prob, ch4.setup.mirror(prob, o1.x))
     assert mirror["C1"] == pytest.approx(o1.values["C1"], rel=1e-12)
     assert o2.params["l2"] < o1.params["l2"] - 0.01
     assert o1.values["GM_M"] > o2.values["GM_M"]

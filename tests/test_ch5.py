@@ -16,7 +16,7 @@ from rhi.plots import ch5 as pl5
 
 @pytest.fixture(scope="module")
 def devs():
-    return ch5.devices()
+    return ch5.setup.devices()
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +60,7 @@ def test_penalty_and_its_derivative(devs, rng):
 def test_tmi_objective_value_and_gradient(devs, rng, k_q, pen_slave, rot):
     """ν of eq. 5.11 and its analytic gradient (penalised Jacobian, optional H) against finite differences."""
     rhi, slave = devs["RHI"], devs["slave"]
-    qs = slave.ik((0.5, 0.0), ch5.SLAVE_SEED)
+    qs = slave.ik((0.5, 0.0), ch5.setup.SLAVE_SEED)
     H = None if rot == 0 else np.array([[np.cos(rot), -np.sin(rot)], [np.sin(rot), np.cos(rot)]])
     obj = TMIMatching(slave, qs, k_q=k_q, penalize_slave=pen_slave, H=H)
     for q in random_q(rhi, rng, 4):
@@ -80,14 +80,14 @@ def test_tmi_objective_value_and_gradient(devs, rng, k_q, pen_slave, rot):
 
 def test_tmi_objective_reads_the_slave_encoders(devs):
     rhi, slave = devs["RHI"], devs["slave"]
-    state = {"q": slave.ik((0.5, 0.0), ch5.SLAVE_SEED)}
-    obj = TMIMatching(slave, lambda: state["q"], k_q=ch5.K_Q)
-    v0 = obj.value(rhi, ch5.Q_FIXED)
-    state["q"] = slave.ik((0.45, -0.2), ch5.SLAVE_SEED)
-    assert obj.value(rhi, ch5.Q_FIXED) != pytest.approx(v0)  # not a stale cache
+    state = {"q": slave.ik((0.5, 0.0), ch5.setup.SLAVE_SEED)}
+    obj = TMIMatching(slave, lambda: state["q"], k_q=ch5.setup.K_Q)
+    v0 = obj.value(rhi, ch5.setup.Q_FIXED)
+    state["q"] = slave.ik((0.45, -0.2), ch5.setup.SLAVE_SEED)
+    assert obj.value(rhi, ch5.setup.Q_FIXED) != pytest.approx(v0)  # not a stale cache
     state["q"] = np.array([np.nan, 0.2])
     with pytest.raises(InvalidInput, match="slave_q"):
-        obj.value(rhi, ch5.Q_FIXED)
+        obj.value(rhi, ch5.setup.Q_FIXED)
 
 
 def test_penalized_manipulability(devs, rng):
@@ -124,7 +124,7 @@ def test_fixed_point_controller_increases_tme(fixed, devs):
     assert devs["RHI"].within_limits(a["qT"], tol=1e-3)
     # TME never exceeds the slave's own ME (it is inside the intersection)
     assert _row(fixed, "TME area λ = σ₁σ₂ after").ours <= _row(fixed, "upper bound of λ").ours + 1e-12
-    np.testing.assert_allclose(a["x0"], ch5.X_FIXED, atol=2e-3)  # FK of the thesis's q is (0.48, −0.35)
+    np.testing.assert_allclose(a["x0"], ch5.setup.X_FIXED, atol=2e-3)  # FK of the thesis's q is (0.48, −0.35)
 
 
 def test_w_trajectory_scenarios(wtraj):

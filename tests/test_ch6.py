@@ -13,6 +13,8 @@ from rhi.design.executors import PoolExecutor, SerialExecutor
 from rhi.device import device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments import ch6
+from rhi.experiments.ch6 import capability
+from rhi.experiments.ch6 import setup as S6
 
 
 def _row(res, start, table=None):
@@ -91,17 +93,17 @@ def test_joint_limit_barrier_gradient_and_zero_inside(rhi4, rng):
 
 
 def test_match_fme_stays_on_manifold_within_limits(rhi4):
-    _, _, Mf, Ms = ch6.desired_fmes(rhi4, np.array(ch6.U), ch6.Q_HOME)
-    x = np.array(ch6.X0)
+    _, _, Mf, Ms = S6.desired_fmes(rhi4, np.array(S6.U), S6.Q_HOME)
+    x = np.array(S6.X0)
     for D in (Mf, Ms):
         obj = FMEMatching(D, rhi4.torque_max)
         q0 = rhi4.ik(x, np.zeros(4))
-        q = ch6.match_fme(rhi4, x, obj, q0)
+        q = S6.match_fme(rhi4, x, obj, q0)
         np.testing.assert_allclose(rhi4.fk(q), x, atol=1e-9)
         assert rhi4.within_limits(q)
         assert obj.value(rhi4, q) < obj.value(rhi4, q0) - 0.1
     with pytest.raises(Unreachable):
-        ch6.best_match(rhi4, (2.0, 0.0), FMEMatching(Mf, rhi4.torque_max), starts=2)
+        S6.best_match(rhi4, (2.0, 0.0), FMEMatching(Mf, rhi4.torque_max), starts=2)
 
 
 # ------------------------------------------------------------------ palpation (Fig. 6.9, Table 6.1)
@@ -153,7 +155,7 @@ def test_transition_is_bounded_with_the_method_and_jumps_without(trans):
     Mf, Ms = a["M_free_des"], a["M_stiff_des"]
     dist = np.linalg.norm(Mf - Ms)
     assert _row(trans, "full transition time").ours == pytest.approx(0.5, abs=0.01)  # thesis: 0.5 s
-    bound = np.pi * 1e-3 / (2 * ch6.RHO)
+    bound = np.pi * 1e-3 / (2 * S6.RHO)
     assert a["dM_with"].max() <= bound * (1 + 1e-9)
     assert a["dM_without"].max() == pytest.approx(dist, rel=1e-9)  # the whole change in one tick
     jump_w = _row(trans, "max per-tick jump of τ_S = −β∂ν/∂q from the M_des change, with").ours
@@ -167,7 +169,7 @@ def test_transition_is_bounded_with_the_method_and_jumps_without(trans):
         assert np.all(np.abs(a[f"tau_{name}"]) <= device("rhi4").torque_max + 1e-12)
     # with the method Ω moves continuously: no tick changes it by more than the cosine's slope allows
     dom = np.abs(np.diff(a["omega_with"]))
-    assert dom.max() <= np.pi * 1e-3 / (2 * ch6.RHO * dist) * (1 + 1e-9)
+    assert dom.max() <= np.pi * 1e-3 / (2 * S6.RHO * dist) * (1 + 1e-9)
     assert np.abs(np.diff(a["omega_without"])).max() == 1.0
 
 
@@ -182,7 +184,7 @@ def test_ratio_map_bit_identical_serial_vs_pool(small_map):
 
 
 def test_ratio_map_at_palpation_point_agrees_with_palpation(palp):
-    out = ch6._ratio_row(ch6.X0[1], np.array([ch6.X0[0]]), 3, True)
+    out = capability._ratio_row(S6.X0[1], np.array([S6.X0[0]]), 3, True)
     fs_free, fs_stiff = out[0, 0], out[1, 0]
     assert fs_stiff / fs_free > 1.3
     np.testing.assert_allclose(-fs_free, _row(palp, "F_max along u, M_Free^des: force scaling at the static").ours,

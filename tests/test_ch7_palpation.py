@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rhi.errors import InvalidInput
-from rhi.experiments import ch7_palpation as ex
+from rhi.experiments.ch7 import contact as ex
 from rhi.plots import ch7_palpation as pl
 
 matplotlib.use("Agg")

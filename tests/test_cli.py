@@ -58,9 +58,13 @@ def test_negative_numbers_and_singular_configuration(capsys):
 def test_experiment_report_names_default_out_and_piped_progress(tmp_path, monkeypatch, capsys):
     from rhi.report.reproduce import STEPS, step_names
 
-    for report_name, step in [("perception.psychophysics", "ch3.psychophysics"), ("ch4.table_4_1", "ch4.full_design"),
-                              ("ch4.theta_z", "ch4.theta_z_design"), ("ch7.palpation", "ch7.palpation")]:
-        assert [s.name for s in STEPS if report_name in step_names(s)] == [step]
+    for name, step in [("ch3.psychophysics", "ch3.psychophysics"), ("full_design", "ch4.full_design"),
+                       ("ch4.theta_z_design", "ch4.theta_z_design"), ("ch7.palpation", "ch7.palpation"),
+                       ("sysid_table_6_1", "ch6.sysid_table_6_1"), ("beyond.passivity", "beyond.passivity")]:
+        assert [s.name for s in STEPS if name in step_names(s)] == [step]
+    # an experiment's id is the chapter module or package that defines it and its function
+    for s in STEPS:
+        assert s.run.__module__.startswith(f"rhi.experiments.{s.chapter}") and s.name == f"{s.chapter}.{s.run.__name__}"
     monkeypatch.chdir(tmp_path)
     assert main(["experiment", "ch7.example_3dof", "--quick", "--executor", "serial"]) == 0
     assert (tmp_path / "out" / "ch7.example_3dof" / "results.json").is_file()

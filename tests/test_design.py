@@ -67,17 +67,17 @@ def test_gm_and_gc_match_direct_numerical_integration(kind):
 
 
 def test_indices_converge_as_density_doubles():
-    a = evaluate(ch4.problem("theta_z", density=50), [0.1])
-    b = evaluate(ch4.problem("theta_z", density=100), [0.1])
+    a = evaluate(ch4.setup.problem("theta_z", density=50), [0.1])
+    b = evaluate(ch4.setup.problem("theta_z", density=100), [0.1])
     for k in ("GM_M", "GC_M", "GM_T"):
         assert b[k] == pytest.approx(a[k], rel=0.01)
 
 
 def test_closed_form_phantom3_matches_device_ik():
     ws = rectangle((0.40, 0.45), (-0.05, 0.05), density=40)
-    slave = slave_solution("rehab_slave", ws.points, ch4.SLAVE_Q0)
+    slave = slave_solution("rehab_slave", ws.points, ch4.setup.SLAVE_Q0)
     x = [0.25, 0.3, -0.1]
-    fast = DesignProblem(Phantom3Master(), ws, slave, (0.424, 0), 0.3, ch4.BOUNDS)
+    fast = DesignProblem(Phantom3Master(), ws, slave, (0.424, 0), 0.3, ch4.setup.BOUNDS)
     slow = dataclasses.replace(fast, master=DeviceMaster("phantom3"))
     a, b = fast.solve(x), slow.solve(x)
     assert a.ok.all() and b.ok.all()
@@ -94,14 +94,14 @@ def test_bad_bounds_raise_clear_errors():
     with pytest.raises(InvalidInput, match="link length"):
         check_bounds({"l2": (0.0, 0.3)})
     with pytest.raises(InvalidInput, match="link length"):
-        ch4.problem("full").__class__(Phantom3Master(), ch4.problem("theta_z", density=20).workspace,
-                                      ch4.problem("theta_z", density=20).slave, (0.424, 0), "auto",
+        ch4.setup.problem("full").__class__(Phantom3Master(), ch4.setup.problem("theta_z", density=20).workspace,
+                                      ch4.setup.problem("theta_z", density=20).slave, (0.424, 0), "auto",
                                       {"l2": (-0.1, 0.2)})
     with pytest.raises(InfeasibleLimits):
         rectangle((0.5, 0.3), (-0.1, 0.1))
     with pytest.raises(InvalidInput, match="finite"):
         check_bounds({"z_ph": (-np.inf, 0.1)})
-    prob = ch4.problem("theta_z", density=20)
+    prob = ch4.setup.problem("theta_z", density=20)
     with pytest.raises(InvalidInput, match=r"fixed\['l2'\].*link length"):
         dataclasses.replace(prob, fixed={"l2": 0.0, "z_ph": 0.0539})
     with pytest.raises(InvalidInput, match="l2"):
@@ -111,9 +111,9 @@ def test_bad_bounds_raise_clear_errors():
 def test_workspace_out_of_reach_raises():
     far = rectangle((3.0, 3.2), (-0.1, 0.1), density=20)
     with pytest.raises(Unreachable, match="slave"):
-        DesignProblem(Phantom3Master(), far, slave_solution("rehab_slave", far.points, ch4.SLAVE_Q0), (3.1, 0),
+        DesignProblem(Phantom3Master(), far, slave_solution("rehab_slave", far.points, ch4.setup.SLAVE_Q0), (3.1, 0),
                       "auto", {"theta_z": (-1, 1)})
-    prob = ch4.problem("theta_z", density=20)
+    prob = ch4.setup.problem("theta_z", density=20)
     high = dataclasses.replace(prob, fixed={"l2": 0.165, "z_ph": 0.19})  # plane above the HI's reach
     with pytest.raises(Unreachable, match="every workspace sample"):
         evaluate_strict(high, [0.0])
@@ -126,7 +126,7 @@ def test_workspace_out_of_reach_raises():
 
 
 def test_pool_equals_serial_and_resume(tmp_path):
-    prob = ch4.problem("theta_z", density=30)
+    prob = ch4.setup.problem("theta_z", density=30)
     xs = [[t] for t in np.linspace(-1.5, 1.5, 12)]
     ref = sweep(prob, xs, executor=SerialExecutor())
     with PoolExecutor(2) as ex:
@@ -144,7 +144,7 @@ def test_pool_equals_serial_and_resume(tmp_path):
 
 
 def test_optimizer_gives_the_same_optimum_on_the_pool():
-    prob = ch4.problem("full", density=20)
+    prob = ch4.setup.problem("full", density=20)
     a = optimize(prob, "C2", seed=3, maxiter=4, popsize=5)
     with PoolExecutor(2) as ex:
         b = optimize(prob, "C2", seed=3, maxiter=4, popsize=5, executor=ex)
@@ -157,7 +157,7 @@ def test_optimizer_gives_the_same_optimum_on_the_pool():
 
 
 def test_optimizer_is_seeded_and_resumes(tmp_path):
-    prob = ch4.problem("theta_z", density=30)
+    prob = ch4.setup.problem("theta_z", density=30)
     a = optimize(prob, "C2", seed=1, maxiter=8, checkpoint=str(tmp_path / "o.json"))
     b = optimize(prob, "C2", seed=1, maxiter=8, checkpoint=str(tmp_path / "o.json"))
     np.testing.assert_array_equal(a.x, b.x)
@@ -167,7 +167,7 @@ def test_optimizer_is_seeded_and_resumes(tmp_path):
 def test_parallel_map_runs_anywhere_in_order_with_progress():
     from rhi.design.executors import parallel_map
 
-    prob = ch4.problem("theta_z", density=20)
+    prob = ch4.setup.problem("theta_z", density=20)
     xs = [np.array([t]) for t in np.linspace(-1.5, 1.5, 5)]
     ref = [evaluate(prob, x) for x in xs]
     fn = functools.partial(evaluate, prob)
@@ -193,7 +193,7 @@ def test_ray_matches_local_pool():
     from rhi.design import RayExecutor
     from rhi.design.executors import parallel_map
 
-    prob = ch4.problem("theta_z", density=30)
+    prob = ch4.setup.problem("theta_z", density=30)
     xs = [[t] for t in np.linspace(-1.5, 1.5, 8)]
     with PoolExecutor(2) as ex:
         ref = sweep(prob, xs, executor=ex)

@@ -106,7 +106,7 @@ def test_killing_a_pooled_run_leaves_no_orphan_workers(tmp_path):
 def problem():
     from rhi.experiments import ch4
 
-    return ch4.problem("theta_z", density=20)
+    return ch4.setup.problem("theta_z", density=20)
 
 
 def test_design_refuses_bad_vectors_names_and_settings(problem):

@@ -16,8 +16,9 @@ from rhi.control import (
 from rhi.control.intent import FilteredIntent, HMMIntent, KnownIntent, axial_error, primitives
 from rhi.control.intent_control import IntentController, IntentFME, IntentVME
 from rhi.errors import InvalidInput
-from rhi.experiments import ch6
-from rhi.experiments.intent import error_and_lag, trained_hmm
+from rhi.experiments.ch6 import setup as ch6
+from rhi.experiments.setups import path_hand
+from rhi.experiments.beyond.intent import error_and_lag, trained_hmm
 from rhi.sim import Hand, Path, Plant, simulate
 from rhi.sim.strokes import synthetic_strokes
 
@@ -72,7 +73,7 @@ def test_known_u_equals_existing_controllers_bit_for_bit():
     u, x0 = np.array(ch6.U), np.array(ch6.X0)
     K, zeta, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
     q0 = dev.ik(x0, np.array([0.3, 0.5, 0.4, 0.3]))
-    hand = lambda: ch6._hand([x0, x0 + 0.01 * u], 0.02, 0.05, 3000.0, 40.0)  # noqa: E731
+    hand = lambda: path_hand([x0, x0 + 0.01 * u], 0.02, 0.05, 3000.0, 40.0)  # noqa: E731
     law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u), damping=0.0, coriolis=False, gravity=False)
     common = dict(primary=law, damping=ch6.K_D, saturation="scaling", aso_shape=ch6.ASO_S)
     ref = NullSpaceController(dev, ControllerConfig(objectives=ch6.controller_terms(Ms, dev.torque_max), **common))

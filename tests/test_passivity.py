@@ -170,7 +170,7 @@ def test_palpation_energy_reduced_duration():
     """Issue 10's passivity figures at reduced duration: in the §6.4 palpation set-up (1000 N/m, B^d = 0.01,
     1 kHz, ASCM, null-space objectives) the device hands the user energy without the PC (W clearly < 0) and
     the hand's work stays W ≥ −1 mJ with it; the 5000 N/m wall shakes without the PC and not with it."""
-    from rhi.experiments.passivity import SUMMARY, passivity
+    from rhi.experiments.beyond.passivity import SUMMARY, passivity
 
     r = passivity(duration=1.5, stiff_duration=2.0, speed=0.03, cases=("objectives", "objectives_pc"))
     a = r.arrays

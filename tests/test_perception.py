@@ -1,4 +1,4 @@
-"""rhi.experiments.perception: system identification and virtual psychophysics on the MuJoCo plant.
+"""rhi.experiments.identification, ch3.identification, ch3.discrimination, ch6.identification: system identification and virtual psychophysics on the MuJoCo plant.
 
 Reduced sizes (3 identification trials, a 3-level psychophysics protocol on one stroke
 duration); the full runs are `sysid_table_3_2()`, `sysid_table_6_1()`, `psychophysics()`.
@@ -15,7 +15,11 @@ import pytest  # noqa: E402
 from rhi import thesis as T  # noqa: E402
 from rhi.device import device  # noqa: E402
 from rhi.errors import InvalidInput  # noqa: E402
-from rhi.experiments import perception as P  # noqa: E402
+from rhi.experiments import identification as ID  # noqa: E402
+from rhi.experiments.ch3 import discrimination as D  # noqa: E402
+from rhi.experiments.ch3 import sysid_table_3_2  # noqa: E402
+from rhi.experiments.ch6 import sysid_table_6_1  # noqa: E402
+from rhi.experiments.setups import ZeroTorque  # noqa: E402
 from rhi.metrics import effective_inertia  # noqa: E402
 from rhi.plots import perception as plots  # noqa: E402
 
@@ -29,12 +33,12 @@ def _row(result, start):
 # ------------------------------------------------------------------------------- sysid
 @pytest.fixture(scope="module")
 def table_3_2():
-    return P.sysid_table_3_2(trials=3)
+    return sysid_table_3_2(trials=3)
 
 
 @pytest.fixture(scope="module")
 def table_6_1():
-    return P.sysid_table_6_1(trials=3)
+    return sysid_table_6_1(trials=3)
 
 
 def test_identified_inertia_matches_eq_3_13_on_the_plant(table_3_2):
@@ -96,15 +100,15 @@ def test_velocity_product_force_closes_the_dynamics():
     from rhi.sim import Plant, PushForce, simulate
 
     dev = device("rhi4")
-    u = np.array(P.U)
+    u = np.array(ID.U)
     q0 = np.array([0.5, 0.95, 0.38, -0.29])
     plant = Plant(dev, friction=None)
     plant.reset(q0)
-    log = simulate(plant, P._ZeroTorque(4), duration=0.1, hand=PushForce(u, 1.0))
+    log = simulate(plant, ZeroTorque(4), duration=0.1, hand=PushForce(u, 1.0))
     x = dev.fk(log.q) @ u
     a = np.gradient(np.gradient(x, log.t), log.t)
     lam = effective_inertia(dev.jacobian(log.q), dev.mass_matrix(log.q), u)
-    vp = P.velocity_product_force(dev, log.q, log.dq, u)
+    vp = ID.velocity_product_force(dev, log.q, log.dq, u)
     F = log.ft[:, :2] @ u
     k = slice(5, -5)
     assert np.max(np.abs(vp[k])) > 0.05  # not negligible at these speeds
@@ -118,26 +122,26 @@ def test_reflected_friction_of_a_2dof_chain():
     u = np.array([0.0, 1.0])
     dq = np.linalg.solve(M, J.T @ u)  # motion from rest under a force along u
     D, tc = np.array([0.01, 0.02]), np.array([0.005, 0.0])
-    lam, phi, c = P.reflected_friction(dev, q, dq, u, D, tc)
+    lam, phi, c = ID.reflected_friction(dev, q, dq, u, D, tc)
     assert lam == pytest.approx(float(effective_inertia(J, M, u)))
     row = np.linalg.solve(M, J.T @ u)
     assert phi == pytest.approx(lam * (row @ (D * dq)) / (u @ J @ dq))
     assert c == pytest.approx(lam * row @ (tc * np.sign(dq)))
     with pytest.raises(InvalidInput, match="dq"):
-        P.reflected_friction(dev, q, np.zeros(2), u, D, tc)
+        ID.reflected_friction(dev, q, np.zeros(2), u, D, tc)
 
 
 def test_trial_forces_seeded_in_range():
-    f = P.trial_forces(10, seed=3)
+    f = ID.trial_forces(10, seed=3)
     assert f.shape == (10,) and np.all((f >= 0.5) & (f <= 1.5))
-    np.testing.assert_array_equal(f, P.trial_forces(10, seed=3))
+    np.testing.assert_array_equal(f, ID.trial_forces(10, seed=3))
     with pytest.raises(InvalidInput, match="trials"):
-        P.trial_forces(1)
+        ID.trial_forces(1)
 
 
 # ------------------------------------------------------------------------ psychophysics
 def test_minimum_jerk_palpation():
-    h = P.MinimumJerkPalpation(np.zeros(2), [0.0, 2.0], 0.09, 0.6)
+    h = D.MinimumJerkPalpation(np.zeros(2), [0.0, 2.0], 0.09, 0.6)
     x, v = h.reference(0.0)
     np.testing.assert_allclose(x, 0.0)
     np.testing.assert_allclose(v, 0.0)
@@ -148,22 +152,22 @@ def test_minimum_jerk_palpation():
     F = h.force(0.3, np.array([0.0, 0.04]), np.zeros(2))
     assert F[1] == pytest.approx(300 * 0.005 + 10 * 1.875 * 0.09 / 0.6)
     with pytest.raises(InvalidInput, match="duration"):
-        P.MinimumJerkPalpation(np.zeros(2), [0, 1], 0.09, 0.0)
+        D.MinimumJerkPalpation(np.zeros(2), [0, 1], 0.09, 0.0)
 
 
 def test_perceived_stiffness_through_origin():
     d = np.linspace(0.001, 0.075, 50)
-    assert P.perceived_stiffness(d, 50.0 * d) == pytest.approx(50.0)
+    assert D.perceived_stiffness(d, 50.0 * d) == pytest.approx(50.0)
     # a constant friction force is attributed to the spring: K̂ = K + c Σd/Σd²
-    k = P.perceived_stiffness(d, 50.0 * d + 0.1)
+    k = D.perceived_stiffness(d, 50.0 * d + 0.1)
     assert k == pytest.approx(50.0 + 0.1 * d.sum() / (d @ d))
     with pytest.raises(InvalidInput):
-        P.perceived_stiffness(np.zeros(5), np.ones(5))
+        D.perceived_stiffness(np.zeros(5), np.ones(5))
 
 
 @pytest.fixture(scope="module")
 def tiny_study():
-    return P.psychophysics(subjects=2, repetitions=6, comparison_percent=(-35.0, 0.0, 35.0), durations=(0.7,),
+    return D.psychophysics(subjects=2, repetitions=6, comparison_percent=(-35.0, 0.0, 35.0), durations=(0.7,),
                            overdispersion=False, seed=1)
 
 
@@ -196,19 +200,19 @@ def test_simulate_study_validates_and_is_seeded():
     table = {"stiffness": np.array([40.0, 50.0, 60.0]), "durations": np.array([1.0]),
              "RHI": np.array([[40.0], [50.0], [60.0]])}
     kw = dict(subjects=2, devices=("RHI",), repetitions=4, comparison_percent=(-20.0, 0.0, 20.0))
-    r1, w1 = P.simulate_study(table, seed=5, **kw)
-    r2, w2 = P.simulate_study(table, seed=5, **kw)
+    r1, w1 = D.simulate_study(table, seed=5, **kw)
+    r2, w2 = D.simulate_study(table, seed=5, **kw)
     np.testing.assert_array_equal(r1.response, r2.response)
     np.testing.assert_array_equal(w1, w2)
     # a noiseless observer on a transparent device answers by the physics alone
-    r0, _ = P.simulate_study(table, seed=5, weber_mean=1e-9, weber_sd=0.0, **kw)
+    r0, _ = D.simulate_study(table, seed=5, weber_mean=1e-9, weber_sd=0.0, **kw)
     big = r0.comparison > 55
     small = r0.comparison < 45
     assert np.all(r0.response[big] == 1) and np.all(r0.response[small] == 0)
     with pytest.raises(InvalidInput, match="comparison_percent"):
-        P.simulate_study(table, subjects=1, devices=("RHI",), comparison_percent=(-20.0, 10.0, 20.0))
+        D.simulate_study(table, subjects=1, devices=("RHI",), comparison_percent=(-20.0, 10.0, 20.0))
     with pytest.raises(InvalidInput, match="device"):
-        P.simulate_study(table, subjects=1, devices=("Rehab",), comparison_percent=(-20.0, 0.0, 20.0))
+        D.simulate_study(table, subjects=1, devices=("Rehab",), comparison_percent=(-20.0, 0.0, 20.0))
 
 
 # ------------------------------------------------------------------------------ figures

@@ -53,29 +53,29 @@ def test_shipped_config_runs_over_simlink(name):
 def _experiment_controller(name: str):
     """The controller the experiment module builds for the set-up of the shipped configuration `name`."""
     if name == "ch3_vme":
-        from rhi.experiments import ch3_control
+        from rhi.experiments.ch3 import nullspace
 
-        return ch3_control.controller(rhi.device("rhi4"))
+        return nullspace.controller(rhi.device("rhi4"))
     if name == "ch5_tmi":
         from rhi.control import TMIMatching
-        from rhi.experiments import ch5
+        from rhi.experiments.ch5 import setup as ch5
 
         dev, slave = rhi.device("rhi4", d2=ch5.D2), rhi.device("rehab_slave")
         qs = slave.ik(dev.fk(ch5.Q_FIXED), ch5.SLAVE_SEED)
-        return ch5._controller(dev, TMIMatching(slave, qs, k_q=ch5.K_Q), ch5.GAIN, ch5.NULL_DAMPING)
+        return ch5.controller(dev, TMIMatching(slave, qs, k_q=ch5.K_Q), ch5.GAIN, ch5.NULL_DAMPING)
     if name == "ch6_fme_aso":
         from rhi.control import FMESchedule, TransitionConfig
-        from rhi.experiments import ch6
+        from rhi.experiments.ch6 import setup as ch6
 
         dev = rhi.device("rhi4")
         _, _, Mf, Ms = ch6.desired_fmes(dev, np.array(ch6.U), ch6.Q_HOME)
         tc = TransitionConfig(eps1=ch6.EPS1, eps2=ch6.EPS2, rho=ch6.RHO, S=ch6.ASO_S)
-        return ch6._palpation_controller(dev, None, FMESchedule(Mf, Ms, gain=ch6.BETA, transition=tc))
+        return ch6.palpation_controller(dev, None, FMESchedule(Mf, Ms, gain=ch6.BETA, transition=tc))
     if name == "ch7_full":
         return _bench_module().controller(rhi.device("rhi4"))  # the runtime benchmark's full ch7 stack
-    from rhi.experiments import ch7_palpation
+    from rhi.experiments.ch7 import contact
 
-    return ch7_palpation.palpation_controller(rhi.device("rhi4"), "ascm")
+    return contact.palpation_controller(rhi.device("rhi4"), "ascm")
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -101,7 +101,9 @@ def test_config_controller_equals_the_experiments(name):
 
 
 def test_config_start_and_hand_match_the_experiments():
-    from rhi.experiments import ch3, ch3_control, ch5
+    from rhi.experiments.ch3 import measures as ch3
+    from rhi.experiments.ch3 import nullspace as ch3_control
+    from rhi.experiments.ch5 import setup as ch5
 
     c3 = load_config("ch3_vme")
     np.testing.assert_allclose(c3.sim["q0"], ch3_control.start_configuration(c3.device, ch3.POINTS[0], "rehab"),

@@ -176,7 +176,7 @@ def test_fast_equals_reference_3d(spatial):
 
 # ------------------------------------------------------------------------ experiments (reduced)
 def test_spatial_remarks_reduced():
-    from rhi.experiments.spatial import spatial_remarks
+    from rhi.experiments.beyond.spatial import spatial_remarks
 
     res = spatial_remarks(resolution=2, workers=1)
     rows = {r.quantity: r.ours for r in res.tables[0].rows}
@@ -196,7 +196,7 @@ def test_spatial_remarks_reduced():
 
 
 def test_spatial_force_capability_orders_methods():
-    from rhi.experiments.spatial import spatial_force_capability
+    from rhi.experiments.beyond.spatial import spatial_force_capability
 
     res = spatial_force_capability(configurations=2, directions=4)
     for d in ("srhi5", "gen3"):
@@ -208,7 +208,7 @@ def test_spatial_force_capability_orders_methods():
 
 
 def test_spatial_palpation_reduced():
-    from rhi.experiments.spatial_palpation import spatial_palpation
+    from rhi.experiments.beyond.spatial_palpation import spatial_palpation
 
     res = spatial_palpation(settle=0.05, depth=0.008, speed=0.02, hold=0.05, starts=1, cases=("free", "stiff"))
     rows = {r.quantity: r.ours for r in res.tables[0].rows}

@@ -310,7 +310,7 @@ def main(argv: list[str] | None = None) -> int:
     r = sub.add_parser("reproduce", help="reproduce the thesis's computational tables and figures into a report")
     r.add_argument("--only", help="one chapter, e.g. ch3")
     e = sub.add_parser("experiment", help="run one experiment: PNG figures, CSV/JSON numbers, thesis beside ours")
-    e.add_argument("name", nargs="?", help="experiment id or the report's name, e.g. ch7.example_3dof (none: list them)")
+    e.add_argument("name", nargs="?", help="experiment id (its result's name), e.g. ch7.example_3dof (none: list them)")
     e.add_argument("--list", action="store_true", help="list the experiments")
     for q in (r, e):
         q.add_argument("--quick", action="store_true", help="reduced resolution (seconds)")

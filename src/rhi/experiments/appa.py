@@ -21,6 +21,7 @@ from rhi import thesis as T
 from rhi.control.mobile import DMConfig, WeightedConfig, WeightedDistributionController, W_TAU_LIMITS
 from rhi.device import device
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import ProgressChain
 from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, hold, simulate_mobile
 
 PI = math.pi
@@ -29,20 +30,8 @@ Q0 = np.array([0.0, 0.0, 0.0, 0.0, PI / 6, 0.0, PI / 2, 0.0, -PI / 6, 0.0])
 CM, DEG = 100.0, 180.0 / PI
 
 
-class _Progress:
-    """Spreads one progress callback over several simulation runs."""
-
-    def __init__(self, progress: Callable[[int, int], None] | None, totals: list[int]) -> None:
-        self.progress, self.totals, self.done = progress, totals, 0
-
-    def run(self, i: int) -> Callable[[int, int], None] | None:
-        if self.progress is None:
-            return None
-        base, total = sum(self.totals[:i]), sum(self.totals)
-        return lambda k, _K: self.progress(base + k, total)
-
-
-def _slip_note(slip: SlipModel) -> str:
+def slip_note(slip: SlipModel) -> str:
+    """The result note that describes the base slip model `slip` (appendices A and B)."""
     return (f"Base slip model (ours; the thesis measures rather than models it): twist efficiency "
             f"1 − s = [{1 - slip.longitudinal:.2f}, {1 - slip.lateral:.2f}, {1 - slip.yaw:.2f}] (x_b, y_b, θ_b), "
             f"coloured noise {100 * slip.noise:.0f} % (τ = {slip.noise_tau} s, seed {slip.seed}). The controllers "
@@ -73,11 +62,12 @@ def tracking(
     dev = device("wmm")
     traj = circle(dev.fk(Q0), radius, duration=duration, dt=dt)
     methods = {"proposed": "weighted", "traditional": "pinv_generalized", "traditional_wheel_speeds": "pinv"}
-    prog = _Progress(progress, [traj.t.size] * len(methods))
+    prog = ProgressChain(progress, traj.t.size * len(methods))
     logs: dict[str, MobileLog] = {}
-    for i, (name, dist) in enumerate(methods.items()):
+    for name, dist in methods.items():
         ctl = WeightedDistributionController(dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, distribution=dist))
-        logs[name] = simulate_mobile(ctl, traj, Q0, plant=MobilePlant(dev, slip=slip), progress=prog.run(i))
+        logs[name] = simulate_mobile(ctl, traj, Q0, plant=MobilePlant(dev, slip=slip),
+                                     progress=prog.run(traj.t.size))
     thesis = {m: {**T.TABLE_A_1[m], "err": T.ERROR_A[m]} for m in ("proposed", "traditional")}
     comps = (("v_xb", CM, "cm/s"), ("v_yb", CM, "cm/s"), ("ω_b", DEG, "°/s"))
     rows, err_rows = [], []
@@ -113,7 +103,7 @@ def tracking(
          Table("§A.4.2: tracking and base motion", err_rows + interval)],
         arrays,
         [
-            _slip_note(slip),
+            slip_note(slip),
             f"Control period {dt} s, K_x = 10, ε = 0.2, velocity bounds of eq. A.13 from Table B.1; every "
             f"commanded position and velocity stayed within its bounds: {bounds_ok}.",
             "γ is computed from the arm-only solution (γ = 0) each step, then the weighted J† of eq. A.11 is "

@@ -21,8 +21,9 @@ import numpy as np
 from rhi import thesis as T
 from rhi.control.mobile import AMDConfig, AMDController, PinvAccelConfig, PinvAccelController
 from rhi.device import device
-from rhi.experiments.appa import CM, DEG, Q0, _Progress, _slip_note
+from rhi.experiments.appa import CM, DEG, Q0, slip_note
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import ProgressChain
 from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, simulate_mobile
 
 #: σ_min(J_m) below which we call the arm singular in §B.4.2 [m/rad] (a fifth of its start value 0.245).
@@ -95,11 +96,11 @@ def singularity(
     slip = slip if slip is not None else SlipModel()
     dev = device("wmm")
     K = int(round(duration / dt)) + 1
-    prog = _Progress(progress, [K, K])
+    prog = ProgressChain(progress, 2 * K)
     logs = {}
-    for i, sa in enumerate((False, True)):
+    for sa in (False, True):
         ctl = AMDController(dev, AMDConfig(dt=dt, singularity_avoidance=sa))
-        logs["with" if sa else "without"] = _run(ctl, radius, duration, dt, slip, prog.run(i))
+        logs["with" if sa else "without"] = _run(ctl, radius, duration, dt, slip, prog.run(K))
     wo, w = logs["without"], logs["with"]
     t = wo.t
     err_wo = np.linalg.norm(wo.error, axis=1)
@@ -127,7 +128,7 @@ def singularity(
         [Table("§B.4.2 singularity avoidance", rows)],
         arrays,
         [
-            _slip_note(slip),
+            slip_note(slip),
             f"Control period {dt} s; bounds respected in both runs: {wo.bounds_ok and w.bounds_ok}.",
             f"'Singular' is not defined numerically in the thesis; we give the first time σ_min(J_m) < "
             f"{SINGULAR_SIGMA} m/rad, the first task scaling (α < 1) and the first 1 cm tracking error.",
@@ -165,7 +166,7 @@ def tracking(
     slip = slip if slip is not None else SlipModel()
     dev = device("wmm")
     K = int(round(duration / dt)) + 1
-    prog = _Progress(progress, [K] * 5)
+    prog = ProgressChain(progress, 5 * K)
     far = dev.fk(Q0) + np.array([2 * radii[0], 0.0, 0.0])
     sig_far = best_sigma(far)
     sigma_adapted = 0.9 * sig_far if math.isfinite(sig_far) else sigma_min
@@ -173,12 +174,12 @@ def tracking(
     runs = [("within", radii[0], "proposed", sigma_min), ("within", radii[0], "traditional", None),
             ("beyond", radii[1], "proposed", sigma_min), ("beyond", radii[1], "traditional", None),
             ("within", radii[0], "proposed_adapted", sigma_adapted)]
-    for i, (where, R, method, sig) in enumerate(runs):
+    for where, R, method, sig in runs:
         if method == "traditional":
             ctl = PinvAccelController(dev, PinvAccelConfig(dt=dt))
         else:
             ctl = AMDController(dev, AMDConfig(dt=dt, sigma_min=sig))
-        logs[where, method] = _run(ctl, R, duration, dt, slip, prog.run(i))
+        logs[where, method] = _run(ctl, R, duration, dt, slip, prog.run(K))
     thesis_b2 = dict(T.TABLE_B_2)
     thesis_b2["within", "proposed_adapted"] = thesis_b2["within", "proposed"]
     thesis_err = T.ERROR_B
@@ -232,7 +233,7 @@ def tracking(
         [Table("Table B.2: commanded base velocity", rows_b2), Table("§B.4.3 tracking", rows_err)],
         arrays,
         [
-            _slip_note(slip),
+            slip_note(slip),
             f"Control period {dt} s, σ_m,min = {sigma_min}; every commanded position, velocity and acceleration "
             f"stayed within Table B.1's bounds: {ok}. The traditional controller ignores the bounds; its "
             "accelerations are clipped to them (as a robot driver would) before integration.",

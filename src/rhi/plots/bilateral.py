@@ -1,4 +1,4 @@
-"""Figures of delayed bilateral teleoperation (`rhi.experiments.bilateral`)."""
+"""Figures of delayed bilateral teleoperation (`rhi.experiments.beyond.bilateral`)."""
 
 from __future__ import annotations
 

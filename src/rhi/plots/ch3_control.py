@@ -1,4 +1,4 @@
-"""Figures of the simulated chapter-3 null-space controller (`rhi.experiments.ch3_control` results)."""
+"""Figures of the simulated chapter-3 null-space controller (`rhi.experiments.ch3.nullspace` results)."""
 
 from __future__ import annotations
 

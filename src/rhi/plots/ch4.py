@@ -70,7 +70,7 @@ def fig4_6(result: Result) -> Figure:
 def fig4_7(result: Result) -> Figure:
     """Fig. 4.7: ‖q̇‖² moving the slave from A to B at 0.01 m/s for each design."""
     fig, ax = plt.subplots(figsize=(6, 4))
-    from rhi.experiments.ch4 import ENERGY_LABELS
+    from rhi.experiments.ch4.setup import ENERGY_LABELS
 
     for i, lab in enumerate(ENERGY_LABELS):
         ax.plot(result.arrays["energy_t"], result.arrays[f"energy_{i}"], label=str(lab))
@@ -95,7 +95,7 @@ def k2_scan(result: Result) -> Figure:
 
     The dotted line is the smallest K2/K1 consistent with Table 4.1 (`ch4.K2_MIN_TABLE_4_1`).
     """
-    from rhi.experiments.ch4 import K2_MIN_TABLE_4_1
+    from rhi.experiments.ch4.setup import K2_MIN_TABLE_4_1
 
     a = result.arrays
     k = a["k2_values"]

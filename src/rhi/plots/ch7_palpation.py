@@ -1,4 +1,4 @@
-"""Figures of the simulated §7.5 palpation (`rhi.experiments.ch7_palpation`): Fig. 7.6, force vs penetration."""
+"""Figures of the simulated §7.5 palpation (`rhi.experiments.ch7.contact`): Fig. 7.6, force vs penetration."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Figures of "Beyond the thesis: intent estimation" from `rhi.experiments.intent` results."""
+"""Figures of "Beyond the thesis: intent estimation" from `rhi.experiments.beyond.intent` results."""
 
 from __future__ import annotations
 

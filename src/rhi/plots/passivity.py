@@ -1,4 +1,4 @@
-"""Figures of the passivity experiment (`rhi.experiments.passivity`): energy at the hand, force, chatter."""
+"""Figures of the passivity experiment (`rhi.experiments.beyond.passivity`): energy at the hand, force, chatter."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from rhi.experiments.passivity import CASES
+from rhi.experiments.beyond.passivity import CASES
 from rhi.experiments.result import Result
 
 _NAMES = {

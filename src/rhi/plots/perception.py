@@ -1,4 +1,4 @@
-"""Figures of the simulated perception experiments (`rhi.experiments.perception`).
+"""Figures of the simulated perception experiments (`rhi.experiments.ch3.identification`, `ch3.discrimination`, `ch6.identification`).
 
 - `sysid_fit`: one identification trial per case (position, velocity along u) and the
   identified Λ beside eq. 3.13 and the thesis (Tables 3.2 / 6.1).
@@ -40,7 +40,7 @@ def sysid_fit(result: Result) -> Figure:
     else:
         keys = ["free", "stiff"]
         labels = ["M_Free^des", "M_Stiff^des"]
-        from rhi.experiments.perception import THESIS_TABLE_6_1
+        from rhi.experiments.ch6.identification import THESIS_TABLE_6_1
 
         thesis = [THESIS_TABLE_6_1[k][0] for k in keys]
     _need(result, *(f"{k}_fit" for k in keys))

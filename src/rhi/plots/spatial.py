@@ -1,4 +1,4 @@
-"""Figures of "Beyond the thesis: spatial RHIs" from `rhi.experiments.spatial` and `spatial_palpation` results."""
+"""Figures of "Beyond the thesis: spatial RHIs" from `rhi.experiments.beyond.spatial` and `beyond.spatial_palpation` results."""
 
 from __future__ import annotations
 

@@ -31,7 +31,7 @@ def _lambda_order(r: Lookup) -> float:
 
 
 def _wf_order(r: Lookup) -> float:
-    wf = [r("perception.psychophysics", f"WF mean, {d}") for d in ("RHI", "PHANToM", "Rehab")]
+    wf = [r("ch3.psychophysics", f"WF mean, {d}") for d in ("RHI", "PHANToM", "Rehab")]
     return _all(wf[0] < wf[1] < wf[2])
 
 
@@ -76,33 +76,33 @@ CLAIMS: list[Claim] = [
                              "frac": r("ch3.ratio_maps", "fraction of points with Λ_r ≤ 1")},
           shown="holds everywhere"),
     Claim("Table 3.2", "identified Λ ordered RHI ≤ PHANToM < Rehab (2 points)", T.TABLE_3_2_ORDER,
-          ("perception.sysid_table_3_2",), lambda r: r("perception.sysid_table_3_2", "cases with identified Λ ordered"),
+          ("ch3.sysid_table_3_2",), lambda r: r("ch3.sysid_table_3_2", "cases with identified Λ ordered"),
           "identified by least squares on the simulated plant (eq. 3.24); values depend on rhi's estimated inertias",
           direction=lambda x: x >= 1),
-    Claim("Table 3.3", "mean WF: RHI < PHANToM < Rehab", T.TABLE_3_3_WF_ORDER, ("perception.psychophysics",), _wf_order,
+    Claim("Table 3.3", "mean WF: RHI < PHANToM < Rehab", T.TABLE_3_3_WF_ORDER, ("ch3.psychophysics",), _wf_order,
           "the thesis's WF come from 10 human subjects it does not publish; rhi's simulated observers give "
           "{rhi:.3f} / {ph:.3f} / {re:.3f}", unpublished=True,
-          details=lambda r: {k: r("perception.psychophysics", f"WF mean, {d}") for k, d in
+          details=lambda r: {k: r("ch3.psychophysics", f"WF mean, {d}") for k, d in
                              (("rhi", "RHI"), ("ph", "PHANToM"), ("re", "Rehab"))}, shown="holds"),
-    Claim("Table 3.3", "device effect on WF, one-way ANOVA p = 0.0032", T.ANOVA_3_6[1], ("perception.psychophysics",),
-          lambda r: r("perception.psychophysics", "one-way ANOVA on WF: p"), _HUMAN, unpublished=True),
+    Claim("Table 3.3", "device effect on WF, one-way ANOVA p = 0.0032", T.ANOVA_3_6[1], ("ch3.psychophysics",),
+          lambda r: r("ch3.psychophysics", "one-way ANOVA on WF: p"), _HUMAN, unpublished=True),
     Claim("§3.6", "RHI vs PHANToM WF not significant, p = 0.2958", T.PAIRED_3_6["RHI", "PHANToM"],
-          ("perception.psychophysics",), lambda r: r("perception.psychophysics", "paired t-test on WF RHI vs PHANToM"),
+          ("ch3.psychophysics",), lambda r: r("ch3.psychophysics", "paired t-test on WF RHI vs PHANToM"),
           _HUMAN, unpublished=True),
     # ---- chapter 4
-    Claim("§4.4", "θz = 89° maximises C1 (D = {θz})", T.THETA_Z["C1"], ("ch4.theta_z",),
-          lambda r: r("ch4.theta_z", "θz maximising C1"),
+    Claim("§4.4", "θz = 89° maximises C1 (D = {θz})", T.THETA_Z["C1"], ("ch4.theta_z_design",),
+          lambda r: r("ch4.theta_z_design", "θz maximising C1"),
           "C1 is mirror-symmetric in θz and changes < 2 % over [−90°, 90°]: the θz optimum is nearly arbitrary"),
-    Claim("§4.4", "θz = 2° maximises C2 (D = {θz})", T.THETA_Z["C2"], ("ch4.theta_z",),
-          lambda r: r("ch4.theta_z", "θz maximising C2"),
+    Claim("§4.4", "θz = 2° maximises C2 (D = {θz})", T.THETA_Z["C2"], ("ch4.theta_z_design",),
+          lambda r: r("ch4.theta_z_design", "θz maximising C2"),
           "C2 is flat near its top (C2 at 2° is within ~1 % of rhi's optimum); the optimum moves with the unstated "
           "placement radius r0 and slave workspace (ch4 sensitivity)"),
-    Claim("Table 4.1", "C2 design: l2 = 0.269 m", T.TABLE_4_1["C2"]["l2"], ("ch4.table_4_1",),
-          lambda r: r("ch4.table_4_1", "l2"),
+    Claim("Table 4.1", "C2 design: l2 = 0.269 m", T.TABLE_4_1["C2"]["l2"], ("ch4.full_design",),
+          lambda r: r("ch4.full_design", "l2"),
           "rhi's slave ME is larger than the HI's over W, so GM_T rises with l2 and C2's l2 goes to its bound "
           "at the K2/K1 Table 4.1 implies"),
-    Claim("Table 4.1", "GM_T = 0.0590 at the thesis's C2 design", T.TABLE_4_1["C2"]["GM_T"], ("ch4.table_4_1",),
-          lambda r: r("ch4.table_4_1", "GM_T at the thesis's C2 design"),
+    Claim("Table 4.1", "GM_T = 0.0590 at the thesis's C2 design", T.TABLE_4_1["C2"]["GM_T"], ("ch4.full_design",),
+          lambda r: r("ch4.full_design", "GM_T at the thesis's C2 design"),
           "scored at the thesis's own design rhi's index agrees to ~1 %; the rest is the unstated set-up (W, r0)",
           direction=None),
     # ---- chapter 5
@@ -134,18 +134,18 @@ CLAIMS: list[Claim] = [
           details=lambda r: {"fs": r("ch6.palpation", "force gain, force scaling at the settled"),
                              "pinv": r("ch6.palpation", "force gain M_Stiff vs M_Free, simulated sensor peak, "
                                                         "controller with J⁺")}),
-    Claim("Table 6.1", "M_x(M_Stiff)/M_x(M_Free) = 0.125/0.036", T.MX_RATIO_6_1, ("perception.sysid_table_6_1",),
-          lambda r: r("perception.sysid_table_6_1", "M_x ratio Stiff/Free, identified"),
+    Claim("Table 6.1", "M_x(M_Stiff)/M_x(M_Free) = 0.125/0.036", T.MX_RATIO_6_1, ("ch6.sysid_table_6_1",),
+          lambda r: r("ch6.sysid_table_6_1", "M_x ratio Stiff/Free, identified"),
           "M_x is identified on the simulated plant at rhi's matched configurations with rhi's estimated inertias",
           direction=lambda x: x > 1),
     *[Claim("Table 6.1", f"M_x(M_{c.capitalize()}^des) = {T.TABLE_6_1[c][0]} kg, identified", T.TABLE_6_1[c][0],
-            ("perception.sysid_table_6_1",),
-            lambda r, c=c: r("perception.sysid_table_6_1",
+            ("ch6.sysid_table_6_1",),
+            lambda r, c=c: r("ch6.sysid_table_6_1",
                              f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J⁺)"),
             "identified on the simulated plant with the ch. 6 null-space controller using J⁺: {ours:.4f} kg; with "
             "the dynamically consistent J# the text names, {dyn:.4f} kg (J#-consistent null-space torques leave uᵀẍ "
             "alone, so the fit finds the bare Λ): the hardware's values behave like J⁺",
-            details=lambda r, c=c: {"dyn": r("perception.sysid_table_6_1",
+            details=lambda r, c=c: {"dyn": r("ch6.sysid_table_6_1",
                                              f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J#)")})
       for c in ("free", "stiff")],
     Claim("Table 6.1", "F_max with M_Stiff^des = −8.564 N", T.TABLE_6_1["stiff"][2], ("ch6.palpation",),

@@ -15,19 +15,16 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rhi.design.executors import shared
 from rhi.experiments import appa as exa
 from rhi.experiments import appb as exb
-from rhi.experiments import bilateral as exbi
-from rhi.experiments import intent as exin
-from rhi.experiments import spatial as exsp
-from rhi.experiments import spatial_palpation as exspp
+from rhi.experiments.beyond import bilateral as exbi
+from rhi.experiments.beyond import intent as exin
+from rhi.experiments.beyond import spatial as exsp
+from rhi.experiments.beyond import spatial_palpation as exspp
 from rhi.experiments import ch3 as ex3
-from rhi.experiments import ch3_control as ex3c
 from rhi.experiments import ch4 as ex4
 from rhi.experiments import ch5 as ex5
 from rhi.experiments import ch6 as ex6
 from rhi.experiments import ch7 as ex7
-from rhi.experiments import ch7_palpation as ex7p
-from rhi.experiments import passivity as expas
-from rhi.experiments import perception as exp
+from rhi.experiments.beyond import passivity as expas
 from rhi.experiments.result import Result
 from rhi.plots import appa as pla
 from rhi.plots import appb as plb
@@ -50,9 +47,13 @@ from rhi.report.claims import CLAIMS
 
 @dataclasses.dataclass(frozen=True)
 class Step:
-    """One experiment of the reproduction: how to run it (full and --quick) and draw it."""
+    """One experiment of the reproduction: how to run it (full and --quick) and draw it.
 
-    chapter: str
+    The experiment's id is its chapter and function, the chapter being the module (or package) under
+    `rhi.experiments` that defines the function: `rhi.experiments.ch3.discrimination.psychophysics` is
+    "ch3.psychophysics", `rhi.experiments.beyond.passivity.passivity` is "beyond.passivity".
+    """
+
     run: Callable[..., Result]
     full: dict
     quick: dict
@@ -60,82 +61,87 @@ class Step:
     progress: bool = False
 
     @property
+    def chapter(self) -> str:
+        """Chapter id: the module or package directly under `rhi.experiments` that defines the experiment."""
+        return self.run.__module__.split(".")[2]
+
+    @property
     def name(self) -> str:
-        """Experiment id, e.g. "ch7.example_3dof"."""
+        """Experiment id, e.g. "ch7.example_3dof" (also the name of the `Result` it returns)."""
         return f"{self.chapter}.{self.run.__name__}"
 
 
 STEPS: list[Step] = [
-    Step("ch3", ex3.table_3_1, {}, {}, {"configurations": pl3.configurations,
+    Step(ex3.table_3_1, {}, {}, {"configurations": pl3.configurations,
                                         "configurations_rendered": plr.ch3_configurations}),
-    Step("ch3", ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
+    Step(ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
          {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
-    Step("ch3", ex3c.nullspace_configurations, {}, {"duration": 4.0, "starts": ("rehab",), "hard_stops": False},
+    Step(ex3.nullspace_configurations, {}, {"duration": 4.0, "starts": ("rehab",), "hard_stops": False},
          {"fig_ch3_control": pl3c.convergence, "ch3_control_configurations": pl3c.configurations,
           "ch3_control_drift": pl3c.drift_hist}, progress=True),
-    Step("ch3", exp.sysid_table_3_2, {}, {"trials": 4}, {"table3_2": plp.sysid_fit}, progress=True),
-    Step("ch3", exp.psychophysics, {},
+    Step(ex3.sysid_table_3_2, {}, {"trials": 4}, {"table3_2": plp.sysid_fit}, progress=True),
+    Step(ex3.psychophysics, {},
          {"subjects": 4, "repetitions": 6, "comparison_percent": (-35.0, -15.0, 0.0, 15.0, 35.0), "durations": (0.7, 1.4),
           "overdispersion": False},
          {"fig3_9": plp.psychometric_curves, "fig3_10": plp.wf_jnd_boxes, "perceived_stiffness": plp.perceived_stiffness},
          progress=True),
-    Step("ch4", ex4.theta_z_design, {"density": 100.0}, {"density": 40.0, "step_deg": 5.0, "maxiter": 20},
+    Step(ex4.theta_z_design, {"density": 100.0}, {"density": 40.0, "step_deg": 5.0, "maxiter": 20},
          {"fig4_4": pl4.fig4_4, "theta_sweep": pl4.theta_sweep}, progress=True),
-    Step("ch4", ex4.full_design, {"density": 100.0}, {"density": 40.0, "maxiter": 15, "popsize": 8},
+    Step(ex4.full_design, {"density": 100.0}, {"density": 40.0, "maxiter": 15, "popsize": 8},
          {"fig4_5": pl4.fig4_5, "fig4_6": pl4.fig4_6, "fig4_7": pl4.fig4_7, "l2_scan": pl4.l2_scan}, progress=True),
-    Step("ch4", ex4.sensitivity, {"density": 100.0},
+    Step(ex4.sensitivity, {"density": 100.0},
          {"density": 40.0, "densities": (20.0, 40.0, 80.0), "maxiter": 10, "k2_values": (10.0, 20.0)},
          {"convergence": pl4.convergence, "k2_scan": pl4.k2_scan}, progress=True),
-    Step("ch5", ex5.fixed_point, {}, {"duration": 6.0, "variants": False},
+    Step(ex5.fixed_point, {}, {"duration": 6.0, "variants": False},
          {"fig5_3": pl5.fig5_3, "fig5_3_convergence": pl5.fixed_point_convergence}, progress=True),
-    Step("ch5", ex5.workspaces, {}, {"samples": 8000, "area_samples": 50000}, {"fig5_4": pl5.fig5_4}),
-    Step("ch5", ex5.w_trajectory, {}, {"scale": 0.15},
+    Step(ex5.workspaces, {}, {"samples": 8000, "area_samples": 50000}, {"fig5_4": pl5.fig5_4}),
+    Step(ex5.w_trajectory, {}, {"scale": 0.15},
          {"fig5_5": pl5.fig5_5, "fig5_6": pl5.fig5_6, "tme_along_w": pl5.tme_along_w}, progress=True),
-    Step("ch6", ex6.example_3dof, {"steps": 201}, {"steps": 101},
+    Step(ex6.example_3dof, {"steps": 201}, {"steps": 101},
          {"fig6_3": pl6.example_3dof, "fig6_4": pl6.configurations_3dof}),
-    Step("ch6", ex6.palpation, {}, {"settle": 0.2, "depth": 0.012, "speed": 0.02, "hold": 0.1}, {"fig6_9": pl6.palpation},
+    Step(ex6.palpation, {}, {"settle": 0.2, "depth": 0.012, "speed": 0.02, "hold": 0.1}, {"fig6_9": pl6.palpation},
          progress=True),
-    Step("ch6", exp.sysid_table_6_1, {}, {"trials": 4}, {"table6_1": plp.sysid_fit}, progress=True),
-    Step("ch6", ex6.transition, {},
+    Step(ex6.sysid_table_6_1, {}, {"trials": 4}, {"table6_1": plp.sysid_fit}, progress=True),
+    Step(ex6.transition, {},
          {"settle": 0.2, "depth": 0.015, "speed": 0.03, "hold": 0.3, "release": 0.7, "compare_beta": None},
          {"fig6_11": pl6.transition}, progress=True),
-    Step("ch6", ex6.fmax_ratio_map, {"resolution": 25}, {"resolution": 7, "starts": 1}, {"fig6_10": pl6.fmax_ratio_map},
+    Step(ex6.fmax_ratio_map, {"resolution": 25}, {"resolution": 7, "starts": 1}, {"fig6_10": pl6.fmax_ratio_map},
          progress=True),
-    Step("ch7", ex7.example_3dof, {"steps": 401}, {"steps": 101}, {"fig7_1": pl7.example_3dof}),
-    Step("ch7", ex7.deficiency_map, {"resolution": 31}, {"resolution": 9}, {"fig7_5": pl7.deficiency_map},
+    Step(ex7.example_3dof, {"steps": 401}, {"steps": 101}, {"fig7_1": pl7.example_3dof}),
+    Step(ex7.deficiency_map, {"resolution": 31}, {"resolution": 9}, {"fig7_5": pl7.deficiency_map},
          progress=True),
-    Step("ch7", ex7p.palpation, {},
+    Step(ex7.palpation, {},
          {"start": "optimum", "settle": 0.5, "depth": 0.03, "speed": 0.03,
           "cases": (("none", "dynamic"), ("ascm", "dynamic"), ("lp", "dynamic"))},
          {"fig7_6": pl7p.fig7_6, "fig7_6_force_penetration": pl7p.force_penetration,
           "ch7_palpation_settling": pl7p.settling}, progress=True),
-    Step("beyond", expas.passivity, {},
+    Step(expas.passivity, {},
          {"duration": 1.5, "stiff_duration": 2.0, "speed": 0.03, "cases": ("objectives", "objectives_pc")},
          {"passivity_energy": plpas.energy, "passivity_force": plpas.force, "passivity_chatter": plpas.chatter},
          progress=True),
-    Step("appa", exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
+    Step(exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
          progress=True),
-    Step("appa", exa.dm_enhancement, {}, {"t_long": 20.0},
+    Step(exa.dm_enhancement, {}, {"t_long": 20.0},
          {"fig_a9": pla.dm_enhancement, "fig_a7_rendered": plr.wmm_configurations}, progress=True),
-    Step("appb", exb.singularity, {}, {"duration": 16.0, "dt": 0.01}, {"fig_b7": plb.singularity}, progress=True),
-    Step("appb", exb.tracking, {}, {"duration": 24.0, "dt": 0.01},
+    Step(exb.singularity, {}, {"duration": 16.0, "dt": 0.01}, {"fig_b7": plb.singularity}, progress=True),
+    Step(exb.tracking, {}, {"duration": 24.0, "dt": 0.01},
          {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True),
-    Step("beyond", exbi.teleoperation_delay, {}, {"duration": 2.0, "delays": (0.05,), "extra_stiffness": ()},
+    Step(exbi.teleoperation_delay, {}, {"duration": 2.0, "delays": (0.05,), "extra_stiffness": ()},
          {"bilateral_energy": plbi.energy, "bilateral_forces": plbi.forces}, progress=True),
-    Step("beyond", exsp.spatial_remarks, {"resolution": 7}, {"resolution": 2, "workers": 1}, {"spatial_remarks": plsp.remark_maps},
+    Step(exsp.spatial_remarks, {"resolution": 7}, {"resolution": 2, "workers": 1}, {"spatial_remarks": plsp.remark_maps},
          progress=True),
-    Step("beyond", exsp.spatial_force_capability, {}, {"configurations": 2, "directions": 5},
+    Step(exsp.spatial_force_capability, {}, {"configurations": 2, "directions": 5},
          {"spatial_force_capability": plsp.force_capability}, progress=True),
-    Step("beyond", exsp.spatial_ellipsoids, {}, {}, {"spatial_ellipsoids": plsp.ellipsoids}),
-    Step("beyond", exspp.spatial_vme, {}, {"duration": 0.5}, {"spatial_vme": plsp.vme_convergence}, progress=True),
-    Step("beyond", exspp.spatial_palpation, {},
+    Step(exsp.spatial_ellipsoids, {}, {}, {"spatial_ellipsoids": plsp.ellipsoids}),
+    Step(exspp.spatial_vme, {}, {"duration": 0.5}, {"spatial_vme": plsp.vme_convergence}, progress=True),
+    Step(exspp.spatial_palpation, {},
          {"settle": 0.1, "depth": 0.008, "speed": 0.02, "hold": 0.05, "starts": 1, "cases": ("free", "stiff")},
          {"spatial_palpation": plsp.palpation}, progress=True),
-    Step("beyond", exin.intent_strokes, {}, {"train": 10, "test": 3}, {"intent_strokes": plin.strokes},
+    Step(exin.intent_strokes, {}, {"train": 10, "test": 3}, {"intent_strokes": plin.strokes},
          progress=True),
-    Step("beyond", exin.intent_w_trajectory, {}, {"scale": 0.06, "speed": 0.05, "settle": 0.1},
+    Step(exin.intent_w_trajectory, {}, {"scale": 0.06, "speed": 0.05, "settle": 0.1},
          {"intent_w_trajectory": plin.w_trajectory}, progress=True),
-    Step("beyond", exin.intent_palpation, {}, {"settle": 0.1, "depth": 0.01, "speed": 0.02, "hold": 0.05, "starts": 1},
+    Step(exin.intent_palpation, {}, {"settle": 0.1, "depth": 0.01, "speed": 0.02, "hold": 0.05, "starts": 1},
          {"intent_palpation": plin.palpation}, progress=True),
 ]
 
@@ -150,14 +156,9 @@ def experiments() -> list[str]:
     return [s.name for s in STEPS]
 
 
-# result names the report shows (tables/<name>.csv) that are neither the step id nor module.function
-_REPORT_NAMES = {"ch4.theta_z": "ch4.theta_z_design", "ch4.table_4_1": "ch4.full_design"}
-
-
 def step_names(s: Step) -> set[str]:
-    """Every name `rhi experiment` accepts for a step: its id, its function, module.function, report names."""
-    module = s.run.__module__.rsplit(".", 1)[-1]
-    return {s.name, s.run.__name__, f"{module}.{s.run.__name__}"} | {k for k, v in _REPORT_NAMES.items() if v == s.name}
+    """Every name `rhi experiment` accepts for a step: its id (its result's name) and its function's name."""
+    return {s.name, s.run.__name__}
 
 
 def _report_progress(i: int, total: int, name: str, t_step: float, t0: float) -> None:
@@ -177,7 +178,7 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         quick: reduced resolution (seconds instead of minutes).
         experiment: one experiment id such as "ch7.example_3dof" (or its function name).
     """
-    from rhi.errors import InvalidInput
+    from rhi.errors import InvalidInput, RhiError
 
     steps = [s for s in STEPS if only is None or s.chapter == only]
     if not steps:
@@ -200,6 +201,8 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
                 sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
                 kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
             res = s.run(**kwargs)
+            if res.name != s.name:  # the registry's invariant: an experiment's id is its result's name
+                raise RhiError(f"experiment: {s.name} returned a result named {res.name!r}")
             seconds[s.name] = round(time.perf_counter() - t_step, 2)
             figs = {name: functools.partial(draw, res) for name, draw in s.figures.items()}
             done.append((s.chapter, res, figs))

@@ -40,7 +40,7 @@ from rhi.control import (
 )
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
-from rhi.experiments import ch6
+from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.result import Result, Row, Table
 
 #: The rendered wall [N/m], the stiff wall [N/m] and B^d [N s/m] (thesis §6.4, §7.5).

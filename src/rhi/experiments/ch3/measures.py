@@ -36,11 +36,13 @@ POINTS = ((0.49, -0.22), (0.49, -0.14))
 #: Optimised RHI configurations reported in §3.5 [rad].
 THESIS_Q, THESIS_RHO, THESIS_LAMBDA = T.TABLE_3_1_Q, T.TABLE_3_1_RHO, T.TABLE_3_1_LAMBDA
 BETA = 0.01
+#: The three interfaces of §3.5: name -> `rhi.device` name.
+DEVICE_NAMES = {"RHI": "rhi4", "PHANToM": "phantom", "Rehab": "rehab"}
 
 
 def devices() -> dict[str, Device]:
     """The three interfaces of §3.5."""
-    return {"RHI": device("rhi4"), "PHANToM": device("phantom"), "Rehab": device("rehab")}
+    return {name: device(d) for name, d in DEVICE_NAMES.items()}
 
 
 def measures(dev: Device, q: np.ndarray, u: np.ndarray = U) -> tuple[float, float]:

@@ -26,20 +26,19 @@ from collections.abc import Callable
 import numpy as np
 
 from rhi.control import (
-    ControllerConfig,
-    ImpedanceControl,
-    NullSpaceController,
     ObjectiveTerm,
-    SpringPalpation,
     WeightedSum,
 )
 from rhi.control.intent import FilteredIntent, HMMIntent, KnownIntent, axial_error
 from rhi.control.intent_control import IntentController, IntentFME, IntentVME
+from rhi.device import device
 from rhi.errors import InvalidInput
-from rhi.experiments import ch5, ch6
+from rhi.experiments.ch5 import setup as ch5
+from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import ProgressChain, check_motion, path_hand, positive, run, smooth, ticks
 from rhi.metrics import tmi
-from rhi.sim import Hand, Plant, simulate
+from rhi.sim import Hand, Plant, Teleoperation, simulate
 from rhi.sim.strokes import synthetic_strokes
 
 Progress = Callable[[int, int], None] | None
@@ -140,8 +139,8 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
         scale: scales the W (quick runs < 1). speed: hand speed [m/s]. settle: hold before moving [s].
         progress: callback(done, total) in ticks.
     """
-    scale = ch5._positive("scale", scale)
-    settle = ch5._positive("settle", settle, allow_zero=True)
+    scale = positive("scale", scale)
+    settle = positive("settle", settle, allow_zero=True)
     path = ch5.w_reference(ch5.W_CENTER, ch5.W_WIDTH * scale, ch5.W_HEIGHT * scale, speed, settle)
     devs = ch5.devices()
     dev, slave = devs["RHI"], devs["slave"]
@@ -152,27 +151,25 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
     u_first = first / np.linalg.norm(first)
     sources = {"known": PathIntent(path, u_first), **estimators(2, u_fixed), "fixed": KnownIntent(u_fixed)}
     duration = settle + path.duration + 0.5
-    N = ch5._ticks(duration)
-    chain = ch5._Chain(progress, len(sources) * N)
+    N = ticks(duration)
+    chain = ProgressChain(progress, len(sources) * N)
     rows, arrays, stats = [], {"path": path.points}, {}
     for key, src in sources.items():
-        sp = Plant(slave, friction=ch5._friction("thesis", slave))
+        sp = Plant(slave, friction=ch5.plant_friction("thesis", slave))
         sp.reset(q_s)
-        tele = ch5._RecordingTeleoperation(sp)
-        terms = (ObjectiveTerm(IntentVME(src, 0.01), VME_GAIN), ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN))
-        cfg = ControllerConfig(primary=ImpedanceControl(damping=ch5.B_D * np.eye(2)), objectives=terms,
-                               damping=ch5.NULL_DAMPING, saturation="none")
-        ctrl = IntentController(NullSpaceController(dev, cfg), src)
-        plant = Plant(dev, friction=ch5._friction("thesis", dev))
+        inner = ch5.controller(dev, IntentVME(src, 0.01), VME_GAIN, ch5.NULL_DAMPING,
+                               extra=(ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN),))
+        ctrl = IntentController(inner, src)
+        plant = Plant(dev, friction=ch5.plant_friction("thesis", dev))
         plant.reset(q_m)
-        log = simulate(plant, ctrl, duration=duration, hand=Hand(path, **ch5.TRACK), teleop=tele,
-                       progress=chain.run(N))
+        log = simulate(plant, ctrl, duration=duration, hand=Hand(path, **ch5.TRACK), teleop=Teleoperation(sp),
+                       progress=chain.run(N), record=lambda sp=sp: {"slave_q": sp.q})
         if log.fault is not None:
             raise InvalidInput(f"intent_w_trajectory: the controller stopped in scenario {key!r}: {log.fault}")
         moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
         U = np.array([h[1] for h in ctrl.history])
         Ut = _true_w(path, log.t, u_first)
-        area = tmi(dev.jacobian(log.q), slave.jacobian(np.array(tele.q_log)))
+        area = tmi(dev.jacobian(log.q), slave.jacobian(log.extra["slave_q"]))
         W0 = log.work[np.argmax(moving)]
         st = error_and_lag(log.t, U, Ut, moving)
         stats[key] = {"work": float(log.work[moving][-1] - W0), "area": float(np.mean(area[moving])),
@@ -212,8 +209,8 @@ def intent_palpation(settle: float = 0.5, depth: float = 0.015, speed: float = 0
     Known starts at the M_Stiff^des([0, 1]) match (as ch. 6); the others at the M_Stiff^des([1, 0])
     match (a device that does not know the push direction); the estimators start from u = [1, 0].
     """
-    ch6._check_motion(settle=settle, depth=depth, speed=speed, hold=hold)
-    dev = ch6.device("rhi4")
+    check_motion(settle=settle, depth=depth, speed=speed, hold=hold)
+    dev = device("rhi4")
     hi = dev.torque_max
     u_true, u_fixed, x0 = np.array(ch6.U), np.array([1.0, 0.0]), np.array(ch6.X0)
     K, zeta, _, _ = ch6.desired_fmes(dev, u_true, ch6.Q_HOME)
@@ -228,19 +225,14 @@ def intent_palpation(settle: float = 0.5, depth: float = 0.015, speed: float = 0
     N = int(round(duration * 1000.0))
     rows, arrays = [], {}
     for i, (key, src) in enumerate(sources.items()):
-        law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u_true), damping=0.0, coriolis=False, gravity=False,
-                              passivity=None)
-        terms = (ObjectiveTerm(IntentFME(src, K, zeta, hi, "stiff"), ch6.BETA),
-                 ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN))
-        cfg = ControllerConfig(primary=law, objectives=terms, damping=ch6.K_D, saturation="scaling",
-                               projector="dynamic", aso_shape=ch6.ASO_S)
-        ctrl = IntentController(NullSpaceController(dev, cfg), src)
-        hand = ch6._hand([x0, x0 + depth * u_true], speed, settle, 3000.0, 40.0)
-        log = ch6._run(dev, ctrl, hand, starts_q["true" if key == "known" else "fixed"], duration, progress, i * N,
+        fme = ObjectiveTerm(IntentFME(src, K, zeta, hi, "stiff"), ch6.BETA)
+        ctrl = IntentController(ch6.palpation_controller(dev, None, objectives=(fme,)), src)
+        hand = path_hand([x0, x0 + depth * u_true], speed, settle, 3000.0, 40.0)
+        log = run(dev, ctrl, hand, starts_q["true" if key == "known" else "fixed"], duration, progress, i * N,
                        len(sources) * N)
         if log.fault is not None:
             raise InvalidInput(f"intent_palpation: the controller stopped in scenario {key!r}: {log.fault}")
-        f_u = -ch6._smooth(log.ft[:, :2], 20) @ u_true
+        f_u = -smooth(log.ft[:, :2], 20) @ u_true
         push = log.t >= settle
         U = np.array([h[1] for h in ctrl.history])
         err = np.degrees(axial_error(U, u_true))

@@ -19,7 +19,7 @@ the desired VME; its force ellipsoid, the inverse, has its *minor* axis along u 
 least force capability along the palpation direction, which is why ASCM matters); from
 that configuration each case is simulated with the hand's reference moving 4 cm into the
 wall at 2 cm/s (hand stiffness 2000 N/m, at most 40 N). The joint-limit barrier of
-`rhi.experiments.ch3_control` joins the tertiary objective: chapter 7 assumes no joint at
+`rhi.experiments.ch3.nullspace` joins the tertiary objective: chapter 7 assumes no joint at
 its range limit, and the minima of eq. 7.18 at X₀ lie on the limits of §5.4.
 
 Numbers reported per case: the largest force rendered in full before saturation (before
@@ -61,14 +61,14 @@ from rhi.control import (
     NullSpaceController,
     ObjectiveTerm,
 )
+from rhi.control.configuration import optimal_configuration
 from rhi.control.saturation import force_capability
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
-from rhi.experiments.ch3_control import (
+from rhi.experiments.ch3.nullspace import (
     BARRIER,
     GAIN,
     NULL_DAMPING,
-    local_optimum,
     start_configuration,
     with_barrier,
 )
@@ -273,7 +273,7 @@ def palpation(
     # 1. settle: the hand holds X0, the tertiary objective sets the contact configuration
     q_start = start_configuration(dev, x0, "rehab")
     if start == "optimum":
-        q_start = local_optimum(dev, x0, with_barrier(vme), q_start)
+        q_start = optimal_configuration(dev, x0, with_barrier(vme), q_start, tol=1e-10, max_iter=300)
     plant = Plant(dev)
     plant.reset(q_start)
     ctrl = palpation_controller(dev, "ascm", gain=gain, damping=damping)
@@ -370,7 +370,7 @@ def palpation(
         Row("static ASCM shortfall from the LP optimum (pseudoinverse J⁺)", None,
             100.0 * (1.0 - cap["ascm_pseudoinverse"] / cap["lp_pseudoinverse"]), "%"),
     ]
-    q_opt = local_optimum(dev, x0, with_barrier(vme), q_c)
+    q_opt = optimal_configuration(dev, x0, with_barrier(vme), q_c, tol=1e-10, max_iter=300)
     arrays["q_optimum"] = q_opt
     settle_rows = [
         Row("ν (eq. 7.18) before → after the settle phase", None, float(arrays["settle_nu"][-1]), "",

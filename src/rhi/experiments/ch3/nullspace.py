@@ -13,7 +13,7 @@ u = [0, 1], β = 0.01 (eqs. 3.22–3.23). The controller reconfigures the RHI th
 self-motion while the hand keeps the handle still; the converged configuration's
 effective manipulability ρ (eq. 3.6) and effective apparent inertia Λ (eq. 3.13) along u
 are reported beside Table 3.1 and beside the static optimum of eq. 3.22 (SLSQP, as in
-`rhi.experiments.ch3.table_3_1`).
+`rhi.experiments.ch3.measures.table_3_1`).
 
 What the thesis leaves open and we chose (every value is an argument):
 
@@ -69,8 +69,9 @@ from rhi.control import (
 from rhi.control.configuration import optimal_configuration
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
-from rhi.experiments.ch3 import BETA, POINTS, THESIS_LAMBDA, THESIS_Q, THESIS_RHO, U, measures
+from rhi.experiments.ch3.measures import BETA, POINTS, THESIS_LAMBDA, THESIS_Q, THESIS_RHO, U, measures
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import FreeSpace
 from rhi.metrics import nullspace_projector
 from rhi.sim import Hand, Log, Path, Plant, simulate
 
@@ -142,20 +143,13 @@ def controller(dev: Device, *, gain: float = GAIN, damping: float = NULL_DAMPING
     return NullSpaceController(dev, cfg)
 
 
-class _Zero:
-    """The free-space 'environment' the primary law reads (nothing rendered)."""
-
-    def force(self, x, xdot) -> np.ndarray:
-        return np.zeros(2)
-
-
 def hold_run(dev: Device, x, q0, ctrl: NullSpaceController, *, duration: float,
              progress: Callable[[int, int], None] | None = None) -> Log:
     """Simulate the hand holding the handle at x from q0 while `ctrl` runs (the null space moves)."""
     plant = Plant(dev)
     plant.reset(q0)
     hand = Hand(Path([np.asarray(x, dtype=float)]), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=None)
-    return simulate(plant, ctrl, duration=duration, hand=hand, virtual=_Zero(), progress=progress)
+    return simulate(plant, ctrl, duration=duration, hand=hand, virtual=FreeSpace(), progress=progress)
 
 
 def settling_time(t: np.ndarray, v: np.ndarray, tol: float = 1e-3) -> float:

@@ -5,7 +5,7 @@ down (u = [0, 0, −1] by default) into a virtual spring from X₀. The desired 
 6.11–6.13 generalised to m = 3: M_Free^des has its minor axis ζ along u and 𝒦 on the two
 axes across it, M_Stiff^des its major axis 𝒦 along u and ζ across; 𝒦, ζ from the
 torque-weighted FME at q = 0 with μ = 5 (§6.3.1). Cases, each on the MuJoCo plant from the
-FME-matched configuration (`rhi.experiments.ch6.best_match`, joint-limit barrier as ch. 6):
+FME-matched configuration (`rhi.experiments.ch6.setup.best_match`, joint-limit barrier as ch. 6):
 
 - ``free`` / ``stiff``: FME matching to M_Free^des / M_Stiff^des with force scaling (ch. 6);
 - ``schedule``: the ASO (eq. 6.14) with hysteresis and the cosine transition (eqs. 6.15–6.19)
@@ -28,12 +28,10 @@ import numpy as np
 
 from rhi.control import (
     ControllerConfig,
-    FMEMatching,
     FMESchedule,
     ImpedanceControl,
     NullSpaceController,
     ObjectiveTerm,
-    SpringPalpation,
     TransitionConfig,
     VMEMatching,
     WeightedSum,
@@ -41,9 +39,10 @@ from rhi.control import (
 from rhi.control.configuration import optimal_configuration
 from rhi.device import device
 from rhi.errors import InvalidInput
-from rhi.experiments import ch6
-from rhi.experiments.spatial import chain_points
+from rhi.experiments.ch6 import setup as ch6
+from rhi.experiments.beyond.spatial import chain_points
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import check_motion, path_hand, run, smooth
 from rhi.metrics import effective_inertia, effective_manipulability, force_ellipsoid, max_force, max_force_scaling
 
 Progress = Callable[[int, int], None]
@@ -54,18 +53,13 @@ Q_SUB_X0 = (0.0, 0.4, 0.5)
 CASES = ("free", "stiff", "schedule", "stiff_ascm")
 
 
-def _controller(dev, x0, u, case: str, Mf, Ms, hi) -> NullSpaceController:
-    law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u), damping=0.0, coriolis=False, gravity=True,
-                         passivity=None)
-    barrier = ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN)
+def _controller(dev, x0, u, case: str, Mf, Ms) -> NullSpaceController:
+    """The ch. 6 palpation controller in 3-D (gravity compensated) for `case` (see `CASES`)."""
     if case == "schedule":
         sched = FMESchedule(Mf, Ms, gain=ch6.BETA, transition=TransitionConfig(ch6.EPS1, ch6.EPS2, ch6.RHO, ch6.ASO_S))
-        return NullSpaceController(dev, ControllerConfig(primary=law, objectives=(barrier,), fme=sched, damping=ch6.K_D,
-                                                         saturation="scaling", aso_shape=ch6.ASO_S))
-    desired = Mf if case == "free" else Ms
-    sat = "ascm" if case == "stiff_ascm" else "scaling"
-    return NullSpaceController(dev, ControllerConfig(primary=law, objectives=ch6.controller_terms(desired, hi),
-                                                     damping=ch6.K_D, saturation=sat, aso_shape=ch6.ASO_S))
+        return ch6.palpation_controller(dev, None, sched, x0=x0, u=u, gravity=True)
+    return ch6.palpation_controller(dev, Mf if case == "free" else Ms, x0=x0, u=u, gravity=True,
+                                    saturation="ascm" if case == "stiff_ascm" else "scaling")
 
 
 def spatial_palpation(
@@ -93,7 +87,7 @@ def spatial_palpation(
         filter_ms: moving-average window of the F/T force [ms].
         progress: callback(done, total) in control ticks.
     """
-    ch6._check_motion(settle=settle, depth=depth, speed=speed, hold=hold)
+    check_motion(settle=settle, depth=depth, speed=speed, hold=hold)
     uu = np.asarray(u, dtype=float)
     if uu.shape != (3,) or not np.all(np.isfinite(uu)) or np.linalg.norm(uu) == 0:
         raise InvalidInput(f"u: expected a non-zero finite (3,) direction, got {u!r}")
@@ -116,12 +110,12 @@ def spatial_palpation(
         if start_case not in q_match:
             obj = WeightedSum(ch6.controller_terms(Mf if start_case == "free" else Ms, hi))
             q_match[start_case] = ch6.best_match(dev, x0, obj, starts=starts)
-        ctrl = _controller(dev, x0, uu, case, Mf, Ms, hi)
-        hand = ch6._hand([x0, x0 + depth * uu], speed, settle, hand_stiffness, hand_damping)
-        log = ch6._run(dev, ctrl, hand, q_match[start_case], duration, progress, i * ticks, len(cases) * ticks)
+        ctrl = _controller(dev, x0, uu, case, Mf, Ms)
+        hand = path_hand([x0, x0 + depth * uu], speed, settle, hand_stiffness, hand_damping)
+        log = run(dev, ctrl, hand, q_match[start_case], duration, progress, i * ticks, len(cases) * ticks)
         if log.fault is not None:
             raise InvalidInput(f"spatial_palpation: the controller stopped in case {case!r}: {log.fault}")
-        f_u = -ch6._smooth(log.ft[:, :3], max(1, int(round(filter_ms)))) @ uu
+        f_u = -smooth(log.ft[:, :3], max(1, int(round(filter_ms)))) @ uu
         push = log.t >= settle
         k_peak = int(np.argmin(np.where(push, f_u, np.inf)))
         q_end = log.q[-1]
@@ -169,7 +163,7 @@ def spatial_vme(duration: float = 2.0, u: tuple[float, float, float] = (0.0, 1.0
     """
     from rhi.sim import Hand, Path
 
-    ch6._check_motion(duration=duration, gain=gain)
+    check_motion(duration=duration, gain=gain)
     uu = np.asarray(u, dtype=float)
     if uu.shape != (3,) or not np.all(np.isfinite(uu)) or np.linalg.norm(uu) == 0:
         raise InvalidInput(f"u: expected a non-zero finite (3,) direction, got {u!r}")
@@ -182,7 +176,7 @@ def spatial_vme(duration: float = 2.0, u: tuple[float, float, float] = (0.0, 1.0
                            objectives=(ObjectiveTerm(obj, gain), ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN)),
                            damping=ch6.K_D, saturation="ascm")
     hand = Hand(Path(np.array([x0, x0]), speed=0.01), stiffness=3000.0, damping=40.0, max_force=60.0)
-    log = ch6._run(dev, NullSpaceController(dev, cfg), hand, q0, duration, progress, 0,
+    log = run(dev, NullSpaceController(dev, cfg), hand, q0, duration, progress, 0,
                    int(round(duration * 1000.0)))
     if log.fault is not None:
         raise InvalidInput(f"spatial_vme: the controller stopped: {log.fault}")

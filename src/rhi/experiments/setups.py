@@ -1,0 +1,118 @@
+"""Set-ups the thesis experiments share: hands, free space, the motors off, one simulated run, progress.
+
+The chapters' own set-ups (their constants, controllers and start configurations) are the
+``setup`` module of each chapter package (`rhi.experiments.ch3.nullspace` for ch. 3,
+`rhi.experiments.ch5.setup`, `rhi.experiments.ch6.setup`); what every chapter builds the
+same way is here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from rhi.device import Device
+from rhi.errors import InvalidInput
+from rhi.sim import Hand, Log, Path, Plant, simulate
+
+Progress = Callable[[int, int], None] | None
+
+
+class ZeroTorque:
+    """The motors off: τ = 0 (the device's own dynamics).
+
+    Args:
+        n: number of motors.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+
+    def step(self, t, q, dq, sensors) -> np.ndarray:
+        """τ: (n,) zeros [N m]."""
+        return np.zeros(self.n)
+
+
+class FreeSpace:
+    """The free-space 'environment' a primary law reads (nothing rendered): F = 0, (2,) [N]."""
+
+    def force(self, x, xdot) -> np.ndarray:
+        """F: (2,) zeros [N]."""
+        return np.zeros(2)
+
+
+def path_hand(points, speed: float, start: float, stiffness: float, damping: float,
+              max_force: float | None = 60.0) -> Hand:
+    """A hand following the polyline `points` (k, m) [m] at `speed` [m/s] after `start` [s].
+
+    Args:
+        points, speed, start: the `rhi.sim.Path`.
+        stiffness, damping: the grip [N/m], [N s/m].
+        max_force: saturation of the hand's force [N] (None: none).
+    """
+    return Hand(Path(np.asarray(points, dtype=float), speed=speed, start=start), stiffness=stiffness,
+                damping=damping, max_force=max_force)
+
+
+def run(dev: Device, controller, hand, q_start: np.ndarray, duration: float, progress: Progress = None,
+        offset: int = 0, total: int | None = None, **kw) -> Log:
+    """Simulate `controller` on a fresh plant of `dev` reset at rest to q_start: (n,) [rad].
+
+    Args:
+        dev, controller, hand, duration: as `rhi.sim.simulate` (duration [s]).
+        q_start: (n,) start configuration [rad].
+        progress: callback(done, total) in ticks, shifted by `offset` out of `total` (several runs in a row).
+        offset, total: this run's first tick and the ticks of all runs.
+        **kw: further `rhi.sim.simulate` arguments (virtual, physical, record, ...).
+    """
+    plant = Plant(dev)
+    plant.reset(q_start)
+    cb = None if progress is None else (lambda k, n: progress(offset + k, n if total is None else total))
+    return simulate(plant, controller, duration=duration, hand=hand, progress=cb, **kw)
+
+
+class ProgressChain:
+    """Progress over several runs: run i reports (offset + done, total)."""
+
+    def __init__(self, progress: Progress, total: int) -> None:
+        self.progress, self.total, self.offset = progress, total, 0
+
+    def run(self, n: int):
+        """The callback of the next run of n ticks (None without a progress callback)."""
+        off = self.offset
+        self.offset += n
+        if self.progress is None:
+            return None
+        return lambda k, _n: self.progress(off + k, self.total)
+
+
+def ticks(duration: float, rate: float = 1000.0) -> int:
+    """Control ticks in `duration` [s] at `rate` [Hz]."""
+    return int(round(duration * rate))
+
+
+def positive(name: str, v: float, *, allow_zero: bool = False) -> float:
+    """v as a float; InvalidInput naming `name` unless finite and > 0 (>= 0 with allow_zero)."""
+    v = float(v)
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise InvalidInput(f"{name}: must be finite and {'>=' if allow_zero else '>'} 0, got {v!r}")
+    return v
+
+
+def check_motion(**kw: float) -> None:
+    """Raise InvalidInput naming the first hand-motion parameter that is not finite and >= 0 (> 0 for depth, speed)."""
+    for name, v in kw.items():
+        strict = name in ("depth", "speed")
+        if not np.isfinite(v) or v < 0 or (strict and v == 0):
+            raise InvalidInput(f"{name}: must be finite and {'> 0' if strict else '>= 0'}, got {v!r}")
+
+
+def smooth(a: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average over `window` samples along axis 0 (edges: shorter windows)."""
+    if window <= 1:
+        return a
+    k = np.ones(window) / window
+    num = np.apply_along_axis(lambda v: np.convolve(v, k, mode="same"), 0, a)
+    den = np.convolve(np.ones(len(a)), k, mode="same")
+    return num / (den[:, None] if a.ndim > 1 else den)
