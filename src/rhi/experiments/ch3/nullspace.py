@@ -164,9 +164,11 @@ def settling_time(t: np.ndarray, v: np.ndarray, tol: float = 1e-3) -> float:
 def local_optimum(dev: Device, x, objective, q: np.ndarray, *, tol: float = 1e-10) -> np.ndarray:
     """The local minimum of `objective` on the self-motion manifold f(q) = x nearest to q (SLSQP started at q).
 
-    Unlike `rhi.control.configuration.optimal_configuration`, which first moves its start
-    by a centring IK, this starts exactly at q (which must satisfy f(q) ≈ x), so it tells
-    whether q is itself a constrained local minimum. Joint box and linear limits are bounds.
+    The same SLSQP problem as `rhi.control.configuration.optimal_configuration`, but started
+    exactly at q (a simulated end configuration, off f(q) = x by the run's drift) and returned
+    without projecting it back by IK, so it tells whether q is itself a constrained local
+    minimum. (`optimal_configuration` from the same q differs by up to 5e-8 rad here.) Joint box
+    and linear limits are bounds.
 
     Returns:
         q*: (n,) [rad]; q itself if SLSQP does not improve on it.
