@@ -1,4 +1,4 @@
-"""Chapter 3: intrinsic and null-space advantages of the 4-DoF RHI (Table 3.1, Figs 3.6–3.8).
+"""Table 3.1 and Figs 3.6–3.8: ρ and Λ of the RHI, PHANToM and Rehab at the §3.5 points, and the ratio maps.
 
 Set-up (thesis §3.5): rhi4 with d = [0.254, 0.141, 0.21, 0.181] m; the PHANToM and
 Rehab are the RHI with (q1, q2) resp. (q3, q4) locked at 0; direction of motion
