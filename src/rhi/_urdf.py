@@ -163,10 +163,14 @@ def check_urdf(text: str) -> tuple[str, JointInfo]:
         raise ModelError("path: no <link> elements in the URDF")
     for link in links:
         _check_link(link)
-    names = {j.get("name") for j in root.findall("joint")}
-    mimic, continuous, no_effort = {}, set(), set()
+    names = {n for j in root.findall("joint") if (n := j.get("name")) is not None}
+    mimic: dict[str, tuple[str, float, float]] = {}
+    continuous: set[str] = set()
+    no_effort: set[str] = set()
     for joint in root.findall("joint"):
         name, kind = joint.get("name"), joint.get("type")
+        if name is None:
+            raise ModelError("path: a <joint> without a name attribute")
         what = f"joint {name!r}"
         if kind not in _KNOWN_TYPES:
             raise ModelError(f"{what}: type {kind!r} not supported (revolute, continuous, prismatic, fixed)")
@@ -203,7 +207,7 @@ def check_urdf(text: str) -> tuple[str, JointInfo]:
         m = joint.find("mimic")
         if m is not None:
             primary = m.get("joint")
-            if primary not in names or primary == name:
+            if primary is None or primary not in names or primary == name:
                 raise ModelError(f"{what} <mimic>: joint={primary!r} is not another joint of the URDF")
             mult = float(_floats(m, "multiplier", f"{what} <mimic>", 1, "1")[0])
             off = float(_floats(m, "offset", f"{what} <mimic>", 1, "0")[0])

@@ -29,6 +29,7 @@ placement. With chain coordinates θ = A q + b:
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -178,10 +179,15 @@ class BatchChain:
         self.parent = [model.parents[j] - 1 for j in range(1, nt + 1)]
         self.revolute, U = [], []
         for j in range(nt):
-            rev, a = _joint_axis(model.joints[j + 1])
+            axis = _joint_axis(model.joints[j + 1])
+            if axis is None:  # supported() checked every joint
+                raise ModelError(f"model: joint {j + 1} is not a one-DoF revolute/prismatic joint")
+            rev, a = axis
             self.revolute.append(rev)
             U.append(_z_basis(a))
-        self.G, self.psi, self.t = [], [], []
+        self.G: list[Any] = []
+        self.psi: list[float] = []
+        self.t: list[Any] = []
         for j in range(nt):
             pl = model.jointPlacements[j + 1]
             Up = U[self.parent[j]] if self.parent[j] >= 0 else np.eye(3)
@@ -264,7 +270,8 @@ class BatchChain:
         nt = self.nt
         ident = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
         zero = (0.0, 0.0, 0.0)
-        F, o = [None] * nt, [None] * nt
+        F: list[Any] = [None] * nt
+        o: list[Any] = [None] * nt
         for j in range(nt):
             p = self.parent[j]
             Fp, op = (F[p], o[p]) if p >= 0 else (ident, zero)
@@ -283,8 +290,8 @@ class BatchChain:
     def _composite(self, F, o, inertia: bool):
         """Subtree first moments h_k [kg m] and, if asked, inertias about the world origin (3 × 3 nested) [kg m²]."""
         nt = self.nt
-        h = [None] * nt
-        Iw = [None] * nt
+        h: list[Any] = [None] * nt
+        Iw: list[Any] = [None] * nt
         for j in range(nt):
             c = _vadd(o[j], _matvec(F[j], self.lever[j]))
             mc = _vscale(self.mass[j], c)

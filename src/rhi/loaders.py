@@ -210,24 +210,24 @@ def _finish(model: pin.Model, info: JointInfo, own: dict, name: str, *, ee_frame
     on_path = [n for n in movable if model.getJointId(n) in path_ids]
     values = _lock_values(model, lock, movable, mimic)
     off = [n for n in movable if n not in on_path and n not in values and n not in mimic]
-    for n in off:
-        jid = model.getJointId(n)
+    for jn in off:
+        jid = model.getJointId(jn)
         lo, hi = model.lowerPositionLimit[model.joints[jid].idx_q], model.upperPositionLimit[model.joints[jid].idx_q]
-        values[n] = float(np.clip(0.0, lo, hi))
+        values[jn] = float(np.clip(0.0, lo, hi))
     if off:
         warnings.warn(f"{name}: joints off the path to {ee_frame!r} locked: "
                       + ", ".join(f"{n}={values[n]:g}" for n in off), stacklevel=3)
     # mimic joints follow their primary; locked when the primary is locked or off the path
-    for n, (p, mult, offs) in mimic.items():
+    for jn, (p, mult, offs) in mimic.items():
         if p in values or p not in on_path:
             values.setdefault(p, 0.0)
-            values[n] = mult * values[p] + offs
+            values[jn] = mult * values[p] + offs
     motors = [n for n in on_path if n not in values and n not in mimic]
     if not motors:
         raise ModelError(f"ee_frame: no movable joint left between the base and {ee_frame!r}")
     q_ref = pin.neutral(model)
-    for n, v in values.items():
-        q_ref[model.joints[model.getJointId(n)].idx_q] = v
+    for jn, v in values.items():
+        q_ref[model.joints[model.getJointId(jn)].idx_q] = v
     locked_ids = sorted(model.getJointId(n) for n in values)
     reduced = pin.buildReducedModel(model, locked_ids, q_ref) if locked_ids else model
     fid_r = reduced.getFrameId(ee_frame)

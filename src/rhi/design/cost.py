@@ -15,13 +15,14 @@ height Z_PH; ``J_M^2D = jacobian(q)[:2]`` is eq. 4.26 there, and velocities map 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from rhi._validate import as_array, scalar
 from rhi.design.indices import device_indices, penalize, teleoperation_index
-from rhi.design.kinematics import Solution
+from rhi.design.kinematics import Master, Solution
 from rhi.design.workspace import Workspace
 from rhi.errors import InfeasibleLimits, InvalidInput, Unreachable
 
@@ -74,7 +75,7 @@ class DesignProblem:
         K1, K2: weights of eqs. 4.23–4.24.
     """
 
-    master: object
+    master: Master
     workspace: Workspace
     slave: Solution
     center: tuple[float, float]
@@ -84,6 +85,7 @@ class DesignProblem:
     k_q: float | None = 1.0
     K1: float = 1.0
     K2: float = 10.0
+    _slave_Jq: np.ndarray = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "bounds", check_bounds(self.bounds))
@@ -110,12 +112,12 @@ class DesignProblem:
         """Names of the optimised parameters, in the order of a design vector."""
         return list(self.bounds)
 
-    def params(self, x: Sequence[float]) -> dict[str, float]:
+    def params(self, x: ArrayLike) -> dict[str, float]:
         """Full parameter mapping of design vector x."""
-        x = np.atleast_1d(as_array("x", x))
-        if x.shape != (len(self.bounds),):
-            raise InvalidInput(f"x: expected {len(self.bounds)} values ({', '.join(self.names)}), got shape {x.shape}")
-        return {**self.fixed, **dict(zip(self.names, map(float, x)))}
+        xv = np.atleast_1d(as_array("x", x))
+        if xv.shape != (len(self.bounds),):
+            raise InvalidInput(f"x: expected {len(self.bounds)} values ({', '.join(self.names)}), got shape {xv.shape}")
+        return {**self.fixed, **dict(zip(self.names, map(float, xv)))}
 
     def targets(self, params: Mapping[str, float]) -> np.ndarray:
         """HI world targets (N, 2) [m] of the workspace samples under placement θz (module docstring)."""
@@ -126,17 +128,20 @@ class DesignProblem:
     def offset(self, params: Mapping[str, float]) -> float:
         """r0 of this design [m]."""
         if self.r0 == "auto":
-            lo, hi = self.master.radial_range(params)
+            radial_range = getattr(self.master, "radial_range", None)
+            if radial_range is None:
+                raise InvalidInput(f"r0: 'auto' needs a master with radial_range, got {type(self.master).__name__}")
+            lo, hi = radial_range(params)
             return 0.5 * (lo + hi)
         return float(self.r0)
 
-    def solve(self, x: Sequence[float]) -> Solution:
+    def solve(self, x: ArrayLike) -> Solution:
         """HI IK solution at every workspace sample for design x."""
         p = self.params(x)
         return self.master.solve(p, self.targets(p))
 
 
-def evaluate(problem: DesignProblem, x: Sequence[float]) -> dict[str, float]:
+def evaluate(problem: DesignProblem, x: ArrayLike) -> dict[str, float]:
     """Indices and costs of design x.
 
     Returns:
@@ -157,7 +162,7 @@ def evaluate(problem: DesignProblem, x: Sequence[float]) -> dict[str, float]:
             "C1": problem.K1 * d["GC"] + problem.K2 * d["GM"], "C2": problem.K1 * d["GC"] + problem.K2 * gmt}
 
 
-def evaluate_strict(problem: DesignProblem, x: Sequence[float]) -> dict[str, float]:
+def evaluate_strict(problem: DesignProblem, x: ArrayLike) -> dict[str, float]:
     """`evaluate`, but raise `Unreachable` when the HI reaches no workspace sample."""
     sol = problem.solve(x)
     if not (sol.ok & problem.slave.ok).any():
@@ -166,7 +171,7 @@ def evaluate_strict(problem: DesignProblem, x: Sequence[float]) -> dict[str, flo
     return evaluate(problem, x)
 
 
-def cost(problem: DesignProblem, x: Sequence[float], which: str = "C2") -> float:
+def cost(problem: DesignProblem, x: ArrayLike, which: str = "C2") -> float:
     """−C (to minimise) of design x, which = "C1" or "C2"."""
     if which not in ("C1", "C2"):
         raise InvalidInput(f"which: expected 'C1' or 'C2', got {which!r}")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Mapping
+from typing import Protocol
 
 import numpy as np
 
@@ -61,6 +62,17 @@ def _solve_device(dev: Device, targets: np.ndarray, q0: np.ndarray) -> Solution:
             q[k] = guess
     J = dev.jacobian(q)[:, :2, :]
     return Solution(q, J, ok, dev.q_min, dev.q_max)
+
+
+class Master(Protocol):
+    """A haptic interface's kinematics for the design problem: IK at the targets for design parameters.
+
+    A master may also provide ``radial_range(params) -> (lo, hi)`` [m] (needed by ``DesignProblem(r0="auto")``).
+    """
+
+    def solve(self, params: Mapping[str, float], targets: np.ndarray) -> Solution:
+        """IK solution at targets (N, 2) [m] for the design `params`."""
+        ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,12 +184,12 @@ def _radial_range(l1: float, l2: float, z: float, n: int) -> tuple[float, float]
     th2 = np.linspace(q_min[1], q_max[1], n)
     c3 = (l1 * np.sin(th2) - z) / l2
     valid = np.abs(c3) <= 1
-    r = []
+    parts = []
     for sgn in (1.0, -1.0):
         th3 = sgn * np.arccos(np.clip(c3, -1, 1))
         ok = valid & (th3 >= q_min[2]) & (th3 <= q_max[2]) & (th2 - th3 >= lo) & (th2 - th3 <= hi)
-        r.append((l1 * np.cos(th2) + l2 * np.sin(th3))[ok])
-    r = np.concatenate(r)
+        parts.append((l1 * np.cos(th2) + l2 * np.sin(th3))[ok])
+    r = np.concatenate(parts)
     r = r[r > 0]
     return (float(r.min()), float(r.max())) if r.size else (0.0, 0.0)
 
@@ -186,6 +198,8 @@ def _phantom3_limits() -> tuple[np.ndarray, np.ndarray, float, float]:
     if "phantom3" not in _LIMITS_CACHE:
         dev = device("phantom3")
         L = dev.linear_limits
+        if L is None:
+            raise InvalidInput("phantom3: the parallelogram's linear joint limit is missing from its device.toml")
         _LIMITS_CACHE["phantom3"] = (dev.q_min, dev.q_max, float(L.lower[0]), float(L.upper[0]))
     return _LIMITS_CACHE["phantom3"]
 

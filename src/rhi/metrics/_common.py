@@ -12,13 +12,15 @@ Conventions used throughout the subpackage:
 
 from __future__ import annotations
 
+from typing import Any, overload
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from rhi._validate import all_finite, as_array, unit_vector
 from rhi.errors import InvalidInput, NotSPD, Singular
 
-FloatArray = NDArray[np.float64]
+FloatArray = NDArray[np.floating[Any]]
 
 #: Relative threshold below which a singular value counts as zero.
 SINGULAR_RTOL: float = 1e-12
@@ -198,6 +200,10 @@ def inverse_norm(v: FloatArray, scale: FloatArray) -> FloatArray:
     return np.where(zero, np.inf, 1.0 / np.where(zero, 1.0, nv))
 
 
+@overload
+def torque_weights(name: str, torque_max: None, n: int) -> None: ...
+@overload
+def torque_weights(name: str, torque_max: ArrayLike, n: int) -> FloatArray: ...
 def torque_weights(name: str, torque_max: ArrayLike | None, n: int) -> FloatArray | None:
     """Return ``1 / torque_max`` of shape (..., n) (None stays None); limits must be > 0."""
     if torque_max is None:

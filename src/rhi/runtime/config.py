@@ -75,14 +75,14 @@ _FRICTION = {"viscous": (_num_or_vec, 0.0), "coulomb": (_num_or_vec, 0.0), "velo
 _COMPENSATED = {"damping": (_num_or_mat, 0.0), "coriolis": (S.boolean, True), "gravity": (S.boolean, True),
                 "friction": (S.table(_FRICTION), None)}
 _PASSIVITY = S.choice("motors", "handle", "off")  # rhi.control.passivity port, or off (the thesis's laws)
-_PRIMARY = {
+_PRIMARY: dict[str, S.Spec] = {
     "impedance": {**_COMPENSATED, "inertia": (S.matrix, None), "sensor": (S.string, "ft")},
     "force_rendering": {**_COMPENSATED, "gain": (_num, 1.0), "passivity": (_PASSIVITY, "motors")},
     "spring": {**_COMPENSATED, "stiffness": (_nonneg, R), "x0": (_vec, R), "normal": (_vec, None),
                "passivity": (_PASSIVITY, "motors")},
 }
 _GAIN = {"gain": (_nonneg, R)}
-_OBJECTIVES = {
+_OBJECTIVES: dict[str, S.Spec] = {
     "vme": {**_GAIN, "u": (_vec, R), "beta": (_pos, 0.01)},
     "ellipsoid": {**_GAIN, "desired": (S.matrix, R), "H": (S.matrix, None)},
     "fme": {**_GAIN, "desired": (S.matrix, None), "shape": (S.choice("free", "stiff"), None),
@@ -119,7 +119,7 @@ _HAND = {"path": (S.either(S.matrix, _vec, want="a point or a list of points"), 
          "repeat": (S.integer(low=0), 0), "start": (_nonneg, 0.0), "stiffness": (_nonneg, 300.0),
          "damping": (_nonneg, 10.0),
          "max_force": (S.either(_pos, S.choice("none"), want='a number > 0 or "none"'), 20.0)}
-_SIM = {
+_SIM: S.Spec = {
     "q0": (_vec, None), "dq0": (_vec, None),
     "friction": (S.either(S.choice("device", "none"), S.table({"damping": (_num_or_vec, 0.0),
                                                                "frictionloss": (_num_or_vec, 0.0)}),

@@ -28,7 +28,7 @@ from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
 from rhi.runtime.safety import Safety, SafetyConfig
 from rhi.sim.log import TIMING, Log, LogWriter, layout, nan_stats
-from rhi.sim.telemetry import Telemetry
+from rhi.sim.telemetry import TelemetrySink
 
 _TRUTH = ("x", "xdot", "F_hand")
 
@@ -113,7 +113,7 @@ def run(
     safety: SafetyConfig | Safety | None = None,
     log=None,
     virtual=None,
-    telemetry: Telemetry | None = None,
+    telemetry: TelemetrySink | None = None,
     realtime: bool = True,
     stop_on_fault: bool = True,
     cpu: int | None = None,
@@ -300,14 +300,19 @@ def _status(k: int, slot: int, stats: dict, state, guard: Safety, t: float) -> d
 
 def _summary(log: Log, stats: dict, rate: float, guard: Safety, realtime: bool) -> dict:
     k = max(stats["ticks"], 1)
-    lat = (log.t_step + log.t_write) if len(log) else np.zeros(0)  # reading in hand → command sent
+
+    def timing(name: str) -> np.ndarray:
+        v = getattr(log, name)
+        return v if v is not None and len(log) else np.zeros(0)
+
+    lat = timing("t_step") + timing("t_write")  # reading in hand → command sent
     out = {
         "rate": rate, "realtime": realtime, "ticks": stats["ticks"],
-        "duration": float(log.wall[-1]) if len(log) else 0.0,
+        "duration": float(timing("wall")[-1]) if len(log) else 0.0,
         "missed": stats["missed"], "missed_pct": 100.0 * stats["missed"] / k,
         "skipped_slots": stats["skipped_slots"],
-        "tick": nan_stats(log.t_tick if len(log) else []), "read_to_write": nan_stats(lat),
-        "late": nan_stats(log.late if len(log) else []),
+        "tick": nan_stats(timing("t_tick")), "read_to_write": nan_stats(lat),
+        "late": nan_stats(timing("late")),
         "clamped": guard.clamped, "max_torque_ratio": stats["max_torque_ratio"],
         "fault": log.fault, "fault_kind": guard.fault_kind,
         "events": [dataclasses.asdict(e) for e in log.events],

@@ -101,7 +101,7 @@ class Safety:
         self.n = n
         self.lo, self.hi = lo, hi
         v = np.broadcast_to(np.asarray(self.config.max_joint_speed, float), (n,)) \
-            if np.ndim(self.config.max_joint_speed) == 0 or len(self.config.max_joint_speed) == n else None
+            if np.ndim(self.config.max_joint_speed) == 0 or np.size(self.config.max_joint_speed) == n else None
         if v is None:
             raise InvalidInput(f"max_joint_speed: expected one value or {n}, got {self.config.max_joint_speed!r}")
         self.max_dq = v.copy()
@@ -151,7 +151,7 @@ class Safety:
             self.trip("estop", f"emergency stop: {self._estop}")
         st = int(r.status)
         if st & _BAD_STATUS:
-            names = [s.name.lower() for s in (Status.ESTOP, Status.WATCHDOG, Status.FAULT) if st & s]
+            names = [str(s.name).lower() for s in (Status.ESTOP, Status.WATCHDOG, Status.FAULT) if st & s]
             self.trip("device", f"device reports {'+'.join(names)} at t={r.t:.4f} s"
                       + (f": {r.detail}" if r.detail else ""))
         seq = int(r.seq)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from typing import cast
 
 import numpy as np
 
@@ -121,7 +122,7 @@ def numbers_table(path: str, v) -> dict[str, float]:
     """A table of named numbers (names free, e.g. a device's design parameters)."""
     if not isinstance(v, dict):
         raise _fail(path, "a table of numbers", v)
-    return {k: number()(f"{path}.{k}", x) for k, x in v.items()}
+    return {k: cast(float, number()(f"{path}.{k}", x)) for k, x in v.items()}
 
 
 def table(spec: Spec) -> Check:
@@ -132,7 +133,7 @@ def table(spec: Spec) -> Check:
 def tables(item: Check) -> Check:
     """An array of tables, each checked by `item` (`table(spec)` or `tagged(...)`); one table counts as one item."""
 
-    def check(path: str, v) -> list[dict]:
+    def check(path: str, v) -> list[object]:
         if isinstance(v, dict):
             v = [v]
         if not isinstance(v, list):
@@ -150,7 +151,7 @@ def tagged(tag: str, specs: Mapping[str, Spec]) -> Check:
             raise _fail(path, "a table", v)
         if tag not in v:
             raise InvalidInput(f"{path}.{tag}: missing (one of {', '.join(repr(k) for k in specs)})")
-        kind = choice(*specs)(f"{path}.{tag}", v[tag])
+        kind = cast(str, choice(*specs)(f"{path}.{tag}", v[tag]))
         rest = {k: x for k, x in v.items() if k != tag}
         return {tag: kind, **parse(path, rest, specs[kind])}
 

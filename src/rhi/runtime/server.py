@@ -60,7 +60,7 @@ class DeviceServer:
         except OSError as exc:
             raise InvalidInput(f"port: cannot listen on {host}:{port}: {exc}") from None
         self.port = self.sock.getsockname()[1]
-        self.client = None
+        self.client: tuple[str, int] | None = None
         self.n = device.n
         self.stats = {"readings": 0, "commands": 0, "invalid": 0, "refused": 0, "dropped": 0, "watchdog_trips": 0}
         self._log_path = log
@@ -225,6 +225,8 @@ class DeviceServer:
         return dict(self.stats)
 
     def _send(self, pkt: bytes) -> None:
+        if self.client is None:  # no host has said HELLO yet
+            return
         try:
             self.sock.sendto(pkt, self.client)
             self.stats["readings"] += 1

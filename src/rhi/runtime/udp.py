@@ -114,6 +114,8 @@ class UDPLink:
         self._k = int(self.info["k"])
 
     def _send(self, pkt: bytes) -> None:
+        if self._sock is None:
+            raise LinkError("link: not open")
         try:
             self._sock.send(pkt)
         except OSError as exc:
@@ -122,6 +124,8 @@ class UDPLink:
 
     def _recv(self, timeout: float) -> bytes | None:
         s = self._sock
+        if s is None:
+            raise LinkError("link: not open")
         try:
             if timeout > 0:
                 r, _, _ = select.select([s], [], [], timeout)

@@ -11,6 +11,8 @@ unless ``collision=True``.
 
 from __future__ import annotations
 
+from collections.abc import Collection
+
 import mujoco
 import numpy as np
 import pinocchio as pin
@@ -83,7 +85,7 @@ def joint_axis(jm) -> tuple[str, np.ndarray]:
     raise ModelError(f"device: joint type {name} has no MuJoCo plant equivalent (revolute/prismatic only)")
 
 
-def add_skeleton(add: GeomAdder, device, bodies: dict, *, skip: set[int] = frozenset(), base: bool = True) -> None:
+def add_skeleton(add: GeomAdder, device, bodies: dict, *, skip: Collection[int] = frozenset(), base: bool = True) -> None:
     """Capsules between joint origins, joint cylinders and a pedestal under the first joint.
 
     Args:

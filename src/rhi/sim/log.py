@@ -19,6 +19,7 @@ import json
 import math
 import struct
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -134,8 +135,10 @@ class Log:
 
     def to_npz(self, path) -> None:
         """Write the log as compressed NPZ (one array per column; `fault` and `events` as JSON strings)."""
-        extra = {"fault": json.dumps(self.fault), "events": json.dumps([dataclasses.asdict(e) for e in self.events])}
-        np.savez_compressed(path, **{k: np.asarray(v) for k, v in self.columns().items()}, **extra)
+        arrays: dict[str, Any] = {k: np.asarray(v) for k, v in self.columns().items()}
+        arrays["fault"] = json.dumps(self.fault)
+        arrays["events"] = json.dumps([dataclasses.asdict(e) for e in self.events])
+        np.savez_compressed(path, **arrays)
 
     @classmethod
     def load(cls, path) -> Log:
@@ -248,7 +251,7 @@ class LogWriter:
         """Flush the last partial chunk and close the files (idempotent)."""
         if self._k:
             self._flush()
-        if self._fh is not None:
+        if self._fh is not None and self._ev is not None:
             if self.fault is not None:
                 self._ev.write(json.dumps({"fault": self.fault}) + "\n")
             self._fh.close()
@@ -267,7 +270,8 @@ class LogWriter:
 
 
 def _from_array(data: np.ndarray, columns: list[tuple[str, int]]) -> Log:
-    arrays, i = {}, 0
+    arrays: dict[str, Any] = {}
+    i = 0
     for c, w in columns:
         arrays[c] = data[:, i] if w == 1 else data[:, i:i + w]
         i += w

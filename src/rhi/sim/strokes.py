@@ -68,13 +68,17 @@ def synthetic_strokes(count: int, *, m: int = 2, seed: int = 0, dt: float = 1e-3
         if len(v) != 2 or not 0 <= v[0] <= v[1] or (name != "pause" and v[0] == 0):
             raise InvalidInput(f"{name}: expected (min, max) with 0 < min <= max, got {v!r}")
     rng = np.random.default_rng(seed)
-    F, V, U, onset, mov = [], [], [], [], []
+    Fs: list[np.ndarray] = []
+    Vs: list[np.ndarray] = []
+    Us: list[np.ndarray] = []
+    onset: list[float] = []
+    mov: list[np.ndarray] = []
     u_prev, t0 = None, 0.0
     for _ in range(count):
         while True:
             u = rng.normal(size=m)
             u /= np.linalg.norm(u)
-            if u_prev is None or np.arccos(min(1.0, abs(u @ u_prev))) >= turn_min:
+            if u_prev is None or np.arccos(min(1.0, abs(float(u @ u_prev)))) >= turn_min:
                 break
         L, vp, rest = rng.uniform(*length), rng.uniform(*peak_speed), rng.uniform(*pause)
         T = 1.875 * L / vp  # minimum jerk: v_peak = 1.875 L / T
@@ -87,12 +91,12 @@ def synthetic_strokes(count: int, *, m: int = 2, seed: int = 0, dt: float = 1e-3
         f = np.r_[f, np.zeros(k_rest)]
         onset.append(t0)
         t0 += len(v) * dt
-        V.append(v[:, None] * u)
-        F.append(f[:, None] * u)
-        U.append(np.tile(u, (len(v), 1)))
+        Vs.append(v[:, None] * u)
+        Fs.append(f[:, None] * u)
+        Us.append(np.tile(u, (len(v), 1)))
         mov.append(np.r_[np.ones(len(s), bool), np.zeros(k_rest, bool)])
         u_prev = u
-    V, F, U = np.vstack(V), np.vstack(F), np.vstack(U)
+    V, F, U = np.vstack(Vs), np.vstack(Fs), np.vstack(Us)
     F = F + rng.normal(scale=force_noise, size=F.shape)
     V = V + rng.normal(scale=speed_noise, size=V.shape)
     return Strokes(np.arange(len(V)) * dt, F, V, U, np.array(onset), np.concatenate(mov))

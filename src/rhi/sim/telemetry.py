@@ -9,10 +9,19 @@ assignment, atomic under the GIL: no lock, no queue, nothing the loop can wait o
 from __future__ import annotations
 
 import types
+from typing import Protocol
 
 import numpy as np
 
 from rhi.errors import InvalidInput
+
+
+class TelemetrySink(Protocol):
+    """What a loop publishes its ticks to: `Telemetry`, or `rhi.viz.remote.SharedTelemetry` across processes."""
+
+    def publish(self, row: np.ndarray, cols: dict, fault: str | None = None) -> None:
+        """Offer the current log row (called by the loop every tick)."""
+        ...
 
 
 class Telemetry:

@@ -40,7 +40,8 @@ def _view(args: argparse.Namespace) -> int:
         if log.q.shape[1:] != (dev.n,):
             raise InvalidInput(f"device: the log has {log.q.shape[1]} motors, {dev.name} has {dev.n} (use --device)")
         view = View(dev, log, host=args.host, port=args.port)
-        view.player.play()
+        if view.player is not None:  # a Log source always has one
+            view.player.play()
         print(f"rhi view: replaying {args.log} ({log.t[-1] - log.t[0]:.2f} s) at {view.url}", flush=True)
         return _serve(view)
     from rhi.viz.live import live

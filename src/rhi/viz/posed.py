@@ -41,7 +41,7 @@ class Posed:
         if tuple(device.joint_names[:3]) == BASE_JOINTS:
             from rhi.sim.mobile import MobilePlant
 
-            plant = MobilePlant(device)
+            plant: Plant | MobilePlant = MobilePlant(device)
             self._qadr = np.array([plant.model.joint(nm).qposadr[0] for nm in device.joint_names])
             self._A = self._b = None
         else:

@@ -98,7 +98,8 @@ class SharedTelemetry:
         """Detach (and free the block on the creating side); idempotent."""
         if self._row is None:
             return
-        self._seq = self._flen = self._row = self._fault = None
+        # the views on the block must be released before it is closed; None also marks the reader closed
+        self._seq = self._flen = self._row = self._fault = None  # type: ignore[assignment]
         self.shm.close()
         if self._owner:
             self.shm.unlink()
@@ -150,13 +151,13 @@ class SharedDraggableHand(DraggableHand):
                                                           max_force=self.max_force)}
 
     def __setstate__(self, state) -> None:
-        self.__init__(state["m"], name=state["name"], **state["kw"])
+        type(self).__init__(self, state["m"], name=state["name"], **state["kw"])
 
     def close(self) -> None:
         """Detach (and free the block on the creating side); idempotent."""
         if self._buf is None:
             return
-        self._buf = None
+        self._buf = None  # type: ignore[assignment]  # release the view before closing the block; None marks closed
         self.shm.close()
         if self._owner:
             self.shm.unlink()

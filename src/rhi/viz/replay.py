@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 import time
 import types
+from typing import Any
 
 import numpy as np
 
@@ -71,13 +72,13 @@ class LogPlayer:
 
     def index(self, t: float) -> int:
         """The last tick at or before log time t."""
-        return int(max(np.searchsorted(self.log.t, t, side="right") - 1, 0))
+        return max(int(np.searchsorted(self.log.t, t, side="right")) - 1, 0)
 
     def latest(self) -> types.SimpleNamespace:
         """The tick at the playback time, as a telemetry snapshot (plus `safety` and `fault`)."""
         log = self.log
         k = self.index(self.time)
-        snap = {f: (np.asarray(getattr(log, f)[k]).copy() if np.ndim(getattr(log, f)) > 1 else
+        snap: dict[str, Any] = {f: (np.asarray(getattr(log, f)[k]).copy() if np.ndim(getattr(log, f)) > 1 else
                     float(getattr(log, f)[k])) for f in _FIELDS}
         bad = log.safety is not None and np.isfinite(log.safety[k]) and log.safety[k] == 1.0
         snap["safety"] = "fault" if bad else "ok"

@@ -6,6 +6,8 @@ frame (a few hundred bytes to the browser), from `mj_kinematics` of the configur
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 import trimesh
@@ -55,7 +57,7 @@ class DeviceScene:
         self.server, self.posed, self.root = server, posed, root
         m = posed.model
         moving = {b for b in range(1, m.nbody) if m.body_weldid[b] != 0}
-        self.frames = {}
+        self.frames: dict[int, Any] = {}
         self._bodies = np.array(sorted(moving), dtype=int)
         floor = None
         for g in range(m.ngeom):

@@ -22,7 +22,7 @@ from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.sim.hand import DraggableHand
 from rhi.sim.log import Log
-from rhi.viz.overlays import Overlays, handle_measures
+from rhi.viz.overlays import HandleMeasures, Overlays, handle_measures
 from rhi.viz.panels import legend, state_panel, torque_panel
 from rhi.viz.posed import Posed, rest_configuration
 from rhi.viz.replay import LogPlayer
@@ -62,6 +62,7 @@ class View:
         if hand is not None and not isinstance(hand, DraggableHand):
             raise InvalidInput(f"hand: expected a rhi.sim.DraggableHand, got {type(hand).__name__}")
         self.device, self.hand, self.fps, self.lp_every = device, hand, float(fps), max(1, int(lp_every))
+        self._meas: HandleMeasures | None = None  # the last measures (the LP's force kept between LP frames)
         self.player = LogPlayer(source) if isinstance(source, Log) else None
         self.source = self.player or source
         if self.source is not None and not callable(getattr(self.source, "latest", None)):
@@ -128,20 +129,22 @@ class View:
         self.torque_html = gui.add_html("")
         self.legend_html = gui.add_html(legend(None, None))
         self.gizmo = None
-        if self.hand is not None:
-            axes = tuple(a in self.device.task_axes for a in "xyz")
-            self.gizmo = self.server.scene.add_transform_controls(
+        hand = self.hand
+        if hand is not None:
+            active = [a in self.device.task_axes for a in "xyz"]
+            axes = (active[0], active[1], active[2])
+            gizmo = self.gizmo = self.server.scene.add_transform_controls(
                 "/hand", scale=0.35 * self.size, active_axes=axes, disable_rotations=True,
                 position=tuple(self.scene.handle_position()))
             self.release = gui.add_button("let go of the handle")
 
-            @self.gizmo.on_update
+            @gizmo.on_update
             def _(event) -> None:
-                self.hand.target = np.asarray(self.gizmo.position, dtype=float)[self.rows]
+                hand.target = np.asarray(gizmo.position, dtype=float)[self.rows]
 
             @self.release.on_click
             def _(event) -> None:
-                self.hand.target = None
+                hand.target = None
 
     def _rest_snapshot(self):
         import types
@@ -166,7 +169,7 @@ class View:
         except Exception:  # noqa: BLE001 - a singular or degenerate pose must not stop the view
             meas = None
         if meas is not None:
-            if not lp and getattr(self, "_meas", None) is not None:
+            if not lp and self._meas is not None:
                 meas.f_lp = self._meas.f_lp
             self._meas = meas
         with self.server.atomic():  # one batch of messages per frame
@@ -178,10 +181,10 @@ class View:
             self.state_html.content = state_panel(snap)
             if self.frames == 0:
                 self.legend_html.content = legend(self.overlays.force_scale, self.overlays.velocity_scale)
-            if self.gizmo is not None and self.hand.target is None:
+            if self.gizmo is not None and self.hand is not None and self.hand.target is None:
                 self.gizmo.position = tuple(handle)
             if self.player is not None:
-                self.timeline.value = float(snap.t)
+                self.timeline.value = float(snap.t)  # type: ignore[misc]  # viser's slider has a setter; mypy sees a read-only props field
         self.frames += 1
 
     def step(self) -> bool:
