@@ -64,6 +64,7 @@ class Device:
             acceleration [rad/s² or m/s²] limits (thesis Table B.1), or None when not declared.
 
     Attributes:
+        ee_frame_id: index of `ee_frame` in ``model.frames``.
         spec: the `DeviceSpec` (device.toml) the device was loaded from, None for devices
             built otherwise; a locked device keeps its base's spec.
 
@@ -109,7 +110,7 @@ class Device:
         self.model = model
         self.data = model.createData()
         self.ee_frame = ee_frame
-        self._fid = model.getFrameId(ee_frame)
+        self.ee_frame_id = model.getFrameId(ee_frame)
         self.task_axes = task_axes
         self._rows = [_AXES[a] for a in task_axes]
         ntheta = model.nv
@@ -200,7 +201,7 @@ class Device:
         th = self.theta(self._q(q))
         pin.framesForwardKinematics(self.model, self.data, th)
         pts = [self.data.oMi[j].translation.copy() for j in range(1, self.model.njoints)]
-        return np.array(pts + [self.data.oMf[self._fid].translation.copy()])
+        return np.array(pts + [self.data.oMf[self.ee_frame_id].translation.copy()])
 
     def jacobian(self, q) -> np.ndarray:
         """Task Jacobian ∂x/∂q in the world frame: (..., m, n)."""
@@ -264,7 +265,7 @@ class Device:
         last = self.__dict__.get("_last_terms")
         if last is not None and last[0] == key:  # same state again (the loop's virtual environment, then the controller)
             return last[1]
-        model, data, fid = self.model, self.data, self._fid
+        model, data, fid = self.model, self.data, self.ee_frame_id
         fast = self._fast_maps
         th = self.A.dot(q)
         if fast.offset:
@@ -408,16 +409,16 @@ class Device:
         """Vectorized kinematics and dynamics for batched inputs; None if a joint type is not supported."""
         if not batch.supported(self.model):
             return None
-        return batch.BatchChain(self.model, self._fid, rows=self._rows, A=self.A, armature=self.armature)
+        return batch.BatchChain(self.model, self.ee_frame_id, rows=self._rows, A=self.A, armature=self.armature)
 
     def fk_theta(self, th: np.ndarray) -> np.ndarray:
         """End-effector position (m,) [m] at chain coordinates θ: (nθ,), unchecked."""
         pin.framesForwardKinematics(self.model, self.data, th)
-        return self.data.oMf[self._fid].translation[self._rows]
+        return self.data.oMf[self.ee_frame_id].translation[self._rows]
 
     def jacobian_theta(self, th: np.ndarray) -> np.ndarray:
         """Task Jacobian (m, n) in motor coordinates at chain coordinates θ: (nθ,), unchecked."""
-        J = pin.computeFrameJacobian(self.model, self.data, th, self._fid, pin.LOCAL_WORLD_ALIGNED)
+        J = pin.computeFrameJacobian(self.model, self.data, th, self.ee_frame_id, pin.LOCAL_WORLD_ALIGNED)
         return J[self._rows] @ self.A
 
     def _djac1(self, th: np.ndarray) -> np.ndarray:
@@ -426,7 +427,7 @@ class Device:
         for k in range(self.model.nv):
             pin.computeJointJacobiansTimeVariation(self.model, self.data, th, np.eye(self.model.nv)[k])
             pin.updateFramePlacements(self.model, self.data)
-            cols.append(pin.getFrameJacobianTimeVariation(self.model, self.data, self._fid, pin.LOCAL_WORLD_ALIGNED))
+            cols.append(pin.getFrameJacobianTimeVariation(self.model, self.data, self.ee_frame_id, pin.LOCAL_WORLD_ALIGNED))
         H = np.stack(cols, axis=-1)[self._rows]  # (m, nθ, nθ): [i, b, j] = ∂J_ib/∂θ_j
         return np.einsum("ibj,ba,jk->iak", H, self.A, self.A)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from rhi import metrics
-from rhi._validate import unit_vector
+from rhi._validate import as_array, unit_vector
 from rhi.device import Device
 from rhi.errors import Singular
 
@@ -26,7 +26,7 @@ def measure(device: Device, q, u=None, *, exact_force: bool = True) -> dict[str,
         measures that need a full-rank J (M_x, the force ellipsoid, the LP) are None and
         listed under "undefined (singular J)".
     """
-    q = device._q(q)
+    q = as_array("q", q, shape_tail=(device.n,))
     u = np.eye(device.m)[0] if u is None else unit_vector("u", u, device.m)
     J = device.jacobian(q)
     M = device.mass_matrix(q)

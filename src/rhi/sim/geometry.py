@@ -66,7 +66,7 @@ def link_radius(device) -> float:
     """Capsule radius [m]: 6 % of the longest link, within [4, 25] mm."""
     model = device.model
     lengths = [np.linalg.norm(model.jointPlacements[j].translation) for j in range(1, model.njoints)]
-    lengths.append(np.linalg.norm(model.frames[device._fid].placement.translation))
+    lengths.append(np.linalg.norm(model.frames[device.ee_frame_id].placement.translation))
     return float(np.clip(0.06 * max(lengths, default=0.1), 0.004, 0.025))
 
 
@@ -100,7 +100,7 @@ def add_skeleton(add: GeomAdder, device, bodies: dict, *, skip: Collection[int] 
     ends: dict[int, list[np.ndarray]] = {j: [] for j in range(model.njoints)}
     for j in range(1, model.njoints):
         ends[model.parents[j]].append(np.asarray(model.jointPlacements[j].translation))
-    fr = model.frames[device._fid]
+    fr = model.frames[device.ee_frame_id]
     ends[fr.parentJoint].append(np.asarray(fr.placement.translation))
     for j in range(1, model.njoints):
         if j in skip:

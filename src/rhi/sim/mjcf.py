@@ -89,7 +89,7 @@ def motor_inverse(device: Device, A: np.ndarray, moving: np.ndarray) -> np.ndarr
     uses only those; otherwise R = A⁺.
     """
     model = device.model
-    fr = model.frames[device._fid]
+    fr = model.frames[device.ee_frame_id]
     j = fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent
     path = set(model.supports[j])
     joint_of = {model.joints[k].idx_v: k for k in range(1, model.njoints)}
@@ -164,7 +164,7 @@ def plant_spec(device: Device, friction: PlantFriction | None = None, *, timeste
             theta_names.append(model.names[j])
 
     # the sensorised handle, welded to the end-effector frame
-    fr = model.frames[device._fid]
+    fr = model.frames[device.ee_frame_id]
     pj = fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent
     handle = bodies[pj].add_body(name="handle", pos=fr.placement.translation, quat=quat_wxyz(fr.placement.rotation))
     hm = float(handle_mass)

@@ -72,7 +72,7 @@ def chain_points(dev: Device, q: np.ndarray) -> np.ndarray:
     `Device.skeleton` without the side branches (srhi5's parallelogram crank and coupler), for drawing.
     """
     model = dev.model
-    fr = model.frames[dev._fid]
+    fr = model.frames[dev.ee_frame_id]
     j = fr.parentJoint if hasattr(fr, "parentJoint") else fr.parent
     path = sorted(set(model.supports[j]) - {0})
     sk = dev.skeleton(q)
