@@ -81,6 +81,9 @@ class Session:
         self.slave_x = np.zeros((0,)) if teleop is None else teleop.slave.x.copy()
         self.fault: str | None = None
         self._zero = np.zeros(plant.m)
+        # the plant's persistent MjData views and indices (see `Plant.step`), fetched once
+        p = plant
+        self._mj = (p.model, p.data, p._sd, p._pos, p._vel, p._xfrc, p._task, p._wnum, *p._bad)
 
     def advance(self, tau: np.ndarray, x_master: np.ndarray | None = None) -> str | None:
         """Apply τ: (n,) [N m] for one control period; returns the fault that stopped it, if any.
@@ -89,16 +92,13 @@ class Session:
         """
         if self.fault is not None:
             return self.fault
-        p, hand, phys, h = self.plant, self.hand, self.physical, self.plant.timestep
-        # The plant's persistent MjData views (see `Plant.step`): the torque is set once for the period,
-        # the handle force on the task axes at every physics step (or zero), then mj_step2 + mj_step1
-        # with the divergence check.
-        model, data, sd, pos, vel = p.model, p.data, p._sd, p._pos, p._vel
-        xfrc, task, wn = p._xfrc, p._task, p._wnum
-        i, j, k = p._bad
+        hand, phys, h = self.hand, self.physical, self.plant.timestep
+        # The torque is set once for the period, the handle force on the task axes at every physics step
+        # (or zero), then mj_step2 + mj_step1 with the divergence check.
+        model, data, sd, pos, vel, xfrc, task, wn, i, j, k = self._mj
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2
         forces = hand is not None or phys is not None
-        p.apply(tau)
+        self.plant.apply(tau)
         F_h = self._zero
         t0 = self.t
         work = self.work
