@@ -185,7 +185,9 @@ def one_way_anova_from_summary(
     Table 3.3 against F(2, 27) = 7.36; agrees with `one_way_anova` on raw data.
 
     Args:
-        means, stds, ns: (k,) per-group mean, sample s.d. and size (>= 2).
+        means: (k,) per-group mean.
+        stds: (k,) per-group sample s.d.
+        ns: (k,) per-group size (>= 2).
         names: group names (default "g0", "g1", ...).
 
     Returns:

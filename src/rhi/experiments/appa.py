@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from rhi import thesis as T
-from rhi.control.mobile import DMConfig, WeightedConfig, WeightedDistributionController, W_TAU_LIMITS
+from rhi.control.mobile import W_TAU_LIMITS, DMConfig, WeightedConfig, WeightedDistributionController
 from rhi.device import device
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain

@@ -105,9 +105,11 @@ def singularity(
     t = wo.t
     err_wo = np.linalg.norm(wo.error, axis=1)
     rows = [
-        Row(f"without avoidance: first time σ_min(J_m) < {SINGULAR_SIGMA}", T.SINGULAR_TIME_B, _first(t, wo.sigma < SINGULAR_SIGMA),
-            "s", "thesis: the arm 'puts itself at a singular configuration at about 8.35 s'"),
-        Row("without avoidance: first time the task must be scaled (α < 1)", T.SINGULAR_TIME_B, _first(t, wo.alpha < 1 - 1e-9), "s"),
+        Row(f"without avoidance: first time σ_min(J_m) < {SINGULAR_SIGMA}", T.SINGULAR_TIME_B,
+            _first(t, wo.sigma < SINGULAR_SIGMA), "s",
+            "thesis: the arm 'puts itself at a singular configuration at about 8.35 s'"),
+        Row("without avoidance: first time the task must be scaled (α < 1)", T.SINGULAR_TIME_B,
+            _first(t, wo.alpha < 1 - 1e-9), "s"),
         Row("without avoidance: first time the tracking error exceeds 1 cm", T.SINGULAR_TIME_B, _first(t, err_wo > 0.01), "s"),
         Row("without avoidance: min σ_min(J_m)", None, float(np.min(wo.sigma)), "m/rad"),
         Row("with avoidance: min σ_min(J_m)", None, float(np.min(w.sigma)), "m/rad",
@@ -221,8 +223,8 @@ def tracking(
     w = logs["within", "proposed"]
     for method, sig in (("proposed", sigma_min), ("proposed_adapted", sigma_adapted)):
         n_w, first_w, _ = _activations(logs["within", method])
-        rows_err.append(Row(f"within, proposed (σ_m,min = {sig:.3f}): base activation periods", T.BASE_PERIODS_B["within"], float(n_w), "",
-                            f"first at {first_w:.2f} s" if n_w else ""))
+        rows_err.append(Row(f"within, proposed (σ_m,min = {sig:.3f}): base activation periods", T.BASE_PERIODS_B["within"],
+                            float(n_w), "", f"first at {first_w:.2f} s" if n_w else ""))
     ok = all(log.bounds_ok for log in logs.values())
     sig_w = float(np.min(w.sigma))
     rows_err.append(Row(f"best σ_min(J_m) the arm alone can have at the far point of the R = {radii[0]} m circle",

@@ -68,10 +68,8 @@ from rhi.analysis.sysid import Record, SysidResult, identify
 from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Row
-from rhi.experiments.setups import ZeroTorque
+from rhi.experiments.setups import Progress, ZeroTorque
 from rhi.metrics import effective_inertia
-
-Progress = Callable[[int, int], None]
 
 #: Direction of motion of §3.5 and §6.4.
 U = (0.0, 1.0)
@@ -137,8 +135,12 @@ def reflected_friction(dev: Device, q: np.ndarray, dq: np.ndarray, u, damping: n
     quadratic in the velocity, are left out as eq. 3.24 leaves them out).
 
     Args:
-        dev: device; q, dq: (n,) configuration [rad] and velocity [rad/s] (uᵀJq̇ ≠ 0);
-        u: (m,) direction; damping: (n,) D [N m s/rad]; frictionloss: (n,) τ_c [N m].
+        dev: device.
+        q: (n,) configuration [rad].
+        dq: (n,) velocity [rad/s] (uᵀJq̇ ≠ 0).
+        u: (m,) direction.
+        damping: (n,) viscous joint friction D [N m s/rad].
+        frictionloss: (n,) Coulomb joint friction τ_c [N m].
     """
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     J, M = dev.jacobian(q), dev.mass_matrix(q)
@@ -239,7 +241,10 @@ def velocity_product_force(dev: Device, q: np.ndarray, dq: np.ndarray, u) -> np.
     1–2 m/s the handle reaches after a 5 cm push of a light configuration they are not.
 
     Args:
-        dev: device; q, dq: (N, n) encoder readings [rad], [rad/s]; u: (m,) direction.
+        dev: device.
+        q: (N, n) encoder angles [rad].
+        dq: (N, n) encoder velocities [rad/s].
+        u: (m,) direction.
     """
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     J, M, dJ, C = dev.jacobian(q), dev.mass_matrix(q), dev.jacobian_derivative(q), dev.coriolis(q, dq)
@@ -266,7 +271,13 @@ def identify_case(
     """Run `push_trials` and identify ``M_x ẍ + Φ ẋ + c = F`` on the samples within ±window of the point.
 
     Args:
-        dev, q_start, point, forces, u, controller, progress: see `push_trials`.
+        dev: the device (model and plant).
+        q_start: (n,) start configuration at rest [rad].
+        point: (m,) point of interest [m].
+        forces: magnitudes [N], one trial each.
+        u: (m,) direction of the force.
+        controller: factory of a fresh controller per trial (None: motors off).
+        progress: callback(done, total) in trials.
         q_nominal: (n,) configuration the experiment intends at the point (eq. 3.13 there too) [rad].
         label: case name.
         window: half-width of the position window [m].

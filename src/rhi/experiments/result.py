@@ -74,7 +74,7 @@ class Row:
 
     @property
     def difference(self) -> float | None:
-        """ours − thesis."""
+        """Ours − thesis."""
         return None if self.thesis is None else self.ours - self.thesis
 
     @property

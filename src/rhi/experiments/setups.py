@@ -16,7 +16,8 @@ from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.sim import Hand, Log, Path, Plant, simulate
 
-Progress = Callable[[int, int], None] | None
+#: A progress callback: progress(done, total), in ticks or items.
+Progress = Callable[[int, int], None]
 
 
 class ZeroTorque:
@@ -47,23 +48,30 @@ def path_hand(points, speed: float, start: float, stiffness: float, damping: flo
     """A hand following the polyline `points` (k, m) [m] at `speed` [m/s] after `start` [s].
 
     Args:
-        points, speed, start: the `rhi.sim.Path`.
-        stiffness, damping: the grip [N/m], [N s/m].
+        points: (k, m) polyline of the `rhi.sim.Path` [m].
+        speed: its speed [m/s].
+        start: when it starts [s].
+        stiffness: the grip stiffness [N/m].
+        damping: the grip damping [N s/m].
         max_force: saturation of the hand's force [N] (None: none).
     """
     return Hand(Path(np.asarray(points, dtype=float), speed=speed, start=start), stiffness=stiffness,
                 damping=damping, max_force=max_force)
 
 
-def run(dev: Device, controller, hand, q_start: np.ndarray, duration: float, progress: Progress = None,
+def run(dev: Device, controller, hand, q_start: np.ndarray, duration: float, progress: Progress | None = None,
         offset: int = 0, total: int | None = None, **kw) -> Log:
     """Simulate `controller` on a fresh plant of `dev` reset at rest to q_start: (n,) [rad].
 
     Args:
-        dev, controller, hand, duration: as `rhi.sim.simulate` (duration [s]).
+        dev: the device (its plant is built here).
+        controller: as `rhi.sim.simulate`.
+        hand: as `rhi.sim.simulate`.
+        duration: simulated time [s].
         q_start: (n,) start configuration [rad].
         progress: callback(done, total) in ticks, shifted by `offset` out of `total` (several runs in a row).
-        offset, total: this run's first tick and the ticks of all runs.
+        offset: this run's first tick among all runs.
+        total: the ticks of all runs (None: this run's).
         **kw: further `rhi.sim.simulate` arguments (virtual, physical, record, ...).
     """
     plant = Plant(dev)
@@ -75,7 +83,7 @@ def run(dev: Device, controller, hand, q_start: np.ndarray, duration: float, pro
 class ProgressChain:
     """Progress over several runs: run i reports (offset + done, total)."""
 
-    def __init__(self, progress: Progress, total: int) -> None:
+    def __init__(self, progress: Progress | None, total: int) -> None:
         self.progress, self.total, self.offset = progress, total, 0
 
     def run(self, n: int):
@@ -93,7 +101,7 @@ def ticks(duration: float, rate: float = 1000.0) -> int:
 
 
 def positive(name: str, v: float, *, allow_zero: bool = False) -> float:
-    """v as a float; InvalidInput naming `name` unless finite and > 0 (>= 0 with allow_zero)."""
+    """V as a float; InvalidInput naming `name` unless finite and > 0 (>= 0 with allow_zero)."""
     v = float(v)
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise InvalidInput(f"{name}: must be finite and {'>=' if allow_zero else '>'} 0, got {v!r}")

@@ -54,7 +54,6 @@ def rho_ratio(result: Result) -> Figure:
 def configurations(result: Result) -> Figure:
     """Table 3.1 set-up: the three interfaces at the two points with their velocity ellipses (scaled ×0.3)."""
     from rhi.experiments.ch3.measures import POINTS, devices  # data access only
-
     from rhi.plots.draw import chain, ellipse
 
     devs = devices()

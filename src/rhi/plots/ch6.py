@@ -21,8 +21,10 @@ def example_3dof(result: Result) -> Figure:
 
 
 def configurations_3dof(result: Result) -> Figure:
-    """Fig. 6.4: the initial (blue), M_Free-matched (red) and M_Stiff-matched (magenta) configurations,
-    their FMEs and the desired FMEs (green), all scaled ×0.02 m per √(N²/(N m)²)."""
+    """Fig. 6.4: the initial (blue), M_Free-matched (red) and M_Stiff-matched (magenta) configurations.
+
+    With their FMEs and the desired FMEs (green), all scaled ×0.02 m per √(N²/(N m)²).
+    """
     a = result.arrays
     x = a["x"]
     fig, axes = plt.subplots(1, 2, figsize=(10, 5), sharey=True)

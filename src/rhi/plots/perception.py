@@ -1,4 +1,6 @@
-"""Figures of the simulated perception experiments (`rhi.experiments.ch3.identification`, `ch3.discrimination`, `ch6.identification`).
+"""Figures of the simulated identification and psychophysics experiments (Tables 3.2, 3.3, 6.1; Figs 3.9–3.10).
+
+From the results of `rhi.experiments.ch3.identification`, `ch3.discrimination` and `ch6.identification`.
 
 - `sysid_fit`: one identification trial per case (position, velocity along u) and the
   identified Λ beside eq. 3.13 and the thesis (Tables 3.2 / 6.1).

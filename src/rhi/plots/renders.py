@@ -40,8 +40,10 @@ def _grid(panels: list[tuple[str, object, np.ndarray]], title: str, *, elevation
 
 
 def ch3_configurations(result: Result) -> Figure:
-    """Table 3.1 set-up (Fig. 3.5-style): the RHI at its optimised configuration and the PHANToM and the
-    rehabilitation robot, at the first of the two points of §3.5, rendered."""
+    """Table 3.1 set-up (Fig. 3.5-style), rendered: the RHI, the PHANToM and the rehabilitation robot.
+
+    The RHI at its optimised configuration, all three at the first of the two points of §3.5.
+    """
     from rhi.experiments.ch3.measures import POINTS, devices  # data access only
 
     devs = devices()

@@ -22,7 +22,6 @@ from rhi.report import headline
 from rhi.report.claims import CLAIMS
 from rhi.report.tables import audit, summary, table_html
 
-
 STYLE = """
 body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;font-size:14px}
@@ -46,6 +45,7 @@ def write_report(
     Args:
         results: (chapter, result, {figure name: figure or a zero-argument function drawing it}) triples.
         out: output directory (created).
+        title: the report's title.
         meta: run information printed at the top and stored in the JSON.
 
     Returns:

@@ -59,6 +59,7 @@ class Lookup:
         raise InvalidInput(f"quantity: no row of {experiment!r} starts with {quantity!r}")
 
     def __call__(self, experiment: str, quantity: str) -> float:
+        """Our value of the first row of `experiment` whose quantity starts with `quantity`."""
         return float(self.row(experiment, quantity).ours)
 
 
@@ -121,7 +122,7 @@ class Verdict:
 
     @property
     def ours_text(self) -> str:
-        """rhi's value (yes/no for a claim of the thesis)."""
+        """Our value as text (yes/no for a claim of the thesis)."""
         if self.ours is None or not math.isfinite(self.ours):
             return "—"
         if self.claim.thesis.claim and float(self.claim.thesis) == 1:

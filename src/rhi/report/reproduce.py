@@ -13,34 +13,32 @@ from pathlib import Path
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from rhi.design.executors import shared
-from rhi.experiments import appa as exa
-from rhi.experiments import appb as exb
-from rhi.experiments.beyond import bilateral as exbi
-from rhi.experiments.beyond import intent as exin
-from rhi.experiments.beyond import spatial as exsp
-from rhi.experiments.beyond import spatial_palpation as exspp
-from rhi.experiments import ch3 as ex3
-from rhi.experiments import ch4 as ex4
-from rhi.experiments import ch5 as ex5
-from rhi.experiments import ch6 as ex6
-from rhi.experiments import ch7 as ex7
-from rhi.experiments.beyond import passivity as expas
+from rhi.experiments import appa as exa, appb as exb, ch3 as ex3, ch4 as ex4, ch5 as ex5, ch6 as ex6, ch7 as ex7
+from rhi.experiments.beyond import (
+    bilateral as exbi,
+    intent as exin,
+    passivity as expas,
+    spatial as exsp,
+    spatial_palpation as exspp,
+)
 from rhi.experiments.result import Result
-from rhi.plots import appa as pla
-from rhi.plots import appb as plb
-from rhi.plots import bilateral as plbi
-from rhi.plots import intent as plin
-from rhi.plots import spatial as plsp
-from rhi.plots import ch3 as pl3
-from rhi.plots import ch3_control as pl3c
-from rhi.plots import ch4 as pl4
-from rhi.plots import ch5 as pl5
-from rhi.plots import ch6 as pl6
-from rhi.plots import renders as plr
-from rhi.plots import ch7 as pl7
-from rhi.plots import ch7_palpation as pl7p
-from rhi.plots import passivity as plpas
-from rhi.plots import perception as plp
+from rhi.plots import (
+    appa as pla,
+    appb as plb,
+    bilateral as plbi,
+    ch3 as pl3,
+    ch3_control as pl3c,
+    ch4 as pl4,
+    ch5 as pl5,
+    ch6 as pl6,
+    ch7 as pl7,
+    ch7_palpation as pl7p,
+    intent as plin,
+    passivity as plpas,
+    perception as plp,
+    renders as plr,
+    spatial as plsp,
+)
 from rhi.report import headline, write_report
 from rhi.report.claims import CLAIMS
 

@@ -160,7 +160,7 @@ _FAST_GAUSSIAN_CLASS = None
 
 
 def _fast_gaussian_class() -> type:
-    """psignifit's cumulative-Gaussian sigmoid evaluated through ``scipy.special`` (same values).
+    """Psignifit's cumulative-Gaussian sigmoid evaluated through ``scipy.special`` (same values).
 
     psignifit's ``Gaussian`` calls ``scipy.stats.norm``, whose per-call overhead
     dominates the MAP search; ``ndtr``/``ndtri`` are the functions ``norm``
@@ -222,7 +222,8 @@ def fit_psychometric(
     Args:
         comparison: (T,) comparison stiffness per trial [N/m].
         response: (T,) 1 if the comparison was judged stiffer, else 0.
-        subject, device: labels carried into the result and error messages.
+        subject: subject label carried into the result and error messages.
+        device: device label carried into the result and error messages.
         confidence: level of the intervals, in (0, 1).
         lapse_corrected: read thresholds off the lapse-free sigmoid (default) or
             off the fitted curve with its lapses.

@@ -108,7 +108,9 @@ def analyse(
 
     Args:
         responses: the study's responses.
-        measure, devices, correction: see `analyse_fits`.
+        measure: the measure compared (see `analyse_fits`).
+        devices: device order (see `analyse_fits`).
+        correction: multiple-comparison correction (see `analyse_fits`).
         **fit_options: keyword options of `fit_psychometric`.
     """
     return analyse_fits(fit_all(responses, **fit_options), measure=measure, devices=devices, correction=correction)

@@ -80,8 +80,10 @@ def regressors(
 
     Args:
         record: one trial (uniformly sampled).
-        cutoff_hz, order: low-pass cut-off [Hz] and order (see `lowpass`).
-        derivative, window: differentiator (see `derivatives`); the default window is
+        cutoff_hz: low-pass cut-off [Hz] (see `lowpass`).
+        order: low-pass order (see `lowpass`).
+        derivative: differentiator (see `derivatives`).
+        window: its window (see `derivatives`); the default window is
             `default_window(sample_rate, cutoff_hz)`.
 
     Returns:

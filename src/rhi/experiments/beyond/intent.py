@@ -21,8 +21,6 @@ peak rendered force along the true u, estimator error and lag.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from rhi.control import (
@@ -36,12 +34,10 @@ from rhi.errors import InvalidInput
 from rhi.experiments.ch5 import setup as ch5
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import ProgressChain, check_motion, path_hand, positive, run, smooth, ticks
+from rhi.experiments.setups import Progress, ProgressChain, check_motion, path_hand, positive, run, smooth, ticks
 from rhi.metrics import tmi
 from rhi.sim import Hand, Plant, Teleoperation, simulate
 from rhi.sim.strokes import synthetic_strokes
-
-Progress = Callable[[int, int], None] | None
 
 TRAIN_SEED, TEST_SEED = 101, 202
 LAG_DEG = 20.0  #: lag: time after a change of the true direction until the axial error is below this [deg]
@@ -74,7 +70,7 @@ def error_and_lag(t: np.ndarray, u_est: np.ndarray, u_true: np.ndarray, mask: np
             "lag": float(np.median(lags)) if lags else float("nan")}
 
 
-def intent_strokes(train: int = 80, test: int = 40, progress: Progress = None) -> Result:
+def intent_strokes(train: int = 80, test: int = 40, progress: Progress | None = None) -> Result:
     """The estimators on seeded synthetic strokes in 2-D and 3-D (trained on seed 101, tested on seed 202)."""
     for nm, v in (("train", train), ("test", test)):
         if not isinstance(v, (int, np.integer)) or v < 2:
@@ -113,9 +109,11 @@ class PathIntent:
         self.reset()
 
     def reset(self) -> None:
+        """Back to u0 with full confidence."""
         self.u, self.confidence = self.u0.copy(), 1.0
 
     def update_at(self, t: float, force=None, xdot=None) -> np.ndarray:
+        """The direction u at time t [s]: the reference's unit velocity (kept while the reference rests); (m,)."""
         v = self.path(t)[1]
         n = float(np.linalg.norm(v))
         if n > 0:
@@ -123,6 +121,7 @@ class PathIntent:
         return self.u
 
     def update(self, force=None, xdot=None) -> np.ndarray:
+        """The current u: (m,) (the known intent needs no evidence)."""
         return self.u
 
 
@@ -132,11 +131,13 @@ def _true_w(path, t: np.ndarray, u0: np.ndarray) -> np.ndarray:
 
 
 def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: float = 2.0,
-                        progress: Progress = None) -> Result:
+                        progress: Progress | None = None) -> Result:
     """The ch. 5 W trajectory with VME matching along u known / estimated (filtered, HMM) / fixed.
 
     Args:
-        scale: scales the W (quick runs < 1). speed: hand speed [m/s]. settle: hold before moving [s].
+        scale: scales the W (quick runs < 1).
+        speed: hand speed [m/s].
+        settle: hold before moving [s].
         progress: callback(done, total) in ticks.
     """
     scale = positive("scale", scale)
@@ -203,7 +204,7 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
 
 
 def intent_palpation(settle: float = 0.5, depth: float = 0.015, speed: float = 0.01, hold: float = 0.3,
-                     *, starts: int = 3, progress: Progress = None) -> Result:
+                     *, starts: int = 3, progress: Progress | None = None) -> Result:
     """The ch. 6 palpation with FME matching to M_Stiff^des(u): u known [0, 1] / estimated / fixed [1, 0].
 
     Known starts at the M_Stiff^des([0, 1]) match (as ch. 6); the others at the M_Stiff^des([1, 0])

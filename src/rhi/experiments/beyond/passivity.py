@@ -78,8 +78,10 @@ def _passivity_state(ctrl: NullSpaceController) -> dict[str, float]:
 
 
 def controller(dev: Device, *, objectives: bool, port: str | None, saturation: str = "ascm") -> NullSpaceController:
-    """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`), optional objectives and
-    passivity port."""
+    """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`).
+
+    With the ch. 6 null-space objectives if `objectives`, and the passivity controller on `port` if given.
+    """
     u = np.array(ch6.U)
     _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
     terms = ch6.controller_terms(Ms, dev.torque_max) if objectives else ()

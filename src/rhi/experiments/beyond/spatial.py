@@ -37,9 +37,8 @@ from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import Progress
 from rhi.metrics import effective_inertia, effective_manipulability, force_ellipsoid, velocity_ellipsoid
-
-Progress = Callable[[int, int], None]
 
 BETA = 0.01
 U = (0.0, 1.0, 0.0)
@@ -122,7 +121,8 @@ def spatial_remarks(
         u: (3,) direction of motion (thesis §3.5: [0, 1] in the plane; here [0, 1, 0]).
         devices: any of "srhi5", "gen3".
         progress: callback(done, total) in grid points.
-        executor, workers: where the points run (`rhi.design.executors`; identical results).
+        executor: where the points run (`rhi.design.executors`; identical results).
+        workers: processes of the local pool.
 
     Returns:
         Result with, per device, arrays ``{dev}_points`` (k, 3) [m], ``{dev}_rho_ratio``,

@@ -22,8 +22,6 @@ configuration (q1 = q2 = 0) towards the eq.-3.22 optimum.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from rhi.control import (
@@ -39,13 +37,11 @@ from rhi.control import (
 from rhi.control.configuration import optimal_configuration
 from rhi.device import device
 from rhi.errors import InvalidInput
-from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.beyond.spatial import chain_points
+from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import check_motion, path_hand, run, smooth
+from rhi.experiments.setups import Progress, check_motion, path_hand, run, smooth
 from rhi.metrics import effective_inertia, effective_manipulability, force_ellipsoid, max_force, max_force_scaling
-
-Progress = Callable[[int, int], None]
 
 U = (0.0, 0.7071067811865476, -0.7071067811865476)  # down and sideways: where the FMEs differ most (static F_max)
 #: the PHANToM sub-chain configuration whose handle position is X₀ (shoulder 0.4 rad, forearm 0.5 rad)
@@ -79,11 +75,15 @@ def spatial_palpation(
     """3-D palpation of K_e = 1000 N/m along u with M_Free^des, M_Stiff^des, the ASO transition and ASCM.
 
     Args:
-        settle: time the hand holds X₀ [s]; depth: push depth along u [m]; speed: [m/s]; hold: [s].
+        settle: time the hand holds X₀ [s].
+        depth: push depth along u [m].
+        speed: push speed [m/s].
+        hold: time held at depth [s].
         u: (3,) direction into the environment (normalised).
         cases: any of "free", "stiff", "schedule", "stiff_ascm".
         starts: starts of the static FME matching (`ch6.best_match`).
-        hand_stiffness, hand_damping: the hand's grip [N/m], [N s/m].
+        hand_stiffness: the hand's grip stiffness [N/m].
+        hand_damping: the hand's grip damping [N s/m].
         filter_ms: moving-average window of the F/T force [ms].
         progress: callback(done, total) in control ticks.
     """

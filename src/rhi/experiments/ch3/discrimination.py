@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -56,9 +56,8 @@ from rhi.experiments.ch3.measures import DEVICE_NAMES
 from rhi.experiments.ch3.nullspace import controller, start_configuration
 from rhi.experiments.identification import U
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import Progress
 from rhi.sim import Fixture, Plant, Wall, compose, simulate, stop
-
-Progress = Callable[[int, int], None]
 
 #: Table 3.3: (mean, std) of WF, JND [N/m], PSE [N/m] per device.
 THESIS_TABLE_3_3 = T.TABLE_3_3
@@ -187,11 +186,13 @@ def palpate(
         name: "RHI", "PHANToM" or "Rehab".
         stiffness: K of the virtual spring [N/m].
         duration: stroke duration [s].
-        start, u: start point (m,) [m] and direction.
+        start: (m,) start point [m].
+        u: (m,) direction.
         stop_distance: distance of the physical stop [m] (§3.5: 8 cm).
         overshoot: how far past the stop the hand's reference goes [m].
         hold: hold time at the end [s].
-        hand_stiffness, hand_damping: the hand's impedance [N/m], [N s/m].
+        hand_stiffness: the hand's impedance stiffness [N/m].
+        hand_damping: the hand's impedance damping [N s/m].
         margin: loading samples closer than this to the stop are left out [m].
 
     Returns:
@@ -279,8 +280,11 @@ def simulate_study(
         table: `stimulus_table` output covering `devices` and `comparison_percent`.
         subjects: number of simulated subjects.
         devices: device names.
-        repetitions, comparison_percent, reference: the protocol (`rhi.analysis.psychophysics.protocol`).
-        weber_mean, weber_sd: distribution of the subjects' intrinsic Weber fractions w_s.
+        repetitions: presentations per comparison and device (`rhi.analysis.psychophysics.protocol`).
+        comparison_percent: comparisons [% of the reference].
+        reference: reference stiffness [N/m].
+        weber_mean: mean of the subjects' intrinsic Weber fractions w_s.
+        weber_sd: their standard deviation.
         lapse: probability of a random answer.
         seed: seed of the protocol order, the subjects, the stroke durations and the noise.
 
@@ -361,7 +365,8 @@ def psychophysics(
         repetitions: presentations per comparison and device (thesis: 10).
         comparison_percent: comparisons [% of 50 N/m] (thesis: 0, ±5, ±15, ±25, ±35).
         durations: stroke durations of the lookup grid [s].
-        weber_mean, weber_sd: the subjects' intrinsic Weber fractions (model input, not fitted).
+        weber_mean: mean of the subjects' intrinsic Weber fractions (model input, not fitted).
+        weber_sd: their standard deviation.
         lapse: lapse rate of the simulated answers.
         seed: seed of everything random.
         overdispersion: psignifit's η (False: about twice as fast).

@@ -9,8 +9,6 @@ motion). Hence the model prediction we put beside the identified M_x.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from rhi import thesis as T
@@ -19,10 +17,9 @@ from rhi.control.configuration import optimal_configuration
 from rhi.device import device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch3.measures import BETA, DEVICE_NAMES, POINTS, THESIS_Q
-from rhi.experiments.identification import TRIALS, U, WINDOW, case_arrays, fit_rows, identify_case, trial_forces
+from rhi.experiments.identification import TRIALS, WINDOW, U, case_arrays, fit_rows, identify_case, trial_forces
 from rhi.experiments.result import Result, Row, Table
-
-Progress = Callable[[int, int], None]
+from rhi.experiments.setups import Progress
 
 #: Table 3.2: identified Λ [kg] along u at the two points of Table 3.1.
 THESIS_TABLE_3_2 = T.TABLE_3_2
@@ -97,7 +94,8 @@ def sysid_table_3_2(
             "the loop between the formula and the physics"),
         Row("largest |identified − Λ/(1 − k)| / (Λ/(1 − k)) over the six cases", None,
             float(np.max(np.abs(errs_vp))), "", "eq. 3.13 with the velocity-product force eq. 3.24 omits"),
-        Row("cases with identified Λ ordered RHI ≤ PHANToM < Rehab (of 2 points)", T.TABLE_3_2_ORDER, float(sum(ordering_ok)), ""),
+        Row("cases with identified Λ ordered RHI ≤ PHANToM < Rehab (of 2 points)", T.TABLE_3_2_ORDER,
+            float(sum(ordering_ok)), ""),
     ]
     for i in range(2):
         for a, b in (("RHI", "PHANToM"), ("RHI", "Rehab")):

@@ -11,7 +11,6 @@ from rhi.experiments.ch4.setup import (
     ENERGY_LABELS,
     K2,
     K2_MIN_TABLE_4_1,
-    Progress,
     THESIS_GMM,
     THESIS_GMT,
     THESIS_TABLE,
@@ -25,6 +24,7 @@ from rhi.experiments.ch4.setup import (
     tmi_map,
 )
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import Progress
 
 
 def theta_z_design(
@@ -119,7 +119,8 @@ def full_design(
         executor: an executor or a name (`rhi.design.executors.using`; default: local pool).
         checkpoint_dir: folder of resumable evaluation caches.
         progress: ``progress(done, total)``.
-        maxiter, popsize: differential-evolution settings.
+        maxiter: differential-evolution generations.
+        popsize: differential-evolution population size (per design variable).
         K2: weight of eqs. 4.23–4.24 (K1 = 1).
     """
     with using(executor) as ex:

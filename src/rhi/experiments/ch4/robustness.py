@@ -7,10 +7,9 @@ import numpy as np
 from rhi.design import evaluate, optimize
 from rhi.design.executors import using
 from rhi.errors import InvalidInput
-from rhi.experiments.ch4.setup import K2_MIN_TABLE_4_1, Progress, THESIS_TABLE, THESIS_THETA, mirror, problem
+from rhi.experiments.ch4.setup import K2_MIN_TABLE_4_1, THESIS_TABLE, THESIS_THETA, mirror, problem
 from rhi.experiments.result import Result, Row, Table
-
-
+from rhi.experiments.setups import Progress
 
 #: One-at-a-time changes of the set-up re-optimised by `sensitivity` (keyword arguments of `problem`).
 VARIANTS: dict[str, dict] = {

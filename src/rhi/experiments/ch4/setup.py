@@ -6,7 +6,6 @@ See `rhi.experiments.ch4` for the choices the thesis leaves open.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -22,8 +21,7 @@ from rhi.design import (
 )
 from rhi.design.executors import DEFAULTS
 from rhi.errors import InvalidInput
-from rhi.metrics import joint_energy as _joint_energy
-from rhi.metrics import teleoperation_ellipsoid, tmi, velocity_ellipsoid
+from rhi.metrics import joint_energy as _joint_energy, teleoperation_ellipsoid, tmi, velocity_ellipsoid
 
 XLIM = (0.324, 0.524)
 YLIM = (-0.1, 0.1)
@@ -48,7 +46,6 @@ THESIS_TABLE = T.TABLE_4_1
 K2_MIN_TABLE_4_1 = ((THESIS_TABLE["C1"]["GC_M"] - THESIS_TABLE["C2"]["GC_M"])
                     / (THESIS_TABLE["C2"]["GM_T"] - THESIS_TABLE["C1"]["GM_T"]))
 
-Progress = Callable[[int, int], None]
 
 
 def problem(
@@ -76,6 +73,7 @@ def problem(
 
 
 def checkpoint(checkpoint_dir: str | Path | None, name: str) -> str | None:
+    """The checkpoint file `name`.json in `checkpoint_dir` (default: the executors' default folder), or None."""
     checkpoint_dir = checkpoint_dir or DEFAULTS["checkpoint_dir"]
     return None if checkpoint_dir is None else str(Path(checkpoint_dir) / f"{name}.json")
 
@@ -129,7 +127,8 @@ def gmt_vs_l2(
     Args:
         prob: a "full" problem (its θz and Z_PH bounds span the grid).
         l2s: (k,) link lengths [m].
-        step_deg, z_step: grid steps in θz [deg] and Z_PH [m].
+        step_deg: grid step in θz [deg].
+        z_step: grid step in Z_PH [m].
         executor: evaluates the grid.
 
     Returns:

@@ -35,7 +35,7 @@ def fixed_point(
     damping: float = NULL_DAMPING,
     friction: str = "thesis",
     frames: int = 12,
-    progress: Progress = None,
+    progress: Progress | None = None,
 ) -> Result:
     """Fig. 5.3: TME area before and after the TMI null-space controller converges, end-effector held.
 

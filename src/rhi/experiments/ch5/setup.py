@@ -46,8 +46,11 @@ SCENARIOS = {
 
 
 def devices() -> dict[str, Device]:
-    """The chapter-5 devices: RHI (rhi4, d2 = 0.1405 m), the 2-DoF Rehab (rhi4 with the PHANToM
-    locked at q3 = q4 = 0, same d2), and the slave (rehabilitation robot 2.0)."""
+    """The chapter-5 devices: RHI (rhi4, d2 = 0.1405 m), the 2-DoF Rehab and the slave.
+
+    The Rehab is rhi4 with the PHANToM locked at q3 = q4 = 0 (same d2); the slave is the
+    rehabilitation robot 2.0.
+    """
     return {"RHI": device("rhi4", d2=D2), "Rehab": device("rehab", d2=D2), "slave": device("rehab_slave")}
 
 
@@ -63,8 +66,10 @@ def plant_friction(kind: str, dev: Device):
 
 def controller(dev: Device, objective, gain: float, damping: float, *,
                extra: tuple[ObjectiveTerm, ...] = ()) -> NullSpaceController:
-    """Eq. 5.9 with the impedance law of eq. 5.6 (F_m = −B^d ẋ + C_x ẋ + G_x; friction not compensated:
-    the plant's friction is the residual of eq. 5.13) plus the null-space objective (eq. 5.10).
+    """Eq. 5.9 with the impedance law of eq. 5.6 plus the null-space objective (eq. 5.10).
+
+    F_m = −B^d ẋ + C_x ẋ + G_x; friction is not compensated: the plant's friction is the
+    residual of eq. 5.13.
 
     Args:
         dev: the master device.
@@ -87,8 +92,10 @@ def tme_area(Jm: np.ndarray, Js: np.ndarray) -> np.ndarray:
 
 def w_reference(center=W_CENTER, width: float = W_WIDTH, height: float = W_HEIGHT, speed: float = SPEED,
                 start: float = 0.0) -> Path:
-    """The W of Figs 5.4–5.5 (our dimensions, module docstring): a `Path` of 5 points [m] at `speed` [m/s]
-    starting at `start` [s]."""
+    """The W of Figs 5.4–5.5 (our dimensions, `rhi.experiments.ch5`): a `Path` of 5 points [m].
+
+    It moves at `speed` [m/s] from `start` [s].
+    """
     positive("width", width)
     positive("height", height)
     positive("speed", speed)

@@ -50,7 +50,7 @@ def w_trajectory(
     damping: float = NULL_DAMPING,
     friction: str = "thesis",
     ellipses: int = 13,
-    progress: Progress = None,
+    progress: Progress | None = None,
 ) -> Result:
     """Figs 5.5–5.6: the W trajectory at 2 cm/s with three scenarios, the slave following by teleoperation.
 
@@ -67,10 +67,13 @@ def w_trajectory(
         scale: scales the W's width and height (quick runs: < 1; the speed stays).
         speed: path speed [m/s] (thesis: 0.02).
         settle: hold at the W's first point before moving [s] (null-space convergence).
-        center, width, height: the W (module docstring) [m].
+        center: centre of the W (`rhi.experiments.ch5`) [m].
+        width: its width [m].
+        height: its height [m].
         k_q: penalty shape of eq. 4.20 in the objectives of scenarios 1 and 2 (None: plain Jacobians,
             i.e. the literal eqs. 5.11 and 5.14).
-        gain, damping: null-space step size α [N m] and damping k_D [N m s/rad] (as `fixed_point`).
+        gain: null-space step size α [N m] (as `fixed_point`).
+        damping: null-space damping k_D [N m s/rad].
         friction: "thesis" (Γ = 0.01, eq. 5.13) or "device".
         ellipses: points along the W where Fig. 5.5's ellipses are kept.
         progress: optional callback(done, total).

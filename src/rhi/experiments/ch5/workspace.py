@@ -60,7 +60,8 @@ def workspaces(samples: int = 20000, seed: int = 0, cell: float = 0.02, area_sam
                 f"{cell * 100:g} cm cells occupied by {area_samples} samples (a lower bound)")
             for nm, a in zip(devs, area)]
     rows += [
-        Row("RHI workspace larger than the Rehab's (1 = yes)", T.WORKSPACE_LARGER, float(area[0] > area[1]), "", "§5.4.1, Fig. 5.4"),
+        Row("RHI workspace larger than the Rehab's (1 = yes)", T.WORKSPACE_LARGER, float(area[0] > area[1]), "",
+            "§5.4.1, Fig. 5.4"),
         Row("fraction of the Rehab's cells inside the RHI's", None, inside, "",
             "1 in exact arithmetic: the Rehab is the RHI with q3 = q4 = 0, inside its limits"),
     ]

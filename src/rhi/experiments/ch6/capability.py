@@ -24,7 +24,6 @@ from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress
 from rhi.metrics import effective_inertia, max_force, max_force_scaling
 
-
 _DEV: dict[str, Device] = {}
 
 
@@ -97,7 +96,8 @@ def fmax_ratio_map(
         progress: callback(done, total) in grid points, after each finished row.
         starts: starts per matching (`best_match`).
         limits: include the joint-limit barrier in the matched cost.
-        executor, workers: where to run (`rhi.design.executors.using`).
+        executor: where to run (`rhi.design.executors.using`).
+        workers: processes of the local pool.
     """
     if not isinstance(resolution, int) or resolution < 2:
         raise InvalidInput(f"resolution: must be an integer >= 2, got {resolution!r}")

@@ -20,8 +20,8 @@ from rhi.experiments.ch6.setup import (
     THESIS_K,
     THESIS_TABLE,
     THESIS_ZETA,
-    U,
     X0,
+    U,
     best_match,
     controller_terms,
     desired_fmes,
@@ -68,7 +68,8 @@ def palpation(
             both FMEs: saturation starts near 5 and 9 mm).
         speed: pushing speed [m/s].
         hold: time held at the end [s].
-        hand_stiffness, hand_damping: the hand's grip [N/m], [N s/m].
+        hand_stiffness: the hand's grip stiffness [N/m].
+        hand_damping: the hand's grip damping [N s/m].
         starts: starts of the static matching (`best_match`).
         limits: add the joint-limit barrier to the controller (see the module docstring).
         filter_ms: moving-average window of the sensor force [ms].

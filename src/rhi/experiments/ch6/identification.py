@@ -20,9 +20,8 @@ from rhi.errors import InvalidInput
 from rhi.experiments.ch6.setup import CASES, K_D, Q_HOME, best_match, controller_terms, desired_fmes, match_fme
 from rhi.experiments.identification import TRIALS, U, case_arrays, fit_rows, identify_case, trial_forces
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import Progress
 from rhi.metrics import max_force, max_force_scaling
-
-Progress = Callable[[int, int], None]
 
 #: Table 6.1: (M_x [kg], Φ [N s/m], F_max [N]) at [0.5, 0.1] m.
 THESIS_TABLE_6_1 = T.TABLE_6_1

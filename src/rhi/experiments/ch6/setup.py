@@ -121,7 +121,9 @@ def best_match(dev: Device, x, objective, *, starts: int | list[np.ndarray] = 3,
     """`match_fme` from several deterministic starts; the lowest ν wins.
 
     Args:
-        dev, x, objective: as `match_fme`.
+        dev: the device.
+        x: (m,) end-effector position [m].
+        objective: `value(device, q)`, `gradient(device, q)` (as `match_fme`).
         starts: a number of `start_configurations`, or the start configurations themselves.
         seed: seed of `start_configurations`.
 
@@ -159,8 +161,11 @@ def reflected_damping(J: np.ndarray, M: np.ndarray, D: np.ndarray, u, k_d: float
     model (eq. 6.22 at constant velocity). Coulomb friction is left out, as eq. 6.22 does.
 
     Args:
-        J: (m, n) Jacobian [m/rad]; M: (n, n) inertia [kg m²]; D: (n,) joint damping [N m s/rad];
-        u: (m,) direction; k_d: null-space damping [N m s/rad].
+        J: (m, n) Jacobian [m/rad].
+        M: (n, n) inertia [kg m²].
+        D: (n,) joint damping [N m s/rad].
+        u: (m,) direction.
+        k_d: null-space damping [N m s/rad].
     """
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     N = nullspace_projector(J, M)
@@ -183,7 +188,8 @@ def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMES
         beta: β of the FME-matching term.
         projector: "dynamic" (J#, eq. 6.6 as the thesis writes it) or "pseudoinverse" (J⁺).
         objectives: further null-space terms before the barrier (e.g. an intent-driven FME term).
-        x0, u: (m,) the spring's rest point [m] and direction (§6.4: X₀ = [0.5, 0.1] m, u = [0, 1]).
+        x0: (m,) the spring's rest point [m] (§6.4: X₀ = [0.5, 0.1] m).
+        u: (m,) its direction (§6.4: u = [0, 1]).
         gravity: compensate G_x in the primary law (eq. 6.21 has none: rhi4 moves in a horizontal plane).
         saturation: allocation under the torque limits ("scaling", §6.3.1; or "ascm", ch. 7).
     """

@@ -18,8 +18,8 @@ from rhi.experiments.ch6.setup import (
     Q_HOME,
     RHO,
     THESIS_TF,
-    U,
     X0,
+    U,
     best_match,
     controller_terms,
     desired_fmes,
@@ -83,9 +83,16 @@ def transition(
     gradient scale is unknown; its β = 20 is the default.
 
     Args:
-        settle, depth, speed, hold, release: the hand's motion ([s], [m], [m/s], [s], [s]).
-        hand_stiffness, hand_damping: the hand's grip [N/m], [N s/m].
-        eps1, eps2, rho: thresholds and duration factor [s] of eqs. 6.17–6.19.
+        settle: time the hand holds X₀ first [s].
+        depth: how far it pushes in [m].
+        speed: its speed [m/s].
+        hold: time held at depth [s].
+        release: time held at X₀ after coming back [s].
+        hand_stiffness: the hand's grip stiffness [N/m].
+        hand_damping: the hand's grip damping [N s/m].
+        eps1: lower ASO threshold ε₁ (eqs. 6.17–6.19).
+        eps2: upper ASO threshold ε₂.
+        rho: transition duration factor ρ [s].
         beta: FME gradient step β of eq. 6.6 (thesis: 20).
         compare_beta: a second β run for comparison (None: skip).
         starts: starts of the static M_Free^des matching (`best_match`).

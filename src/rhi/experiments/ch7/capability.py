@@ -106,7 +106,8 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
         ang = np.degrees(np.arctan2(np.abs(Fn[:, 1]), np.maximum(Fn[:, 0], 1e-12)))
         rows.append(Row(f"max direction error without compensation ({proj})", None, float(ang.max()), "deg"))
     gap = {p: 100.0 * (peaks[p, "ascm"] - peaks[p, "scaling"]) / peaks[p, "ascm"] for p in runs}
-    rows.insert(0, Row("peak force deficit of scaling vs ASCM (pseudoinverse projector)", T.SCALING_GAP, gap["pseudoinverse"], "%"))
+    rows.insert(0, Row("peak force deficit of scaling vs ASCM (pseudoinverse projector)", T.SCALING_GAP,
+                       gap["pseudoinverse"], "%"))
     rows.insert(1, Row("peak force deficit of scaling vs ASCM (dynamic projector, our inertias)", T.SCALING_GAP,
                        gap["dynamic"], "%", "dynamically consistent null space differs from the thesis's"))
     J = dev.jacobian(q)
@@ -142,11 +143,11 @@ _RHI4: dict[str, object] = {}
 
 
 def _deficiency_row(y: float, xs: np.ndarray, projectors: tuple[str, ...]) -> np.ndarray:
-    """(3 P, len(xs)) force capabilities [N] (w/o, ASCM, LP for each of the P projectors) along the grid row
-    at height y [m], NaN where skipped.
+    """(3 P, len(xs)) force capabilities [N] along the grid row at height y [m], NaN where skipped.
 
-    IK is continued along the row from the same start configuration for every row, so a
-    row's values do not depend on which process computes it.
+    Rows: without compensation, ASCM and LP for each of the P projectors. IK is continued along
+    the row from the same start configuration for every row, so a row's values do not depend on
+    which process computes it.
     """
     if "dev" not in _RHI4:
         _RHI4["dev"] = device("rhi4")
