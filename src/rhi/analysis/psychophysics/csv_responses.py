@@ -32,12 +32,12 @@ def from_csv(path: str | Path) -> Responses:
             {0, 1} -- each naming the line and column.
     """
     path, cols, index, body = read_rows(path)
-    for c in ("subject", "device", "comparison", "response"):
-        if c not in index:
-            raise InvalidInput(f"{path.name}: missing column '{c}' (found {cols})")
+    for column in ("subject", "device", "comparison", "response"):
+        if column not in index:
+            raise InvalidInput(f"{path.name}: missing column '{column}' (found {cols})")
     subj, dev, comp, resp, lines = [], [], [], [], []
     for line, row in body:
-        if not row or all(not c.strip() for c in row):
+        if not row or all(not cell.strip() for cell in row):
             continue
         if len(row) < len(cols):
             raise InvalidInput(f"{path.name}, line {line}: {len(row)} fields; the header has {len(cols)}")

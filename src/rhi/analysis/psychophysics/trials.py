@@ -152,7 +152,7 @@ class Responses:
     device: np.ndarray
     comparison: np.ndarray
     response: np.ndarray
-    line: np.ndarray = dataclasses.field(default=None, repr=False)  # type: ignore[assignment]
+    line: np.ndarray = dataclasses.field(default=None, repr=False)  # type: ignore[arg-type]  # None: filled in __post_init__
 
     def __post_init__(self) -> None:
         subj = np.asarray(self.subject, dtype=object).astype(str)

@@ -103,7 +103,7 @@ def regressors(
     v, a = derivatives(record.time, record.position, method=derivative, window=window)
     # One-sided (edge) derivative estimates are much less accurate than centred ones, and the
     # filter's odd padding would spread their error over ~1/cutoff: drop them before filtering.
-    edge = int(window) // 2 if derivative == "savgol" else 1
+    edge = int(window) // 2 if derivative == "savgol" and window is not None else 1
     sl = slice(edge, record.time.size - edge)
     stacked = np.stack([record.position[sl], v[sl], a[sl], record.force[sl]])
     try:
