@@ -5,7 +5,8 @@ non-singular configurations and force directions, a request a = Jᵀ(100 u) far 
 capability and a small unscaled torque b: the fraction of cases where each method reaches the
 LP optimum (α within 1e-6 relative of `allocate_lp`), the worst gap [N along u, per 100 N
 request], whether any torque left the box, and the median / p99 CPU time per call (thread_time,
-so a shared machine's load counts less), with the ratio of each to the LP measured in the same run (issue 13, item 6: >= 99.9 % at <= 50 µs median).
+so a shared machine's load counts less), with the ratio of each to the LP measured in the same run
+(issue 13, item 6: >= 99.9 % at <= 50 µs median).
 
     PYTHONPATH=src python benchmarks/bench_allocation.py [--cases 10000]
 """

@@ -95,8 +95,10 @@ def _run(c: NullSpaceController, path) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def bench_ticks(saturation: str, count: int, rounds: int = 2, name: str = "rhi4") -> dict[str, np.ndarray]:
-    """Fast and reference passes over the same ticks, alternated `rounds` times (both see the same
-    machine load). Returns wall and CPU µs per tick (first 10% of each pass dropped as warm-up)."""
+    """Fast and reference passes over the same ticks, alternated `rounds` times (both see the same machine load).
+
+    Returns wall and CPU µs per tick (first 10% of each pass dropped as warm-up).
+    """
     dev = rhi.device(name)
     path = ticks(count, dev=None if name == "rhi4" else dev)
     skip = count // 10

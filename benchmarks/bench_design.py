@@ -1,5 +1,6 @@
-"""Design-evaluation throughput (GM_T of phantom3–rehab_slave), the Table 4.1 optimisation's wall time, and
-the workspace maps on the same executor layer.
+"""Design-evaluation throughput, the Table 4.1 optimisation's wall time, and the workspace maps.
+
+The throughput is of GM_T of phantom3–rehab_slave; the maps run on the same executor layer.
 
 Run: PYTHONPATH=src python benchmarks/bench_design.py [--workers 2] [--maps]
 Prints, all measured in this run (ratios, not absolute pass/fail numbers):

@@ -33,7 +33,7 @@ def rng() -> np.random.Generator:
 
 
 def random_q(dev: rhi.Device, rng: np.random.Generator, n: int) -> np.ndarray:
-    """n configurations drawn uniformly in the joint box and kept if they satisfy the linear limits."""
+    """Draw n configurations uniformly in the joint box, keeping those that satisfy the linear limits."""
     lo = np.where(np.isfinite(dev.q_min), dev.q_min, -np.pi)
     hi = np.where(np.isfinite(dev.q_max), dev.q_max, np.pi)
     out = np.empty((0, dev.n))

@@ -9,9 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from rhi.analysis import psychophysics as P
-from rhi.analysis import stats as S
-from rhi.analysis import sysid
+from rhi.analysis import psychophysics as P, stats as S, sysid
 from rhi.errors import InvalidInput
 
 # Table 6.1 (free, stiff FME) and a Rehab-like heavy device: M [kg], Φ [N s/m].

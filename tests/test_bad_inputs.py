@@ -1,5 +1,7 @@
-"""Property-based bad-input suite: every generated call with one invalid argument must raise an
-`rhi.errors` error whose message names that argument — never a foreign exception, never a result.
+"""Property-based bad-input suite.
+
+Every generated call with one invalid argument must raise an `rhi.errors` error whose message names that argument —
+never a foreign exception, never a result.
 
 Each case is a public function, a valid call, and per argument the kinds of corruption that make
 it invalid. Hypothesis draws (case, argument, kind, position, magnitude); the draws are
@@ -15,8 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 import rhi
 from rhi.errors import RhiError
@@ -273,8 +274,7 @@ def test_device_and_loaders_refuse_bad_inputs():
 
 
 # ------------------------------------------------------------------ control
-from rhi import control as ctl  # noqa: E402
-from rhi import sim  # noqa: E402
+from rhi import control as ctl, sim  # noqa: E402  (each section imports what it tests)
 
 RHI4 = rhi.device("rhi4")
 Q4 = np.deg2rad([30.0, 40.0, 20.0, 60.0])
@@ -388,8 +388,7 @@ def test_sim_refuses_bad_inputs():
 
 
 # ------------------------------------------------------------------ analysis
-from rhi.analysis import psychophysics as psy  # noqa: E402
-from rhi.analysis import stats, sysid  # noqa: E402
+from rhi.analysis import psychophysics as psy, stats, sysid  # noqa: E402  (each section imports what it tests)
 
 G = {"a": np.array([1.0, 2.0, 3.5, 4.0]), "b": np.array([2.0, 2.5, 4.0, 5.5]), "c": np.array([0.5, 1.0, 1.5, 3.0])}
 STIM = np.repeat([30.0, 40.0, 50.0, 60.0, 70.0], 8)

@@ -1,20 +1,22 @@
-"""Chapter 6 experiments: the 3-DoF example (Figs 6.3–6.4), palpation (Fig. 6.9, Table 6.1),
-the F_max ratio map (Fig. 6.10) and the desired-FME transition (Fig. 6.11), at reduced resolution."""
+"""Chapter 6 experiments at reduced resolution.
+
+The 3-DoF example (Figs 6.3–6.4), palpation (Fig. 6.9, Table 6.1), the F_max ratio map (Fig. 6.10) and the
+desired-FME transition (Fig. 6.11).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from conftest import fd_jacobian, random_q
+
 from rhi import thesis as T
 from rhi.control import FMEMatching, JointLimitBarrier
 from rhi.design.executors import PoolExecutor, SerialExecutor
 from rhi.device import device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments import ch6
-from rhi.experiments.ch6 import capability
-from rhi.experiments.ch6 import setup as S6
+from rhi.experiments.ch6 import capability, setup as S6
 
 
 def _row(res, start, table=None):

@@ -41,8 +41,11 @@ def test_torques_stay_within_the_programmed_limits(short):
 
 
 def test_rendered_force_tracks_the_wall_until_saturation(short):
-    """Before any joint saturates, the F/T force follows K_e δX up to the plant's uncompensated joint friction
-    (Coulomb 0.02 N m on the rehab motors over ~0.2 m levers: ~0.1 N at the handle; §7.5 compensates none)."""
+    """Before any joint saturates, the F/T force follows K_e δX up to the plant's uncompensated joint friction.
+
+    That friction is Coulomb 0.02 N m on the rehab motors over ~0.2 m levers: ~0.1 N at the handle (§7.5 compensates
+    none).
+    """
     for sat, proj in CASES:
         err = _row(short, f"max |F − K_e δX| in contact (K_e δX ≥ 1 N) before the first torque saturation, "
                           f"{sat} ({proj}")
@@ -53,8 +56,10 @@ def test_rendered_force_tracks_the_wall_until_saturation(short):
 
 
 def test_one_criterion_for_every_case_and_safe_self_motion(short):
-    """Item 4/5 of issue 13: every case's peak force before a range limit, ASCM and LP against no compensation;
-    with ASCM holding two joints, the null-space damping and limit barrier keep the self-motion <= 1 rad/s."""
+    """Item 4/5 of issue 13: every case's peak force before a range limit, ASCM and LP against no compensation.
+
+    With ASCM holding two joints, the null-space damping and limit barrier keep the self-motion <= 1 rad/s.
+    """
     f = {c: _row(short, f"max force before a joint reaches a range limit, {c[0]} ({c[1]}").ours for c in CASES}
     for sat in ("ascm", "lp"):
         g = _row(short, f"peak force before a joint range limit, {sat} (dynamic) vs none (dynamic)")

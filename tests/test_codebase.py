@@ -40,7 +40,7 @@ def _type_checking_block(node: ast.AST) -> bool:
 
 
 def _imports(tree: ast.AST, name: str, is_package: bool, known: set[str]) -> set[str]:
-    """rhi modules imported anywhere in `tree` (module `name`), resolved to the longest known module."""
+    """The rhi modules imported anywhere in `tree` (module `name`), resolved to the longest known module."""
     found: set[str] = set()
     skip: set[int] = set()
     for node in ast.walk(tree):

@@ -62,7 +62,7 @@ def test_gm_and_gc_match_direct_numerical_integration(kind):
 
     area = np.pi * (r_out**2 - r_in**2)
     for which in ("GM", "GC"):  # μ and 1/κ depend on r only: ∫_W v dW = ∫ v(r) 2πr dr
-        want = integrate.quad(lambda r: local(r, which) * 2 * np.pi * r, r_in, r_out, epsabs=1e-12)[0] / area
+        want = integrate.quad(lambda r, which=which: local(r, which) * 2 * np.pi * r, r_in, r_out, epsabs=1e-12)[0] / area
         assert got[which] == pytest.approx(want, rel=2e-3 if kind == "grid" else 1e-2)
 
 
@@ -173,7 +173,7 @@ def test_parallel_map_runs_anywhere_in_order_with_progress():
     fn = functools.partial(evaluate, prob)
     for kw in ({"executor": "serial"}, {"workers": 1}, {"executor": SerialExecutor()}):
         ticks = []
-        assert parallel_map(fn, xs, progress=lambda k, n: ticks.append((k, n)), units=[2] * 5, **kw) == ref
+        assert parallel_map(fn, xs, progress=lambda k, n, ticks=ticks: ticks.append((k, n)), units=[2] * 5, **kw) == ref
         assert ticks == [(2 * (i + 1), 10) for i in range(5)]
     with PoolExecutor(2) as ex:
         assert parallel_map(fn, xs, executor=ex) == ref

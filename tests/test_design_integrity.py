@@ -1,5 +1,8 @@
-"""Design runs that can be trusted: checkpoints refuse tampered/truncated/foreign files; a killed pooled run
-leaves no worker process behind; bad optimiser settings and misspelled parameters are refused."""
+"""Design runs that can be trusted.
+
+Checkpoints refuse tampered/truncated/foreign files; a killed pooled run leaves no worker process behind; bad
+optimiser settings and misspelled parameters are refused.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,8 @@
-"""rehab_slave, planar3r and phantom3: closed-form Jacobians (thesis eqs. 5.12b, 4.25b, 4.26), derivatives,
-mass matrices (closed forms; Çavuşoğlu et al. 2002 for the PHANToM), limits, IK and design parameters."""
+"""rehab_slave, planar3r and phantom3.
+
+Closed-form Jacobians (thesis eqs. 5.12b, 4.25b, 4.26), derivatives, mass matrices (closed forms; Çavuşoğlu et al.
+2002 for the PHANToM), limits, IK and design parameters.
+"""
 
 from __future__ import annotations
 

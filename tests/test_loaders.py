@@ -1,5 +1,8 @@
-"""User robot descriptions: real arms from example-robot-data and rtb-data against Pinocchio and MuJoCo,
-mimic/continuous joints, locking, tool offsets, friction carried by the device, and refused descriptions."""
+"""User robot descriptions.
+
+Real arms from example-robot-data and rtb-data against Pinocchio and MuJoCo, mimic/continuous joints, locking, tool
+offsets, friction carried by the device, and refused descriptions.
+"""
 
 from __future__ import annotations
 
@@ -130,7 +133,10 @@ def _urdf(joints: str, links: str | None = None, mass: str = "1.0", inertia: str
     return f'<robot name="r">{links}{joints}</robot>'
 
 
-def _joint(name, parent, child, kind="revolute", extra="", axis="0 0 1", limit='<limit effort="2" velocity="1" lower="-2" upper="2"/>', x=0.3):
+LIMIT = '<limit effort="2" velocity="1" lower="-2" upper="2"/>'
+
+
+def _joint(name, parent, child, kind="revolute", extra="", axis="0 0 1", limit=LIMIT, x=0.3):
     return (f'<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
             f'<origin xyz="{x} 0 0"/><axis xyz="{axis}"/>{limit}{extra}</joint>')
 

@@ -349,8 +349,8 @@ def test_table_3_1_effective_manipulability():
         np.testing.assert_allclose(fk_rhi4(q_rhi[k]), p, atol=1.5e-3)
         assert rm.effective_manipulability(jac_rhi4(q_rhi[k]), u) == pytest.approx(table["RHI"][k], abs=0.005)
         # PHANToM: q1 = q2 = 0; Rehab: q3 = q4 = 0 (elbow branch of Fig. 3.6)
-        q_ph = fsolve(lambda v: fk_rhi4(np.r_[0.0, 0.0, v]) - p, [0.3, 0.3], xtol=1e-13)
-        q_re = fsolve(lambda v: fk_rhi4(np.r_[v, 0.0, 0.0]) - p, [0.3, 0.3], xtol=1e-13)
+        q_ph = fsolve(lambda v, p=p: fk_rhi4(np.r_[0.0, 0.0, v]) - p, [0.3, 0.3], xtol=1e-13)
+        q_re = fsolve(lambda v, p=p: fk_rhi4(np.r_[v, 0.0, 0.0]) - p, [0.3, 0.3], xtol=1e-13)
         np.testing.assert_allclose(fk_rhi4(np.r_[0.0, 0.0, q_ph]), p, atol=1e-10)
         np.testing.assert_allclose(fk_rhi4(np.r_[q_re, 0.0, 0.0]), p, atol=1e-10)
         rho_ph = rm.effective_manipulability(jac_rhi4(np.r_[0.0, 0.0, q_ph])[:, 2:], u)
@@ -617,8 +617,9 @@ def test_max_force_matches_brute_force_search():
 
 
 def test_section_7_3_scaling_vs_null_space_optimum():
-    """§7.3: 3R planar arm (L = 0.25 m, relative angles), q = [pi/4, -pi/3, -pi/6], |tau| <= 0.5 N m,
-    force along x. The thesis reports simple scaling ~12 % below ASCM.
+    """§7.3: 3R planar arm (L = 0.25 m, relative angles), q = [pi/4, -pi/3, -pi/6], |tau| <= 0.5 N m, force along x.
+
+    The thesis reports simple scaling ~12 % below ASCM.
 
     Computed: scaling 2.0706 N, pseudoinverse-projector optimum 2.3513 N, gap 11.9 %.
     (The dynamic projector with 0.5 kg point masses at the link midpoints, the §6.3

@@ -27,7 +27,8 @@ def _kin(q, dq, M):
 def _free_mass(law, *, pc: PassivityController | None, M, q0, v0, ticks: int, lo=-50.0, hi=50.0):
     """A free mechanism ẍ = M⁻¹τ under a zero-order hold at 1 kHz, integrated exactly.
 
-    Returns (kinetic energy per tick [J], exact motor work per tick [J], the PC's E_obs per tick [J])."""
+    Returns (kinetic energy per tick [J], exact motor work per tick [J], the PC's E_obs per tick [J]).
+    """
     n = len(q0)
     q, v = np.array(q0, float), np.array(v0, float)
     Minv = np.linalg.inv(M)
@@ -120,8 +121,10 @@ def test_active_element_detected_and_made_passive(element):
 
 
 def test_handle_port_observer():
-    """At the handle port the observer integrates (J#ᵀτ)ᵀ Δx; on the rhi4 model with the null space idle it
-    agrees with the motor port to first order in the step."""
+    """At the handle port the observer integrates (J#ᵀτ)ᵀ Δx.
+
+    On the rhi4 model with the null space idle it agrees with the motor port to first order in the step.
+    """
     from rhi.device import device
 
     dev = device("rhi4")
@@ -167,9 +170,12 @@ def test_bad_passivity_settings():
 
 
 def test_palpation_energy_reduced_duration():
-    """Issue 10's passivity figures at reduced duration: in the §6.4 palpation set-up (1000 N/m, B^d = 0.01,
-    1 kHz, ASCM, null-space objectives) the device hands the user energy without the PC (W clearly < 0) and
-    the hand's work stays W ≥ −1 mJ with it; the 5000 N/m wall shakes without the PC and not with it."""
+    """Issue 10's passivity figures at reduced duration.
+
+    In the §6.4 palpation set-up (1000 N/m, B^d = 0.01, 1 kHz, ASCM, null-space objectives) the device hands the user
+    energy without the PC (W clearly < 0) and the hand's work stays W ≥ −1 mJ with it; the 5000 N/m wall shakes
+    without the PC and not with it.
+    """
     from rhi.experiments.beyond.passivity import SUMMARY, passivity
 
     r = passivity(duration=1.5, stiff_duration=2.0, speed=0.03, cases=("objectives", "objectives_pc"))

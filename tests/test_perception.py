@@ -1,4 +1,6 @@
-"""rhi.experiments.identification, ch3.identification, ch3.discrimination, ch6.identification: system identification and virtual psychophysics on the MuJoCo plant.
+"""System identification and virtual psychophysics on the MuJoCo plant.
+
+rhi.experiments.identification, ch3.identification, ch3.discrimination, ch6.identification.
 
 Reduced sizes (3 identification trials, a 3-level psychophysics protocol on one stroke
 duration); the full runs are `sysid_table_3_2()`, `sysid_table_6_1()`, `psychophysics()`.
@@ -16,8 +18,7 @@ from rhi import thesis as T  # noqa: E402
 from rhi.device import device  # noqa: E402
 from rhi.errors import InvalidInput  # noqa: E402
 from rhi.experiments import identification as ID  # noqa: E402
-from rhi.experiments.ch3 import discrimination as D  # noqa: E402
-from rhi.experiments.ch3 import sysid_table_3_2  # noqa: E402
+from rhi.experiments.ch3 import discrimination as D, sysid_table_3_2  # noqa: E402
 from rhi.experiments.ch6 import sysid_table_6_1  # noqa: E402
 from rhi.experiments.setups import ZeroTorque  # noqa: E402
 from rhi.metrics import effective_inertia  # noqa: E402

@@ -8,7 +8,7 @@ from conftest import fd_jacobian, random_q
 
 import rhi
 from rhi import metrics
-from rhi.errors import InvalidInput, Unreachable, UnknownDevice
+from rhi.errors import InvalidInput, UnknownDevice, Unreachable
 
 D = (0.254, 0.141, 0.21, 0.181)
 s, c = np.sin, np.cos
@@ -205,7 +205,7 @@ def test_mass_matrix_equals_kinetic_energy_by_hand(rhi4, rng):
     for q in random_q(rhi4, rng, 5):
         M = np.diag(tomllib.loads((MODELS / "rhi4" / "device.toml").read_text())["armature"])
         for name, (mass, _, izz) in body.items():
-            Jc = fd_jacobian(lambda p: com_and_angle(p)[name][0], q)
-            Jw = fd_jacobian(lambda p: np.array(com_and_angle(p)[name][1]), q)
+            Jc = fd_jacobian(lambda p, name=name: com_and_angle(p)[name][0], q)
+            Jw = fd_jacobian(lambda p, name=name: np.array(com_and_angle(p)[name][1]), q)
             M += mass * Jc.T @ Jc + izz * np.outer(Jw, Jw)
         np.testing.assert_allclose(rhi4.mass_matrix(q), M, atol=1e-9)

@@ -101,8 +101,7 @@ def test_config_controller_equals_the_experiments(name):
 
 
 def test_config_start_and_hand_match_the_experiments():
-    from rhi.experiments.ch3 import measures as ch3
-    from rhi.experiments.ch3 import nullspace as ch3_control
+    from rhi.experiments.ch3 import measures as ch3, nullspace as ch3_control
     from rhi.experiments.ch5 import setup as ch5
 
     c3 = load_config("ch3_vme")
@@ -244,8 +243,11 @@ def _device_server(*args: str):
 
 
 def test_cli_run_over_udp_equals_simlink(tmp_path, capsys):
-    """`rhi device-server --config X --lockstep` + `rhi run --link udp://... --config X`: the torques of the
-    in-process SimLink run of X (no packet lost). A long device watchdog: a loaded test machine must not trip it."""
+    """`rhi run` over UDP against `rhi device-server --lockstep` gives the in-process SimLink torques.
+
+    `rhi device-server --config X --lockstep` + `rhi run --link udp://... --config X`: the torques of the
+    in-process SimLink run of X (no packet lost). A long device watchdog: a loaded test machine must not trip it.
+    """
     summ, log = tmp_path / "s.json", tmp_path / "u.rhilog"
     with _device_server("rhi4", "--config", "ch7_ascm_tertiary", "--watchdog-ms", "5000") as port:
         code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port}", "--config", "ch7_ascm_tertiary",
@@ -291,7 +293,7 @@ def test_status_line_in_place_on_a_terminal_and_every_few_seconds_when_piped():
         s = _Stream(tty)
         st = _Status(s, 10.0)
         clock = iter([0.5, 1.0, 2.0, 6.0])  # seconds since the start: piped, only the call at 6 s prints
-        st.clock, st.last = (lambda: next(clock)), 0.0
+        st.clock, st.last = (lambda clock=clock: next(clock)), 0.0
         for _ in range(4):
             st(tick)
         st.close()

@@ -7,6 +7,7 @@ gradients match finite differences.
 
 import numpy as np
 import pytest
+from conftest import random_q
 
 import rhi
 from rhi.control import (
@@ -22,8 +23,6 @@ from rhi.control import (
 )
 from rhi.metrics import desired_fme, desired_vme, jbld
 from rhi.sim import Plant
-
-from conftest import random_q
 
 CASES = 1000
 SPATIAL = ("srhi5", "gen3")

@@ -6,8 +6,7 @@ import numpy as np
 import pytest
 
 import rhi
-from rhi import metrics
-from rhi import thesis as T
+from rhi import metrics, thesis as T
 
 
 def test_planar3r_scaling_is_12_percent_below_optimum():

@@ -1,5 +1,8 @@
-"""The device link over UDP on loopback: `rhi device-server`-style processes, the protocol, and the faults a
-network and two processes add (dropped and reordered packets, either process killed)."""
+"""The device link over UDP on loopback.
+
+`rhi device-server`-style processes, the protocol, and the faults a network and two processes add (dropped and
+reordered packets, either process killed).
+"""
 
 from __future__ import annotations
 
@@ -14,15 +17,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_runtime import _scenario
 
 import rhi
 from rhi.errors import InvalidInput, LinkError
-from rhi.runtime import SafetyConfig, run
-from rhi.runtime import protocol as P
+from rhi.runtime import SafetyConfig, protocol as P, run
 from rhi.runtime.udp import UDPLink, parse_url
 from rhi.sim import Log, simulate
-
-from test_runtime import _scenario
 
 HERE = Path(__file__).parent
 

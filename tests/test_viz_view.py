@@ -115,8 +115,11 @@ def test_view_replays_a_saved_log(run_log, tmp_path):
 # ------------------------------------------------------------- in Chromium
 @pytest.fixture(scope="module")
 def live_view():
-    """rhi4 running in real time (rhi.runtime.run + SimLink, a light impedance controller so that a loaded
-    2-core test machine keeps up), its view with the gizmo hand, and a headless Chromium on it."""
+    """rhi4 running in real time, its view with the gizmo hand, and a headless Chromium on it.
+
+    The run is rhi.runtime.run + SimLink with a light impedance controller, so that a loaded 2-core test machine
+    keeps up.
+    """
     need_browser()
     from rhi.control import ControllerConfig, ImpedanceControl, NullSpaceController
     from rhi.runtime import Safety, SafetyConfig, SimLink, Telemetry, run

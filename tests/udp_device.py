@@ -1,6 +1,6 @@
 """A device process for the UDP tests: the palpation scenario of test_runtime behind `DeviceServer`.
 
-    python tests/udp_device.py PORTFILE [--lockstep] [--drop A B] [--reorder T] [--log PATH] [--duration S]
+python tests/udp_device.py PORTFILE [--lockstep] [--drop A B] [--reorder T] [--log PATH] [--duration S]
 """
 
 from __future__ import annotations

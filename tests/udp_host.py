@@ -1,6 +1,6 @@
 """A control-host process for the UDP tests: the palpation controller over UDPLink, in real time.
 
-    python tests/udp_host.py PORT DURATION
+python tests/udp_host.py PORT DURATION
 """
 
 from __future__ import annotations
