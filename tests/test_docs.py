@@ -21,3 +21,33 @@ def test_mkdocs_build_strict(tmp_path: Path) -> None:
     api = (tmp_path / "site" / "api" / "metrics" / "index.html").read_text()
     assert "effective_manipulability" in api and "thesis eq. 3.6" in api  # the reference comes from the docstrings
     assert (tmp_path / "site" / "protocol" / "index.html").exists()
+
+
+def _resolves(name: str) -> bool:
+    """Whether a dotted name is an importable module, or an attribute path inside one."""
+    import importlib
+
+    parts = name.split(".")
+    for k in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:k]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[k:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return False
+        return True
+    return False
+
+
+def test_names_in_the_docs_exist() -> None:
+    """Every `rhi.…` name in the pages, CONTRIBUTING.md and the README is a module or an attribute of one."""
+    import re
+
+    pages = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "CONTRIBUTING.md", ROOT / "README.md"]
+    named = {(p.name, n) for p in pages for n in re.findall(r"`(rhi(?:\.\w+)+)", p.read_text())}
+    missing = sorted((page, n) for page, n in named if "__main__" not in n and not _resolves(n))
+    assert not missing, f"names in the docs that do not exist: {missing}"
+    assert len(named) > 50  # the pages do name the code
