@@ -156,4 +156,4 @@ def _jsonable(v: np.ndarray) -> Any:
     a = np.asarray(v)
     if a.dtype.kind in "biu":
         return a.tolist()
-    return np.where(np.isfinite(a), a, None).tolist()
+    return np.where(np.isfinite(a), a.astype(object), np.array(None, dtype=object)).tolist()

@@ -65,8 +65,8 @@ def configurations(result: Result) -> Figure:
             J = dev.jacobian(q)
             ellipse(ax, a[f"{run}_point"], J @ J.T, scale=0.3, color=color, lw=1)
         if f"p{i}_q_slsqp" in a:
-            pts = dev.skeleton(a[f"p{i}_q_slsqp"])[:, :2]
-            ax.plot(pts[:, 0], pts[:, 1], ":o", ms=2, color="k", lw=1, label="static optimum of eq. 3.22 (SLSQP)")
+            static = dev.skeleton(a[f"p{i}_q_slsqp"])[:, :2]
+            ax.plot(static[:, 0], static[:, 1], ":o", ms=2, color="k", lw=1, label="static optimum of eq. 3.22 (SLSQP)")
         x = a[f"{runs[0]}_point"]
         ax.set(xlabel="x [m]", aspect="equal", title=f"point ({x[0]:g}, {x[1]:g}) m")
         ax.legend(fontsize=7, loc="upper left")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
@@ -12,7 +14,7 @@ from rhi.plots.draw import chain, ellipse
 SCALE = 0.15  #: ellipse drawing scale [m per (m/s per rad/s)]
 _STYLE = {"master": dict(color="C0", lw=1.2), "slave": dict(color="C3", lw=1.2), "tme": dict(color="k", lw=2.0)}
 _LABEL = {"master": "HI ME", "slave": "slave ME", "tme": "TME"}
-_SCEN = {"s1": ("scenario 1: RHI + TMI", dict(color="C0", ls="-")),
+_SCEN: dict[str, tuple[str, dict[str, Any]]] = {"s1": ("scenario 1: RHI + TMI", dict(color="C0", ls="-")),
          "s2": ("scenario 2: RHI + Yoshikawa μ", dict(color="C3", ls="--")),
          "s3": ("scenario 3: 2-DoF Rehab", dict(color="C2", ls=":"))}
 

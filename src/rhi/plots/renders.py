@@ -10,12 +10,13 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from rhi.device import Device
 from rhi.experiments.result import Result
 from rhi.viz.posed import Posed
 from rhi.viz.render import RenderUnavailable, render
 
 
-def _grid(panels: list[tuple[str, object, np.ndarray]], title: str, *, elevation: float | None = None,
+def _grid(panels: list[tuple[str, Device, np.ndarray]], title: str, *, elevation: float | None = None,
           azimuth: float | None = None) -> Figure:
     """One rendered picture per (label, device, q); the line drawing of each when rendering is unavailable."""
     fig, axes = plt.subplots(1, len(panels), figsize=(4 * len(panels), 3.4))

@@ -12,6 +12,7 @@ import html
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -54,7 +55,10 @@ def write_report(
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     (out / "tables").mkdir(exist_ok=True)
-    sections, toc, payload, arrays = [], [], {"meta": meta or {}, "results": []}, {}
+    sections: list[str] = []
+    toc: list[str] = []
+    payload: dict[str, Any] = {"meta": meta or {}, "results": []}
+    arrays: dict[str, Any] = {}
     for chapter, res, figs in results:
         anchor = headline.anchor(res.name)
         toc.append(f"<li><a href='#{anchor}'>{html.escape(chapter)} — {html.escape(res.title)}</a></li>")

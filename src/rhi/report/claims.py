@@ -8,6 +8,7 @@ the run (``{ours}`` and `details`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from rhi import thesis as T
 from rhi.report.headline import Claim, Lookup
@@ -38,6 +39,18 @@ def _wf_order(r: Lookup) -> float:
 def _reduction(r: Lookup, experiment: str, a: str, b: str) -> float:
     """100 (1 − a/b) [%] of two rows."""
     return 100.0 * (1.0 - r(experiment, a) / r(experiment, b))
+
+
+def _identified_mx(c: str, projector: str) -> Callable[[Lookup], float]:
+    """Table 6.1's identified M_x for the desired FME `c` ("free" or "stiff") with the null-space `projector`."""
+    quantity = f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des ({projector})"
+    return lambda r: r("ch6.sysid_table_6_1", quantity)
+
+
+def _identified_mx_details(c: str) -> Callable[[Lookup], dict]:
+    """The J#-consistent identification beside the J⁺ one, for the claim's reason."""
+    dyn = _identified_mx(c, "J#")
+    return lambda r: {"dyn": dyn(r)}
 
 
 def _pos(x: float) -> bool:
@@ -140,13 +153,11 @@ CLAIMS: list[Claim] = [
           direction=lambda x: x > 1),
     *[Claim("Table 6.1", f"M_x(M_{c.capitalize()}^des) = {T.TABLE_6_1[c][0]} kg, identified", T.TABLE_6_1[c][0],
             ("ch6.sysid_table_6_1",),
-            lambda r, c=c: r("ch6.sysid_table_6_1",
-                             f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J⁺)"),
+            _identified_mx(c, "J⁺"),
             "identified on the simulated plant with the ch. 6 null-space controller using J⁺: {ours:.4f} kg; with "
             "the dynamically consistent J# the text names, {dyn:.4f} kg (J#-consistent null-space torques leave uᵀẍ "
             "alone, so the fit finds the bare Λ): the hardware's values behave like J⁺",
-            details=lambda r, c=c: {"dyn": r("ch6.sysid_table_6_1",
-                                             f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J#)")})
+            details=_identified_mx_details(c))
       for c in ("free", "stiff")],
     Claim("Table 6.1", "F_max with M_Stiff^des = −8.564 N", T.TABLE_6_1["stiff"][2], ("ch6.palpation",),
           lambda r: r("ch6.palpation", "F_max along u, M_Stiff^des: simulated F/T sensor peak"),

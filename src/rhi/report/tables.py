@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 from rhi.experiments.result import Result, Row, Table
 from rhi.report.explain import explanation
-from rhi.thesis import is_registered
+from rhi.thesis import ThesisValue, is_registered
 
 
 def fmt(v: float | None) -> str:
@@ -65,7 +65,7 @@ def table_html(table: Table) -> str:
     body = []
     for r in table.rows:
         rel = r.relative
-        src = r.thesis.source if r.source else ("rhi bound" if r.bound else "")
+        src = r.thesis.source if isinstance(r.thesis, ThesisValue) else ("rhi bound" if r.bound else "")
         body.append(
             f"<tr class='{row_class(r)}'><td>{html.escape(r.quantity)}</td><td>{html.escape(thesis_cell(r))}</td>"
             f"<td>{fmt(r.ours)}</td><td>{'—' if r.bound else fmt(r.difference)}</td>"
