@@ -38,10 +38,11 @@ def scenario(delay: float, passivity: bool, *, stiffness: float = 1000.0, durati
     x0, xs0 = dm.fk(Q_MASTER), ds.fk(Q_SLAVE)
     ctrl = NullSpaceController(dm, ControllerConfig(ForceRendering(damping=0.01, passivity=None), saturation="ascm",
                                                     damping=0.1))
-    hand = Hand(Path([x0, x0 + [0, 0.02]], speed=0.02), stiffness=300.0)
+    hand = Hand(Path(np.array([x0, x0 + [0, 0.02]]), speed=0.02), stiffness=300.0)
     fwd = ChannelConfig(delay=delay, jitter=jitter, loss=loss, seed=2 * seed + 1)
     bwd = ChannelConfig(delay=delay, jitter=jitter, loss=loss, seed=2 * seed + 2)
-    return simulate_bilateral(mp, ctrl, sp, duration=duration, hand=hand, tissue=Wall(xs0 + [0, 0.01], [0, 1], stiffness),
+    tissue = Wall(xs0 + [0, 0.01], np.array([0.0, 1.0]), stiffness)
+    return simulate_bilateral(mp, ctrl, sp, duration=duration, hand=hand, tissue=tissue,
                               forward=fwd, backward=bwd, passivity=passivity)
 
 

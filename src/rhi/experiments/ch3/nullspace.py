@@ -148,7 +148,7 @@ def hold_run(dev: Device, x, q0, ctrl: NullSpaceController, *, duration: float,
     """Simulate the hand holding the handle at x from q0 while `ctrl` runs (the null space moves)."""
     plant = Plant(dev)
     plant.reset(q0)
-    hand = Hand(Path([np.asarray(x, dtype=float)]), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=None)
+    hand = Hand(Path(np.asarray([x], dtype=float)), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=None)
     return simulate(plant, ctrl, duration=duration, hand=hand, virtual=FreeSpace(), progress=progress)
 
 
