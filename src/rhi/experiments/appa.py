@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
 
@@ -61,7 +62,8 @@ def tracking(
     slip = slip if slip is not None else SlipModel()
     dev = device("wmm")
     traj = circle(dev.fk(Q0), radius, duration=duration, dt=dt)
-    methods = {"proposed": "weighted", "traditional": "pinv_generalized", "traditional_wheel_speeds": "pinv"}
+    methods: dict[str, Literal["weighted", "pinv", "pinv_generalized"]] = {
+        "proposed": "weighted", "traditional": "pinv_generalized", "traditional_wheel_speeds": "pinv"}
     prog = ProgressChain(progress, traj.t.size * len(methods))
     logs: dict[str, MobileLog] = {}
     for name, dist in methods.items():
@@ -93,8 +95,8 @@ def tracking(
     p, tr = stats["proposed"], stats["traditional"]
     ratio = [Row(f"RMS {c} proposed / traditional", th, float(100 * p["rms"][i] / tr["rms"][i]), "%")
              for i, ((c, _, _), th) in enumerate(zip(comps, T.RMS_RATIO_A))]
-    interval = [Row("proposed: base first commanded", T.BASE_INTERVAL_A[0], p["first"], "s"),
-                Row("proposed: base last commanded", T.BASE_INTERVAL_A[1], p["last"], "s")]
+    interval = [Row("proposed: base first commanded", T.BASE_INTERVAL_A[0], float(p["first"]), "s"),
+                Row("proposed: base last commanded", T.BASE_INTERVAL_A[1], float(p["last"]), "s")]
     bounds_ok = all(log.bounds_ok for log in logs.values())
     return Result(
         "appa.tracking",
@@ -167,8 +169,9 @@ def dm_enhancement(
     """
     dev = device("wmm")
     w_tau = np.diag(1.0 / np.asarray(W_TAU_LIMITS))
-    runs = [("z", (0.0, 0.0, 1.0), "generalized", t_null), ("x", (1.0, 0.0, 0.0), "generalized", t_null),
-            ("x_weighted", (1.0, 0.0, 0.0), "weighted", t_null)]
+    runs: list[tuple[str, tuple[float, float, float], Literal["generalized", "weighted"], float]] = [
+        ("z", (0.0, 0.0, 1.0), "generalized", t_null), ("x", (1.0, 0.0, 0.0), "generalized", t_null),
+        ("x_weighted", (1.0, 0.0, 0.0), "weighted", t_null)]
     if t_long > 0:
         runs.append(("z_long", (0.0, 0.0, 1.0), "generalized", t_long))
     done = [0]
@@ -191,7 +194,7 @@ def dm_enhancement(
     t_end = t_cartesian + t_null
     rows_z = [
         Row("DM along z at q0", T.DM_Z[0], float(z["dm"][0]), "N"),
-        Row(f"DM along z after enhancement (t = {t_end:g} s)", T.DM_Z[1], z["dm_end"], "N",
+        Row(f"DM along z after enhancement (t = {t_end:g} s)", T.DM_Z[1], float(z["dm_end"]), "N",
             "the thesis does not give the simulation's length; null-space gradient ascent is slow along z"),
         Row("‖W_τ τ‖ for a 10 N z force at q0", T.TAU_Z[0], tau_norm(Q0, (0, 0, 1)), "N m"),
         Row(f"‖W_τ τ‖ for a 10 N z force after (t = {t_end:g} s)", T.TAU_Z[1], tau_norm(z["q_end"], (0, 0, 1)), "N m"),
@@ -210,14 +213,14 @@ def dm_enhancement(
         ]
     rows_x = [
         Row("DM along x at q0", T.DM_X[0], float(x["dm"][0]), "N"),
-        Row(f"DM along x after the Cartesian phase (t = {t_cartesian:g} s)", T.DM_X[1], x["dm_cart"], "N"),
+        Row(f"DM along x after the Cartesian phase (t = {t_cartesian:g} s)", T.DM_X[1], float(x["dm_cart"]), "N"),
         Row("end-effector z after the Cartesian phase", T.Z_AFTER_CARTESIAN, float(dev.fk(x["q_cart"])[2]), "m"),
-        Row(f"DM along x after the null-space phase (t = {t_end:g} s)", T.DM_X[2], x["dm_end"], "N",
+        Row(f"DM along x after the null-space phase (t = {t_end:g} s)", T.DM_X[2], float(x["dm_end"]), "N",
             "projector of the generalized Jacobian (eq. A.7, Q = I): the base moves with the self-motion"),
         Row(f"DM along x after the null-space phase, eq. A.19 as printed (weighted J†, t = {t_end:g} s)", T.DM_X[2],
-            xw["dm_end"], "N", "at γ = 0 the weighted J† locks the base: only the arm's own self-motion is left"),
+            float(xw["dm_end"]), "N", "at γ = 0 the weighted J† locks the base: only the arm's own self-motion is left"),
         Row("‖W_τ τ‖ ratio without / with DM enhancement (push along x)", T.TAU_RATIO_PUSH,
-            x["dm_end"] / float(x["dm"][0]), "",
+            float(x["dm_end"]) / float(x["dm"][0]), "",
             "thesis: measured torques while pushing a 26 kg box (≈ 40 vs ≈ 30 N m); ours: DM_after/DM_before, static"),
         Row("base displacement during the x enhancement", None,
             float(np.linalg.norm(x["q_end"][:2] - Q0[:2])), "m"),

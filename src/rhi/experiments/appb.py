@@ -173,10 +173,11 @@ def tracking(
     sig_far = best_sigma(far)
     sigma_adapted = 0.9 * sig_far if math.isfinite(sig_far) else sigma_min
     logs: dict[tuple[str, str], MobileLog] = {}
-    runs = [("within", radii[0], "proposed", sigma_min), ("within", radii[0], "traditional", None),
-            ("beyond", radii[1], "proposed", sigma_min), ("beyond", radii[1], "traditional", None),
-            ("within", radii[0], "proposed_adapted", sigma_adapted)]
+    runs = [("within", radii[0], "proposed", sigma_min), ("within", radii[0], "traditional", sigma_min),
+            ("beyond", radii[1], "proposed", sigma_min), ("beyond", radii[1], "traditional", sigma_min),
+            ("within", radii[0], "proposed_adapted", sigma_adapted)]  # σ_min: AMD only
     for where, R, method, sig in runs:
+        ctl: PinvAccelController | AMDController
         if method == "traditional":
             ctl = PinvAccelController(dev, PinvAccelConfig(dt=dt))
         else:
