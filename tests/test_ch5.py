@@ -7,7 +7,7 @@ from conftest import random_q
 
 from rhi import thesis as T
 from rhi.control import Manipulability, TMIMatching
-from rhi.control.objectives import _penalty
+from rhi.control.manipulability import penalty
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments import ch5
 from rhi.metrics import jbld, joint_limit_penalty, penalized_jacobian
@@ -43,15 +43,15 @@ def test_penalty_and_its_derivative(devs, rng):
     dev = devs["RHI"]
     for q in random_q(dev, rng, 5):
         for k in (1.0, 10.0):
-            p, dp = _penalty(q, dev.q_min, dev.q_max, k)
+            p, dp = penalty(q, dev.q_min, dev.q_max, k)
             np.testing.assert_allclose(p, joint_limit_penalty(q, dev.q_min, dev.q_max, k), rtol=1e-12, atol=1e-15)
-            fd = [(_penalty(q + 1e-6 * e, dev.q_min, dev.q_max, k)[0]
-                   - _penalty(q - 1e-6 * e, dev.q_min, dev.q_max, k)[0])[i] / 2e-6 for i, e in enumerate(np.eye(4))]
+            fd = [(penalty(q + 1e-6 * e, dev.q_min, dev.q_max, k)[0]
+                   - penalty(q - 1e-6 * e, dev.q_min, dev.q_max, k)[0])[i] / 2e-6 for i, e in enumerate(np.eye(4))]
             np.testing.assert_allclose(dp, fd, rtol=1e-6, atol=1e-8)
     # outside the limits: clipped to 0 with zero slope; no finite limits: 1
-    p, dp = _penalty(dev.q_min - 0.1, dev.q_min, dev.q_max, 10.0)
+    p, dp = penalty(dev.q_min - 0.1, dev.q_min, dev.q_max, 10.0)
     assert np.all(p == 0) and np.all(dp == 0)
-    p, dp = _penalty(np.zeros(2), np.full(2, -np.inf), np.full(2, np.inf), 10.0)
+    p, dp = penalty(np.zeros(2), np.full(2, -np.inf), np.full(2, np.inf), 10.0)
     assert np.all(p == 1) and np.all(dp == 0)
 
 

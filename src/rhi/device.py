@@ -238,7 +238,9 @@ class Device:
         from the 6-D frame Jacobian (∂J_j/∂θ_k = ω_k × J_j when joint k supports joint j,
         ω_j × J_k otherwise; one-DoF joints). Equal to `fk`, `jacobian`,
         `jacobian_derivative`, `mass_matrix` and `gravity` called one by one, several
-        times faster. The task-space dynamics (M_x, J#, C_x, G_x) are computed on demand.
+        times faster. For chains of one-DoF joints the task-space dynamics (M_x, J#, C_x,
+        G_x) come from the same pass through the compiled `rhi.terms_kernel`; otherwise
+        they are computed on demand.
         A call with the same q and dq as the previous one returns the same snapshot (a
         simulation tick reads it for the virtual environment, then the controller).
 
@@ -273,7 +275,18 @@ class Device:
         pin.computeJointJacobians(model, data, th)
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         x = data.oMf[fid].translation[fast.rows].copy()
-        Mt = pin.crba(model, data, th)
+        if fast.kernel is not None:  # every term, the task-space dynamics included, in one compiled call
+            v = self._zero_dq if dq is None else dq
+            Ct = pin.computeCoriolisMatrix(model, data, th, self.A.dot(v))
+            Mt = pin.crba(model, data, th)
+            gt = pin.computeGeneralizedGravity(model, data, th)
+            buf = np.empty(fast.size)
+            fast.kernel(J6, Mt, gt, Ct, self.A, fast.rows_idx, self.armature, fast.supports, fast.identity,
+                        not fast.crba_symmetric, np.ascontiguousarray(v, dtype=float), buf)
+            terms = DeviceTerms.from_buffer(self, q, dq, x, th, buf, fast.position_layout if dq is None else fast.layout)
+            self._last_terms = (key, terms)
+            return terms
+        Mt = pin.crba(model, data, th)  # a chain with a joint that is not one-DoF
         if not fast.crba_symmetric:
             il = fast.tril
             Mt[il] = Mt.T[il]  # this Pinocchio fills only the upper triangle
@@ -287,15 +300,13 @@ class Device:
             J = J6[fast.rows].dot(self.A)
             M = At.dot(Mt).dot(self.A) + fast.armature
             g = At.dot(gt)
-        if fast.hessian is None:
-            dJ = self._djac1(th)
-        else:
-            # ∂J/∂q is bilinear in the angular (ω) and linear (v) columns of the 6-D frame Jacobian
-            W = J6[3:].reshape(-1, 1)
-            dJ = fast.hessian.dot((W * J6[:3].reshape(1, -1)).reshape(-1)).reshape(fast.dJ_shape)
-        terms = DeviceTerms(self, q, dq, x=x, J=J, dJ=dJ, M=M, g=g, theta=th)
+        terms = DeviceTerms(self, q, dq, x=x, J=J, dJ=self._djac1(th), M=M, g=g, theta=th)
         self._last_terms = (key, terms)
         return terms
+
+    @lazy
+    def _zero_dq(self) -> np.ndarray:
+        return np.zeros(self.n)
 
     @lazy
     def _fast_maps(self) -> FastMaps:

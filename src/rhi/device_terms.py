@@ -1,8 +1,9 @@
 """`DeviceTerms`: the kinematic and dynamic terms of a device at one state, and the constant maps behind them.
 
-`Device.terms` fills a `DeviceTerms` from one Pinocchio pass; ∂J/∂q comes from the 6-D
-frame Jacobian through the constant bilinear map of `fast_maps` (one-DoF joints). The
-task-space dynamics of thesis eqs. 5.2 / 7.1 are computed on first access. Also the small
+`Device.terms` fills a `DeviceTerms` from one Pinocchio pass: for chains of one-DoF joints the
+compiled `rhi.terms_kernel.task_terms` writes every term (∂J/∂q in closed form from the 6-D
+frame Jacobian, the task-space dynamics of thesis eqs. 5.2 / 7.1) into one flat buffer the
+snapshot's attributes view; otherwise the task-space dynamics are computed on first access. Also the small
 numeric helpers the 1 kHz paths share: `eye`, `inv`, `inv_small` and the `lazy` attribute.
 """
 
@@ -24,10 +25,6 @@ if TYPE_CHECKING:
 
 #: one-DoF joints whose kinematic Hessian has the closed form used by `Device.terms`
 ONE_DOF_JOINT = re.compile(r"JointModel(R[XYZ]|P[XYZ]|RevoluteUnaligned|PrismaticUnaligned|Helical\w*)$")
-#: (3, 3, 3) Levi-Civita symbol ε_ijk: (a × b)_i = Σ ε_ijk a_j b_k
-LEVI_CIVITA = np.zeros((3, 3, 3))
-for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-    LEVI_CIVITA[_i, _j, _k], LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
 
 _EYE: dict[int, np.ndarray] = {}
 
@@ -51,6 +48,19 @@ class lazy:
         if obj is None:
             return self
         value = obj.__dict__[self.name] = self.fn(obj)
+        return value
+
+
+class term(lazy):
+    """A `DeviceTerms` attribute: a view into the snapshot's flat buffer when `Device.terms` filled one
+    (`rhi.terms_kernel`), else computed on first access and cached like `lazy`."""
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        where = obj._layout.get(self.name) if obj._buf is not None else None
+        value = self.fn(obj) if where is None else obj._buf[where[0]:where[1]].reshape(where[2])
+        obj.__dict__[self.name] = value
         return value
 
 
@@ -111,8 +121,12 @@ class FastMaps:
     armature: np.ndarray
     tril: tuple[np.ndarray, np.ndarray]
     crba_symmetric: bool
-    hessian: np.ndarray | None
-    dJ_shape: tuple[int, int, int]
+    rows_idx: np.ndarray  # (m,) int64 task rows of the 6-D frame Jacobian
+    supports: np.ndarray | None  # (nθ, nθ) bool: chain joint k supports joint j (or is j); None: not all one-DoF
+    kernel: Callable | None  # rhi.terms_kernel.task_terms (with `supports`), else None
+    layout: dict[str, tuple[int, int, tuple[int, ...]]]  # where each term lies in the kernel's output
+    position_layout: dict[str, tuple[int, int, tuple[int, ...]]]  # the same without the velocity terms
+    size: int  # length of the kernel's output
 
 
 class DeviceTerms:
@@ -155,22 +169,52 @@ class DeviceTerms:
         self.q, self.dq, self.x, self.J, self.dJ, self.M, self.g = q, dq, x, J, dJ, M, g
         self._theta = theta
 
+    _buf: np.ndarray | None = None
+    _layout: dict = {}
+
+    @classmethod
+    def from_buffer(cls, device: Device, q: np.ndarray, dq: np.ndarray | None, x: np.ndarray, theta: np.ndarray,
+                    buf: np.ndarray, layout: dict[str, tuple[int, int, tuple[int, ...]]]) -> DeviceTerms:
+        """A snapshot whose terms are views into `buf`, the flat output of `rhi.terms_kernel.task_terms`.
+
+        Args:
+            device: the device.
+            q: (n,) joint positions [rad or m].
+            dq: (n,) joint velocities [rad/s], or None.
+            x: (m,) end-effector position [m].
+            theta: (nθ,) chain coordinates.
+            buf: the kernel's output.
+            layout: {name: (start, stop, shape)} of the terms in buf (`rhi.terms_kernel.layout`).
+        """
+        self = cls.__new__(cls)
+        self.device, self.q, self.dq, self.x, self._theta = device, q, dq, x, theta
+        self._buf, self._layout = buf, layout
+        return self
+
+    def _absent(self) -> np.ndarray:  # pragma: no cover - set by the constructor or a view of the buffer
+        raise AttributeError("term missing")
+
+    J = term(_absent)
+    dJ = term(_absent)
+    M = term(_absent)
+    g = term(_absent)
+
     def _need_dq(self, what: str) -> np.ndarray:
         if self.dq is None:
             raise InvalidInput(f"dq: {what} needs the joint velocity; call Device.terms(q, dq)")
         return self.dq
 
-    @lazy
+    @term
     def xdot(self) -> np.ndarray:
         """(m,) end-effector velocity ẋ = J q̇ [m/s] (eq. 6.1)."""
         return self.J.dot(self._need_dq("xdot"))
 
-    @lazy
+    @term
     def Jdot(self) -> np.ndarray:
         """(m, n) time derivative J̇ = Σ_k ∂J/∂q_k q̇_k [m/(rad s)]."""
         return self.dJ.dot(self._need_dq("Jdot"))
 
-    @lazy
+    @term
     def C(self) -> np.ndarray:
         """(n, n) joint Coriolis/centrifugal matrix C_q(q, q̇) (Ṁ − 2C skew-symmetric); C q̇ [N m]."""
         dq = self._need_dq("C")
@@ -186,36 +230,36 @@ class DeviceTerms:
         Lam = d["Lambda"] = inv_small(JMinv.dot(self.J.T))
         d["Jsharp"] = JMinv.T.dot(Lam)
 
-    @lazy
+    @term
     def Minv(self) -> np.ndarray:
         """(n, n) M_q⁻¹ [1/(kg m²)] (M_q is positive definite for any physical model)."""
         self._cartesian()
         return self.__dict__["Minv"]
 
-    @lazy
+    @term
     def JMinv(self) -> np.ndarray:
         """(m, n) J M_q⁻¹."""
         self._cartesian()
         return self.__dict__["JMinv"]
 
-    @lazy
+    @term
     def Lambda(self) -> np.ndarray:
         """(m, m) apparent (end-effector) inertia M_x = (J M_q⁻¹ Jᵀ)⁻¹ [kg] (eqs. 5.2, 7.1)."""
         self._cartesian()
         return self.__dict__["Lambda"]
 
-    @lazy
+    @term
     def Jsharp(self) -> np.ndarray:
         """(n, m) dynamically consistent inverse J# = M_q⁻¹ Jᵀ (J M_q⁻¹ Jᵀ)⁻¹ (eq. 5.3)."""
         self._cartesian()
         return self.__dict__["Jsharp"]
 
-    @lazy
+    @term
     def N(self) -> np.ndarray:
         """(n, n) dynamically consistent torque null-space projector I − Jᵀ J#ᵀ (eqs. 3.20, 5.9, 7.5)."""
         return eye(self.J.shape[1]) - self.J.T.dot(self.Jsharp.T)
 
-    @lazy
+    @term
     def Cx(self) -> np.ndarray:
         """(m, m) end-effector Coriolis/centrifugal matrix C_x = M_x (J M_q⁻¹ C_q − J̇) J# (eqs. 5.2, 7.1).
 
@@ -223,7 +267,7 @@ class DeviceTerms:
         """
         return self.Lambda.dot(self.JMinv.dot(self.C) - self.Jdot).dot(self.Jsharp)
 
-    @lazy
+    @term
     def Gx(self) -> np.ndarray:
         """(m,) gravity force reflected at the end-effector G_x = J#ᵀ G_q [N] (eqs. 5.2, 7.1)."""
         g = self.g
@@ -250,17 +294,10 @@ def fast_maps(model: pin.Model, A: np.ndarray, b: np.ndarray, armature: np.ndarr
     data = model.createData()
     th = np.random.default_rng(0).uniform(-1.0, 1.0, nt)
     Mt = pin.crba(model, data, th)
-    hessian = None
     mask = hessian_mask(model)
-    if mask is not None:
-        # dJ[i, a, c] = Σ_{p,x,r,y} K[(i,a,c), (p,x), (r,y)] ω[p, x] v[r, y], from ∂J_j/∂θ_k = ω_k × v_j if k
-        # supports j, else ω_j × v_k (one-DoF joints), and J_q = J_θ A
-        eps = LEVI_CIVITA[rows]  # (m, 3, 3): [i, p, r]
-        Mk = mask.astype(float)
-        # S[a, c, x, y] = A[y, a] A[x, c] mask[y, x] + A[x, a] A[y, c] (1 − mask[x, y])
-        S = np.einsum("ya,xc,yx->acxy", A, A, Mk) + np.einsum("xa,yc,xy->acxy", A, A, 1.0 - Mk)
-        K = np.einsum("ipr,acxy->iacpxry", eps, S)
-        hessian = np.ascontiguousarray(K.reshape(m * n * n, 3 * nt * 3 * nt))
+    from rhi import terms_kernel  # Numba: imported on the first `Device.terms`, not with `import rhi`
+
+    where, _, size = terms_kernel.layout(n, m)
     return FastMaps(
         rows=rows_idx,
         offset=bool(np.any(b != 0)),
@@ -269,8 +306,12 @@ def fast_maps(model: pin.Model, A: np.ndarray, b: np.ndarray, armature: np.ndarr
         armature=np.diag(armature),
         tril=np.tril_indices(nt, -1),
         crba_symmetric=bool(np.array_equal(Mt, Mt.T)) and bool(np.any(np.tril(Mt, -1) != 0) or nt == 1),
-        hessian=hessian,
-        dJ_shape=(m, n, n),
+        rows_idx=np.array(rows, dtype=np.int64),
+        supports=mask,
+        kernel=None if mask is None else terms_kernel.task_terms,
+        layout=where,
+        position_layout={k: v for k, v in where.items() if k not in ("xdot", "Jdot", "C", "Cx")},
+        size=size,
     )
 
 

@@ -1,5 +1,6 @@
 """Control: objectives (cost + analytic gradient), primary laws, saturation handling, the null-space controller."""
 
+from rhi.control.barrier import JointLimitBarrier
 from rhi.control.controller import (
     ControllerConfig,
     ControllerState,
@@ -8,13 +9,11 @@ from rhi.control.controller import (
     ObjectiveTerm,
     output_force,
 )
+from rhi.control.manipulability import Manipulability, TMIMatching
 from rhi.control.objectives import (
     EllipsoidMatching,
     FMEMatching,
-    JointLimitBarrier,
-    Manipulability,
     Objective,
-    TMIMatching,
     VMEMatching,
     WeightedSum,
     desired_fme_free,
@@ -34,20 +33,22 @@ from rhi.control.primary import (
 from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import (
     Allocation,
-    TransitionConfig,
-    TransitionState,
     allocate_lp,
     allocate_none,
     allocate_scaling,
     ascm,
     ascm_projector,
-    aso_volume,
     basis_from_projector,
-    hysteresis,
     null_basis,
     null_projector,
     tertiary,
     tertiary_projector,
+)
+from rhi.control.transition import (
+    TransitionConfig,
+    TransitionState,
+    aso_volume,
+    hysteresis,
     transition_step,
 )
 

@@ -30,10 +30,11 @@ torque, latched) and record why in the state; on the very first tick after
 construction or `reset` they are bad input instead and raise InvalidInput.
 
 Two implementations compute the same tick: ``implementation="fast"`` (the default: one
-Pinocchio pass, projector-form ASCM, no SVD, no per-call validation) and
-``"reference"`` (per-call Device methods, `null_basis` SVD, `ascm`/`tertiary` on the
-orthonormal basis, `rhi.metrics` projectors) — the readable composition of the
-equations, kept as the oracle the fast path is tested against.
+Pinocchio pass, `Device.terms`, then steps 2–6 in one compiled kernel,
+`rhi.control.tick` and `rhi.control.kernels`) and ``"reference"`` (`rhi.control.reference`:
+per-call Device methods, `null_basis` SVD, `ascm`/`tertiary` on the orthonormal basis,
+`rhi.metrics` projectors) — the readable composition of the equations, kept as the oracle
+the kernel is tested against. The LP allocation (``saturation="lp"``) runs in the reference.
 """
 
 from __future__ import annotations
@@ -46,39 +47,21 @@ from typing import Literal
 import numpy as np
 
 from rhi._validate import scalar
-from rhi.control.active_set import allocate_active_set
-from rhi.control.objectives import FMEMatching, JointLimitBarrier, Objective, _spd, gradient_function
+from rhi.control.barrier import JointLimitBarrier
+from rhi.control.objectives import FMEMatching, Objective
 from rhi.control.passivity import PassivityController, PassivityState
 from rhi.control.primary import PrimaryLaw
+from rhi.control.reference import reference_terms, reference_tick
 from rhi.control.saturation import (
     Allocation,
-    TransitionConfig,
-    TransitionState,
-    allocate_lp,
-    allocate_none,
-    allocate_scaling,
-    _as_list,
-    _ascm_fast,
-    _aso_volume,
-    _null_projector_rows,
-    _tertiary_fast,
-    ascm,
     check_torque_limits,
-    null_basis,
-    null_projector,
-    tertiary,
-    transition_step,
 )
-from rhi.control.safety import _held_part_fast, held_part, safety_room
-from rhi.device import Device, DeviceTerms
+from rhi.control.tick import KernelTick
+from rhi.control.transition import TransitionConfig, TransitionState
+from rhi.device import Device
 from rhi.errors import InvalidInput, Singular
-from rhi.metrics import dynamic_pinv, nullspace_projector, weighted_pinv
-
-#: Allocations that hold joints at a limit with null-space torque.
-_HOLDING = ("ascm", "lp", "active_set")
-#: Allocations after which the safety torque acts whatever the held (or clipped) joints: all but simple
-#: scaling, which keeps chapter 6's Algorithm 2 (its FME term and limit barrier balance each other there).
-_SAFE = _HOLDING + ("none",)
+from rhi.metrics import dynamic_pinv, weighted_pinv
+from rhi.metrics.spd import spd_matrix
 
 Saturation = Literal["none", "scaling", "ascm", "lp", "active_set"]
 
@@ -126,8 +109,8 @@ class FMESchedule:
     transition: TransitionConfig = dataclasses.field(default_factory=TransitionConfig)
 
     def __post_init__(self) -> None:
-        free = _spd("free", self.free)
-        stiff = _spd("stiff", self.stiff)
+        free = spd_matrix("free", self.free)
+        stiff = spd_matrix("stiff", self.stiff)
         if free.shape != stiff.shape:
             raise InvalidInput(f"free/stiff: shapes differ, {free.shape} vs {stiff.shape}")
         object.__setattr__(self, "gain", scalar("gain", self.gain, nonnegative=True))
@@ -254,24 +237,24 @@ class NullSpaceController:
             check(device)
         self.device = device
         self.config = config
-        self._fme = None if config.fme is None else FMEMatching(config.fme.free, self.hi)
         self.state = state or ControllerState()
+        #: The FME-matching objective the schedule's desired FME is swapped into (None without a schedule).
+        self.fme_objective = None if config.fme is None else FMEMatching(config.fme.free, self.hi)
+        #: S of eq. 6.14 for the ASO.
+        self.aso_shape = config.fme.transition.S if config.fme is not None else config.aso_shape
+        #: (gain, objective) of the tertiary objectives and of the joint-limit barriers (part of the safety torque).
+        self.objectives: list[tuple[float, Objective]] = []
+        self.barriers: list[tuple[float, Objective]] = []
+        for term in config.objectives:
+            if term.gain > 0:
+                (self.barriers if isinstance(term.objective, JointLimitBarrier) else self.objectives).append(
+                    (float(term.gain), term.objective))
         self._sensors = tuple(config.primary.required_sensors())
         pas = getattr(config.primary, "passivity", None)
         self._pc = None if pas is None else PassivityController(pas)
-        self._n, self._m = device.n, device.m
-        self._lo_l, self._hi_l = self.lo.tolist(), self.hi.tolist()
-        self._aso_S = config.fme.transition.S if config.fme is not None else config.aso_shape
-        self._fast = config.implementation == "fast"
-        self._dynamic = config.projector == "dynamic"
-        self._grads, self._safe_grads = [], []  # tertiary objectives; joint-limit barriers (safety)
-        for term in config.objectives:
-            if term.gain > 0:
-                obj = term.objective
-                fn = gradient_function(obj, device) if self._fast else (
-                    lambda kin, obj=obj: np.asarray(obj.gradient(device, kin.q), dtype=float)
-                )
-                (self._safe_grads if isinstance(obj, JointLimitBarrier) else self._grads).append((float(term.gain), fn))
+        self._n = device.n
+        self._kernel = (None if config.implementation == "reference" or config.saturation == "lp"
+                        else KernelTick(self))
 
     @property
     def passivity(self) -> PassivityState | None:
@@ -345,143 +328,35 @@ class NullSpaceController:
                 if not _finite(v):
                     return self._bad_reading(f"sensors[{name!r}]: non-finite reading at t={t}: {v.tolist()}")
         try:
-            return self._tick(t, q, dq, sensors or {})
+            return self._tick(float(t), q, dq, sensors or {})
         except (np.linalg.LinAlgError, Singular) as exc:
             return self._stop(f"numerical failure at t={t} (singular configuration?): {exc}")
 
-    def terms(self, q: np.ndarray, dq: np.ndarray) -> DeviceTerms:
-        """The device terms the tick uses: one Pinocchio pass (fast) or per-call Device methods (reference)."""
-        dev = self.device
-        if self._fast:
-            return dev.terms(q, dq, check=False)
-        return DeviceTerms(
-            dev, q, dq,
-            x=dev.fk(q), J=dev.jacobian(q), dJ=dev.jacobian_derivative(q), M=dev.mass_matrix(q), g=dev.gravity(q),
-        )
-
     def _tick(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: Mapping[str, np.ndarray]) -> np.ndarray:
-        s, cfg = self.state, self.config
-        lo, hi = self.lo, self.hi
-        kin = self.terms(q, dq)
-        F_r, F_x = cfg.primary.forces(t, kin, sensors)
-        Jt = kin.J.T
-        a = Jt.dot(F_r)
-        b = Jt.dot(F_x)
-        g = kin.g
-        if cfg.gravity_compensation and g.dot(g) != 0.0:
-            b = b + (g - Jt.dot(kin.Gx))  # (I − JᵀJ#ᵀ) g: the part G_x leaves out
-        tau_m = a + b
-
-        # ASO and desired-FME transition
-        s.V = _aso_volume(_as_list(tau_m), self._lo_l, self._hi_l, self._aso_S)
-        fme = cfg.fme
-        if fme is not None:
-            s.transition, s.omega = transition_step(s.transition, t, s.V, fme.distance, fme.transition)
-
-        # allocation within the torque box, the safety torque, then the null-space objectives (tertiary)
-        tau_s = -cfg.damping * dq
-        for gain, fn in self._safe_grads:
-            tau_s = tau_s - gain * fn(kin)
-        tau_to = tau_s
-        if fme is not None and fme.gain > 0:
-            tau_to = tau_to - fme.gain * self._fme.gradient_from(kin.J, kin.dJ, fme.desired(s.omega))
-        for gain, fn in self._grads:
-            tau_to = tau_to - gain * fn(kin)
-        if self._fast:
-            al, alpha, delta, beta = self._allocate_fast(a, b, tau_m, s.V, tau_s, tau_to, kin)
+        s = self.state
+        kernel = self._kernel
+        if kernel is None:
+            kin = reference_terms(self, q, dq) if self.config.implementation == "reference" else self.device.terms(
+                q, dq, check=False)
+            tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors)
+            tau = np.minimum(np.maximum(tau, self.lo), self.hi)
         else:
-            al, alpha, delta, beta = self._allocate_reference(a, b, tau_s, tau_to, kin)
-        tau = np.minimum(np.maximum(al.tau + delta if beta else al.tau, lo), hi)
+            kin = self.device.terms(q, dq, check=False)
+            out = kernel(t, kin, sensors)
+            if len(out) == 2:  # the kernel cannot decide this held set accurately: the basis form
+                tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, out)
+                tau = np.minimum(np.maximum(tau, self.lo), self.hi)
+            else:
+                tau, alpha, beta, sat, clipped = out
         pc = self._pc
         if pc is not None and _finite(tau):  # time-domain passivity around the whole torque (rhi.control.passivity)
-            tau = pc.apply(t, kin, tau, lo, hi)
+            tau = pc.apply(t, kin, tau, self.lo, self.hi)
             s.E_obs, s.alpha_pc = pc.state.energy, pc.state.alpha
         if not _finite(tau):  # e.g. a non-finite objective gradient at a singular configuration
             return self._stop(f"non-finite torque at t={t} (singular configuration?): {tau.tolist()}")
-
-        s.t, s.alpha, s.beta, s.saturated, s.clipped, s.tau = t, alpha, beta, al.saturated, al.clipped, tau
+        s.t, s.alpha, s.beta, s.saturated, s.clipped, s.tau = t, alpha, beta, sat, clipped, tau
         s.ticks += 1
         return tau
-
-    def _allocate_reference(self, a, b, tau_s, tau_to, kin: DeviceTerms):
-        cfg, lo, hi = self.config, self.lo, self.hi
-        M = kin.M if self._dynamic else None
-        Z = null_basis(kin.J, M)
-        if cfg.saturation == "ascm":
-            al = ascm(a, b, Z, lo, hi)
-        elif cfg.saturation == "lp":
-            al = allocate_lp(a, b, Z, lo, hi)
-        elif cfg.saturation == "active_set":
-            al = allocate_active_set(a, b, Z, lo, hi)
-        elif cfg.saturation == "scaling":
-            al = allocate_scaling(a, b, lo, hi)
-        else:
-            al = allocate_none(a, b, lo, hi)
-        N = nullspace_projector(kin.J, M)
-        gamma = 1.0
-        if al.saturated.any() and al.method in _SAFE:  # safety the held joints would block
-            tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), lo, hi, skip=al.clipped)
-            al = dataclasses.replace(al, tau=tau1)
-        delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
-        return al, gamma * al.alpha, delta, beta
-
-    def _allocate_fast(self, a, b, tau_m, V, tau_s, tau_to, kin: DeviceTerms):
-        cfg, lo, hi, n = self.config, self.lo, self.hi, self._n
-        r = n - self._m
-        P = Z = None
-        if self._dynamic:
-            Jt = kin.J.T
-            Ntau = tau_to - Jt.dot(kin.Jsharp.T.dot(tau_to))  # (I − JᵀJ#ᵀ) τ_to
-        else:
-            P = null_projector(kin.J)  # = I − JᵀJ⁺ᵀ, the pseudoinverse N
-            Ntau = P.dot(tau_to)
-        sat = cfg.saturation
-        if V > 0.0 and sat in _HOLDING:  # τ_m strictly inside the box: kept as it is (Algorithm 1, line 6)
-            al = Allocation(tau_m, 1.0, np.zeros(n, bool), np.zeros(n), sat)
-        elif sat == "ascm":
-            if P is None:
-                P = _null_projector_rows(kin.JMinv)
-            al = _ascm_fast(a, b, P, self._lo_l, self._hi_l, r)
-            if al is None:  # ill-conditioned held set: the basis form, as the reference
-                Z = self._null_basis(kin)
-                al = ascm(a, b, Z, lo, hi)
-        elif sat == "lp":
-            Z = self._null_basis(kin)
-            al = allocate_lp(a, b, Z, lo, hi)
-        elif sat == "active_set":
-            if P is None:
-                P = _null_projector_rows(kin.JMinv)
-            Z = self._null_basis(kin)
-            start = _ascm_fast(a, b, P, self._lo_l, self._hi_l, r)
-            al = allocate_active_set(a, b, Z, lo, hi, start=start)
-        elif sat == "scaling":
-            al = allocate_scaling(a, b, lo, hi)
-        else:
-            al = allocate_none(a, b, lo, hi)
-        gamma = 1.0
-        if al.saturated.any() and al.method in _SAFE:  # safety the held joints would block
-            Nsafe = tau_s - Jt.dot(kin.Jsharp.T.dot(tau_s)) if self._dynamic else P.dot(tau_s)
-            if P is None:
-                P = _null_projector_rows(kin.JMinv)
-            held = _held_part_fast(P, al.saturated, Nsafe)
-            if held is None:
-                held = held_part(self._null_basis(kin) if Z is None else Z, al.saturated, Nsafe)
-            tau1, gamma = safety_room(al.tau, b, held, lo, hi, skip=al.clipped)
-            al = dataclasses.replace(al, tau=tau1)
-        if P is None and al.saturated.any():
-            P = _null_projector_rows(kin.JMinv)
-        res = _tertiary_fast(al.tau, al.saturated, P, tau_to, Ntau, self._lo_l, self._hi_l, r)
-        if res is None:
-            N = kin.N if self._dynamic else null_projector(kin.J)
-            res = tertiary(al.tau, al.saturated, self._null_basis(kin) if Z is None else Z, tau_to, lo, hi, N)
-        return al, gamma * al.alpha, res[0], res[1]
-
-    def _null_basis(self, kin: DeviceTerms) -> np.ndarray:
-        return null_basis(kin.J, kin.M if self._dynamic else None)
-
-    def last_allocation(self) -> tuple[float, float]:
-        """(α, β) of the last tick."""
-        return self.state.alpha, self.state.beta
 
 
 def output_force(J: np.ndarray, tau: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:

@@ -15,7 +15,12 @@ from collections.abc import Mapping
 import numpy as np
 
 from rhi.control.intent import KnownIntent
-from rhi.control.objectives import FMEMatching, VMEMatching, desired_fme_free, desired_fme_stiff
+from rhi.control.objectives import (
+    FMEMatching,
+    VMEMatching,
+    desired_fme_free,
+    desired_fme_stiff,
+)
 from rhi.device import Device, DeviceTerms
 from rhi.errors import InvalidInput
 

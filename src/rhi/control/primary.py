@@ -29,6 +29,7 @@ from rhi._validate import as_array, scalar
 from rhi.control.passivity import Passivity
 from rhi.device import Device, DeviceTerms
 from rhi.errors import InvalidInput
+from rhi.metrics.spd import spd_matrix
 
 
 class PrimaryLaw(Protocol):
@@ -191,9 +192,7 @@ class ImpedanceControl(_Compensated):
         if self.sensor not in ("ft", "force"):
             raise InvalidInput(f"sensor: expected 'ft' (6-axis wrench) or 'force' (task force), got {self.sensor!r}")
         if self.inertia is not None:
-            from rhi.control.objectives import _spd
-
-            Md = _spd("inertia", self.inertia)
+            Md = spd_matrix("inertia", self.inertia)
             object.__setattr__(self, "inertia", Md)
             object.__setattr__(self, "_inertia_inv", np.linalg.inv(Md))
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.control.saturation import _as_list, _held_torque, _negligible, _scaling_alpha, _well_conditioned
+from rhi.control.saturation import negligible, scaling_alpha
 
 
 def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarray, float]:
@@ -33,18 +33,14 @@ def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarra
     Returns:
         (τ' (n,) [N m], γ).
     """
-    if skip or not np.any(np.abs(delta) > _negligible(delta)):
+    if skip or not np.any(np.abs(delta) > negligible(delta)):
         return tau, 1.0
-    lo_l, hi_l = _as_list(lo), _as_list(hi)
-    b_l, d_l, t_l = b.tolist(), delta.tolist(), tau.tolist()
-    c = [x + y for x, y in zip(b_l, d_l)]
-    gamma = _scaling_alpha([t - x for t, x in zip(t_l, b_l)], c, lo_l, hi_l)
+    c = b + delta
+    gamma = scaling_alpha(tau - b, c, lo, hi)
     if gamma is None:
-        sigma = _scaling_alpha(d_l, [min(max(t, lo_), hi_) for t, lo_, hi_ in zip(t_l, lo_l, hi_l)], lo_l, hi_l)
-        sigma = 0.0 if sigma is None else sigma
-        return tau + sigma * delta, 1.0
-    return np.array([min(max(ci + gamma * (t - x), lo_), hi_)
-                     for ci, t, x, lo_, hi_ in zip(c, t_l, b_l, lo_l, hi_l)]), gamma
+        sigma = scaling_alpha(delta, np.clip(tau, lo, hi), lo, hi)
+        return tau + (0.0 if sigma is None else sigma) * delta, 1.0
+    return np.clip(c + gamma * (tau - b), lo, hi), gamma
 
 
 def held_part(Z, saturated, d) -> np.ndarray:
@@ -66,16 +62,6 @@ def held_part(Z, saturated, d) -> np.ndarray:
     c = Z.T @ d
     ZS = Z[saturated]
     return Z @ (np.linalg.pinv(ZS) @ (ZS @ c))
-
-
-def _held_part_fast(P, saturated, d) -> np.ndarray | None:
-    """`held_part` from the projector P = Z Zᵀ (lists or array); None when P[𝒮, 𝒮] is ill-conditioned."""
-    S = [i for i, v in enumerate(saturated.tolist()) if v]
-    Pl = P if isinstance(P, list) else P.tolist()
-    if not _well_conditioned(Pl, S):
-        return None
-    dl = d.tolist()
-    return np.array(_held_torque(Pl, S, [dl[j] for j in S]))
 
 
 __all__ = ["held_part", "safety_room"]

@@ -1,6 +1,6 @@
-"""Actuator saturation: observer (ASO), hysteresis, FME transition, ASCM and the tertiary scaling β.
+"""Actuator saturation: torque allocation within the box (none, scaling, ASCM, LP) and the tertiary scaling β.
 
-Pure functions on arrays plus small dataclasses with explicit state (thesis §6.3.2, §7.3–7.4).
+Pure functions on arrays plus small dataclasses with explicit state (thesis §7.3–7.4; the ASO and the FME transition of §6.3.2 are `rhi.control.transition`).
 
 Torque allocation is written in one form shared by every method:
 
@@ -22,12 +22,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from operator import mul
 
 import numpy as np
 from scipy.optimize import linprog
 
-from rhi._validate import as_array, scalar
+from rhi._validate import as_array
+from rhi.control import kernels
 from rhi.device import eye
 from rhi.errors import InfeasibleLimits, InvalidInput, Singular
 
@@ -35,10 +35,6 @@ _TOL = 1e-12
 # Z_𝒮 counts as rank-deficient (ASCM cannot hold the joints 𝒮) when its smallest singular value is
 # below this; Z is orthonormal, so the threshold is relative.
 RANK_TOL = 1e-9
-# The projector form solves with P[𝒮, 𝒮] = Z_𝒮 Z_𝒮ᵀ, whose condition number is cond(Z_𝒮)²: it is used
-# only while the smallest eigenvalue λ of P[𝒮, 𝒮] exceeds this (σ_min(Z_𝒮) > 0.01), where a held
-# torque r is accurate to ~ε r / λ < 1e-11 N m per N m, and hands over to the basis form otherwise.
-_FAST_TOL = 1e-4
 
 
 # ------------------------------------------------------------------ limits, bases
@@ -109,24 +105,6 @@ def null_projector(J: np.ndarray, M: np.ndarray | None = None, *, JMinv: np.ndar
     return eye(A.shape[1]) - Q.T.dot(Q)
 
 
-def _null_projector_rows(A: np.ndarray) -> list[list[float]]:
-    """`null_projector` from A = J M⁻¹ (m, n) as a list of rows (CGS2 on Python floats; fewer array calls)."""
-    Q: list[list[float]] = []
-    for a in A.tolist():
-        scale = math.sqrt(sum(map(mul, a, a)))
-        v = a
-        for _ in range(2):
-            for qv in Q:
-                c = sum(map(mul, qv, v))
-                v = [y - c * x for x, y in zip(qv, v)]
-        nv = math.sqrt(sum(map(mul, v, v)))
-        if not nv > 1e-12 * scale:
-            raise Singular("J: rank-deficient Jacobian")
-        Q.append([x / nv for x in v])
-    Qa = np.array(Q)
-    return (eye(A.shape[1]) - Qa.T.dot(Qa)).tolist()
-
-
 def basis_from_projector(P: np.ndarray, rank: int | None = None) -> np.ndarray:
     """An orthonormal basis Z (n, r) of the range of an orthogonal projector P (eigenvectors of eigenvalue 1)."""
     w, V = np.linalg.eigh(0.5 * (P + P.T))
@@ -134,24 +112,16 @@ def basis_from_projector(P: np.ndarray, rank: int | None = None) -> np.ndarray:
     return V[:, w.size - r:]
 
 
-def _as_list(v) -> list[float]:
-    if isinstance(v, list):
-        return v
-    return v.tolist() if isinstance(v, np.ndarray) else np.asarray(v, dtype=float).tolist()
-
-
 def scaling_alpha(p, c, lo, hi) -> float | None:
     """Largest α in [0, 1] with ``lo <= α p + c <= hi``; None when no α in [0, 1] is feasible.
+
+    Entries with |p| negligible only need c itself in the box.
 
     Args:
         p, c, lo, hi: (k,) arrays or lists.
     """
-    return _scaling_alpha(_as_list(p), _as_list(c), _as_list(lo), _as_list(hi))
-
-
-def _scaling_alpha(p: list[float], c: list[float], lo: list[float], hi: list[float]) -> float | None:
     a_lo, a_hi = 0.0, 1.0
-    for pi, ci, l, h in zip(p, c, lo, hi):
+    for pi, ci, l, h in zip(*(np.asarray(v, dtype=float).tolist() for v in (p, c, lo, hi))):
         api = abs(pi)
         if api <= 1e-12 * (1.0 + api + abs(ci)):
             if ci > h + 1e-12 or ci < l - 1e-12:
@@ -160,142 +130,10 @@ def _scaling_alpha(p: list[float], c: list[float], lo: list[float], hi: list[flo
         r1, r2 = (l - ci) / pi, (h - ci) / pi
         if r1 > r2:
             r1, r2 = r2, r1
-        if r1 > a_lo:
-            a_lo = r1
-        if r2 < a_hi:
-            a_hi = r2
+        a_lo, a_hi = max(a_lo, r1), min(a_hi, r2)
     if a_lo > a_hi + 1e-12:
         return None
-    return a_hi if a_hi > 0.0 else 0.0
-
-
-# ---------------------------------------------------------------------- ASO
-def aso_volume(tau, torque_min, torque_max, S: float = 50.0) -> float:
-    """Actuator saturation observer V ∈ [0, 1]: the tank of unused torque capacity (thesis eq. 6.14).
-
-    V = (1 − exp(−S (−1)ⁿ Πᵢ (τᵢ − T_max,i)(τᵢ − T_min,i)/(T_max,i − T_min,i)²)) / (1 − exp(−S/4ⁿ)).
-    V = 1 with every torque at the middle of its range, V = 0 when any torque is at or
-    beyond a limit (the formula's sign flips outside the box; we return 0 there).
-
-    Args:
-        tau: (n,) joint torques τ_m [N m].
-        torque_min, torque_max: (n,) limits [N m], min < max.
-        S: shape factor S > 0 (Fig. 6.6 uses 50).
-    """
-    lo, hi = check_torque_limits(torque_min, torque_max)
-    t = as_array("tau", tau, shape_tail=(lo.shape[-1],))
-    if t.ndim != 1:
-        raise InvalidInput(f"tau: expected shape ({lo.shape[-1]},), got {t.shape}")
-    return _aso_volume(t.tolist(), lo.tolist(), hi.tolist(), scalar("S", S, positive=True))
-
-
-def _aso_volume(tau: list[float], torque_min: list[float], torque_max: list[float], S: float) -> float:
-    """`aso_volume` on plain lists, unchecked (the controller's 1 kHz path)."""
-    prod = 1.0  # = (−1)ⁿ Π(...) with each factor > 0 inside the box
-    n = 0
-    for t, lo, hi in zip(tau, torque_min, torque_max):
-        if t >= hi or t <= lo:
-            return 0.0
-        prod *= (hi - t) * (t - lo) / (hi - lo) ** 2
-        n += 1
-    v = -math.expm1(-S * prod) / -math.expm1(-S / 4.0**n)
-    return min(max(v, 0.0), 1.0)
-
-
-def hysteresis(stiff: bool, V: float, eps1: float, eps2: float) -> bool:
-    """Which desired FME is selected, with two thresholds against chattering (thesis eq. 6.15, §6.3.2).
-
-    Switches to stiff when V < ε₁, back to free when V ≥ ε₂ (ε₁ <= ε₂); with ε₁ = ε₂ = ε
-    this is the single-threshold switch of eq. 6.15.
-
-    Returns:
-        True for M_Stiff^des, False for M_Free^des.
-    """
-    if eps1 > eps2:
-        raise InvalidInput(f"eps1: must be <= eps2, got eps1={eps1}, eps2={eps2}")
-    if stiff:
-        return not V >= eps2
-    return V < eps1
-
-
-@dataclasses.dataclass(frozen=True)
-class TransitionConfig:
-    """Parameters of the FME transition (thesis eqs. 6.15–6.19).
-
-    Attributes:
-        eps1: ASO threshold below which the transition free → stiff starts (thesis: 0.7).
-        eps2: ASO threshold above which the transition stiff → free starts (thesis: 0.95).
-        rho: duration per Frobenius distance ρ [s] (eq. 6.19; thesis: 0.003).
-        S: ASO shape factor.
-    """
-
-    eps1: float = 0.7
-    eps2: float = 0.95
-    rho: float = 0.003
-    S: float = 50.0
-
-    def __post_init__(self) -> None:
-        for name in ("eps1", "eps2", "rho", "S"):
-            v = getattr(self, name)
-            if not np.isfinite(v):
-                raise InvalidInput(f"{name}: must be finite, got {v!r}")
-        if not 0.0 <= self.eps1 <= self.eps2 <= 1.0:
-            raise InvalidInput(f"eps1/eps2: need 0 <= eps1 <= eps2 <= 1, got {self.eps1}, {self.eps2}")
-        if self.rho < 0 or self.S <= 0:
-            raise InvalidInput(f"rho/S: need rho >= 0 and S > 0, got {self.rho}, {self.S}")
-
-
-@dataclasses.dataclass(frozen=True)
-class TransitionState:
-    """State of the activation parameter Ω (1: M_Free^des, 0: M_Stiff^des), eqs. 6.16–6.18.
-
-    Attributes:
-        stiff: the target selected by the hysteresis.
-        omega_start: Ω when the current transition began.
-        t0, tf: start and end of the current transition [s] (tf <= t0: none running).
-    """
-
-    stiff: bool = False
-    omega_start: float = 1.0
-    t0: float = 0.0
-    tf: float = 0.0
-
-    def omega(self, t: float) -> float:
-        """Ω(t) = Ω_target + (Ω_start − Ω_target) · ½(1 + cos(π (t − t0)/(tf − t0))) (eqs. 6.17, 6.18)."""
-        target = 0.0 if self.stiff else 1.0
-        if t >= self.tf or self.tf <= self.t0:
-            return target
-        s = max(0.0, (t - self.t0) / (self.tf - self.t0))
-        return target + (self.omega_start - target) * 0.5 * (1.0 + math.cos(math.pi * s))
-
-
-def transition_step(
-    state: TransitionState, t: float, V: float, distance: float, config: TransitionConfig
-) -> tuple[TransitionState, float]:
-    """Advance the FME transition by one tick: hysteresis on V, then the cosine blend.
-
-    A transition starts when the hysteresis target changes; it runs from the current Ω
-    to the new target over ``t_f − t_0 = ρ ‖M_Free − M_Stiff‖_F |Ω_target − Ω|`` (eq. 6.19
-    for a full transition). A transition reversed midway starts from the current Ω, so
-    Ω is continuous in t and ``|dΩ/dt| <= π/(2 ρ ‖M_Free − M_Stiff‖_F)``.
-
-    Args:
-        state: current state.
-        t: time [s].
-        V: ASO volume in [0, 1].
-        distance: ‖M_Free^des − M_Stiff^des‖_F.
-        config: thresholds and ρ.
-
-    Returns:
-        (new state, Ω(t)); the desired FME is Ω M_Free + (1 − Ω) M_Stiff (eq. 6.16).
-    """
-    stiff = hysteresis(state.stiff, V, config.eps1, config.eps2)
-    if stiff != state.stiff:
-        om = state.omega(t)
-        target = 0.0 if stiff else 1.0
-        duration = config.rho * distance * abs(target - om)
-        state = TransitionState(stiff, om, t, t + duration)
-    return state, state.omega(t)
+    return max(a_hi, 0.0)
 
 
 # --------------------------------------------------------------------- allocation
@@ -406,92 +244,12 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
     return dataclasses.replace(res, method="ascm")
 
 
-def _well_conditioned(P: list[list[float]], S: list[int]) -> bool:
-    """Whether P[S, S] = Z_S Z_Sᵀ has smallest eigenvalue > _FAST_TOL (lists)."""
-    if len(S) == 1:
-        return P[S[0]][S[0]] > _FAST_TOL
-    if len(S) == 2:
-        j, k = S
-        a, b, d = P[j][j], P[j][k], P[k][k]
-        return 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b) > _FAST_TOL
-    PSS = np.array([[P[i][j] for j in S] for i in S])
-    return bool(np.linalg.eigvalsh(0.5 * (PSS + PSS.T))[0] > _FAST_TOL)
-
-
-def _held_torque(P: list[list[float]], S: list[int], r: list[float]) -> list[float]:
-    """Least-norm null-space torque with entries r on the joints S: P[:, S] P[S, S]⁻¹ r (lists)."""
-    if len(S) == 1:
-        j = S[0]
-        y = r[0] / P[j][j]
-        return [Pi[j] * y for Pi in P]
-    if len(S) == 2:
-        j, k = S
-        a, b, c, d = P[j][j], P[j][k], P[k][j], P[k][k]
-        det = a * d - b * c
-        y0, y1 = (d * r[0] - b * r[1]) / det, (a * r[1] - c * r[0]) / det
-        return [Pi[j] * y0 + Pi[k] * y1 for Pi in P]
-    y = np.linalg.solve(np.array([[P[i][j] for j in S] for i in S]), np.array(r)).tolist()
-    return [sum(Pi[j] * yj for j, yj in zip(S, y)) for Pi in P]
-
-
-def _ascm_fast(a, b, P, lo_l: list[float], hi_l: list[float], r: int) -> Allocation | None:
-    """`ascm` in projector form on Python floats; None when a held set makes P[S, S] ill-conditioned.
-
-    P: (n, n) array or list of rows.
-    """
-    n = a.shape[0]
-    a_l, b_l = a.tolist(), b.tolist()
-    base = [x + y for x, y in zip(a_l, b_l)]
-    Pl = P if isinstance(P, list) else P.tolist()
-    S: list[int] = []
-    ts: dict[int, float] = {}
-    tl, d = base, [0.0] * n
-    for _ in range(n + 1):
-        if S:
-            d = _held_torque(Pl, S, [ts[j] - base[j] for j in S])
-            tl = [x + y for x, y in zip(base, d)]
-        k, worst = -1, _TOL
-        for i in range(n):
-            if i in ts:
-                continue
-            o = max(tl[i] - hi_l[i], lo_l[i] - tl[i]) / (hi_l[i] - lo_l[i])
-            if o > worst:
-                k, worst = i, o
-        if k < 0:
-            sat = np.zeros(n, bool)
-            sat[S] = True
-            return Allocation(np.array(tl), 1.0, sat, np.array(d), "ascm")
-        S2 = sorted(S + [k])
-        if len(S2) > r:
-            break
-        if not _well_conditioned(Pl, S2):
-            return None  # the rank test and the solve need the basis form
-        S = S2
-        ts[k] = hi_l[k] if tl[k] > hi_l[k] else lo_l[k]
-    if S:
-        # τ(α) = α p + c with the joints S held at ts: p = a − P_S P_SS⁻¹ a_S, c = b + P_S P_SS⁻¹ (ts − b_S);
-        # the last held torque d = P_S P_SS⁻¹ (ts − a_S − b_S) gives c = b + d + (a − p)
-        ha = _held_torque(Pl, S, [a_l[j] for j in S])
-        p = [x - y for x, y in zip(a_l, ha)]
-        c = [x + y + z for x, y, z in zip(b_l, d, ha)]
-        free = [i for i in range(n) if i not in ts]
-        alpha = _scaling_alpha([p[i] for i in free], [c[i] for i in free], [lo_l[i] for i in free], [hi_l[i] for i in free])
-        if alpha is not None:
-            tl = [min(max(alpha * pi + ci, l), h) for pi, ci, l, h in zip(p, c, lo_l, hi_l)]
-            null = [t - alpha * x - y for t, x, y in zip(tl, a_l, b_l)]
-            sat = np.zeros(n, bool)
-            sat[S] = True
-            return Allocation(np.array(tl), alpha, sat, np.array(null), "ascm")
-    res = allocate_scaling(a, b, np.array(lo_l), np.array(hi_l))
-    return dataclasses.replace(res, method="ascm")
-
-
 def ascm_projector(a, b, P, lo, hi, *, rank: int | None = None) -> Allocation:
     """ASCM (thesis Algorithm 1) from the null-space projector P = Z Zᵀ: the allocation of `ascm`.
 
     Same iteration as `ascm` (most overloaded joint first, least-norm null-space torque,
     α-scaling when ``Z_𝒮`` would lose rank), with the least-norm torque written
-    ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` and the few-joint algebra on Python floats: for a controller
+    ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` (the compiled `rhi.control.kernels.ascm`): for a controller
     tick, where P comes from `null_projector` instead of an SVD. Because P[𝒮, 𝒮] squares
     the condition number of Z_𝒮, a held set with σ_min(Z_𝒮) < 0.01 is handed to `ascm`
     with a basis of P (the same allocation, computed accurately).
@@ -507,10 +265,14 @@ def ascm_projector(a, b, P, lo, hi, *, rank: int | None = None) -> Allocation:
         The allocation; equal to ``ascm(a, b, Z, lo, hi)`` for any orthonormal Z with Z Zᵀ = P.
     """
     r = int(round(float(np.trace(P)))) if rank is None else rank
-    res = _ascm_fast(a, b, P, _as_list(lo), _as_list(hi), r)
-    if res is None:
-        res = ascm(a, b, basis_from_projector(P, r), np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
-    return res
+    a, b, P, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (a, b, P, lo, hi))
+    sat = np.zeros(a.shape[0], bool)
+    tau, alpha, clipped, ok = kernels.ascm(a, b, P, lo, hi, r, sat)
+    if not ok:
+        return ascm(a, b, basis_from_projector(P, r), lo, hi)
+    if clipped:
+        return dataclasses.replace(allocate_scaling(a, b, lo, hi), method="ascm")
+    return Allocation(tau, alpha, sat, tau - alpha * a - b, "ascm")
 
 
 def allocate_lp(a, b, Z, lo, hi) -> Allocation:
@@ -571,38 +333,16 @@ def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> 
         ZS = Z[saturated]
         c = c - np.linalg.pinv(ZS) @ (ZS @ c)
     delta = Z @ c
-    if not np.any(np.abs(delta) > _negligible(tau_to)):
+    if not np.any(np.abs(delta) > negligible(tau_to)):
         return np.zeros_like(tau), 0.0
     beta = scaling_alpha(delta, np.clip(tau, lo, hi), lo, hi)
     beta = 0.0 if beta is None else beta
     return beta * delta, beta
 
 
-def _negligible(tau_to) -> float:
-    """Null-space torques below this [N m] are rounding noise of the projections."""
-    return 1e-12 * (1.0 + max(map(abs, _as_list(tau_to))))
-
-
-def _tertiary_fast(tau, saturated, P, tau_to, Ntau_to, lo_l, hi_l, rank: int) -> tuple[np.ndarray, float] | None:
-    """`tertiary` in projector form; None when P[S, S] is ill-conditioned (use the basis form)."""
-    n = tau.shape[0]
-    dl = Ntau_to.tolist()
-    S = [i for i, v in enumerate(saturated.tolist()) if v]
-    if S:
-        if n - len(S) <= n - rank:  # no redundancy left (Algorithm 2, line 2)
-            return np.zeros(n), 0.0
-        Pl = P if isinstance(P, list) else P.tolist()
-        if not _well_conditioned(Pl, S):
-            return None
-        dl = [x - y for x, y in zip(dl, _held_torque(Pl, S, [dl[j] for j in S]))]
-    tiny = _negligible(tau_to)
-    if max(map(abs, dl)) <= tiny:
-        return np.zeros(n), 0.0
-    tc = [min(max(t, l), h) for t, l, h in zip(tau.tolist(), lo_l, hi_l)]
-    beta = _scaling_alpha(dl, tc, lo_l, hi_l)
-    if beta is None:
-        return np.zeros(n), 0.0
-    return np.array([beta * v for v in dl]), beta
+def negligible(tau) -> float:
+    """Null-space torques below this [N m] are rounding noise of the projections (tau: (n,) [N m])."""
+    return 1e-12 * (1.0 + float(np.max(np.abs(tau))))
 
 
 def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -620,11 +360,13 @@ def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None =
         (β δ (n,) [N m] to add to tau, β).
     """
     r = int(round(float(np.trace(P))))
-    Ntau = (P if N is None else N).dot(tau_to)
-    res = _tertiary_fast(tau, saturated, P, tau_to, Ntau, _as_list(lo), _as_list(hi), r)
-    if res is None:
-        res = tertiary(tau, saturated, basis_from_projector(P, r), tau_to, np.asarray(lo), np.asarray(hi), N)
-    return res
+    tau, P, tau_to, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (tau, P, tau_to, lo, hi))
+    saturated = np.ascontiguousarray(saturated, dtype=bool)
+    Ntau = (P if N is None else np.asarray(N, dtype=float)).dot(tau_to)
+    delta, beta, ok = kernels.tertiary(tau, saturated, P, tau_to, Ntau, lo, hi, r)
+    if not ok:
+        return tertiary(tau, saturated, basis_from_projector(P, r), tau_to, lo, hi, N)
+    return delta, beta
 
 
 def force_capability(

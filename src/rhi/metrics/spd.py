@@ -9,6 +9,15 @@ from rhi.errors import InvalidInput
 from rhi.metrics._common import FloatArray, cholesky, direction, positive, square
 
 
+def spd_matrix(name: str, A: ArrayLike) -> FloatArray:
+    """A as one (m, m) symmetric positive definite float matrix; InvalidInput / NotSPD naming `name` otherwise."""
+    A = square(name, A)
+    if A.ndim != 2:
+        raise InvalidInput(f"{name}: expected a square (m, m) matrix, got shape {A.shape}")
+    cholesky(name, A)
+    return A
+
+
 def _logdet_spd(name: str, A: FloatArray) -> FloatArray:
     """``log det A`` of a symmetric positive definite ``A`` via its Cholesky factor."""
     L = cholesky(name, A)

@@ -1,0 +1,37 @@
+"""The controller's compiled kernels (Numba): the per-tick step and the allocation within the torque box.
+
+`step.tick` is the whole tick after the primary law; `allocation` holds ASCM in projector form,
+simple scaling, the active-set method, the safety room and the tertiary scaling, also used
+on their own by `rhi.control.saturation` and `rhi.control.active_set`.
+"""
+
+from rhi.control.kernels.allocation import active_set, active_set_result, ascm, tertiary
+from rhi.control.kernels.step import (
+    ACTIVE_SET,
+    ASCM,
+    FALLBACK,
+    N_PARAMS,
+    NONE,
+    OK,
+    P_ASO_S,
+    P_DAMPING,
+    P_DYNAMIC,
+    P_EPS1,
+    P_EPS2,
+    P_FME,
+    P_FME_DIST,
+    P_FME_GAIN,
+    P_GRAVITY,
+    P_RHO,
+    P_SATURATION,
+    SCALING,
+    SINGULAR,
+    aso_volume,
+    tick,
+)
+
+__all__ = [
+    "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_DAMPING", "P_DYNAMIC", "P_EPS1",
+    "P_EPS2", "P_FME", "P_FME_DIST", "P_FME_GAIN", "P_GRAVITY", "P_RHO", "P_SATURATION", "SCALING", "SINGULAR",
+    "active_set", "active_set_result", "ascm", "aso_volume", "tertiary", "tick",
+]

@@ -1,0 +1,344 @@
+"""Compiled allocation within the torque box: ASCM in projector form, simple scaling, the active-set method,
+the safety room and the tertiary scaling β (thesis Algorithms 1 and 2, eqs. 7.5–7.16).
+
+The projector form writes the least-norm null-space torque that puts the joints 𝒮 at r as
+``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` with P = Z Zᵀ; it is trusted only while λ_min(P[𝒮, 𝒮]) > 1e-4
+(σ_min(Z_𝒮) > 0.01, since P[𝒮, 𝒮] squares Z_𝒮's condition number), where a held torque is
+accurate to ~ε r / λ < 1e-11 N m per N m; otherwise the functions say so (`ok` False) and
+the caller uses the basis form of `rhi.control.saturation`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rhi.control.kernels.jit import jit
+from rhi.terms_kernel import dot, mm, mv
+from rhi.terms_kernel import inv as _inv
+
+_TOL = 1e-12  # ASCM: relative overload below this is no overload
+_FAST_TOL = 1e-4  # smallest eigenvalue of P[S, S] the projector form trusts (σ_min(Z_S) >= 0.01)
+
+
+@jit
+def null_projector(A):
+    """I − Qᵀ Q with Q an orthonormal basis of the rows of A (m, n), by CGS2; None-free: returns (P, ok)."""
+    m, n = A.shape
+    Q = np.zeros((m, n))
+    for i in range(m):
+        v = A[i].copy()
+        scale = math.sqrt(dot(v, v))
+        for _ in range(2):
+            for j in range(i):
+                v = v - dot(Q[j], v) * Q[j]
+        nv = math.sqrt(dot(v, v))
+        if not nv > 1e-12 * scale:
+            return np.eye(n), False
+        Q[i] = v / nv
+    return np.eye(n) - mm(Q.T, Q), True
+
+
+@jit
+def scaling_alpha(p, c, lo, hi, mask):
+    """Largest α ∈ [0, 1] with lo <= α p + c <= hi on the entries where mask; −1 when none is feasible."""
+    a_lo, a_hi = 0.0, 1.0
+    for i in range(p.shape[0]):
+        if not mask[i]:
+            continue
+        pi, ci = p[i], c[i]
+        api = abs(pi)
+        if api <= 1e-12 * (1.0 + api + abs(ci)):
+            if ci > hi[i] + 1e-12 or ci < lo[i] - 1e-12:
+                return -1.0
+            continue
+        r1, r2 = (lo[i] - ci) / pi, (hi[i] - ci) / pi
+        if r1 > r2:
+            r1, r2 = r2, r1
+        if r1 > a_lo:
+            a_lo = r1
+        if r2 < a_hi:
+            a_hi = r2
+    if a_lo > a_hi + 1e-12:
+        return -1.0
+    return a_hi if a_hi > 0.0 else 0.0
+
+
+@jit
+def well_conditioned(P, S, k):
+    """Whether P[S, S] (S[:k]) has its smallest eigenvalue above _FAST_TOL."""
+    if k == 1:
+        return P[S[0], S[0]] > _FAST_TOL
+    if k == 2:
+        a, b, d = P[S[0], S[0]], P[S[0], S[1]], P[S[1], S[1]]
+        return 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b) > _FAST_TOL
+    # λ_min(P[S, S]) > tol ⟺ P[S, S] − tol I has a Cholesky factor
+    L = np.zeros((k, k))
+    for i in range(k):
+        for j in range(i + 1):
+            v = 0.5 * (P[S[i], S[j]] + P[S[j], S[i]]) - (_FAST_TOL if i == j else 0.0)
+            for l in range(j):
+                v -= L[i, l] * L[j, l]
+            if i == j:
+                if not v > 0.0:
+                    return False
+                L[i, i] = math.sqrt(v)
+            else:
+                L[i, j] = v / L[j, j]
+    return True
+
+
+@jit
+def held_torque(P, S, k, r):
+    """Least-norm null-space torque with entries r (k,) on the joints S[:k]: P[:, S] P[S, S]⁻¹ r. (n,)."""
+    n = P.shape[0]
+    PSS = np.empty((k, k))
+    for i in range(k):
+        for j in range(k):
+            PSS[i, j] = P[S[i], S[j]]
+    y = mv(_inv(PSS), r)
+    out = np.zeros(n)
+    for i in range(n):
+        for j in range(k):
+            out[i] += P[i, S[j]] * y[j]
+    return out
+
+
+@jit
+def clip(x, lo, hi):
+    return np.minimum(np.maximum(x, lo), hi)
+
+
+@jit
+def allocate_scaling(a, b, lo, hi, sat):
+    """Simple scaling into sat (n,) bool; returns (τ, α, clipped)."""
+    n = a.shape[0]
+    alpha = scaling_alpha(a, b, lo, hi, np.ones(n, np.bool_))
+    sat[:] = False
+    if alpha < 0.0:
+        return clip(b, lo, hi), 0.0, True
+    tau = clip(alpha * a + b, lo, hi)
+    if alpha < 1.0:
+        for i in range(n):
+            sat[i] = abs(tau[i] - hi[i]) <= 1e-12 * (1.0 + abs(hi[i])) or abs(tau[i] - lo[i]) <= 1e-12 * (1.0 + abs(lo[i]))
+    return tau, alpha, False
+
+
+@jit
+def ascm(a, b, P, lo, hi, r, sat):
+    """ASCM (Algorithm 1) in projector form into sat; returns (τ, α, clipped, ok); ok False: use the basis form."""
+    n = a.shape[0]
+    base = a + b
+    S = np.empty(n, np.int64)  # held joints, sorted
+    k = 0
+    held = np.zeros(n, np.bool_)
+    ts = np.zeros(n)
+    tl = base.copy()
+    d = np.zeros(n)
+    for _ in range(n + 1):
+        if k:
+            rr = np.empty(k)
+            for i in range(k):
+                rr[i] = ts[S[i]] - base[S[i]]
+            d = held_torque(P, S, k, rr)
+            tl = base + d
+        j, worst = -1, _TOL
+        for i in range(n):
+            if held[i]:
+                continue
+            o = max(tl[i] - hi[i], lo[i] - tl[i]) / (hi[i] - lo[i])
+            if o > worst:
+                j, worst = i, o
+        if j < 0:
+            sat[:] = held
+            return tl, 1.0, False, True
+        if k + 1 > r:
+            break
+        S2 = S.copy()
+        pos = k
+        while pos > 0 and S2[pos - 1] > j:
+            S2[pos] = S2[pos - 1]
+            pos -= 1
+        S2[pos] = j
+        if not well_conditioned(P, S2, k + 1):
+            return tl, 1.0, False, False
+        S, k = S2, k + 1
+        held[j] = True
+        ts[j] = hi[j] if tl[j] > hi[j] else lo[j]
+    if k:
+        # τ(α) = α p + c with S held at ts: p = a − P_S P_SS⁻¹ a_S, c = b + d + (a − p)
+        ra = np.empty(k)
+        for i in range(k):
+            ra[i] = a[S[i]]
+        ha = held_torque(P, S, k, ra)
+        p = a - ha
+        c = b + d + ha
+        alpha = scaling_alpha(p, c, lo, hi, ~held)
+        if alpha >= 0.0:
+            sat[:] = held
+            return clip(alpha * p + c, lo, hi), alpha, False, True
+    tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
+    return tau, alpha, clipped, True
+
+
+@jit
+def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
+    """The primal active-set method of `rhi.control.active_set` from a feasible start: (ok, α, y).
+
+    Maximises α s.t. lo <= α a + b + Z y <= hi, 0 <= α <= 1 over x = (α |a|, y), from the
+    start (α0, τ0 with the joints sat0 held); ok False when it does not settle (use the LP).
+    """
+    n, r = Z.shape
+    k = r + 1
+    sa = math.sqrt(a @ a)
+    G = np.zeros((2 * n + 2, k))
+    h = np.empty(2 * n + 2)
+    for i in range(n):
+        G[i, 0] = a[i] / sa
+        G[n + i, 0] = -a[i] / sa
+        for j in range(r):
+            G[i, 1 + j] = Z[i, j]
+            G[n + i, 1 + j] = -Z[i, j]
+        h[i] = hi[i] - b[i]
+        h[n + i] = b[i] - lo[i]
+    G[2 * n, 0], G[2 * n + 1, 0] = 1.0, -1.0
+    h[2 * n], h[2 * n + 1] = sa, 0.0
+    e0 = np.zeros(k)
+    e0[0] = 1.0
+    x = np.empty(k)
+    x[0] = alpha0 * sa
+    x[1:] = np.ascontiguousarray(Z.T) @ (tau0 - alpha0 * a - b)
+    W = np.empty(k, np.int64)
+    nw = 0
+    for j in range(n):
+        if sat0[j]:
+            W[nw] = j if tau0[j] >= 0.5 * (hi[j] + lo[j]) else n + j
+            nw += 1
+    if alpha0 >= 1.0 - 1e-12 and nw < k:
+        W[nw] = 2 * n
+        nw += 1
+    elif alpha0 <= 1e-12 and nw < k:
+        W[nw] = 2 * n + 1
+        nw += 1
+    gnorm = np.empty(2 * n + 2)
+    for i in range(2 * n + 2):
+        gnorm[i] = 1e-12 * math.sqrt(G[i] @ G[i])
+    for _ in range(max_iter):
+        GW = G[W[:nw]]
+        GWt = np.ascontiguousarray(GW.T)
+        g0 = GWt[0].copy()
+        if nw < k:
+            d = e0 - GWt @ (_inv(GW @ GWt) @ g0) if nw else e0.copy()
+            if d @ d > 1e-20:
+                Gd = G @ d
+                slack = h - G @ x
+                best, i_best = np.inf, -1
+                for i in range(2 * n + 2):
+                    if Gd[i] > gnorm[i] and not np.any(W[:nw] == i):
+                        ratio = max(slack[i], 0.0) / Gd[i]
+                        if ratio < best:
+                            best, i_best = ratio, i
+                if i_best < 0:
+                    return False, 0.0, x[1:].copy()  # unbounded cannot happen with α <= 1
+                x = x + best * d
+                W[nw] = i_best
+                nw += 1
+                continue
+        lam = _inv(GW @ GWt) @ g0  # GWᵀ λ = e0 (GW has independent rows)
+        i = np.argmin(lam)
+        if lam[i] >= -1e-12:
+            return True, x[0] / sa, x[1:].copy()
+        for j in range(i, nw - 1):
+            W[j] = W[j + 1]
+        nw -= 1
+    return False, 0.0, x[1:].copy()
+
+
+@jit
+def active_set_result(alpha, y, a, b, Z, lo, hi, sat):
+    """τ = clip(α a + b + Z y) into the box with the joints at a limit in sat: (τ, α)."""
+    alpha = min(max(alpha, 0.0), 1.0)
+    tau = clip(alpha * a + b + Z @ y, lo, hi)
+    for i in range(tau.shape[0]):
+        tol = 1e-9 * (1.0 + abs(hi[i] - lo[i]))
+        sat[i] = abs(tau[i] - hi[i]) <= tol or abs(tau[i] - lo[i]) <= tol
+    return tau, alpha
+
+
+@jit
+def basis(P, r):
+    """An orthonormal basis (n, r) of the range of the orthogonal projector P: its columns by pivoted CGS2."""
+    n = P.shape[0]
+    Zt = np.zeros((r, n))
+    R = 0.5 * (P + P.T)  # residual columns, stored as rows (P is symmetric)
+    for c in range(r):
+        best, jb = -1.0, 0
+        for j in range(n):
+            v = R[j] @ R[j]
+            if v > best:
+                best, jb = v, j
+        v = R[jb].copy()
+        for _ in range(2):
+            for i in range(c):
+                v = v - (Zt[i] @ v) * Zt[i]
+        Zt[c] = v / math.sqrt(v @ v)
+        for j in range(n):
+            R[j] = R[j] - (Zt[c] @ R[j]) * Zt[c]
+    return np.ascontiguousarray(Zt.T)
+
+
+@jit
+def negligible(x):
+    """Null-space torques below this [N m] are rounding noise of the projections."""
+    return 1e-12 * (1.0 + np.max(np.abs(x)))
+
+
+@jit
+def held_set(sat):
+    n = sat.shape[0]
+    S = np.empty(n, np.int64)
+    k = 0
+    for i in range(n):
+        if sat[i]:
+            S[k] = i
+            k += 1
+    return S, k
+
+
+@jit
+def safety_room(tau, b, delta, lo, hi):
+    """`rhi.control.safety.safety_room` (not skipped): (τ', γ)."""
+    if not np.any(np.abs(delta) > negligible(delta)):
+        return tau, 1.0
+    n = tau.shape[0]
+    every = np.ones(n, np.bool_)
+    c = b + delta
+    gamma = scaling_alpha(tau - b, c, lo, hi, every)
+    if gamma < 0.0:
+        sigma = scaling_alpha(delta, clip(tau, lo, hi), lo, hi, every)
+        return tau + max(sigma, 0.0) * delta, 1.0
+    return clip(c + gamma * (tau - b), lo, hi), gamma
+
+
+@jit
+def tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r):
+    """Algorithm 2 in projector form: (β δ, β, ok); ok False: use the basis form."""
+    n = tau.shape[0]
+    dl = Ntau.copy()
+    S, k = held_set(sat)
+    if k:
+        if n - k <= n - r:  # no redundancy left (Algorithm 2, line 2)
+            return np.zeros(n), 0.0, True
+        if not well_conditioned(P, S, k):
+            return np.zeros(n), 0.0, False
+        rr = np.empty(k)
+        for i in range(k):
+            rr[i] = dl[S[i]]
+        dl = dl - held_torque(P, S, k, rr)
+    if np.max(np.abs(dl)) <= negligible(tau_to):
+        return np.zeros(n), 0.0, True
+    beta = scaling_alpha(dl, clip(tau, lo, hi), lo, hi, np.ones(n, np.bool_))
+    if beta < 0.0:
+        return np.zeros(n), 0.0, True
+    return beta * dl, beta, True

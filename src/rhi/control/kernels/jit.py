@@ -1,0 +1,6 @@
+"""The Numba decorator every rhi.control kernel uses."""
+
+from numba import njit
+
+#: Compiled once per machine (cached on disk); floating-point errors give inf/NaN (checked by the caller), not exceptions.
+jit = njit(cache=True, error_model="numpy")

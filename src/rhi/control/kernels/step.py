@@ -1,0 +1,232 @@
+"""The null-space controller's 1 kHz tick, compiled with Numba: one call per tick after the primary law.
+
+`tick` computes steps 2–6 of `rhi.control.controller` (τ_m, the ASO volume V of eq. 6.14,
+the FME transition of eqs. 6.15–6.19, the FME- and VME-matching gradients of eqs. 6.10 and
+3.22, the allocation — none, simple scaling, ASCM (Algorithm 1) in projector form, or the
+active-set method on ASCM's LP started at ASCM (`rhi.control.active_set`) —, the
+safety torque and the tertiary torque of Algorithm 2) on small arrays, without a Python
+call in between. The readable composition of the same equations is
+`rhi.control.reference`, the oracle this kernel is tested against (same torques to
+1e-10 N m). Where the projector form cannot decide accurately (a held set with
+σ_min(Z_𝒮) < 0.01, whose P[𝒮, 𝒮] = Z_𝒮 Z_𝒮ᵀ squares the condition number) the kernel
+returns `FALLBACK` and the controller runs that tick through the reference.
+
+Numba is imported by `rhi.control`, not by ``import rhi``; the compiled code is cached on
+disk (`cache=True`), so only the first use on a machine pays the compilation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rhi.control.kernels.allocation import (
+    active_set,
+    active_set_result,
+    allocate_scaling,
+    ascm,
+    basis,
+    clip,
+    held_set,
+    held_torque,
+    null_projector,
+    safety_room,
+    tertiary,
+    well_conditioned,
+)
+from rhi.control.kernels.jit import jit
+from rhi.terms_kernel import dot, mm, mtv, mv
+from rhi.terms_kernel import inv as _inv
+
+#: Status of `tick`.
+OK, FALLBACK, SINGULAR = 0, 1, 2
+#: Saturation codes of `tick`.
+NONE, SCALING, ASCM, ACTIVE_SET = 0, 1, 2, 3
+#: Indices of the parameter vector of `tick`.
+P_DAMPING, P_ASO_S, P_GRAVITY, P_DYNAMIC, P_SATURATION, P_FME, P_FME_GAIN, P_FME_DIST, P_EPS1, P_EPS2, P_RHO = range(11)
+N_PARAMS = 11
+
+
+@jit
+def _contract(Y, dJ):
+    """Σ_ij Y_ij ∂J_ij/∂q_k: (n,) for Y: (m, n), dJ: (m, n, n)."""
+    m, n = Y.shape
+    out = np.zeros(n)
+    for i in range(m):
+        for j in range(n):
+            y = Y[i, j]
+            for k in range(n):
+                out[k] += y * dJ[i, j, k]
+    return out
+
+
+@jit
+def vme_gradient(D, J, dJ):
+    """∂/∂q of JBLD(D, JJᵀ) (eq. 3.22): 2 Σ (G J)_ij ∂J_ij/∂q_k, G = ½((D + JJᵀ)/2)⁻¹ − ½(JJᵀ)⁻¹. (n,)."""
+    M = mm(J, J.T)
+    G = _inv(0.5 * (D + M)) - _inv(M)
+    return _contract(mm(G, J), dJ)
+
+
+@jit
+def fme_gradient(D, J, dJ, w2):
+    """∂/∂q of JBLD(M̂, D), M̂ = (J W² Jᵀ)⁻¹ (eqs. 6.9–6.10): −2 Σ (Hᵀ J W²)_ij ∂J_ij/∂q_k. (n,)."""
+    Jw = J * w2
+    A = mm(Jw, J.T)
+    Mh = _inv(A)
+    G = 0.5 * (_inv(0.5 * (Mh + D)) - A)
+    H = mm(mm(Mh, G), Mh)
+    return -2.0 * _contract(mm(H.T, Jw), dJ)
+
+
+@jit
+def aso_volume(tau, lo, hi, S):
+    """The actuator saturation observer V ∈ [0, 1] of eq. 6.14 (0 on or outside the box)."""
+    prod = 1.0
+    n = tau.shape[0]
+    for i in range(n):
+        t = tau[i]
+        if t >= hi[i] or t <= lo[i]:
+            return 0.0
+        prod *= (hi[i] - t) * (t - lo[i]) / (hi[i] - lo[i]) ** 2
+    v = -math.expm1(-S * prod) / -math.expm1(-S / 4.0**n)
+    return min(max(v, 0.0), 1.0)
+
+
+@jit
+def _omega(tr, t):
+    """Ω(t) of the transition state tr = (stiff, Ω_start, t0, tf) (eqs. 6.17, 6.18)."""
+    target = 0.0 if tr[0] != 0.0 else 1.0
+    if t >= tr[3] or tr[3] <= tr[2]:
+        return target
+    s = max(0.0, (t - tr[2]) / (tr[3] - tr[2]))
+    return target + (tr[1] - target) * 0.5 * (1.0 + math.cos(math.pi * s))
+
+
+@jit
+def transition(tr, t, V, distance, eps1, eps2, rho):
+    """Advance tr in place by one tick (hysteresis of eq. 6.15, then the cosine blend); returns Ω(t)."""
+    stiff_now = tr[0] != 0.0
+    stiff = (not V >= eps2) if stiff_now else V < eps1
+    if stiff != stiff_now:
+        om = _omega(tr, t)
+        target = 0.0 if stiff else 1.0
+        tr[0], tr[1], tr[2], tr[3] = (1.0 if stiff else 0.0), om, t, t + rho * distance * abs(target - om)
+    return _omega(tr, t)
+
+
+@jit
+def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
+         vme_D, vme_gain, tau_s_extra, tau_to_extra, tau_out, sat):
+    """Steps 2–6 of one controller tick (see `rhi.control.controller`).
+
+    Args:
+        t: time [s].
+        terms: the device terms, flat (`rhi.terms_kernel.task_terms`; at least the first nine).
+        at: (≥ 9,) int64 start of each term in `terms` (`rhi.terms_kernel.layout`).
+        F_r, F_x: (m,) rendered (α-scaled) and extra task forces [N].
+        dq: (n,) joint velocities [rad/s].
+        lo, hi: (n,) torque limits [N m].
+        prm: (N_PARAMS,) parameters (P_* indices).
+        tr: (4,) FME transition state (stiff, Ω_start, t0, tf), advanced in place.
+        fme_free, fme_stiff: (m, m) desired FMEs; w2: (n,) 1/T_max².
+        vme_D: (k, m, m) desired VMEs of the VME-matching objectives, vme_gain: (k,) their steps.
+        tau_s_extra: (n,) −Σ gain ∂ν_lim/∂q of the joint-limit barriers [N m].
+        tau_to_extra: (n,) −Σ gain ∂ν/∂q of the objectives computed outside the kernel [N m].
+        tau_out: (n,) the torque, written [N m]; sat: (n,) bool, the held joints, written.
+
+    Returns:
+        (status, α, β, V, Ω, clipped).
+    """
+    n, m = dq.shape[0], F_r.shape[0]
+    J = terms[at[0]:at[0] + m * n].reshape((m, n))
+    dJ = terms[at[1]:at[1] + m * n * n].reshape((m, n, n))
+    g = terms[at[3]:at[3] + n]
+    JMinv = terms[at[5]:at[5] + m * n].reshape((m, n))
+    Jsharp = terms[at[7]:at[7] + n * m].reshape((n, m))
+    Gx = terms[at[8]:at[8] + m]
+    a = mtv(J, F_r)
+    b = mtv(J, F_x)
+    if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
+        b = b + (g - mtv(J, Gx))
+    tau_m = a + b
+    V = aso_volume(tau_m, lo, hi, prm[P_ASO_S])
+    omega = 1.0
+    tau_s = -prm[P_DAMPING] * dq + tau_s_extra
+    tau_to = tau_s
+    if prm[P_FME] != 0.0:
+        omega = transition(tr, t, V, prm[P_FME_DIST], prm[P_EPS1], prm[P_EPS2], prm[P_RHO])
+        if prm[P_FME_GAIN] > 0.0:
+            D = fme_free if omega == 1.0 else (fme_stiff if omega == 0.0 else omega * fme_free + (1.0 - omega) * fme_stiff)
+            tau_to = tau_to - prm[P_FME_GAIN] * fme_gradient(D, J, dJ, w2)
+    for i in range(vme_gain.shape[0]):
+        tau_to = tau_to - vme_gain[i] * vme_gradient(vme_D[i], J, dJ)
+    tau_to = tau_to + tau_to_extra
+    r = n - m
+    dynamic = prm[P_DYNAMIC] != 0.0
+    have_P = False
+    P = np.eye(n)
+    if dynamic:
+        Ntau = tau_to - mtv(J, mtv(Jsharp, tau_to))
+    else:
+        P, ok = null_projector(J)
+        if not ok:
+            return SINGULAR, 1.0, 0.0, V, omega, False
+        have_P = True
+        Ntau = mv(P, tau_to)
+    code = prm[P_SATURATION]
+    clipped = False
+    alpha = 1.0
+    safe = code != SCALING
+    if V > 0.0 and (code == ASCM or code == ACTIVE_SET):
+        tau = tau_m
+        sat[:] = False
+    elif code == ASCM or code == ACTIVE_SET:
+        if not have_P:
+            P, ok = null_projector(JMinv)
+            if not ok:
+                return SINGULAR, 1.0, 0.0, V, omega, False
+            have_P = True
+        tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
+        if not ok:
+            return FALLBACK, 1.0, 0.0, V, omega, False
+        if code == ACTIVE_SET:
+            if clipped or not np.any(a != 0.0):
+                return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
+            Z = basis(P, r)
+            ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
+            if not ok:
+                return FALLBACK, 1.0, 0.0, V, omega, False
+            tau, alpha = active_set_result(alpha, y, a, b, Z, lo, hi, sat)
+    elif code == SCALING:
+        tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
+    else:
+        tau = clip(tau_m, lo, hi)
+        for i in range(n):
+            sat[i] = tau_m[i] > hi[i] or tau_m[i] < lo[i]
+    gamma = 1.0
+    if safe and np.any(sat):  # the safety torque the held joints would block
+        if not have_P:
+            P, ok = null_projector(JMinv)
+            if not ok:
+                return SINGULAR, 1.0, 0.0, V, omega, False
+            have_P = True
+        Nsafe = tau_s - mtv(J, mtv(Jsharp, tau_s)) if dynamic else mv(P, tau_s)
+        S, k = held_set(sat)
+        if not well_conditioned(P, S, k):
+            return FALLBACK, 1.0, 0.0, V, omega, False
+        rr = np.empty(k)
+        for i in range(k):
+            rr[i] = Nsafe[S[i]]
+        if not clipped:
+            tau, gamma = safety_room(tau, b, held_torque(P, S, k, rr), lo, hi)
+    if not have_P and np.any(sat):
+        P, ok = null_projector(JMinv)
+        if not ok:
+            return SINGULAR, 1.0, 0.0, V, omega, False
+    delta, beta, ok = tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r)
+    if not ok:
+        return FALLBACK, 1.0, 0.0, V, omega, False
+    tau_out[:] = clip(tau + delta if beta != 0.0 else tau, lo, hi)
+    return OK, gamma * alpha, beta, V, omega, clipped

@@ -1,0 +1,215 @@
+"""Compiled kernel behind `Device.terms`: every kinematic and dynamic term of one state from one Pinocchio pass.
+
+`task_terms` maps the chain's 6-D frame Jacobian, inertia, gravity and Coriolis matrices
+(Pinocchio, chain coordinates θ = A q + b) to motor coordinates and computes the
+task-space dynamics of thesis eq. 5.2 (M_x, J#, C_x, G_x) in one call. Imported on the
+first `Device.terms` call, not with `rhi` (Numba's import and, once per machine, the
+compilation stay out of ``import rhi``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: Compiled once per machine (cached on disk); floating-point errors give inf/NaN, not exceptions.
+_jit = njit(cache=True, error_model="numpy")
+
+
+@_jit
+def inv(A):
+    """Inverse of a small (k, k) matrix: closed form for k <= 3, Gauss-Jordan otherwise (singular: inf/NaN)."""
+    k = A.shape[0]
+    out = np.empty((k, k))
+    if k == 1:
+        out[0, 0] = 1.0 / A[0, 0]
+    elif k == 2:
+        det = A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]
+        out[0, 0], out[0, 1] = A[1, 1] / det, -A[0, 1] / det
+        out[1, 0], out[1, 1] = -A[1, 0] / det, A[0, 0] / det
+    elif k == 3:
+        c00 = A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]
+        c01 = A[1, 2] * A[2, 0] - A[1, 0] * A[2, 2]
+        c02 = A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]
+        det = A[0, 0] * c00 + A[0, 1] * c01 + A[0, 2] * c02
+        out[0, 0], out[1, 0], out[2, 0] = c00 / det, c01 / det, c02 / det
+        out[0, 1] = (A[0, 2] * A[2, 1] - A[0, 1] * A[2, 2]) / det
+        out[1, 1] = (A[0, 0] * A[2, 2] - A[0, 2] * A[2, 0]) / det
+        out[2, 1] = (A[0, 1] * A[2, 0] - A[0, 0] * A[2, 1]) / det
+        out[0, 2] = (A[0, 1] * A[1, 2] - A[0, 2] * A[1, 1]) / det
+        out[1, 2] = (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) / det
+        out[2, 2] = (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) / det
+    else:  # Gauss-Jordan with partial pivoting (no LAPACK call overhead at these sizes)
+        W = A.copy()
+        out[:, :] = 0.0
+        for i in range(k):
+            out[i, i] = 1.0
+        for c in range(k):
+            p = c
+            for r in range(c + 1, k):
+                if abs(W[r, c]) > abs(W[p, c]):
+                    p = r
+            if p != c:
+                for j in range(k):
+                    W[c, j], W[p, j] = W[p, j], W[c, j]
+                    out[c, j], out[p, j] = out[p, j], out[c, j]
+            d = 1.0 / W[c, c]
+            for j in range(k):
+                W[c, j] *= d
+                out[c, j] *= d
+            for r in range(k):
+                if r != c:
+                    f = W[r, c]
+                    if f != 0.0:
+                        for j in range(k):
+                            W[r, j] -= f * W[c, j]
+                            out[r, j] -= f * out[c, j]
+    return out
+
+
+@_jit
+def mm(A, B):
+    """A B for small matrices (loops: faster than a BLAS call at these sizes)."""
+    n, k = A.shape
+    m = B.shape[1]
+    C = np.zeros((n, m))
+    for i in range(n):
+        for l in range(k):
+            a = A[i, l]
+            for j in range(m):
+                C[i, j] += a * B[l, j]
+    return C
+
+
+@_jit
+def mv(A, v):
+    """A v for a small matrix A (k, n) and v (n,)."""
+    k, n = A.shape
+    out = np.zeros(k)
+    for i in range(k):
+        s = 0.0
+        for j in range(n):
+            s += A[i, j] * v[j]
+        out[i] = s
+    return out
+
+
+@_jit
+def dot(a, b):
+    """a · b for small vectors."""
+    s = 0.0
+    for i in range(a.shape[0]):
+        s += a[i] * b[i]
+    return s
+
+
+@_jit
+def mtv(A, v):
+    """Aᵀ v for a small matrix A (k, n) and v (k,)."""
+    k, n = A.shape
+    out = np.zeros(n)
+    for i in range(k):
+        vi = v[i]
+        for j in range(n):
+            out[j] += A[i, j] * vi
+    return out
+
+
+#: The terms `task_terms` writes, in order, with their shapes as functions of (n, m).
+TERMS = (
+    ("J", lambda n, m: (m, n)), ("dJ", lambda n, m: (m, n, n)), ("M", lambda n, m: (n, n)), ("g", lambda n, m: (n,)),
+    ("Minv", lambda n, m: (n, n)), ("JMinv", lambda n, m: (m, n)), ("Lambda", lambda n, m: (m, m)),
+    ("Jsharp", lambda n, m: (n, m)), ("Gx", lambda n, m: (m,)), ("xdot", lambda n, m: (m,)),
+    ("Jdot", lambda n, m: (m, n)), ("C", lambda n, m: (n, n)), ("Cx", lambda n, m: (m, m)),
+)
+
+
+def layout(n: int, m: int) -> tuple[dict[str, tuple[int, int, tuple[int, ...]]], np.ndarray, int]:
+    """Where each term of `TERMS` lies in the flat output of `task_terms`.
+
+    Returns:
+        ({name: (start, stop, shape)}, (len(TERMS),) int64 start offsets, total length).
+    """
+    out, pos = {}, 0
+    for name, shape in TERMS:
+        shp = shape(n, m)
+        size = int(np.prod(shp))
+        out[name] = (pos, pos + size, shp)
+        pos += size
+    return out, np.array([v[0] for v in out.values()], dtype=np.int64), pos
+
+
+@_jit
+def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower, dq, out):
+    """Motor-coordinate and task-space terms of one state, written into `out` in the order of `TERMS`.
+
+    Args:
+        J6: (6, nθ) frame Jacobian (LOCAL_WORLD_ALIGNED; linear rows first).
+        Mt: (nθ, nθ) chain inertia (upper triangle only when fill_lower).
+        gt: (nθ,) chain gravity torque; Ct: (nθ, nθ) chain Coriolis matrix at θ̇ = A q̇.
+        A: (nθ, n) actuation map; rows: (m,) task rows of J6; armature: (n,) [kg m²].
+        supports: (nθ, nθ) bool, [j, k]: chain joint k supports joint j (or is j); every joint one-DoF.
+        identity: A is the identity.
+        fill_lower: mirror Mt's upper triangle.
+        dq: (n,) joint velocities [rad/s].
+        out: flat float64 output (`layout`): J (m, n), ∂J/∂q (m, n, n), M (n, n), g (n,), M⁻¹,
+            J M⁻¹ (m, n), M_x (m, m), J# (n, m), G_x (m,), ẋ (m,), J̇ (m, n), C_q (n, n), C_x (m, m).
+    """
+    nt, n, m = Mt.shape[0], A.shape[1], rows.shape[0]
+    Mt = Mt.copy()
+    if fill_lower:
+        for i in range(nt):
+            for j in range(i):
+                Mt[i, j] = Mt[j, i]
+    At = A.T.copy()
+    J = np.empty((m, n))
+    for i in range(m):
+        J[i] = mv(At, J6[rows[i]].copy())
+    M = mm(mm(At, Mt), A)
+    for i in range(n):
+        M[i, i] += armature[i]
+    g = mv(At, gt)
+    # ∂J_j/∂θ_k = ω_k × v_j when joint k supports joint j, ω_j × v_k otherwise (v, ω: J6's linear, angular rows)
+    D = np.empty((m, nt, nt))
+    for j in range(nt):
+        for k in range(nt):
+            w, v = (k, j) if supports[j, k] else (j, k)
+            for i in range(m):
+                r = rows[i]
+                r1, r2 = (r + 1) % 3, (r + 2) % 3
+                D[i, j, k] = J6[3 + r1, w] * J6[r2, v] - J6[3 + r2, w] * J6[r1, v]
+    if identity:
+        dJ = D.ravel()
+    else:  # J_q = J_θ A: ∂J_q[i, a]/∂q_c = Σ_jk A[j, a] A[k, c] ∂J_θ[i, j]/∂θ_k
+        dJ = np.zeros(m * n * n)
+        for i in range(m):
+            E = mm(At, D[i].copy())
+            dJ[i * n * n:(i + 1) * n * n] = mm(E, A).ravel()
+    Minv = inv(M)
+    JMinv = mm(J, Minv)
+    Lam = inv(mm(JMinv, J.T.copy()))
+    Jsharp = mm(JMinv.T.copy(), Lam)
+    Gx = mv(Jsharp.T.copy(), g) if g @ g != 0.0 else np.zeros(m)
+    xdot = mv(J, dq)
+    Jdot = mv(dJ.reshape(m * n, n), dq).reshape(m, n)
+    Cq = mm(mm(At, Ct), A)
+    Cx = mm(mm(Lam, mm(JMinv, Cq) - Jdot), Jsharp)
+    pos = _put(out, 0, J.ravel())
+    pos = _put(out, pos, dJ)
+    pos = _put(out, pos, M.ravel())
+    pos = _put(out, pos, g)
+    pos = _put(out, pos, Minv.ravel())
+    pos = _put(out, pos, JMinv.ravel())
+    pos = _put(out, pos, Lam.ravel())
+    pos = _put(out, pos, Jsharp.ravel())
+    pos = _put(out, pos, Gx)
+    pos = _put(out, pos, xdot)
+    pos = _put(out, pos, Jdot.ravel())
+    pos = _put(out, pos, Cq.ravel())
+    _put(out, pos, Cx.ravel())
+
+
+@_jit
+def _put(out, pos, part):
+    out[pos:pos + part.shape[0]] = part
+    return pos + part.shape[0]
