@@ -25,6 +25,10 @@ if TYPE_CHECKING:
 
 #: one-DoF joints whose kinematic Hessian has the closed form used by `Device.terms`
 ONE_DOF_JOINT = re.compile(r"JointModel(R[XYZ]|P[XYZ]|RevoluteUnaligned|PrismaticUnaligned|Helical\w*)$")
+#: (3, 3, 3) Levi-Civita symbol ε_ijk: (a × b)_i = Σ ε_ijk a_j b_k
+LEVI_CIVITA = np.zeros((3, 3, 3))
+for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+    LEVI_CIVITA[_i, _j, _k], LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
 
 _EYE: dict[int, np.ndarray] = {}
 
@@ -52,8 +56,11 @@ class lazy:
 
 
 class term(lazy):
-    """A `DeviceTerms` attribute: a view into the snapshot's flat buffer when `Device.terms` filled one
-    (`rhi.terms_kernel`), else computed on first access and cached like `lazy`."""
+    """A `DeviceTerms` attribute: a view into the snapshot's flat buffer, or computed on first access.
+
+    The view when `Device.terms` filled the buffer (`rhi.terms_kernel`); otherwise the
+    function runs once and its value is cached, like `lazy`.
+    """
 
     def __get__(self, obj, owner=None):
         if obj is None:

@@ -96,7 +96,7 @@ def mv(A, v):
 
 @_jit
 def dot(a, b):
-    """a · b for small vectors."""
+    """The dot product a · b of two small vectors."""
     s = 0.0
     for i in range(a.shape[0]):
         s += a[i] * b[i]
@@ -130,9 +130,10 @@ def layout(n: int, m: int) -> tuple[dict[str, tuple[int, int, tuple[int, ...]]],
     Returns:
         ({name: (start, stop, shape)}, (len(TERMS),) int64 start offsets, total length).
     """
-    out, pos = {}, 0
+    out: dict[str, tuple[int, int, tuple[int, ...]]] = {}
+    pos = 0
     for name, shape in TERMS:
-        shp = shape(n, m)
+        shp: tuple[int, ...] = shape(n, m)
         size = int(np.prod(shp))
         out[name] = (pos, pos + size, shp)
         pos += size
@@ -146,8 +147,11 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
     Args:
         J6: (6, nθ) frame Jacobian (LOCAL_WORLD_ALIGNED; linear rows first).
         Mt: (nθ, nθ) chain inertia (upper triangle only when fill_lower).
-        gt: (nθ,) chain gravity torque; Ct: (nθ, nθ) chain Coriolis matrix at θ̇ = A q̇.
-        A: (nθ, n) actuation map; rows: (m,) task rows of J6; armature: (n,) [kg m²].
+        gt: (nθ,) chain gravity torque.
+        Ct: (nθ, nθ) chain Coriolis matrix at θ̇ = A q̇.
+        A: (nθ, n) actuation map.
+        rows: (m,) task rows of J6.
+        armature: (n,) rotor inertia [kg m²].
         supports: (nθ, nθ) bool, [j, k]: chain joint k supports joint j (or is j); every joint one-DoF.
         identity: A is the identity.
         fill_lower: mirror Mt's upper triangle.
