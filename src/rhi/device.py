@@ -238,9 +238,7 @@ class Device:
         from the 6-D frame Jacobian (∂J_j/∂θ_k = ω_k × J_j when joint k supports joint j,
         ω_j × J_k otherwise; one-DoF joints). Equal to `fk`, `jacobian`,
         `jacobian_derivative`, `mass_matrix` and `gravity` called one by one, several
-        times faster. For chains of one-DoF joints the task-space dynamics (M_x, J#, C_x,
-        G_x) come from the same pass through the compiled `rhi.terms_kernel`; otherwise
-        they are computed on demand.
+        times faster; with one-DoF joints M_x, J#, C_x, G_x too (compiled `rhi.terms_kernel`).
         A call with the same q and dq as the previous one returns the same snapshot (a
         simulation tick reads it for the virtual environment, then the controller).
 
@@ -276,7 +274,7 @@ class Device:
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         x = data.oMf[fid].translation[fast.rows].copy()
         if fast.kernel is not None:  # every term, the task-space dynamics included, in one compiled call
-            v = self._zero_dq if dq is None else dq
+            v = np.zeros(self.n) if dq is None else dq
             Ct = pin.computeCoriolisMatrix(model, data, th, self.A.dot(v))
             Mt = pin.crba(model, data, th)
             gt = pin.computeGeneralizedGravity(model, data, th)
@@ -303,10 +301,6 @@ class Device:
         terms = DeviceTerms(self, q, dq, x=x, J=J, dJ=self._djac1(th), M=M, g=g, theta=th)
         self._last_terms = (key, terms)
         return terms
-
-    @lazy
-    def _zero_dq(self) -> np.ndarray:
-        return np.zeros(self.n)
 
     @lazy
     def _fast_maps(self) -> FastMaps:

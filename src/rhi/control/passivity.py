@@ -23,7 +23,7 @@ rigid mechanism: W + motor work = ΔT_kin + friction losses). ``port="handle"`` 
 instead the classical H&R virtual-environment port: the task force the torque produces
 at the handle, ``F = J#ᵀτ`` (dynamically consistent, thesis eq. 7.5) [N], against the
 handle velocity ẋ = J q̇ [m/s]; it misses energy that reaches the hand through the
-self-motion (measured in `rhi.experiments.passivity`).
+self-motion (measured in `rhi.experiments.beyond.passivity`).
 
 Sign. ``E_obs`` is the energy that has flowed *from the mechanism into the controller*:
 ``E_obs = −Σ (motor work)``. A passive controller has ``E_obs ≥ 0`` (a wall stores the
@@ -53,7 +53,7 @@ bound on α leaves undissipated stays in ``E_obs`` and is dissipated in the next
 Null-space objectives. At the motor port their torque is observed with the rest, with no
 storage: the projected gradient −β N ∇ν with the tertiary scaling β of eq. 7.16 switching
 as the allocation holds joints is not the gradient of any potential, and crediting Σ β_i ν_i
-as storage let the §6.4 palpation hand the user tens of mJ (`rhi.experiments.passivity`).
+as storage let the §6.4 palpation hand the user tens of mJ (`rhi.experiments.beyond.passivity`).
 So, with the PC on, a reconfiguration driven by the objectives runs on the energy the
 hand has put in plus ``initial_energy`` (H&R's E(0)): the controller is passive as a whole.
 """
