@@ -69,8 +69,10 @@ def _run(dev, ctrl, q0, hand, duration=0.3):
 
 
 def test_known_u_equals_existing_controllers():
-    """A known intent gives the existing objectives' torques (the VME objective runs compiled in the
-    controller, the intent one in Python: equal to rounding)."""
+    """A known intent gives the existing objectives' torques.
+
+    The VME objective runs compiled in the controller, the intent one in Python: equal to rounding.
+    """
     dev = rhi.device("rhi4")
     u, x0 = np.array(ch6.U), np.array(ch6.X0)
     K, zeta, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)

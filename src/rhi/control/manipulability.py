@@ -1,5 +1,7 @@
-"""Manipulability objectives: Yoshikawa's μ (eq. 5.14) and teleoperation ME matching (eq. 5.11), with the
-joint-limit penalised Jacobian J^q = J diag(P(q)) of eqs. 4.19–4.20."""
+"""Manipulability objectives: Yoshikawa's μ (eq. 5.14) and teleoperation ME matching (eq. 5.11).
+
+Both with the joint-limit penalised Jacobian J^q = J diag(P(q)) of eqs. 4.19–4.20.
+"""
 
 from __future__ import annotations
 
@@ -35,6 +37,7 @@ class Manipulability:
             raise InvalidInput(f"k_q: must be finite and > 0 (or None), got {self.k_q!r}")
 
     def value(self, device: Device, q: np.ndarray) -> float:
+        """ν(q) = −μ (or −log μ) for q: (n,) [rad]."""
         q = np.asarray(q, dtype=float)
         J = device.jacobian(q)
         if self.k_q is not None:
@@ -155,8 +158,11 @@ class TMIMatching:
         return float(jbld(self.slave_ellipsoid(), J @ J.T))
 
     def gradient(self, device: Device, q) -> np.ndarray:
-        """∂ν/∂q: (n,). With A = ᵐM, ∂ν/∂q_k = tr((Ā⁻¹ − A⁻¹) ∂J^q_k J^qᵀ), Ā = (ˢM + A)/2,
-        ∂J^q_k = ∂J_k diag(P) + J_k P'_k e_kᵀ."""
+        """∂ν/∂q: (n,).
+
+        With A = ᵐM, ∂ν/∂q_k = tr((Ā⁻¹ − A⁻¹) ∂J^q_k J^qᵀ), Ā = (ˢM + A)/2,
+        ∂J^q_k = ∂J_k diag(P) + J_k P'_k e_kᵀ.
+        """
         q = np.asarray(q, dtype=float)
         return self._gradient(device, q, device.jacobian(q), device.jacobian_derivative(q))
 

@@ -1,6 +1,7 @@
 """Actuator saturation: torque allocation within the box (none, scaling, ASCM, LP) and the tertiary scaling β.
 
-Pure functions on arrays plus small dataclasses with explicit state (thesis §7.3–7.4; the ASO and the FME transition of §6.3.2 are `rhi.control.transition`).
+Pure functions on arrays plus small dataclasses with explicit state (thesis §7.3–7.4; the ASO
+and the FME transition of §6.3.2 are `rhi.control.transition`).
 
 Torque allocation is written in one form shared by every method:
 

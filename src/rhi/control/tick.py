@@ -29,7 +29,7 @@ _SATURATION = {"none": kernels.NONE, "scaling": kernels.SCALING, "ascm": kernels
 
 
 def _f64(v) -> np.ndarray:
-    """v as a C-contiguous float64 array (one compiled specialisation of the kernel)."""
+    """V as a C-contiguous float64 array (one compiled specialisation of the kernel)."""
     if type(v) is np.ndarray and v.dtype == np.float64 and v.flags.c_contiguous:
         return v
     return np.ascontiguousarray(v, dtype=np.float64)
@@ -93,8 +93,9 @@ class KernelTick:
         self._tr_of: TransitionState | None = None  # the state object self._tr mirrors
 
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):
-        """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or the forces (F_render, F_extra)
-        for the reference's basis form where the kernel cannot decide.
+        """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or (F_render, F_extra).
+
+        The forces come back where the kernel cannot decide: the reference's basis form then runs the tick.
 
         Raises:
             Singular: a rank-deficient Jacobian.

@@ -26,7 +26,8 @@ def aso_volume(tau, torque_min, torque_max, S: float = 50.0) -> float:
 
     Args:
         tau: (n,) joint torques τ_m [N m].
-        torque_min, torque_max: (n,) limits [N m], min < max.
+        torque_min: (n,) lower limits [N m].
+        torque_max: (n,) upper limits [N m], > torque_min.
         S: shape factor S > 0 (Fig. 6.6 uses 50).
     """
     lo, hi = check_torque_limits(torque_min, torque_max)

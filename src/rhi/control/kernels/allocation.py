@@ -1,5 +1,7 @@
-"""Compiled allocation within the torque box: ASCM in projector form, simple scaling, the active-set method,
-the safety room and the tertiary scaling β (thesis Algorithms 1 and 2, eqs. 7.5–7.16).
+"""Compiled allocation within the torque box (thesis Algorithms 1 and 2, eqs. 7.5–7.16).
+
+ASCM in projector form, simple scaling, the active-set method, the safety room and the
+tertiary scaling β.
 
 The projector form writes the least-norm null-space torque that puts the joints 𝒮 at r as
 ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` with P = Z Zᵀ; it is trusted only while λ_min(P[𝒮, 𝒮]) > 1e-4
@@ -15,8 +17,7 @@ import math
 import numpy as np
 
 from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import dot, mm, mv
-from rhi.terms_kernel import inv as _inv
+from rhi.terms_kernel import dot, inv as _inv, mm, mv
 
 _TOL = 1e-12  # ASCM: relative overload below this is no overload
 _FAST_TOL = 1e-4  # smallest eigenvalue of P[S, S] the projector form trusts (σ_min(Z_S) >= 0.01)
@@ -107,6 +108,7 @@ def held_torque(P, S, k, r):
 
 @jit
 def clip(x, lo, hi):
+    """X clipped to the box [lo, hi]."""
     return np.minimum(np.maximum(x, lo), hi)
 
 
@@ -296,6 +298,7 @@ def negligible(x):
 
 @jit
 def held_set(sat):
+    """The held joints: (indices (n,) of which the first k are the True entries of sat, k)."""
     n = sat.shape[0]
     S = np.empty(n, np.int64)
     k = 0

@@ -36,8 +36,7 @@ from rhi.control.kernels.allocation import (
     well_conditioned,
 )
 from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import dot, mm, mtv, mv
-from rhi.terms_kernel import inv as _inv
+from rhi.terms_kernel import dot, inv as _inv, mm, mtv, mv
 
 #: Status of `tick`.
 OK, FALLBACK, SINGULAR = 0, 1, 2
@@ -125,16 +124,22 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
         t: time [s].
         terms: the device terms, flat (`rhi.terms_kernel.task_terms`; at least the first nine).
         at: (≥ 9,) int64 start of each term in `terms` (`rhi.terms_kernel.layout`).
-        F_r, F_x: (m,) rendered (α-scaled) and extra task forces [N].
+        F_r: (m,) rendered (α-scaled) task force [N].
+        F_x: (m,) extra task force (never scaled) [N].
         dq: (n,) joint velocities [rad/s].
-        lo, hi: (n,) torque limits [N m].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
         prm: (N_PARAMS,) parameters (P_* indices).
         tr: (4,) FME transition state (stiff, Ω_start, t0, tf), advanced in place.
-        fme_free, fme_stiff: (m, m) desired FMEs; w2: (n,) 1/T_max².
-        vme_D: (k, m, m) desired VMEs of the VME-matching objectives, vme_gain: (k,) their steps.
+        fme_free: (m, m) desired free-motion FME M_Free.
+        fme_stiff: (m, m) desired contact FME M_Stiff.
+        w2: (n,) 1/T_max² [1/(N m)²].
+        vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
+        vme_gain: (k,) their gradient steps.
         tau_s_extra: (n,) −Σ gain ∂ν_lim/∂q of the joint-limit barriers [N m].
         tau_to_extra: (n,) −Σ gain ∂ν/∂q of the objectives computed outside the kernel [N m].
-        tau_out: (n,) the torque, written [N m]; sat: (n,) bool, the held joints, written.
+        tau_out: (n,) the torque, written [N m].
+        sat: (n,) bool, the held joints, written.
 
     Returns:
         (status, α, β, V, Ω, clipped).
