@@ -74,11 +74,21 @@ def well_conditioned(P, S, k):
     if k == 2:
         a, b, d = P[S[0], S[0]], P[S[0], S[1]], P[S[1], S[1]]
         return 0.5 * (a + d) - math.sqrt(0.25 * (a - d) ** 2 + b * b) > _FAST_TOL
-    # λ_min(P[S, S]) > tol ⟺ P[S, S] − tol I has a Cholesky factor
+    PSS = np.empty((k, k))
+    for i in range(k):
+        for j in range(k):
+            PSS[i, j] = 0.5 * (P[S[i], S[j]] + P[S[j], S[i]])
+    return above(PSS, _FAST_TOL)
+
+
+@jit
+def above(G, tol):
+    """Whether the symmetric G has its smallest eigenvalue above tol (G − tol I has a Cholesky factor)."""
+    k = G.shape[0]
     L = np.zeros((k, k))
     for i in range(k):
         for j in range(i + 1):
-            v = 0.5 * (P[S[i], S[j]] + P[S[j], S[i]]) - (_FAST_TOL if i == j else 0.0)
+            v = G[i, j] - (tol if i == j else 0.0)
             for l in range(j):
                 v -= L[i, l] * L[j, l]
             if i == j:
@@ -88,6 +98,24 @@ def well_conditioned(P, S, k):
             else:
                 L[i, j] = v / L[j, j]
     return True
+
+
+@jit
+def blocks_all(P, S, k, r):
+    """Whether the joints S[:k] (k >= r) leave no null-space torque: Z_S has full column rank r, accurately.
+
+    Then every null-space torque changes a held joint, and the held part of any d in range(P) is d
+    itself; σ_min(Z_S) > 0.01 (as `well_conditioned`) for the decision to be safe.
+    """
+    Zt = np.ascontiguousarray(basis(P, r).T)
+    G = np.zeros((r, r))
+    for a in range(r):
+        for c in range(r):
+            s = 0.0
+            for i in range(k):
+                s += Zt[a, S[i]] * Zt[c, S[i]]
+            G[a, c] = s
+    return above(G, _FAST_TOL)
 
 
 @jit

@@ -27,6 +27,7 @@ from rhi.control.kernels.allocation import (
     allocate_scaling,
     ascm,
     basis,
+    blocks_all,
     clip,
     held_set,
     held_torque,
@@ -219,13 +220,19 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
             have_P = True
         Nsafe = tau_s - mtv(J, mtv(Jsharp, tau_s)) if dynamic else mv(P, tau_s)
         S, k = held_set(sat)
-        if not well_conditioned(P, S, k):
-            return FALLBACK, 1.0, 0.0, V, omega, False
-        rr = np.empty(k)
-        for i in range(k):
-            rr[i] = Nsafe[S[i]]
+        if k >= r:  # no redundancy left (e.g. an LP vertex with more than r joints at a limit): all of it is held
+            if not blocks_all(P, S, k, r):
+                return FALLBACK, 1.0, 0.0, V, omega, False
+            held = mv(P, Nsafe)
+        else:
+            if not well_conditioned(P, S, k):
+                return FALLBACK, 1.0, 0.0, V, omega, False
+            rr = np.empty(k)
+            for i in range(k):
+                rr[i] = Nsafe[S[i]]
+            held = held_torque(P, S, k, rr)
         if not clipped:
-            tau, gamma = safety_room(tau, b, held_torque(P, S, k, rr), lo, hi)
+            tau, gamma = safety_room(tau, b, held, lo, hi)
     if not have_P and np.any(sat):
         P, ok = null_projector(JMinv)
         if not ok:
