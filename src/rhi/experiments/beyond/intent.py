@@ -79,7 +79,7 @@ def intent_strokes(train: int = 80, test: int = 40, progress: Progress | None = 
     for i, m in enumerate((2, 3)):
         s = synthetic_strokes(test, m=m, seed=TEST_SEED)
         h = trained_hmm(m, train)
-        ests = {"filtered": FilteredIntent(m=m, u0=np.eye(m)[0]),
+        ests: dict[str, FilteredIntent | HMMIntent] = {"filtered": FilteredIntent(m=m, u0=np.eye(m)[0]),
                 "hmm": HMMIntent(m=m, u0=np.eye(m)[0], kappa=h.kappa, switch=h.switch)}
         rows += [Row(f"{m}-D HMM: learned Watson concentration κ", None, h.kappa),
                  Row(f"{m}-D HMM: learned switching rate per tick", None, h.switch)]
@@ -164,7 +164,7 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
         plant = Plant(dev, friction=ch5.plant_friction("thesis", dev))
         plant.reset(q_m)
         log = simulate(plant, ctrl, duration=duration, hand=Hand(path, **ch5.TRACK), teleop=Teleoperation(sp),
-                       progress=chain.run(N), record=lambda sp=sp: {"slave_q": sp.q})
+                       progress=chain.run(N), record=ch5.slave_q(sp))
         if log.fault is not None:
             raise InvalidInput(f"intent_w_trajectory: the controller stopped in scenario {key!r}: {log.fault}")
         moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)

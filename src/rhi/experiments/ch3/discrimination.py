@@ -258,7 +258,7 @@ def stimulus_table(
 def _palpation_measures(item: tuple[str, float, float]) -> tuple[float, float]:
     """(K̂ [N/m], peak speed [m/s]) of `palpate(name, stiffness, duration)` for item = (name, stiffness, duration)."""
     r = palpate(*item)
-    return r["k_hat"], r["peak_speed"]
+    return float(r["k_hat"]), float(r["peak_speed"])
 
 
 def simulate_study(

@@ -60,8 +60,8 @@ def sysid_table_3_2(
     done = [0]
     rows, arrays, cases = [], {"forces": forces}, {}
     ordering_ok = []
-    for i, x in enumerate(POINTS):
-        x = np.array(x)
+    for i, point in enumerate(POINTS):
+        x = np.array(point)
         where = f"({x[0]}, {x[1]})"
         lam_here = {}
         for name, dname in DEVICE_NAMES.items():

@@ -180,8 +180,8 @@ def _full_design(ex, density, checkpoint_dir, progress, maxiter, popsize, k2) ->
     energy_rows = []
     assert tuple(designs) == ENERGY_LABELS
     for i, (name, (p, x)) in enumerate(designs.items()):
-        t, en = energy_along_task(p, x)
-        arrays["energy_t"] = t
+        t_task, en = energy_along_task(p, x)
+        arrays["energy_t"] = t_task
         arrays[f"energy_{i}"] = en
         energy_rows.append(Row(f"mean ‖q̇‖² A→B, {name}", None, float(np.nanmean(en)), "(rad/s)²·s/rad"))
     if progress:

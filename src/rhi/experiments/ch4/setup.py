@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -138,10 +139,10 @@ def gmt_vs_l2(
     (t0, t1), (z0, z1) = prob.bounds["theta_z"], prob.bounds["z_ph"]
     th = np.deg2rad(np.arange(np.rad2deg(t0), np.rad2deg(t1) + 1e-9, step_deg))
     zs = np.arange(z0, z1 + 1e-12, z_step)
-    out = {k: [] for k in ("l2", "GM_T", "theta_z", "z_ph", "GC_M", "GM_M")}
+    out: dict[str, list[float]] = {k: [] for k in ("l2", "GM_T", "theta_z", "z_ph", "GC_M", "GM_M")}
     names = prob.names
     for l2 in l2s:
-        xs = []
+        xs: list[Any] = []  # design vectors (NumPy rows) for `sweep`
         for t in th:
             for z in zs:
                 x = np.empty(len(names))

@@ -28,6 +28,7 @@ from rhi.experiments.ch5.setup import (
     devices,
     distance_to_polyline,
     plant_friction,
+    slave_q,
     tme_area,
     w_reference,
 )
@@ -111,6 +112,7 @@ def w_trajectory(
         sp = Plant(slave, friction=plant_friction(friction, slave))
         sp.reset(start["slave"])
         tele = Teleoperation(sp)
+        obj: TMIMatching | Manipulability | None
         if key == "s1":
             obj = TMIMatching(slave, lambda tele=tele: tele.slave.q, k_q=k_q)
         elif key == "s2":
@@ -120,7 +122,7 @@ def w_trajectory(
         plant = Plant(dev, friction=plant_friction(friction, dev))
         plant.reset(start["Rehab" if key == "s3" else "RHI"])
         log = simulate(plant, controller(dev, obj, gain, damping), duration=duration, hand=Hand(path, **TRACK),
-                       teleop=tele, progress=chain.run(N), record=lambda sp=sp: {"slave_q": sp.q})
+                       teleop=tele, progress=chain.run(N), record=slave_q(sp))
         qs = log.extra["slave_q"]
         moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
         Jm, Js = dev.jacobian(log.q), slave.jacobian(qs)
