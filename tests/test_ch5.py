@@ -128,9 +128,12 @@ def test_fixed_point_controller_increases_tme(fixed, devs):
 
 
 def test_w_trajectory_scenarios(wtraj):
-    """Reduced W: the slave follows; both RHI scenarios keep a larger TME than the 2-DoF Rehab, and the
-    TMI objective brings the TME close to its bound (the slave's own ME). The effort order of Fig. 5.6
-    needs the full W (see the report); here the effort accounting is checked instead."""
+    """Reduced W: the slave follows.
+
+    Both RHI scenarios keep a larger TME than the 2-DoF Rehab, and the TMI objective brings the TME close to its bound
+    (the slave's own ME). The effort order of Fig. 5.6 needs the full W (see the report); here the effort accounting
+    is checked instead.
+    """
     s1, s2, s3 = (_row(wtraj, f"mean TME area, scenario {i}").ours for i in (1, 2, 3))
     bound = _row(wtraj, "mean of the slave's own σ₁σ₂").ours
     assert s3 < s2 <= bound and s3 < s1 <= bound

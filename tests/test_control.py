@@ -36,17 +36,17 @@ from rhi.control import (
     fme_shape,
     gradient_function,
     hysteresis,
+    kernels,
     null_basis,
     null_projector,
     output_force,
-    tertiary_projector,
     tertiary,
+    tertiary_projector,
     transition_step,
 )
 from rhi.control.active_set import allocate_active_set
-from rhi.control import kernels
 from rhi.errors import InfeasibleLimits, InvalidInput, NotSPD, Singular
-from rhi.metrics import apparent_inertia, dynamic_pinv, force_ellipsoid, max_force, nullspace_projector
+from rhi.metrics import apparent_inertia, dynamic_pinv, force_ellipsoid, nullspace_projector
 
 
 @pytest.fixture(scope="module")
@@ -238,7 +238,7 @@ def test_transition_bounded_rate_and_duration():
     cfg = TransitionConfig(eps1=0.7, eps2=0.95, rho=0.003)
     dt = 1e-3
     st = TransitionState()
-    prev_M, prev_om = Mf, 1.0
+    prev_M = Mf
     max_step = 0.0
     oms = []
     for k in range(1500):
@@ -250,7 +250,7 @@ def test_transition_bounded_rate_and_duration():
         M = om * Mf + (1 - om) * Ms
         max_step = max(max_step, float(np.linalg.norm(M - prev_M)))
         assert 0.0 <= om <= 1.0
-        prev_M, prev_om = M, om
+        prev_M = M
         oms.append(om)
     bound = math.pi * dt / (2 * cfg.rho)  # |dΩ/dt| ‖Mf − Ms‖_F <= π/(2ρ)
     assert max_step <= bound * (1 + 1e-9)
@@ -283,7 +283,7 @@ def test_ascm_never_exceeds_limits_and_preserves_direction(name, projector, rng)
     dev = rhi.device(name)
     lo, hi = dev.torque_limits
     worst_null = 0.0
-    for q, J, M in _cases(dev, rng, 500):
+    for _q, J, M in _cases(dev, rng, 500):
         F = rng.normal(size=dev.m) * rng.uniform(0.5, 60.0)
         b = J.T @ (0.1 * rng.normal(size=dev.m))
         Z = null_basis(J, M if projector == "dynamic" else None)
@@ -300,7 +300,7 @@ def test_ascm_never_exceeds_limits_and_preserves_direction(name, projector, rng)
 @pytest.mark.parametrize("name", ["rhi4", "planar3r"])
 def test_nullspace_torque_leaves_task_force_unchanged(name, rng):
     dev = rhi.device(name)
-    for q, J, M in _cases(dev, rng, 200):
+    for _q, J, M in _cases(dev, rng, 200):
         Z = null_basis(J, M)
         tau_n = Z @ rng.normal(size=Z.shape[1]) * 10
         assert np.abs(dynamic_pinv(J, M).T @ tau_n).max() < 1e-9
@@ -321,7 +321,7 @@ def test_active_set_reaches_the_lp_optimum(name, projector, rng):
     lo, hi = dev.torque_limits
     reached_ascm = reached = 0
     cases = _cases(dev, rng, 300)
-    for q, J, M in cases:
+    for _q, J, M in cases:
         u = rng.normal(size=dev.m)
         u /= np.linalg.norm(u)
         Z = null_basis(J, M if projector == "dynamic" else None)
@@ -344,7 +344,7 @@ def test_active_set_reaches_the_lp_optimum(name, projector, rng):
 
 def test_tertiary_respects_limits_and_held_joints(rng, rhi4):
     lo, hi = rhi4.torque_limits
-    for q, J, M in _cases(rhi4, rng, 200):
+    for _q, J, M in _cases(rhi4, rng, 200):
         Z = null_basis(J, M)
         al = ascm(J.T @ (rng.normal(size=2) * 30), np.zeros(4), Z, lo, hi)
         N = np.eye(4) - J.T @ dynamic_pinv(J, M).T
@@ -372,9 +372,11 @@ def _controller(dev, **kw):
 @pytest.mark.parametrize("projector", ["dynamic", "pseudoinverse"])
 @pytest.mark.parametrize("name", ["rhi4", "planar3r"])
 def test_controller_limits_and_task_force(name, projector, rng):
-    """ASCM on: 1,000 seeded random forces and configurations, no torque leaves its limit, and the
-    null-space objectives, damping and barrier leave the task force α F + μ unchanged (eq. 7.9),
-    measured with the projector's own inverse (J#ᵀ or J⁺ᵀ)."""
+    """ASCM on: 1,000 seeded random forces and configurations, no torque leaves its limit.
+
+    And the null-space objectives, damping and barrier leave the task force α F + μ unchanged (eq. 7.9), measured with
+    the projector's own inverse (J#ᵀ or J⁺ᵀ).
+    """
     dev = rhi.device(name)
     c = _controller(dev, projector=projector,
                     objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.5), ObjectiveTerm(JointLimitBarrier(0.2), 5.0)))
@@ -495,8 +497,10 @@ def test_controller_bad_input(rhi4):
 
 
 def test_controller_switches_fme_under_load(rhi4):
-    """A hard contact drains the ASO and moves Ω from free (1) towards stiff (0), continuously;
-    the desired FME changes by at most π dt / (2ρ) per tick (eqs. 6.16–6.19)."""
+    """A hard contact drains the ASO and moves Ω from free (1) towards stiff (0), continuously.
+
+    The desired FME changes by at most π dt / (2ρ) per tick (eqs. 6.16–6.19).
+    """
     c = _controller(rhi4)
     fme = c.config.fme
     q = np.array([0.3, 0.5, 0.2, 0.4])
@@ -562,14 +566,17 @@ def test_device_terms_bad_input(rhi4):
     with pytest.raises(InvalidInput, match="dq"):
         rhi4.terms(np.zeros(4), np.zeros(3))
     with pytest.raises(InvalidInput, match="dq"):
-        rhi4.terms(np.zeros(4)).xdot
+        _ = rhi4.terms(np.zeros(4)).xdot  # the velocity needs dq
 
 
 @pytest.mark.parametrize("name", ["rhi4", "planar3r", "gen3"])
 def test_cartesian_dynamics_terms(name, rng):
-    """M_x, J#, N against rhi.metrics; Ṁ_x = C_x + C_xᵀ along q̇ (finite differences of M_x);
-    G_x = J#ᵀ g; and the task-space dynamics identity M_x ẍ + C_x ẋ + G_x = F of eq. 5.2 for
-    τ = JᵀF with no self-motion (q̇ = J# ẋ), ẍ from forward dynamics and J̇ by finite differences."""
+    """M_x, J#, N against rhi.metrics.
+
+    Ṁ_x = C_x + C_xᵀ along q̇ (finite differences of M_x); G_x = J#ᵀ g; and the task-space dynamics identity M_x ẍ +
+    C_x ẋ + G_x = F of eq. 5.2 for τ = JᵀF with no self-motion (q̇ = J# ẋ), ẍ from forward dynamics and J̇ by finite
+    differences.
+    """
     dev = rhi.device(name)
     h = 1e-6
     for q in random_q(dev, rng, 8):
@@ -723,13 +730,15 @@ def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
 
 
 def test_ascm_projector_equals_ascm(rng):
-    """Projector-form ASCM = basis-form ASCM, both on its fast path and where it hands an
-    ill-conditioned held set (σ_min(Z_S) < 0.01) to the basis form."""
+    """Projector-form ASCM = basis-form ASCM.
+
+    Both on its fast path and where it hands an ill-conditioned held set (σ_min(Z_S) < 0.01) to the basis form.
+    """
     handed_over = fast = 0
     for name in ("rhi4", "planar3r"):
         dev = rhi.device(name)
         lo, hi = dev.torque_limits
-        for q, J, M in _cases(dev, rng, 300):
+        for _q, J, M in _cases(dev, rng, 300):
             F = rng.normal(size=dev.m) * rng.uniform(0.5, 60.0)
             b = J.T @ (0.1 * rng.normal(size=dev.m))
             Z = null_basis(J, M)
@@ -783,7 +792,7 @@ def test_gradient_at_equals_gradient(name, rng):
 def test_projector_forms(rng, rhi4):
     """null_projector = Z Zᵀ, basis_from_projector spans it, tertiary_projector = tertiary; singular J raises."""
     lo, hi = rhi4.torque_limits
-    for q, J, M in _cases(rhi4, rng, 100):
+    for _q, J, M in _cases(rhi4, rng, 100):
         Z = null_basis(J, M)
         P = null_projector(J, M)
         np.testing.assert_allclose(P, Z @ Z.T, atol=1e-12)

@@ -16,9 +16,9 @@ from rhi.control import (
 from rhi.control.intent import FilteredIntent, HMMIntent, KnownIntent, axial_error, primitives
 from rhi.control.intent_control import IntentController, IntentFME, IntentVME
 from rhi.errors import InvalidInput
+from rhi.experiments.beyond.intent import error_and_lag, trained_hmm
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.setups import path_hand
-from rhi.experiments.beyond.intent import error_and_lag, trained_hmm
 from rhi.sim import Hand, Path, Plant, simulate
 from rhi.sim.strokes import synthetic_strokes
 

@@ -37,7 +37,8 @@ def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
         b: (n,) unscaled torque [N m].
         Z: (n, r) orthonormal basis of the null-space torques (`null_basis`, either projector).
-        lo, hi: (n,) torque limits [N m].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
         start: a feasible allocation to start from (default: ASCM, `rhi.control.kernels.ascm` on
             P = Z Zᵀ, or `ascm` on Z where the projector form cannot decide).
         max_iter: iteration limit.

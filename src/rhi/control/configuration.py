@@ -31,6 +31,8 @@ def optimal_configuration(
         x: (m,) end-effector position [m].
         objective: secondary objective with `value` and `gradient`.
         q0: (n,) starting configuration (need not satisfy f(q0) = x).
+        tol: SLSQP's convergence tolerance.
+        max_iter: SLSQP's iteration limit.
 
     Returns:
         q: (n,) optimal configuration.

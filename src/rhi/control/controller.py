@@ -225,8 +225,10 @@ class NullSpaceController:
             raise InvalidInput(f"implementation: expected 'fast' or 'reference', got {config.implementation!r}")
         scalar("damping", config.damping, nonnegative=True)
         scalar("aso_shape", config.aso_shape, positive=True)
-        if not (callable(getattr(config.primary, "forces", None)) and callable(getattr(config.primary, "required_sensors", None))):
-            raise InvalidInput(f"primary: expected a primary law (ForceRendering, ImpedanceControl, ...), got {config.primary!r:.80}")
+        primary = config.primary
+        if not (callable(getattr(primary, "forces", None)) and callable(getattr(primary, "required_sensors", None))):
+            raise InvalidInput(f"primary: expected a primary law (ForceRendering, ImpedanceControl, ...), "
+                               f"got {primary!r:.80}")
         lo = device.torque_min if config.torque_min is None else config.torque_min
         hi = device.torque_max if config.torque_max is None else config.torque_max
         self.lo, self.hi = check_torque_limits(lo, hi, device.n)

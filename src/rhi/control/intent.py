@@ -219,8 +219,11 @@ class HMMIntent(_Evidence):
         changes of the true axis per evidence tick.
 
         Args:
-            force: (N, m) hand forces [N]; xdot: (N, m) velocities [m/s]; u_true: (N, m) true directions.
-            dt: tick period [s] (for the record only). **kw: the evidence model and k.
+            force: (N, m) hand forces [N].
+            xdot: (N, m) handle velocities [m/s].
+            u_true: (N, m) true task directions (unit vectors).
+            dt: tick period [s] (for the record only).
+            **kw: the evidence model and k.
         """
         force, xdot, u_true = (np.asarray(a, dtype=float) for a in (force, xdot, u_true))
         if force.ndim != 2 or force.shape != xdot.shape or force.shape != u_true.shape:
@@ -275,7 +278,9 @@ class KnownIntent:
         self.confidence = 1.0
 
     def reset(self) -> None:
+        """Back to the fixed direction u0."""
         self.u = self.u0
 
     def update(self, force=None, xdot=None) -> np.ndarray:
+        """The fixed direction u: (m,) whatever the readings."""
         return self.u

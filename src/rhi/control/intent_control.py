@@ -109,9 +109,11 @@ class IntentController:
 
     @property
     def state(self):
+        """The wrapped controller's state."""
         return self.controller.state
 
     def reset(self) -> None:
+        """Reset the wrapped controller, the estimator and the history."""
         self.controller.reset()
         self.estimator.reset()
         self.history.clear()

@@ -80,6 +80,7 @@ class VMEMatching:
         return self._desired.copy()
 
     def value(self, device: Device, q: np.ndarray) -> float:
+        """ν(q) = JBLD(M_des, J Jᵀ) for q: (n,) [rad]."""
         J = device.jacobian(q)
         return float(jbld(self._desired, J @ J.T))
 
@@ -166,6 +167,7 @@ class FMEMatching:
         return np.linalg.inv((J * w2) @ J.T)
 
     def value(self, device: Device, q: np.ndarray) -> float:
+        """ν(q) = JBLD(M_des, M̂(q)) for q: (n,) [rad]."""
         return float(jbld(self.desired, self.fme(device.jacobian(q))))
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
@@ -218,6 +220,7 @@ class EllipsoidMatching:
         return J if self.H is None else self.H @ J
 
     def value(self, device: Device, q: np.ndarray) -> float:
+        """ν(q) = JBLD(M_des, H J Jᵀ Hᵀ) for q: (n,) [rad]."""
         J = self._J(device.jacobian(q))
         return float(jbld(self.desired, J @ J.T))
 

@@ -187,7 +187,8 @@ class PassivityController:
             t: time of this tick [s].
             kin: the device terms at the measured (q, q̇).
             tau0: (n,) the torque the control law would send [N m].
-            lo, hi: (n,) the torque box [N m] (containing 0).
+            lo: (n,) lower bound of the torque box [N m] (<= 0).
+            hi: (n,) upper bound of the torque box [N m] (>= 0).
         """
         s = self.state
         E = self.observe(t, kin)

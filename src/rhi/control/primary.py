@@ -203,6 +203,7 @@ class ImpedanceControl(_Compensated):
             _check_task_matrix("inertia", self.inertia, device.m)
 
     def required_sensors(self) -> tuple[str, ...]:
+        """The hand's F/T sensor when inertia is shaped (eq. 5.4), none otherwise (eq. 5.6)."""
         return () if self.inertia is None else (self.sensor,)
 
     def hand_force(self, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -216,6 +217,7 @@ class ImpedanceControl(_Compensated):
         return v
 
     def forces(self, t, kin, sensors):
+        """(F_render, F_extra) of eqs. 5.4–5.7 at time t [s], each (m,) [N]."""
         if self.inertia is None:
             return self._zeros(kin), self._extra(kin)  # eq. 5.6
         # eq. 5.4: M_x (M_x^d)⁻¹ (F_h − B^d ẋ) − F_h + C_x ẋ + G_x + F_x
@@ -264,9 +266,11 @@ class ForceRendering(_Compensated):
         self._check_common(device)
 
     def required_sensors(self) -> tuple[str, ...]:
+        """The force to render, ``sensors["force"]`` (m,) [N]."""
         return ("force",)
 
     def forces(self, t, kin, sensors):
+        """(gain · sensors["force"], compensation C_x ẋ + G_x + F_x − B^d ẋ) of eq. 7.2, each (m,) [N]."""
         F = np.asarray(sensors["force"], dtype=float)
         if F.shape != kin.x.shape:
             raise InvalidInput(f"sensors['force']: expected shape {kin.x.shape}, got {F.shape}")
@@ -320,6 +324,7 @@ class SpringPalpation(_Compensated):
         self._check_common(device)
 
     def required_sensors(self) -> tuple[str, ...]:
+        """None: the spring is a function of the position alone."""
         return ()
 
     def spring(self, x: np.ndarray) -> np.ndarray:
@@ -331,4 +336,5 @@ class SpringPalpation(_Compensated):
         return -self.stiffness * max(depth, 0.0) * self.normal
 
     def forces(self, t, kin, sensors):
+        """(K_e δX, compensation terms) of eqs. 6.21 / 7.20, each (m,) [N]."""
         return self.spring(kin.x), self._extra(kin)

@@ -27,7 +27,8 @@ def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarra
         tau: (n,) allocated torque [N m], within the box.
         b: (n,) unscaled torque of the allocation [N m].
         delta: (n,) safety torque, already projected into the task's null space [N m].
-        lo, hi: (n,) torque limits [N m].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
         skip: return (τ, 1) unchanged (the allocation had to clip b).
 
     Returns:

@@ -119,7 +119,10 @@ def scaling_alpha(p, c, lo, hi) -> float | None:
     Entries with |p| negligible only need c itself in the box.
 
     Args:
-        p, c, lo, hi: (k,) arrays or lists.
+        p: (k,) direction of the scaled part.
+        c: (k,) constant part.
+        lo: (k,) lower bounds.
+        hi: (k,) upper bounds.
     """
     a_lo, a_hi = 0.0, 1.0
     for pi, ci, l, h in zip(*(np.asarray(v, dtype=float).tolist() for v in (p, c, lo, hi))):
@@ -207,7 +210,9 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
         b: (n,) unscaled torque [N m].
         Z: (n, n−m) orthonormal basis of the null-space torques (`null_basis`).
-        lo, hi: (n,) torque limits [N m].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
+        max_iter: most joints held before giving up (default n + 1: every joint once).
 
     Returns:
         The allocation; ``J#ᵀ τ = J#ᵀ(α a + b)``.
@@ -259,7 +264,8 @@ def ascm_projector(a, b, P, lo, hi, *, rank: int | None = None) -> Allocation:
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
         b: (n,) unscaled torque [N m].
         P: (n, n) orthogonal projector onto the null-space torques (`null_projector`).
-        lo, hi: (n,) torque limits [N m].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
         rank: n − m, the rank of P (default: its rounded trace).
 
     Returns:
@@ -320,7 +326,8 @@ def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> 
         saturated: (n,) bool, ASCM's 𝒮.
         Z: (n, n−m) null-space basis.
         tau_to: (n,) tertiary torque τ_to, e.g. −Λ ∂ν/∂q − k_D q̇ [N m].
-        lo, hi: (n,) torque limits [N m].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
         N: (n, n) torque null-space projector I − JᵀJ#ᵀ, or None.
 
     Returns:
@@ -354,7 +361,8 @@ def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None =
         saturated: (n,) bool, ASCM's 𝒮.
         P: (n, n) orthogonal projector onto the null-space torques (`null_projector`).
         tau_to: (n,) tertiary torque τ_to [N m].
-        lo, hi: (n,) torque limits [N m].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
         N: (n, n) torque null-space projector I − JᵀJ#ᵀ, or None (then P).
 
     Returns:
@@ -383,7 +391,8 @@ def force_capability(
     Args:
         J: (m, n) Jacobian [m/rad].
         u: (m,) direction; normalised internally.
-        torque_min, torque_max: (n,) limits [N m].
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
         method: "scaling" | "ascm" | "lp".
         projector: "dynamic" (J#, eq. 7.5; needs M) or "pseudoinverse" (J⁺).
         M: (n, n) inertia [kg m²], required for (and only used by) ``projector="dynamic"``.
