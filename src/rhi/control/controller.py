@@ -107,6 +107,7 @@ class FMESchedule:
     stiff: np.ndarray
     gain: float = 20.0
     transition: TransitionConfig = dataclasses.field(default_factory=TransitionConfig)
+    _distance: float = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         free = spd_matrix("free", self.free)

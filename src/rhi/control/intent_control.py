@@ -11,6 +11,7 @@ the wrapper adds nothing to the tick.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -32,8 +33,8 @@ class _FollowsIntent:
         if not hasattr(source, "u") or not callable(getattr(source, "update", None)):
             raise InvalidInput(f"source: expected an intent estimator with .u and .update(), got {source!r}")
         self.source = source
-        self._u = None
-        self._obj = None
+        self._u: np.ndarray | None = None
+        self._obj: Any = None
 
     def _build(self, u: np.ndarray):  # pragma: no cover - abstract
         raise NotImplementedError
@@ -41,9 +42,10 @@ class _FollowsIntent:
     def current(self):
         """The fixed-u objective for the estimator's current u."""
         u = self.source.u
-        if self._obj is None or not np.array_equal(u, self._u):
-            self._u = np.array(u, dtype=float)
-            self._obj = self._build(self._u)
+        if self._obj is None or self._u is None or not np.array_equal(u, self._u):
+            u_now = np.array(u, dtype=float)
+            self._u = u_now
+            self._obj = self._build(u_now)
         return self._obj
 
     def value(self, device: Device, q: np.ndarray) -> float:

@@ -148,6 +148,7 @@ class FMEMatching:
 
     desired: np.ndarray
     torque_max: np.ndarray | float
+    _w2: np.ndarray = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "desired", spd_matrix("desired", self.desired))
@@ -264,4 +265,7 @@ class WeightedSum:
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """Σ gain_i ∂ν_i/∂q: (n,)."""
-        return sum(t.gain * np.asarray(t.objective.gradient(device, q), dtype=float) for t in self.terms)
+        g = np.zeros(device.n)
+        for t in self.terms:
+            g = g + t.gain * np.asarray(t.objective.gradient(device, q), dtype=float)
+        return g
