@@ -16,11 +16,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
 MAX_LINES = 500
 
-# Known exceptions (none left after issue 16): the tests below fail on a module over the limit or a cycle
-# that is not listed here, and on an entry that no longer applies.
-KNOWN_LONG: set[str] = set()
-KNOWN_CYCLES: list[list[str]] = []
-
 
 def modules() -> dict[str, Path]:
     """{dotted name: path} of every module in src/rhi (packages by their ``__init__``)."""
@@ -117,18 +112,12 @@ def _package_edges(graph: dict[str, set[str]]) -> dict[str, set[str]]:
 
 def test_no_module_over_500_lines() -> None:
     long = {name: n for name, p in modules().items() if (n := len(p.read_text().splitlines())) > MAX_LINES}
-    new = {k: v for k, v in long.items() if k not in KNOWN_LONG}
-    assert not new, f"modules over {MAX_LINES} lines (split them by concept): {new}"
-    done = sorted(KNOWN_LONG - set(long))
-    assert not done, f"{done} are within {MAX_LINES} lines now: remove them from KNOWN_LONG in this file"
+    assert not long, f"modules over {MAX_LINES} lines (split them by concept): {long}"
 
 
 def test_no_import_cycle() -> None:
     found = cycles(_package_edges(import_graph()))
-    new = [c for c in found if c not in KNOWN_CYCLES]
-    assert not new, f"import cycles between rhi modules: {new}"
-    gone = [c for c in KNOWN_CYCLES if c not in found]
-    assert not gone, f"the cycles {gone} are gone: remove them from KNOWN_CYCLES in this file"
+    assert not found, f"import cycles between rhi modules: {found}"
 
 
 def test_the_cycle_check_finds_a_cycle() -> None:
