@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from rhi.control import kernels
-from rhi.control.saturation import Allocation, allocate_lp, ascm
+from rhi.control.saturation import Allocation, allocate_lp
 
 
 def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max_iter: int = 50) -> Allocation:
@@ -39,8 +39,8 @@ def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max
         Z: (n, r) orthonormal basis of the null-space torques (`null_basis`, either projector).
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
-        start: a feasible allocation to start from (default: ASCM, `rhi.control.kernels.ascm` on
-            P = Z Zᵀ, or `ascm` on Z where the projector form cannot decide).
+        start: a feasible allocation to start from (default: ASCM in projector form on P = Z Zᵀ, or
+            simple scaling where that form cannot decide; `rhi.control.kernels.allocation.active_set_start`).
         max_iter: iteration limit.
 
     Returns:
@@ -54,8 +54,8 @@ def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max
         return Allocation(tau0, 1.0, np.zeros(n, bool), np.zeros(n), "active_set")
     if start is None:
         sat = np.zeros(n, bool)
-        tau, alpha, clipped, ok = kernels.ascm(a, b, Z @ Z.T, lo, hi, r, sat)
-        start = Allocation(tau, alpha, sat, tau - alpha * a - b, "ascm", clipped) if ok else ascm(a, b, Z, lo, hi)
+        tau, alpha, clipped = kernels.active_set_start(a, b, Z @ Z.T, lo, hi, r, sat)
+        start = Allocation(tau, alpha, sat, tau - alpha * a - b, "ascm", clipped)
     if start.clipped or not a.any():
         return _lp(a, b, Z, lo, hi)
     ok, alpha, y = kernels.active_set(a, b, Z, lo, hi, float(start.alpha), np.ascontiguousarray(start.tau, dtype=float),

@@ -5,7 +5,7 @@ simple scaling, the active-set method, the safety room and the tertiary scaling,
 on their own by `rhi.control.saturation` and `rhi.control.active_set`.
 """
 
-from rhi.control.kernels.allocation import active_set, active_set_result, ascm, tertiary
+from rhi.control.kernels.allocation import active_set, active_set_result, active_set_start, ascm, tertiary
 from rhi.control.kernels.step import (
     ACTIVE_SET,
     ASCM,
@@ -33,5 +33,5 @@ from rhi.control.kernels.step import (
 __all__ = [
     "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_DAMPING", "P_DYNAMIC", "P_EPS1",
     "P_EPS2", "P_FME", "P_FME_DIST", "P_FME_GAIN", "P_GRAVITY", "P_RHO", "P_SATURATION", "SCALING", "SINGULAR",
-    "active_set", "active_set_result", "ascm", "aso_volume", "tertiary", "tick",
+    "active_set", "active_set_result", "active_set_start", "ascm", "aso_volume", "tertiary", "tick",
 ]

@@ -213,6 +213,18 @@ def ascm(a, b, P, lo, hi, r, sat):
 
 
 @jit
+def active_set_start(a, b, P, lo, hi, r, sat):
+    """A feasible start for `active_set`: ASCM, or simple scaling where the projector form cannot decide.
+
+    Returns (τ, α, clipped) and the held joints in sat.
+    """
+    tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
+    if ok:
+        return tau, alpha, clipped
+    return allocate_scaling(a, b, lo, hi, sat)
+
+
+@jit
 def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
     """The primal active-set method of `rhi.control.active_set` from a feasible start: (ok, α, y).
 

@@ -24,6 +24,7 @@ import numpy as np
 from rhi.control.kernels.allocation import (
     active_set,
     active_set_result,
+    active_set_start,
     allocate_scaling,
     ascm,
     basis,
@@ -194,10 +195,14 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
             if not ok:
                 return SINGULAR, 1.0, 0.0, V, omega, False
             have_P = True
-        tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
-        if not ok:
-            return FALLBACK, 1.0, 0.0, V, omega, False
-        if code == ACTIVE_SET:
+        if code == ASCM:
+            tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
+            if not ok:
+                return FALLBACK, 1.0, 0.0, V, omega, False
+        else:
+            tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
+            if clipped or not np.any(a != 0.0):
+                return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
             if clipped or not np.any(a != 0.0):
                 return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
             Z = basis(P, r)
