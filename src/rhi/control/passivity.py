@@ -141,7 +141,7 @@ class PassivityController:
     def _port(self, kin: DeviceTerms) -> tuple[np.ndarray, np.ndarray]:
         """(position, velocity) of the port: (q, q̇) or (x, ẋ)."""
         if self.config.port == "motors":
-            return kin.q, kin.dq
+            return kin.q, kin.dq  # type: ignore[return-value]  # a controller's tick always has q̇
         return kin.x, kin.xdot
 
     def _effort(self, kin: DeviceTerms, tau: np.ndarray) -> np.ndarray:
@@ -158,7 +158,7 @@ class PassivityController:
         s = self.state
         pos, _ = self._port(kin)
         if s.position is not None:
-            s.energy -= float(s.effort.dot(pos - s.position))
+            s.energy -= float(s.effort.dot(pos - s.position))  # type: ignore[union-attr]  # set with position
         return s.energy
 
     def apply(self, t: float, kin: DeviceTerms, tau0: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

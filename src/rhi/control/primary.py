@@ -132,7 +132,7 @@ def task_compensation(
     if gravity and kin.g.dot(kin.g) != 0.0:
         out = kin.Gx if out is None else out + kin.Gx
     if friction is not None:
-        f = kin.Jsharp.T.dot(friction.torque(kin.dq))
+        f = kin.Jsharp.T.dot(friction.torque(kin.dq))  # type: ignore[arg-type]  # a controller's tick has q̇
         out = f if out is None else out + f
     return out
 
@@ -141,19 +141,27 @@ def _minus_damping(B: np.ndarray, xdot: np.ndarray) -> np.ndarray:
     return -(B.dot(xdot) if B.ndim else B * xdot)
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
 class _Compensated:
-    """Behaviour shared by the laws with damping B^d and the compensation terms of eqs. 5.4 / 7.2."""
+    """Behaviour shared by the laws with damping B^d and the compensation terms of eqs. 5.4 / 7.2.
+
+    A mixin of the frozen dataclasses below, which declare these fields (``damping`` is stored as an
+    array by their ``__post_init__``).
+    """
+
+    damping: float | np.ndarray
+    coriolis: bool
+    gravity: bool
+    friction: JointFriction | None
 
     def _extra(self, kin: DeviceTerms) -> np.ndarray:
         """−B^d ẋ + C_x ẋ + G_x + F_x: (m,) [N]."""
         c = task_compensation(kin, coriolis=self.coriolis, gravity=self.gravity, friction=self.friction)
         B, xdot = self.damping, kin.xdot
-        Bx = B.dot(xdot) if B.ndim else B * xdot
+        Bx = B.dot(xdot) if B.ndim else B * xdot  # type: ignore[union-attr]  # an array after __post_init__
         return -Bx if c is None else c - Bx
 
     def _check_common(self, device: Device) -> None:
-        _check_task_matrix("damping", self.damping, device.m)
+        _check_task_matrix("damping", self.damping, device.m)  # type: ignore[arg-type]  # an array after __post_init__
         if self.friction is not None:
             self.friction.check(device.n)
 
@@ -222,7 +230,8 @@ class ImpedanceControl(_Compensated):
             return self._zeros(kin), self._extra(kin)  # eq. 5.6
         # eq. 5.4: M_x (M_x^d)⁻¹ (F_h − B^d ẋ) − F_h + C_x ẋ + G_x + F_x
         Fh = self.hand_force(kin, sensors)
-        F = kin.Lambda.dot(self._inertia_inv.dot(Fh + _minus_damping(self.damping, kin.xdot))) - Fh
+        # _inertia_inv and the damping array are set by __post_init__
+        F = kin.Lambda.dot(self._inertia_inv.dot(Fh + _minus_damping(self.damping, kin.xdot))) - Fh  # type: ignore[attr-defined,arg-type]
         c = task_compensation(kin, coriolis=self.coriolis, gravity=self.gravity, friction=self.friction)
         return self._zeros(kin), (F if c is None else F + c)
 
@@ -309,8 +318,8 @@ class SpringPalpation(_Compensated):
         object.__setattr__(self, "x0", as_array("x0", self.x0, ndim_min=1))
         if self.normal is not None:
             nrm = as_array("normal", self.normal, ndim_min=1)
-            if nrm.shape != self.x0.shape:
-                raise InvalidInput(f"normal: expected shape {self.x0.shape} like x0, got {nrm.shape}")
+            if nrm.shape != self.x0.shape:  # type: ignore[attr-defined]  # x0: an array from here on
+                raise InvalidInput(f"normal: expected shape {self.x0.shape} like x0, got {nrm.shape}")  # type: ignore[attr-defined]
             if np.linalg.norm(nrm) < 1e-12:
                 raise InvalidInput("normal: zero-length direction vector")
             object.__setattr__(self, "normal", nrm / np.linalg.norm(nrm))
@@ -319,8 +328,8 @@ class SpringPalpation(_Compensated):
 
     def check(self, device: Device) -> None:
         """Raise InvalidInput unless the parameters fit `device`."""
-        if self.x0.shape != (device.m,):
-            raise InvalidInput(f"x0: expected shape ({device.m},) for this device, got {self.x0.shape}")
+        if self.x0.shape != (device.m,):  # type: ignore[attr-defined]  # x0: an array after __post_init__
+            raise InvalidInput(f"x0: expected shape ({device.m},) for this device, got {self.x0.shape}")  # type: ignore[attr-defined]
         self._check_common(device)
 
     def required_sensors(self) -> tuple[str, ...]:
@@ -332,8 +341,8 @@ class SpringPalpation(_Compensated):
         dx = x - self.x0
         if self.normal is None:
             return -self.stiffness * dx
-        depth = float(self.normal.dot(dx))
-        return -self.stiffness * max(depth, 0.0) * self.normal
+        depth = float(self.normal.dot(dx))  # type: ignore[attr-defined]  # normal: an array after __post_init__
+        return -self.stiffness * max(depth, 0.0) * self.normal  # type: ignore[operator]
 
     def forces(self, t, kin, sensors):
         """(K_e δX, compensation terms) of eqs. 6.21 / 7.20, each (m,) [N]."""

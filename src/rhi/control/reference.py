@@ -72,11 +72,14 @@ def reference_tick(
     if fme is not None:
         s.transition, s.omega = transition_step(s.transition, t, s.V, fme.distance, fme.transition)
 
-    tau_s = -cfg.damping * dq - sum((gain * np.asarray(obj.gradient(dev, q)) for gain, obj in ctrl.barriers),
+    # a controller's tick always has q̇ (dq is not None)
+    tau_s = -cfg.damping * dq - sum((gain * np.asarray(obj.gradient(dev, q)) for gain, obj in ctrl.barriers),  # type: ignore[operator]
                                     np.zeros(dev.n))
     tau_to = tau_s
     if fme is not None and fme.gain > 0:
-        tau_to = tau_to - fme.gain * ctrl.fme_objective.with_desired(fme.desired(s.omega)).gradient(dev, q)
+        # ctrl.fme_objective is built whenever config.fme is set
+        tau_to = tau_to - fme.gain * ctrl.fme_objective.with_desired(  # type: ignore[union-attr]
+            fme.desired(s.omega)).gradient(dev, q)
     for gain, obj in ctrl.objectives:
         tau_to = tau_to - gain * np.asarray(obj.gradient(dev, q), dtype=float)
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Literal
 
 import numpy as np
 from scipy.optimize import linprog
@@ -91,7 +92,7 @@ def null_projector(J: np.ndarray, M: np.ndarray | None = None, *, JMinv: np.ndar
         Singular: J does not have full row rank.
     """
     A = JMinv if JMinv is not None else (J if M is None else np.linalg.solve(M, J.T).T)
-    Q = []
+    Q: list[np.ndarray] = []
     for i in range(A.shape[0]):
         v = A[i]
         scale = math.sqrt(v.dot(v))
@@ -102,8 +103,8 @@ def null_projector(J: np.ndarray, M: np.ndarray | None = None, *, JMinv: np.ndar
         if not nv > 1e-12 * scale:
             raise Singular(f"J: rank-deficient Jacobian (row {i} depends on the others)")
         Q.append(v / nv)
-    Q = np.array(Q)
-    return eye(A.shape[1]) - Q.T.dot(Q)
+    Qm = np.array(Q)
+    return eye(A.shape[1]) - Qm.T.dot(Qm)
 
 
 def basis_from_projector(P: np.ndarray, rank: int | None = None) -> np.ndarray:
@@ -379,7 +380,8 @@ def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None =
 
 
 def force_capability(
-    J, u, torque_min, torque_max, *, method: str = "ascm", projector: str = "dynamic", M=None, samples: int = 41
+    J, u, torque_min, torque_max, *, method: str = "ascm", projector: Literal["dynamic", "pseudoinverse"] = "dynamic",
+    M=None, samples: int = 41,
 ) -> float:
     """Largest force along u a static allocation method renders, over a ramp of requests [N].
 

@@ -288,10 +288,10 @@ def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
                 nw += 1
                 continue
         lam = _inv(GW @ GWt) @ g0  # GWᵀ λ = e0 (GW has independent rows)
-        i = np.argmin(lam)
-        if lam[i] >= -1e-12:
+        i_min = np.argmin(lam)
+        if lam[i_min] >= -1e-12:
             return True, x[0] / sa, x[1:].copy()
-        for j in range(i, nw - 1):
+        for j in range(i_min, nw - 1):
             W[j] = W[j + 1]
         nw -= 1
     return False, 0.0, x[1:].copy()
