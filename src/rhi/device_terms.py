@@ -4,7 +4,7 @@
 compiled `rhi.terms_kernel.task_terms` writes every term (∂J/∂q in closed form from the 6-D
 frame Jacobian, the task-space dynamics of thesis eqs. 5.2 / 7.1) into one flat buffer the
 snapshot's attributes view; otherwise the task-space dynamics are computed on first access. Also the small
-numeric helpers the 1 kHz paths share: `eye`, `inv`, `inv_small` and the `lazy` attribute.
+numeric helpers the 1 kHz paths share: `eye`, `inv_small` and the `lazy` attribute.
 """
 
 from __future__ import annotations
@@ -80,22 +80,6 @@ def eye(n: int) -> np.ndarray:
     return eye_n
 
 
-try:  # the gufunc behind np.linalg.inv, without its Python-level checks (~3 µs per call)
-    from numpy.linalg import _umath_linalg
-
-    _umath_linalg.inv(np.eye(2), signature="d->d")
-
-    def inv(A: np.ndarray) -> np.ndarray:
-        """Inverse of a non-singular float matrix (the gufunc of `np.linalg.inv`, without its checks)."""
-        return _umath_linalg.inv(A, signature="d->d")
-
-except (ImportError, AttributeError, TypeError):  # pragma: no cover - other NumPy builds
-
-    def inv(A: np.ndarray) -> np.ndarray:
-        """Inverse of a non-singular float matrix (`np.linalg.inv`)."""
-        return np.linalg.inv(A)
-
-
 def inv_small(A: np.ndarray) -> np.ndarray:
     """Inverse of a small square float matrix: closed form for 2 × 2, LAPACK otherwise.
 
@@ -114,7 +98,7 @@ def inv_small(A: np.ndarray) -> np.ndarray:
         if det != 0.0 and math.isfinite(det):
             return np.array([[d / det, -b / det], [-c / det, a / det]])
         return np.linalg.inv(A)  # raises LinAlgError
-    return inv(A)
+    return np.linalg.inv(A)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -232,7 +216,7 @@ class DeviceTerms:
     def _cartesian(self) -> None:
         """Compute M_q⁻¹, J M_q⁻¹, M_x and J# together (one call on first access of any)."""
         d = self.__dict__
-        Minv = d["Minv"] = inv(self.M)
+        Minv = d["Minv"] = np.linalg.inv(self.M)
         JMinv = d["JMinv"] = self.J.dot(Minv)
         Lam = d["Lambda"] = inv_small(JMinv.dot(self.J.T))
         d["Jsharp"] = JMinv.T.dot(Lam)
