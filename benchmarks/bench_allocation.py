@@ -3,7 +3,8 @@
 For each device (rhi4, planar3r) and projector (dynamic J#, pseudoinverse J⁺), seeded random
 non-singular configurations and force directions, a request a = Jᵀ(100 u) far beyond the
 capability and a small unscaled torque b: the fraction of cases where each method reaches the
-LP optimum (α within 1e-6 relative of `allocate_lp`), the worst gap [N along u, per 100 N
+LP optimum (α within 1e-6 relative of `allocate_lp`; "in-tick" is the active set as the controller's
+compiled tick runs it, from the projector P = Z Zᵀ, without the Python call around it), the worst gap [N along u, per 100 N
 request], whether any torque left the box, and the median / p99 CPU time per call (thread_time,
 so a shared machine's load counts less), with the ratio of each to the LP measured in the same run
 (issue 13, item 6: >= 99.9 % at <= 50 µs median).
@@ -15,10 +16,12 @@ from __future__ import annotations
 
 import argparse
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
 from rhi.control.active_set import allocate_active_set
+from rhi.control.kernels import allocation
 from rhi.control.saturation import allocate_lp, ascm, null_basis
 from rhi.device import device
 
@@ -42,6 +45,20 @@ def _timed(fn, *args):
     return res, time.thread_time() - t0
 
 
+def _in_tick(a, b, P, lo, hi, r):
+    """The active-set allocation as the controller's compiled tick runs it (start, basis of P, iteration)."""
+    sat = np.zeros(a.shape[0], bool)
+    tau, alpha, clipped = allocation.active_set_start(a, b, P, lo, hi, r, sat)
+    if clipped:
+        return allocate_active_set(a, b, allocation.basis(P, r), lo, hi)
+    Z = allocation.basis(P, r)
+    ok, alpha, y = allocation.active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
+    if not ok:
+        return allocate_active_set(a, b, Z, lo, hi)
+    tau, alpha = allocation.active_set_result(alpha, y, a, b, Z, lo, hi, sat)
+    return SimpleNamespace(tau=tau, alpha=alpha)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=10_000)
@@ -55,14 +72,20 @@ def main() -> None:
         lo, hi = dev.torque_limits
         cases = _cases(dev, rng, args.cases)
         for proj in ("dynamic", "pseudoinverse"):
-            stats = {m: {"alpha": [], "t": [], "out": 0} for m in ("ascm", "active_set", "lp")}
+            stats = {m: {"alpha": [], "t": [], "out": 0} for m in ("ascm", "active_set", "lp", "in-tick")}
+            inputs = []
             for J, M, u, w in cases:
                 Z = null_basis(J, M if proj == "dynamic" else None)
-                a, b = J.T @ (100.0 * u), J.T @ (0.05 * w)
-                A, ta = _timed(ascm, a, b, Z, lo, hi)
-                S, ts = _timed(allocate_active_set, a, b, Z, lo, hi)  # includes its own ASCM start
-                L, tl = _timed(allocate_lp, a, b, Z, lo, hi)
-                for m, al, t in (("ascm", A, ta), ("active_set", S, ts), ("lp", L, tl)):
+                inputs.append((J.T @ (100.0 * u), J.T @ (0.05 * w), Z))
+            methods = {
+                "ascm": ascm,
+                "active_set": allocate_active_set,  # includes its own ASCM start
+                "lp": allocate_lp,
+                "in-tick": lambda a, b, Z, lo, hi: _in_tick(a, b, Z @ Z.T, lo, hi, Z.shape[1]),
+            }
+            for m, fn in methods.items():  # one pass per method: warm caches, as in a control loop
+                for a, b, Z in inputs:
+                    al, t = _timed(fn, a, b, Z, lo, hi)
                     stats[m]["alpha"].append(al.alpha)
                     stats[m]["t"].append(t)
                     stats[m]["out"] += bool(np.any(al.tau > hi + 1e-12) or np.any(al.tau < lo - 1e-12))
