@@ -203,8 +203,6 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
             tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
             if clipped or not np.any(a != 0.0):
                 return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
-            if clipped or not np.any(a != 0.0):
-                return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
             Z = basis(P, r)
             ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
             if not ok:
