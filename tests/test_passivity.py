@@ -137,11 +137,35 @@ def test_handle_port_observer():
         kin = dev.terms(q, dq / DT)
         tau = kin.J.T @ rng.normal(0.0, 1.0, 2)  # task torques only: no null-space work
         for pc in pcs.values():
-            pc.observe(k * DT, kin)
-            pc.commit(k * DT, kin, tau)
+            assert np.array_equal(pc.apply(k * DT, kin, tau, np.full(4, -1e3), np.full(4, 1e3)), tau)
     Em, Eh = pcs["motors"].state.energy, pcs["handle"].state.energy
     assert abs(Em) > 1e-4
     assert Eh == pytest.approx(Em, rel=0.02)
+
+
+@pytest.mark.parametrize("port", ["motors", "handle"])
+def test_kernel_equals_reference(port):
+    """The compiled PO/PC equals its readable composition (rhi.control.reference) tick by tick, damping active."""
+    from rhi.device import device
+
+    dev = device("rhi4")
+    rng = np.random.default_rng(7)
+    lo, hi = -dev.torque_max, dev.torque_max
+    pcs = [PassivityController(Passivity(port=port), reference=r) for r in (False, True)]
+    q, dq, active = np.array([0.5, 0.95, 0.38, -0.29]), np.zeros(4), 0
+    for k in range(400):
+        kin = dev.terms(q, dq)
+        tau0 = np.clip(rng.normal(0.0, 0.3, 4) - 2.0 * dq, lo, hi)  # a noisy law that injects energy
+        taus = [pc.apply(k * DT, kin, tau0, lo, hi) for pc in pcs]
+        fast, ref = (pc.state for pc in pcs)
+        np.testing.assert_allclose(taus[0], taus[1], rtol=0, atol=1e-12)
+        assert (fast.energy, fast.alpha, fast.scale) == pytest.approx((ref.energy, ref.alpha, ref.scale), abs=1e-12)
+        assert fast.dissipated == pytest.approx(ref.dissipated, abs=1e-12)
+        assert np.all(taus[0] >= lo) and np.all(taus[0] <= hi)
+        active += fast.alpha > 0.0 or fast.scale < 1.0
+        dq = dq + DT * np.linalg.solve(kin.M, taus[0])
+        q = q + DT * dq
+    assert active > 20  # the damping and the scaling both ran
 
 
 def test_controller_exposes_energy_and_alpha(rhi4):

@@ -254,7 +254,7 @@ class NullSpaceController:
                     (float(term.gain), term.objective))
         self._sensors = tuple(config.primary.required_sensors())
         pas = getattr(config.primary, "passivity", None)
-        self._pc = None if pas is None else PassivityController(pas)
+        self._pc = None if pas is None else PassivityController(pas, reference=config.implementation == "reference")
         self._n = device.n
         self._kernel = (None if config.implementation == "reference" or config.saturation == "lp"
                         else KernelTick(self))
@@ -263,6 +263,24 @@ class NullSpaceController:
     def passivity(self) -> PassivityState | None:
         """State of the passivity observer/controller (`rhi.control.passivity`), None without one."""
         return None if self._pc is None else self._pc.state
+
+    def warmup(self) -> None:
+        """Load the compiled kernels now (Numba's disk cache, or a compile), not at a real-time loop's first tick.
+
+        Steps a fresh twin at rest, at the middle of the joint range (or seeded random
+        configurations if that one is singular); this controller's state is untouched.
+        `rhi.runtime.run` calls it before it opens the link.
+        """
+        dev, rng = self.device, np.random.default_rng(0)
+        lo, hi = (np.where(np.isfinite(b), b, s * np.pi) for b, s in ((dev.q_min, -1.0), (dev.q_max, 1.0)))
+        sensors = {name: np.zeros(dev.m) for name in self._sensors}
+        for k in range(5):
+            twin = NullSpaceController(dev, self.config)
+            q = 0.5 * (lo + hi) if k == 0 else rng.uniform(lo, hi)
+            twin.step(0.0, q, np.zeros(self._n), sensors)
+            twin.step(1e-3, q, np.full(self._n, 1e-3), sensors)
+            if twin.state.ticks == 2:
+                return
 
     def reset(self) -> None:
         """Fresh state (clears a safe stop, empties the passivity observer)."""

@@ -66,6 +66,8 @@ from typing import Literal
 
 import numpy as np
 
+from rhi.control.kernels import passivity as _kernel
+from rhi.control.reference import reference_passivity
 from rhi.device import DeviceTerms
 from rhi.errors import InvalidInput
 
@@ -124,47 +126,28 @@ class PassivityController:
     """The PO/PC pair for one controller (see the module docstring for the equations).
 
     Use per tick: ``tau = apply(t, kin, tau0, lo, hi)``, which runs the observer, adds the
-    damping and records the torque sent; an observer alone calls ``observe`` and ``commit``.
+    damping and records the torque sent; an observer alone is ``Passivity(control=False)``.
 
     Args:
         config: the settings.
+        reference: run the readable composition (`rhi.control.reference.reference_passivity`)
+            instead of the compiled kernel (`rhi.control.kernels.passivity`); equal to rounding.
     """
 
-    def __init__(self, config: Passivity) -> None:
+    def __init__(self, config: Passivity, *, reference: bool = False) -> None:
         self.config = config
+        self.reference = bool(reference)
         self.state = PassivityState(energy=config.initial_energy)
+        self._alpha_max = -1.0 if config.alpha_max is None else float(config.alpha_max)
 
     def reset(self) -> None:
         """Empty the observer (E_obs = E(0))."""
         self.state = PassivityState(energy=self.config.initial_energy)
 
-    def _port(self, kin: DeviceTerms) -> tuple[np.ndarray, np.ndarray]:
-        """(position, velocity) of the port: (q, q̇) or (x, ẋ)."""
-        if self.config.port == "motors":
-            return kin.q, kin.dq  # type: ignore[return-value]  # a controller's tick always has q̇
-        return kin.x, kin.xdot
-
-    def _effort(self, kin: DeviceTerms, tau: np.ndarray) -> np.ndarray:
-        """τ (motor port) or J#ᵀτ (handle port, dynamically consistent, thesis eq. 7.5)."""
-        return tau if self.config.port == "motors" else kin.Jsharp.T.dot(tau)
-
-    def observe(self, t: float, kin: DeviceTerms) -> float:
-        """PO: add the energy of the interval that just ended, −τ(k)ᵀ(q(k+1) − q(k)) [J]; returns E_obs(n).
-
-        Args:
-            t: time of this tick [s].
-            kin: the device terms at the measured (q, q̇) of this tick.
-        """
-        s = self.state
-        pos, _ = self._port(kin)
-        if s.position is not None:
-            s.energy -= float(s.effort.dot(pos - s.position))  # type: ignore[union-attr]  # set with position
-        return s.energy
-
     def apply(self, t: float, kin: DeviceTerms, tau0: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """PO then PC for one tick: the torque to send (n,) [N m], within [lo, hi]; records it for the observer.
 
-        1. PO: ``E_obs(n)`` (`observe`).
+        1. PO: ``E_obs(n) = E_obs(n−1) − e(n−1)ᵀ(p(n) − p(n−1))`` (effort e, port position p).
         2. Prediction of the coming hold interval (H&R's PO includes the current sample
            f(n) v(n)): the work a held effort e does on the free mechanism in ΔT,
            ``w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e`` (M⁻¹ = M_q⁻¹ at the motor port, M_x⁻¹ at the
@@ -190,72 +173,21 @@ class PassivityController:
             lo: (n,) lower bound of the torque box [N m] (<= 0).
             hi: (n,) upper bound of the torque box [N m] (>= 0).
         """
-        s = self.state
-        E = self.observe(t, kin)
-        dt = t - s.t
-        s.alpha, s.scale = 0.0, 1.0
-        tau = tau0
-        if self.config.control and dt > 0.0 and math.isfinite(dt):
-            motors = self.config.port == "motors"
-            _, v = self._port(kin)
-            Minv = kin.Minv if motors else kin.JMinv.dot(kin.J.T)
-            e0 = self._effort(kin, tau0)
-            if _work(e0, v, Minv, dt) > E:
-                Mv = kin.M.dot(v) if motors else kin.Lambda.dot(v)
-                ke2 = float(v.dot(Mv))  # 2 × the kinetic energy of the port's motion [J]
-                tau_d = np.zeros_like(tau0)
-                if ke2 > 0.0:
-                    a_max = 0.5 / dt if self.config.alpha_max is None else self.config.alpha_max
-                    s.alpha = min((_work(e0, v, Minv, dt) - E) / (dt * ke2), a_max)
-                    tau_d = -s.alpha * Mv if motors else kin.J.T.dot(-s.alpha * Mv)
-                    tau_d = np.minimum(np.maximum(tau_d, lo), hi)
-                    s.dissipated -= _work(self._effort(kin, tau_d), v, Minv, dt)
-                if motors:  # the null-space part of the law's torque yields first, then the task part
-                    tau_t = kin.J.T.dot(kin.Jsharp.T.dot(tau0))
-                    lam_n = _largest_scale(E, tau_t + tau_d, tau0 - tau_t, v, Minv, dt)
-                    lam_t = 1.0 if lam_n > 0.0 else _largest_scale(E, tau_d, tau_t, v, Minv, dt)
-                    tau = lam_t * tau_t + lam_n * (tau0 - tau_t) + tau_d
-                    s.scale = lam_t
-                else:
-                    s.scale = _largest_scale(E, self._effort(kin, tau_d), e0, v, Minv, dt)
-                    tau = s.scale * tau0 + tau_d
-                tau = np.minimum(np.maximum(tau, lo), hi)
-        self.commit(t, kin, tau)
+        if self.reference:
+            return reference_passivity(self, t, kin, tau0, lo, hi)
+        s, motors = self.state, self.config.port == "motors"
+        if motors:
+            pos, v, Mp, Mi = kin.q, kin.dq, kin.M, kin.Minv
+        else:
+            pos, v, Mp, Mi = kin.x, kin.xdot, kin.Lambda, kin.JMinv.dot(kin.J.T)
+        prev = s.position is not None
+        tau = np.empty(tau0.shape[0])
+        s.energy, s.alpha, s.scale, dissipated, s.effort = _kernel.apply(
+            s.energy, prev, s.position if prev else pos, s.effort if prev else pos, t - s.t, pos, v, Mp, Mi, kin.J,
+            kin.Jsharp, tau0, lo, hi, motors, self.config.control, self._alpha_max, tau)
+        s.dissipated += dissipated
+        s.t, s.position = t, np.array(pos, dtype=float)
         return tau
-
-    def commit(self, t: float, kin: DeviceTerms, tau: np.ndarray) -> None:
-        """Record the torque actually sent at this tick (held until the next one) for the observer.
-
-        Args:
-            t: time of this tick [s].
-            kin: the device terms of this tick.
-            tau: (n,) the torque sent [N m].
-        """
-        s = self.state
-        pos, _ = self._port(kin)
-        s.t, s.position, s.effort = t, np.array(pos, dtype=float), self._effort(kin, tau)
-
-
-def _work(e: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
-    """w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e: work [J] of the effort e held for ΔT on a free port moving at v."""
-    return dt * float(e.dot(v)) + 0.5 * dt * dt * float(e.dot(Minv.dot(e)))
-
-
-def _largest_scale(E: float, base: np.ndarray, part: np.ndarray, v: np.ndarray, Minv: np.ndarray,
-                   dt: float) -> float:
-    """The largest λ ∈ [0, 1] with w(base + λ part) ≤ E (0 when even λ = 0 exceeds E).
-
-    w(base + λ part) = A λ² + B λ + C is convex in λ, so the bound is its larger root.
-    """
-    A = 0.5 * dt * dt * float(part.dot(Minv.dot(part)))
-    B = dt * float(part.dot(v)) + dt * dt * float(part.dot(Minv.dot(base)))
-    C = _work(base, v, Minv, dt) - E
-    if A + B + C <= 0.0:
-        return 1.0
-    if C >= 0.0:
-        return 0.0
-    lam = (-B + math.sqrt(max(B * B - 4.0 * A * C, 0.0))) / (2.0 * A) if A > 0.0 else -C / B
-    return min(max(lam, 0.0), 1.0)
 
 
 __all__ = ["Passivity", "PassivityController", "PassivityState"]

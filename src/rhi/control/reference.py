@@ -12,6 +12,7 @@ here; the fast controller runs a tick here only where the kernel cannot decide a
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
 
@@ -33,6 +34,7 @@ from rhi.metrics import nullspace_projector
 
 if TYPE_CHECKING:
     from rhi.control.controller import NullSpaceController
+    from rhi.control.passivity import PassivityController
 
 #: Allocations after which the safety torque acts whatever the held (or clipped) joints: all but simple
 #: scaling, which keeps chapter 6's Algorithm 2 (its FME term and limit barrier balance each other there).
@@ -106,3 +108,68 @@ def reference_tick(
 
 
 __all__ = ["reference_terms", "reference_tick"]
+
+
+def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau0: np.ndarray, lo: np.ndarray,
+                        hi: np.ndarray) -> np.ndarray:
+    """`PassivityController.apply` (steps 1–4 of its docstring) one equation per line: the oracle of
+    `rhi.control.kernels.passivity.apply`. Returns the torque to send (n,) [N m]; advances ``pc.state``."""
+    s, cfg = pc.state, pc.config
+    motors = cfg.port == "motors"
+    pos, v = (kin.q, kin.dq) if motors else (kin.x, kin.xdot)
+    if s.position is not None:  # 1. PO: the exact work of the held effort over the interval that just ended
+        s.energy -= float(s.effort.dot(pos - s.position))
+    E, dt = s.energy, t - s.t
+    s.alpha, s.scale = 0.0, 1.0
+    tau = tau0
+
+    def effort(tau: np.ndarray) -> np.ndarray:  # τ at the motor port, J#ᵀτ (eq. 7.5) at the handle
+        return tau if motors else kin.Jsharp.T.dot(tau)
+
+    if cfg.control and dt > 0.0 and math.isfinite(dt):
+        Minv = kin.Minv if motors else kin.JMinv.dot(kin.J.T)
+        e0 = effort(tau0)
+        if _work(e0, v, Minv, dt) > E:  # 2. the coming interval would leave E_obs < 0
+            Mv = kin.M.dot(v) if motors else kin.Lambda.dot(v)
+            ke2 = float(v.dot(Mv))  # 2 × the kinetic energy of the port's motion [J]
+            tau_d = np.zeros_like(tau0)
+            if ke2 > 0.0:  # 3. the series damper
+                a_max = 0.5 / dt if cfg.alpha_max is None else cfg.alpha_max
+                s.alpha = min((_work(e0, v, Minv, dt) - E) / (dt * ke2), a_max)
+                tau_d = -s.alpha * Mv if motors else kin.J.T.dot(-s.alpha * Mv)
+                tau_d = np.minimum(np.maximum(tau_d, lo), hi)
+                s.dissipated -= _work(effort(tau_d), v, Minv, dt)
+            if motors:  # 4. the null-space part of the law's torque yields first, then the task part
+                tau_t = kin.J.T.dot(kin.Jsharp.T.dot(tau0))
+                lam_n = _largest_scale(E, tau_t + tau_d, tau0 - tau_t, v, Minv, dt)
+                lam_t = 1.0 if lam_n > 0.0 else _largest_scale(E, tau_d, tau_t, v, Minv, dt)
+                tau = lam_t * tau_t + lam_n * (tau0 - tau_t) + tau_d
+                s.scale = lam_t
+            else:
+                s.scale = _largest_scale(E, effort(tau_d), e0, v, Minv, dt)
+                tau = s.scale * tau0 + tau_d
+            tau = np.minimum(np.maximum(tau, lo), hi)
+    s.t, s.position, s.effort = t, np.array(pos, dtype=float), effort(tau)
+    return tau
+
+
+def _work(e: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
+    """w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e: work [J] of the effort e held for ΔT on a free port moving at v."""
+    return dt * float(e.dot(v)) + 0.5 * dt * dt * float(e.dot(Minv.dot(e)))
+
+
+def _largest_scale(E: float, base: np.ndarray, part: np.ndarray, v: np.ndarray, Minv: np.ndarray,
+                   dt: float) -> float:
+    """The largest λ ∈ [0, 1] with w(base + λ part) ≤ E (0 when even λ = 0 exceeds E).
+
+    w(base + λ part) = A λ² + B λ + C is convex in λ, so the bound is its larger root.
+    """
+    A = 0.5 * dt * dt * float(part.dot(Minv.dot(part)))
+    B = dt * float(part.dot(v)) + dt * dt * float(part.dot(Minv.dot(base)))
+    C = _work(base, v, Minv, dt) - E
+    if A + B + C <= 0.0:
+        return 1.0
+    if C >= 0.0:
+        return 0.0
+    lam = (-B + math.sqrt(max(B * B - 4.0 * A * C, 0.0))) / (2.0 * A) if A > 0.0 else -C / B
+    return min(max(lam, 0.0), 1.0)

@@ -125,7 +125,8 @@ def run(
     Args:
         link: the device (`SimLink`, `UDPLink`, or any `DeviceLink`), not yet opened.
         controller: `step(t, q, dq, sensors) -> tau`; its `device` is the model the safety layer and the
-            virtual environment use (a controller without one needs `safety=Safety(device, ...)`).
+            virtual environment use (a controller without one needs `safety=Safety(device, ...)`); an optional
+            `warmup()` runs before the link opens (e.g. loads compiled code).
         rate: control rate [Hz].
         duration: run time [s] (device time when `realtime=False`); None: until a fault or an e-stop.
         safety: limits (`SafetyConfig`) or a ready `Safety` (e.g. to call `estop`/`reset` from another thread).
@@ -183,6 +184,9 @@ def run(
         prev_sigint = signal.signal(signal.SIGINT, lambda *_: guard.estop("SIGINT"))
     k = slot = 0
     t_dev = 0.0
+    warmup = getattr(controller, "warmup", None)
+    if warmup is not None:  # compiled kernels loaded before the link opens (its watchdog runs from then on)
+        warmup()
     try:
         with _realtime(cpu, priority) as notes:
             link.open()
