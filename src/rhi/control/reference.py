@@ -30,6 +30,7 @@ from rhi.control.saturation import (
 )
 from rhi.control.transition import aso_volume, transition_step
 from rhi.device import DeviceTerms
+from rhi.errors import InvalidInput
 from rhi.metrics import nullspace_projector
 
 if TYPE_CHECKING:
@@ -112,12 +113,17 @@ __all__ = ["reference_terms", "reference_tick"]
 
 def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau0: np.ndarray, lo: np.ndarray,
                         hi: np.ndarray) -> np.ndarray:
-    """`PassivityController.apply` (steps 1–4 of its docstring) one equation per line: the oracle of
-    `rhi.control.kernels.passivity.apply`. Returns the torque to send (n,) [N m]; advances ``pc.state``."""
+    """`PassivityController.apply` (steps 1–4 of its docstring), one equation per line.
+
+    The oracle of `rhi.control.kernels.passivity.apply`. Returns the torque to send (n,) [N m];
+    advances ``pc.state``.
+    """
     s, cfg = pc.state, pc.config
     motors = cfg.port == "motors"
     pos, v = (kin.q, kin.dq) if motors else (kin.x, kin.xdot)
-    if s.position is not None:  # 1. PO: the exact work of the held effort over the interval that just ended
+    if v is None:
+        raise InvalidInput("dq: the passivity controller needs the joint velocity; call Device.terms(q, dq)")
+    if s.position is not None and s.effort is not None:  # 1. PO: the held effort's exact work over the interval
         s.energy -= float(s.effort.dot(pos - s.position))
     E, dt = s.energy, t - s.t
     s.alpha, s.scale = 0.0, 1.0

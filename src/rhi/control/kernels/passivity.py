@@ -48,13 +48,20 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
     Args:
         E: E_obs before this tick [J].
         has_prev: a torque was sent at an earlier tick (pos_prev, eff_prev hold it).
-        pos_prev, eff_prev: port position and effort of that tick.
+        pos_prev: (k,) port position of that tick.
+        eff_prev: (k,) port effort of that tick.
         dt: time since that tick [s] (≤ 0 or non-finite: observe only).
-        pos, v: (k,) port position and velocity now (q, q̇ or x, ẋ).
-        M_port, Minv_port: (k, k) the port's inertia and its inverse (M_q or M_x).
-        J, Jsharp: (m, n) task Jacobian and (n, m) its dynamically consistent inverse.
-        tau0: (n,) the law's torque [N m]; lo, hi: (n,) the torque box [N m].
-        motors: the motor port (else the handle port); control: add damping (else observe only).
+        pos: (k,) port position now (q [rad] or x [m]).
+        v: (k,) port velocity now (q̇ or ẋ).
+        M_port: (k, k) the port's inertia (M_q or M_x).
+        Minv_port: (k, k) its inverse.
+        J: (m, n) task Jacobian.
+        Jsharp: (n, m) its dynamically consistent inverse J#.
+        tau0: (n,) the law's torque [N m].
+        lo: (n,) lower bound of the torque box [N m].
+        hi: (n,) upper bound of the torque box [N m].
+        motors: the motor port (else the handle port).
+        control: add damping (else observe only).
         alpha_max: bound on α [1/s] (≤ 0: 0.5 / dt).
         tau: (n,) output, the torque to send [N m].
 
