@@ -302,3 +302,16 @@ def test_affinity_refused_is_a_clear_warning(dev):
     assert res.fault is None and any("affinity" in e.detail for e in res.log.events)
     with pytest.raises(InvalidInput, match="priority"):
         run(SimLink(plant, hand=hand), ctrl, duration=0.02, priority=120)
+
+
+def test_warmup_leaves_the_controller_untouched_and_bad_realtime_options(dev):
+    """`run` warms the controller's kernels on a twin: the controller's own state stays fresh."""
+    from rhi.runtime.server import DeviceServer
+
+    plant, ctrl, hand, wall, phys = _scenario(dev)
+    ctrl.warmup()
+    assert ctrl.state.ticks == 0 and not ctrl.state.stopped
+    assert ctrl.passivity is None or ctrl.passivity.position is None
+    for kw, name in (({"cpu": -1}, "cpu"), ({"cpu": True}, "cpu"), ({"priority": 0}, "priority")):
+        with pytest.raises(InvalidInput, match=name):
+            DeviceServer(SimLink(plant), dev, **kw)

@@ -102,7 +102,8 @@ def _device_server(args: argparse.Namespace) -> int:
         plant.reset(args.q0 if args.q0 is not None else np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0))
         link = SimLink(plant, rate=args.rate)
     srv = DeviceServer(link, dev, host=args.host, port=args.port,
-                       watchdog=args.watchdog_ms * 1e-3, lockstep=args.lockstep, log=args.log)
+                       watchdog=args.watchdog_ms * 1e-3, lockstep=args.lockstep, log=args.log, cpu=args.cpu,
+                       priority=args.priority)
     signal.signal(signal.SIGTERM, lambda *_: srv.stop())
     signal.signal(signal.SIGINT, lambda *_: srv.stop())
     print(f"rhi device-server: {dev.name} (simulated, {args.rate:g} Hz) on udp://{args.host}:{srv.port}, "
@@ -225,7 +226,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         res = run(link, ctrl, rate=rate, duration=duration, safety=cfg.safety, log=log_path,
                   virtual=cfg.virtual, realtime=args.realtime, progress=status,
-                  telemetry=None if view is None else view.telemetry)
+                  telemetry=None if view is None else view.telemetry, cpu=args.cpu, priority=args.priority)
     finally:
         status.close()
         if view is not None:
@@ -267,7 +268,14 @@ def _add_run(sub) -> None:
     r.add_argument("--view-port", type=int, default=8080, help="port of the browser view (default: 8080)")
     r.add_argument("--mouse", action="store_true", help="with --view and the sim link: the mouse is the hand "
                    "(drag the gizmo at the handle) instead of the configuration's hand")
+    _add_realtime(r, "the control loop")
     r.set_defaults(func=_run)
+
+
+def _add_realtime(p, what: str) -> None:
+    p.add_argument("--cpu", type=int, help=f"pin {what} to this CPU (e.g. one no other busy process uses)")
+    p.add_argument("--priority", type=int, help=f"SCHED_FIFO priority 1..99 of {what} (needs CAP_SYS_NICE "
+                   "or an rtprio limit; a warning otherwise)")
 
 
 _NEGATIVE = re.compile(r"^-(\d|\.\d)")
@@ -331,6 +339,7 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--q0", type=_floats, help="start configuration [rad] (default: the configuration's, else mid-range)")
     d.add_argument("--log", help="device-side log (.rhilog)")
     d.add_argument("--duration", type=float, help="stop after this much device time [s]")
+    _add_realtime(d, "the device loop")
     d.set_defaults(func=_device_server)
     _add_run(sub)
     from rhi.viz.cli import add_commands

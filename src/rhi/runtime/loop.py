@@ -53,6 +53,19 @@ class RunResult:
         return self.log.fault
 
 
+def check_realtime(cpu: int | None, priority: int | None) -> None:
+    """Validate the real-time options of `run` and `DeviceServer`.
+
+    Raises:
+        InvalidInput: `cpu` not a CPU index >= 0, or `priority` not a SCHED_FIFO priority in 1..99.
+    """
+    if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
+        raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
+    if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)
+                                 or not 1 <= priority <= 99):
+        raise InvalidInput(f"priority: expected a SCHED_FIFO priority in 1..99 or None, got {priority!r}")
+
+
 @contextlib.contextmanager
 def _realtime(cpu: int | None, priority: int | None) -> Iterator[list[str]]:
     """GC frozen and off; optional CPU affinity and SCHED_FIFO priority; 1 µs timer slack. Yields warnings."""
@@ -153,11 +166,7 @@ def run(
         raise InvalidInput(f"rate: {rate!r} Hz differs from the link's {link_rate!r} Hz")
     if duration is not None and scalar("duration", duration) < 1.0 / rate:
         raise InvalidInput(f"duration: must be at least one period ({1.0 / rate} s) or None, got {duration!r}")
-    if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
-        raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
-    if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)
-                                 or not 1 <= priority <= 99):
-        raise InvalidInput(f"priority: expected a SCHED_FIFO priority in 1..99 or None, got {priority!r}")
+    check_realtime(cpu, priority)
     dev = getattr(controller, "device", None)
     if isinstance(safety, Safety):
         guard = safety

@@ -23,7 +23,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.runtime import protocol as P
 from rhi.runtime.link import DeviceLink, Status
-from rhi.runtime.loop import _realtime, _sleep_until
+from rhi.runtime.loop import _realtime, _sleep_until, check_realtime
 from rhi.sim.log import LogWriter, layout
 
 
@@ -40,11 +40,15 @@ class DeviceServer:
         reorder_at: device time [s] at which one reading is held back and sent after the next.
         log: a ``.rhilog`` path for the device-side log (applied torque, status in `safety`, events).
         exit_on_bye: return from `serve` when the host closes the link (else idle until the next HELLO).
+        cpu: pin the device loop to this CPU (a clear warning where the OS refuses).
+        priority: SCHED_FIFO priority (1–99) of the device loop (a clear warning where the OS refuses).
     """
 
     def __init__(self, link: DeviceLink, device, *, host: str = "127.0.0.1", port: int = 0, watchdog: float = 0.02,
                  lockstep: bool = False, drop=None, reorder_at: float | None = None, log=None,
-                 exit_on_bye: bool = False) -> None:
+                 exit_on_bye: bool = False, cpu: int | None = None, priority: int | None = None) -> None:
+        check_realtime(cpu, priority)
+        self.cpu, self.priority = cpu, priority
         if not isinstance(port, int) or not 0 <= port < 65536:
             raise InvalidInput(f"port: expected an integer in 0..65535, got {port!r}")
         self.link, self.device = link, device
@@ -135,7 +139,7 @@ class DeviceServer:
         k = 0
         end = None if duration is None else int(round(duration * self.rate))
         try:
-            with _realtime(None, None):
+            with _realtime(self.cpu, self.priority):
                 # the first reading goes out as soon as a client said HELLO
                 while self.client is None and not self._stop:
                     self._poll(0.05)
