@@ -272,8 +272,10 @@ def test_remote_view_serves_a_running_simulation():
     dev = rhi.device("rhi4")
     plant, ctrl, wall, _ = demo_setup(dev, Q0)
     hand = SharedDraggableHand(dev.m)
-    view = RemoteView(dev, hand=hand, virtual=wall, port=0, every=1)
+    cpu = max(os.sched_getaffinity(0))
+    view = RemoteView(dev, hand=hand, virtual=wall, port=0, every=1, cpus={cpu})
     try:
+        assert os.sched_getaffinity(view.process.pid) == {cpu}  # beside the control loop's CPU
         import msgspec
         import viser
         from viser import _messages

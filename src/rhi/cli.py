@@ -222,7 +222,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.view:
         from rhi.viz.cli import attach_view
 
-        view = attach_view(cfg, ctrl, link, port=args.view_port, mouse=args.mouse)
+        view = attach_view(cfg, ctrl, link, port=args.view_port, mouse=args.mouse, loop_cpu=args.cpu)
     try:
         res = run(link, ctrl, rate=rate, duration=duration, safety=cfg.safety, log=log_path,
                   virtual=cfg.virtual, realtime=args.realtime, progress=status,

@@ -68,11 +68,14 @@ def _serve(view) -> int:
     return 0
 
 
-def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False):
+def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False, loop_cpu: int | None = None):
     """A `RemoteView` (its own process) of a `rhi run` configuration; give `run` its `telemetry`.
 
     With `mouse`, the simulated link's hand becomes a `SharedDraggableHand` moved by the browser's gizmo.
+    With `loop_cpu` (the control loop's CPU), the view runs on the other CPUs.
     """
+    import os
+
     from rhi.errors import InvalidInput
     from rhi.viz.remote import RemoteView, SharedDraggableHand
 
@@ -81,8 +84,9 @@ def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False)
         if not hasattr(link, "hand"):
             raise InvalidInput("--mouse: only a simulated link (--link sim) has a hand to move")
         hand = link.hand = SharedDraggableHand(cfg.device.m)
+    others = None if loop_cpu is None else set(os.sched_getaffinity(0)) - {loop_cpu}
     view = RemoteView(cfg.device, hand=hand, virtual=cfg.virtual, fme=cfg.controller_config.fme, q0=cfg.sim["q0"],
-                      port=port)
+                      port=port, cpus=others or None)
     print(f"rhi run: view at {view.url}", flush=True)
     return view
 

@@ -12,7 +12,9 @@ tick, no lock, no system call) and the mouse's hand target comes back through a
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
 import types
+import warnings
 from multiprocessing import shared_memory
 
 import numpy as np
@@ -163,8 +165,14 @@ class SharedDraggableHand(DraggableHand):
             self.shm.unlink()
 
 
-def _serve(device, tel_name: str, sizes, hand, kw: dict, ready, stop) -> None:
+def _serve(device, tel_name: str, sizes, hand, kw: dict, ready, stop, cpus) -> None:
     from rhi.viz.view import View
+
+    if cpus:
+        try:
+            os.sched_setaffinity(0, cpus)
+        except (OSError, AttributeError, ValueError) as exc:
+            warnings.warn(f"view: CPU affinity {sorted(cpus)} not applied ({exc})", RuntimeWarning, stacklevel=1)
 
     tel = SharedTelemetry(*sizes, name=tel_name)
     view = View(device, tel, hand=hand, **kw).start()
@@ -185,6 +193,7 @@ class RemoteView:
             link; `close` frees it), or None.
         m_slave: slave rows of a teleoperation log (0 otherwise).
         every: publish one tick in `every` (10 at 1 kHz: 100 snapshots per second).
+        cpus: CPUs the view's process may run on (e.g. all but the control loop's), or None (any).
         **kw: the `View` options (virtual, fme, q0, host, port, fps, lp_every).
 
     Attributes:
@@ -193,7 +202,7 @@ class RemoteView:
     """
 
     def __init__(self, device, *, hand: SharedDraggableHand | None = None, m_slave: int = 0, every: int = 10,
-                 **kw) -> None:
+                 cpus: set[int] | None = None, **kw) -> None:
         if hand is not None and not isinstance(hand, SharedDraggableHand):
             raise InvalidInput("hand: a view in another process needs a SharedDraggableHand")
         self.hand = hand
@@ -201,7 +210,7 @@ class RemoteView:
         ctx = mp.get_context("spawn")
         ready, self._stop = ctx.Queue(), ctx.Event()
         self.process = ctx.Process(target=_serve, args=(device, self.telemetry.name, self.telemetry.sizes, hand, kw,
-                                                        ready, self._stop), daemon=True, name="rhi-view")
+                                                        ready, self._stop, cpus), daemon=True, name="rhi-view")
         self.process.start()
         try:
             self.port = int(ready.get(timeout=120))
