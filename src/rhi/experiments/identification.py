@@ -70,6 +70,7 @@ from rhi.errors import InvalidInput
 from rhi.experiments.result import Row
 from rhi.experiments.setups import Progress, ZeroTorque
 from rhi.metrics import effective_inertia
+from rhi.sim.loop import Controller
 
 #: Direction of motion of §3.5 and §6.4.
 U = (0.0, 1.0)
@@ -120,6 +121,17 @@ class SysidCase:
         return self.lam_model / (1.0 - self.vp_share)
 
     @property
+    def c_identified(self) -> float:
+        """The constant force c of `fit_c` [N].
+
+        Raises:
+            InvalidInput: `fit_c` was fitted without c (`rhi.analysis.sysid.identify` with offset=False).
+        """
+        if self.fit_c.offset is None:
+            raise InvalidInput(f"fit_c: fitted without the constant force c (identify(..., offset=True)), {self.label}")
+        return self.fit_c.offset
+
+    @property
     def lam_error(self) -> float:
         """(identified − model)/model of Λ."""
         return self.fit.mass / self.lam_model - 1.0
@@ -159,11 +171,11 @@ def push_trials(
     q_start: np.ndarray,
     point,
     *,
-    forces: Sequence[float],
+    forces: Sequence[float] | np.ndarray,
     u=U,
     after: float = 0.01,
     tail: float = 0.04,
-    controller: Callable[[], object] | None = None,
+    controller: Callable[[], Controller] | None = None,
     max_duration: float = 3.0,
     label: str = "",
     progress: Progress | None = None,
@@ -264,7 +276,7 @@ def identify_case(
     forces: np.ndarray,
     u=U,
     window: float = WINDOW,
-    controller: Callable[[], object] | None = None,
+    controller: Callable[[], Controller] | None = None,
     cutoff_hz: float = 20.0,
     progress: Progress | None = None,
 ) -> SysidCase:
@@ -321,7 +333,7 @@ def case_arrays(case: SysidCase, key: str) -> dict[str, np.ndarray]:
         f"{key}_t": r.time, f"{key}_x": r.position, f"{key}_F": r.force,
         f"{key}_fit": np.array([f.mass, f.damping]),
         f"{key}_ci": np.array([f.mass_ci, f.damping_ci]),
-        f"{key}_fit_c": np.array([g.mass, g.damping, float(g.offset)]),
+        f"{key}_fit_c": np.array([g.mass, g.damping, case.c_identified]),
         f"{key}_model": np.array([case.lam_model, case.phi_model, case.c_model]),
         f"{key}_lam_vp": np.array(case.lam_vp),
         f"{key}_forces": case.forces, f"{key}_q_point": case.q_point,
@@ -346,7 +358,7 @@ def fit_rows(case: SysidCase, where: str, thesis_m: float | None, thesis_phi: fl
         Row(f"Φ identified with a constant c, {where}", thesis_phi, g.damping, "N s/m",
             f"{ci(g.damping_ci)}; c and Φ ẋ are nearly collinear over a short window"),
         Row(f"Φ model (viscous joint damping reflected along u), {where}", thesis_phi, case.phi_model, "N s/m"),
-        Row(f"c identified, {where}", None, float(g.offset), "N",
+        Row(f"c identified, {where}", None, case.c_identified, "N",
             f"{ci(g.offset_ci)}; model (Coulomb joint friction reflected along u): {case.c_model:.4f} N"),
         Row(f"velocity-product (Coriolis, centrifugal) force / push force k in the window, {where}", None,
             case.vp_share, "", "what eqs. 3.24/6.22 omit (signed)"),

@@ -8,12 +8,15 @@ same way is here.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from typing import TypeGuard, get_args
 
 import numpy as np
 
+from rhi.control.controller import Saturation
 from rhi.device import Device
 from rhi.errors import InvalidInput
+from rhi.metrics.force import ProjectorKind
 from rhi.sim import Hand, Log, Path, Plant, simulate
 
 #: A progress callback: progress(done, total), in ticks or items.
@@ -106,6 +109,29 @@ def positive(name: str, v: float, *, allow_zero: bool = False) -> float:
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise InvalidInput(f"{name}: must be finite and {'>=' if allow_zero else '>'} 0, got {v!r}")
     return v
+
+
+def is_projector(value: object) -> TypeGuard[ProjectorKind]:
+    """Whether `value` names a null-space projector: "dynamic" (J#) or "pseudoinverse" (J⁺)."""
+    return value in get_args(ProjectorKind)
+
+
+def is_saturation(value: object) -> TypeGuard[Saturation]:
+    """Whether `value` names an allocation under the torque limits (`rhi.control.ControllerConfig.saturation`)."""
+    return value in get_args(Saturation)
+
+
+def projector_names(projectors: Iterable[object]) -> tuple[ProjectorKind, ...]:
+    """The null-space projectors an experiment runs in turn, checked: distinct "dynamic"/"pseudoinverse" entries.
+
+    Raises:
+        InvalidInput: no entry, a repeated one or one that names no projector.
+    """
+    given = tuple(projectors)
+    kinds = tuple(p for p in given if is_projector(p))
+    if not kinds or len(kinds) != len(given) or len(set(kinds)) != len(kinds):
+        raise InvalidInput(f"projectors: expected distinct 'dynamic'/'pseudoinverse' entries, got {given!r}")
+    return kinds
 
 
 def check_motion(**kw: float) -> None:

@@ -12,7 +12,10 @@ from rhi.errors import InfeasibleLimits, InvalidInput, RhiError
 from rhi.metrics._common import SINGULAR_RTOL, FloatArray, direction, frobenius_norm, jacobian
 from rhi.metrics.inverses import nullspace_projector
 
-Projector = Literal["dynamic", "pseudoinverse"] | None
+#: A null-space projector: "dynamic" (J#, eq. 7.5) or "pseudoinverse" (J⁺).
+ProjectorKind = Literal["dynamic", "pseudoinverse"]
+#: `ProjectorKind`, or None: no null-space torques.
+Projector = ProjectorKind | None
 
 
 def _setup(

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -38,6 +39,7 @@ from rhi.control import (
     Passivity,
     WeightedSum,
 )
+from rhi.control.controller import Saturation
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch6 import setup as ch6
@@ -52,8 +54,10 @@ HAND = (3000.0, 40.0, 60.0)
 OUT, DEPTH, SPEED = 0.002, 0.015, 0.01
 #: Target of the issue: the hand's work with the passivity controller [J].
 TARGET_W = -1e-3
+#: The port of the passivity controller (`rhi.control.Passivity.port`).
+Port = Literal["motors", "handle"]
 #: case key: (null-space objectives, passivity port or None, saturation handling)
-CASES: dict[str, tuple[bool, str | None, str]] = {
+CASES: dict[str, tuple[bool, Port | None, Saturation]] = {
     "objectives": (True, None, "ascm"),
     "objectives_pc": (True, "motors", "ascm"),
     "bare": (False, None, "ascm"),
@@ -77,7 +81,8 @@ def _passivity_state(ctrl: NullSpaceController) -> dict[str, float]:
             "held": 0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated))))}
 
 
-def controller(dev: Device, *, objectives: bool, port: str | None, saturation: str = "ascm") -> NullSpaceController:
+def controller(dev: Device, *, objectives: bool, port: Port | None,
+               saturation: Saturation = "ascm") -> NullSpaceController:
     """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`).
 
     With the ch. 6 null-space objectives if `objectives`, and the passivity controller on `port` if given.
@@ -138,7 +143,9 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     xd = log.xdot @ u
     hf_v = (xd - _moving_average(xd, w))[contact]
     hf_F = (F - _moving_average(F, w))[contact]
-    held, E = log.extra["held"], log.E_obs
+    held, E, alpha_pc = log.extra["held"], log.E_obs, log.alpha_pc
+    if E is None or alpha_pc is None:
+        raise InvalidInput("log: no passivity columns (E_obs, alpha_pc); rhi.sim.simulate records them every tick")
     m = {
         **en,
         "W_min": float(np.min(log.work)),
@@ -152,13 +159,13 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
         "qdot_max": float(np.max(np.abs(log.dq))),
         "beyond_range": float(np.mean(np.any((log.q < dev.q_min) | (log.q > dev.q_max), axis=1))),
         "E_obs_min": float(np.nanmin(E)) if port is not None else math.nan,
-        "pc_active": float(np.mean(log.alpha_pc > 0)) if port is not None else math.nan,
+        "pc_active": float(np.mean(alpha_pc > 0)) if port is not None else math.nan,
         "pc_scaled": float(np.mean(log.extra["pc_scale"] < 1)) if port is not None else math.nan,
         "alpha_scaling_min": float(np.nanmin(log.alpha)),
         "fault": log.fault,
     }
     series = {"t": log.t, "W": log.work, "F": F, "F_des": F_des, "pen": pen, "E_obs": E,
-              "alpha_pc": log.alpha_pc, "xdot": xd}
+              "alpha_pc": alpha_pc, "xdot": xd}
     out = {k: v[::DECIMATE] for k, v in series.items()}
     out["summary"] = np.array([m[k] for k in SUMMARY])
     return m, out
@@ -211,7 +218,7 @@ def passivity(
     x0, u = np.array(ch6.X0), np.array(ch6.U)
     _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
     q0 = ch6.best_match(dev, x0, WeightedSum(ch6.controller_terms(Ms, dev.torque_max)), starts=1)
-    stiff_cases = [c for c in STIFF_CASES if stiff is not None]
+    stiff_cases = STIFF_CASES if stiff is not None else ()
     n1, n2 = int(round(duration * 1000)), int(round(stiff_duration * 1000))
     total = n1 * len(cases) + n2 * len(stiff_cases)
     res: dict[str, dict] = {}
@@ -223,12 +230,12 @@ def passivity(
         arrays.update({f"{c}_{k}": v for k, v in series.items()})
         off += n1
     stiff_res: dict[str, dict] = {}
-    for c in stiff_cases:
-        stiff_res[c], series = _run(dev, q0, c, stiffness=stiff, duration=stiff_duration, depth=depth,
-                                    speed=speed, progress=progress, offset=off, total=total)
-        arrays.update({f"stiff_{c}_{k}": v for k, v in series.items()})
-        off += n2
     if stiff is not None:
+        for c in stiff_cases:
+            stiff_res[c], series = _run(dev, q0, c, stiffness=stiff, duration=stiff_duration, depth=depth,
+                                        speed=speed, progress=progress, offset=off, total=total)
+            arrays.update({f"stiff_{c}_{k}": v for k, v in series.items()})
+            off += n2
         arrays["stiff"] = np.array(stiff)
     return Result("beyond.passivity", f"Beyond the thesis: energy at the hand palpating {stiffness:g} N/m on the "
                   "simulated rhi4, without and with time-domain passivity control",

@@ -52,11 +52,11 @@ def _sensitivity(ex, density, densities, maxiter, k2_values, names, progress) ->
     rows_conv = []
     arrays: dict[str, np.ndarray] = {"densities": np.array(densities, dtype=float)}
     x2 = [np.deg2rad(2.0)]
-    vals = {k: [] for k in ("GM_T", "GM_M", "GC_M")}
+    vals: dict[str, list[float]] = {k: [] for k in ("GM_T", "GM_M", "GC_M")}
     for dens in densities:
-        v = evaluate(problem("theta_z", density=dens), x2)
+        at = evaluate(problem("theta_z", density=dens), x2)
         for k in vals:
-            vals[k].append(v[k])
+            vals[k].append(at[k])
     for k, vs in vals.items():
         arrays[f"conv_{k}"] = np.array(vs)
         for i in range(1, len(densities)):
@@ -80,8 +80,8 @@ def _sensitivity(ex, density, densities, maxiter, k2_values, names, progress) ->
         if progress:
             progress(i + 1, n_steps)
     rows_k2 = []
-    k2_arr = {k: [] for k in ("l2_C1", "l2_C2", "GM_T_C1", "GM_T_C1_mirror", "GM_T_C2", "GC_M_C1", "GC_M_C2",
-                              "GM_M_C1", "GM_M_C2")}
+    k2_arr: dict[str, list[float]] = {k: [] for k in ("l2_C1", "l2_C2", "GM_T_C1", "GM_T_C1_mirror", "GM_T_C2",
+                                                      "GC_M_C1", "GC_M_C2", "GM_M_C1", "GM_M_C2")}
     for j, k2 in enumerate(k2_values):
         p = problem("full", density=density, K2=k2)
         o1 = optimize(p, "C1", executor=ex, seed=0, maxiter=maxiter)
@@ -101,8 +101,8 @@ def _sensitivity(ex, density, densities, maxiter, k2_values, names, progress) ->
         if progress:
             progress(len(variants) + j + 1, n_steps)
     arrays["k2_values"] = np.array(k2_values, dtype=float)
-    for k, v in k2_arr.items():
-        arrays[f"k2_{k}"] = np.array(v)
+    for k, series in k2_arr.items():
+        arrays[f"k2_{k}"] = np.array(series)
     return Result("ch4.sensitivity", "§4.4 set-up sensitivity and sampling convergence",
                   [Table("Convergence with sampling density (grid)", rows_conv),
                    Table("θz optimum vs the unstated set-up", rows_sens),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.control import Manipulability, TMIMatching
+from rhi.control import Manipulability, Objective, TMIMatching
 from rhi.errors import InvalidInput
 from rhi.experiments.ch5.setup import (
     B_D,
@@ -79,7 +79,8 @@ def fixed_point(
     x0 = rhi.fk(Q_FIXED)
     qs = slave.ik(x0, SLAVE_SEED)
     Js = slave.jacobian(qs)
-    runs: dict[str, object] = {"main": TMIMatching(slave, qs, k_q=k_q)}
+    main = TMIMatching(slave, qs, k_q=k_q)
+    runs: dict[str, Objective] = {"main": main}
     if variants:
         runs["plain eq. 5.11 (ᵐM = JJᵀ, no penalty)"] = TMIMatching(slave, qs, k_q=None)
         runs["k_q = 1 (ch. 4 value), HI penalised"] = TMIMatching(slave, qs, k_q=1.0)
@@ -89,7 +90,7 @@ def fixed_point(
         runs["Yoshikawa μ of J, literal eq. 5.14"] = Manipulability(log=True)
     N = ticks(duration)
     chain = ProgressChain(progress, N * len(runs))
-    hand = Hand(Path([x0]), **HOLD)
+    hand = Hand(Path(x0[None]), **HOLD)
     out = {}
     for name, obj in runs.items():
         plant = Plant(rhi, friction=plant_friction(friction, rhi))
@@ -101,7 +102,6 @@ def fixed_point(
     q0, qT = log.q[0], log.q[-1]
     J0, JT = rhi.jacobian(q0), rhi.jacobian(qT)
     a0, aT = float(tme_area(J0, Js)), float(tme_area(JT, Js))
-    main = runs["main"]
     stride = max(1, len(log.t) // 200)
     Jt = rhi.jacobian(log.q[::stride])
     tmi_t = tme_area(Jt, Js)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from rhi import thesis as T
@@ -30,8 +32,9 @@ from rhi.experiments.ch6.setup import (
     reflected_damping,
 )
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import Progress, check_motion, path_hand, run, smooth
+from rhi.experiments.setups import Progress, check_motion, path_hand, projector_names, run, smooth
 from rhi.metrics import effective_inertia, force_ellipsoid, max_force, max_force_scaling
+from rhi.metrics.force import ProjectorKind
 
 
 def palpation(
@@ -45,7 +48,7 @@ def palpation(
     starts: int = 3,
     limits: bool = True,
     filter_ms: float = 20.0,
-    projectors: tuple[str, ...] = ("dynamic", "pseudoinverse"),
+    projectors: Sequence[ProjectorKind] = ("dynamic", "pseudoinverse"),
     progress: Progress | None = None,
 ) -> Result:
     """Fig. 6.9 and Table 6.1: palpating K_e = 1000 N/m from X₀ = [0.5, 0.1] m along u = [0, 1] on the simulated rhi4.
@@ -79,9 +82,7 @@ def palpation(
         progress: callback(done, total) in control ticks.
     """
     check_motion(settle=settle, depth=depth, speed=speed, hold=hold)
-    if not projectors or len(set(projectors)) != len(projectors) or any(
-            p not in ("dynamic", "pseudoinverse") for p in projectors):
-        raise InvalidInput(f"projectors: expected distinct 'dynamic'/'pseudoinverse' entries, got {projectors!r}")
+    projectors = projector_names(projectors)
     dev = device("rhi4")
     lo, hi = dev.torque_limits
     u, x0 = np.array(U), np.array(X0)

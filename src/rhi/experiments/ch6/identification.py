@@ -9,7 +9,7 @@ joint velocities.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -20,8 +20,9 @@ from rhi.errors import InvalidInput
 from rhi.experiments.ch6.setup import CASES, K_D, Q_HOME, best_match, controller_terms, desired_fmes, match_fme
 from rhi.experiments.identification import TRIALS, U, case_arrays, fit_rows, identify_case, trial_forces
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import Progress
+from rhi.experiments.setups import Progress, projector_names
 from rhi.metrics import max_force, max_force_scaling
+from rhi.metrics.force import ProjectorKind
 
 #: Table 6.1: (M_x [kg], Φ [N s/m], F_max [N]) at [0.5, 0.1] m.
 THESIS_TABLE_6_1 = T.TABLE_6_1
@@ -51,12 +52,13 @@ def ch6_configurations(starts: int = 3) -> dict[str, np.ndarray]:
     return out
 
 
-def _ch6_controller(dev: Device, desired: np.ndarray, projector: str = "dynamic") -> Callable[[], object]:
+def _ch6_controller(dev: Device, desired: np.ndarray,
+                    projector: ProjectorKind = "dynamic") -> Callable[[], NullSpaceController]:
     """Factory of the ch. 6 null-space controller with a zero primary force (sysid: nothing rendered).
 
     projector: "dynamic" (J#, eq. 5.9 as the thesis writes it) or "pseudoinverse" (J⁺).
     """
-    def make():
+    def make() -> NullSpaceController:
         cfg = ControllerConfig(primary=ForceRendering(damping=0.0, coriolis=False, gravity=False, passivity=None),
                                objectives=controller_terms(desired, dev.torque_max), damping=K_D,
                                saturation="scaling", projector=projector)
@@ -73,7 +75,7 @@ def sysid_table_6_1(
     window: float = WINDOW_CH6,
     starts: int = 3,
     cutoff_hz: float = 20.0,
-    projectors: tuple[str, ...] = ("dynamic", "pseudoinverse"),
+    projectors: Sequence[ProjectorKind] = ("dynamic", "pseudoinverse"),
     progress: Progress | None = None,
 ) -> Result:
     """Table 6.1: M_x, Φ and F_max along u at [0.5, 0.1] m for the FME-matched configurations of rhi4.
@@ -101,9 +103,7 @@ def sysid_table_6_1(
     """
     if controller not in ("nullspace", "off"):
         raise InvalidInput(f"controller: expected 'nullspace' or 'off', got {controller!r}")
-    if not projectors or len(set(projectors)) != len(projectors) or any(
-            p not in ("dynamic", "pseudoinverse") for p in projectors):
-        raise InvalidInput(f"projectors: expected distinct 'dynamic'/'pseudoinverse' entries, got {projectors!r}")
+    projectors = projector_names(projectors)
     dev = device("rhi4")
     u, x = np.array(U), np.array(X_CH6)
     x_start = x - BEFORE_CH6 * u

@@ -21,9 +21,11 @@ from rhi.control import (
     fme_shape,
 )
 from rhi.control.configuration import optimal_configuration
+from rhi.control.controller import Saturation
 from rhi.device import Device
 from rhi.errors import Unreachable
 from rhi.metrics import nullspace_projector
+from rhi.metrics.force import ProjectorKind
 
 #: §6.4 palpation set-up.
 U = (0.0, 1.0)
@@ -175,9 +177,9 @@ def reflected_damping(J: np.ndarray, M: np.ndarray, D: np.ndarray, u, k_d: float
 
 # ----------------------------------------------------------------------- simulated palpation
 def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMESchedule | None = None,
-                         *, limits: bool = True, beta: float = BETA, projector: str = "dynamic",
+                         *, limits: bool = True, beta: float = BETA, projector: ProjectorKind = "dynamic",
                          objectives: tuple[ObjectiveTerm, ...] = (), x0=X0, u=U, gravity: bool = False,
-                         saturation: str = "scaling") -> NullSpaceController:
+                         saturation: Saturation = "scaling") -> NullSpaceController:
     """Spring palpation (eq. 6.21) with force scaling; FME matching to `desired` or by the ASO `schedule`.
 
     Args:

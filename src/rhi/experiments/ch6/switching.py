@@ -28,6 +28,7 @@ from rhi.experiments.ch6.setup import (
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress, check_motion, path_hand, run, smooth
 from rhi.metrics import nullspace_projector
+from rhi.sim import Hand
 
 
 def transition(
@@ -257,6 +258,10 @@ class InOutHand:
     hold: float
     stiffness: float
     damping: float
+    # derived in __post_init__: the hand of each phase and the time of the switch [s]
+    _in: Hand = dataclasses.field(init=False, repr=False, compare=False)
+    _out: Hand = dataclasses.field(init=False, repr=False, compare=False)
+    _switch: float = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         t_in = self.depth / self.speed

@@ -12,7 +12,7 @@ are reported).
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -27,10 +27,12 @@ from rhi.control.saturation import (
     null_basis,
 )
 from rhi.design.executors import parallel_map
-from rhi.device import device
+from rhi.device import Device, device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import projector_names
 from rhi.metrics import max_force
+from rhi.metrics.force import ProjectorKind
 
 Q_3DOF = (np.pi / 4, -np.pi / 3, -np.pi / 6)
 METHODS = ("none", "scaling", "ascm", "lp")
@@ -139,19 +141,20 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0
     )
 
 
-_RHI4: dict[str, object] = {}
+@functools.cache
+def _rhi4() -> Device:
+    """rhi4, built once per process (`deficiency_map`'s rows may run in worker processes)."""
+    return device("rhi4")
 
 
-def _deficiency_row(y: float, xs: np.ndarray, projectors: tuple[str, ...]) -> np.ndarray:
+def _deficiency_row(y: float, xs: np.ndarray, projectors: tuple[ProjectorKind, ...]) -> np.ndarray:
     """(3 P, len(xs)) force capabilities [N] along the grid row at height y [m], NaN where skipped.
 
     Rows: without compensation, ASCM and LP for each of the P projectors. IK is continued along
     the row from the same start configuration for every row, so a row's values do not depend on
     which process computes it.
     """
-    if "dev" not in _RHI4:
-        _RHI4["dev"] = device("rhi4")
-    dev = _RHI4["dev"]
+    dev = _rhi4()
     lo, hi = dev.torque_limits
     out = np.full((3 * len(projectors), len(xs)), np.nan)
     q_prev = np.array([0.125, 0.022, 0.298, 0.175])
@@ -177,7 +180,7 @@ def deficiency_map(
     resolution: int = 25,
     progress: Callable[[int, int], None] | None = None,
     *,
-    projectors: tuple[str, ...] = ("pseudoinverse", "dynamic"),
+    projectors: Sequence[ProjectorKind] = ("pseudoinverse", "dynamic"),
     executor=None,
     workers: int | None = None,
 ) -> Result:
@@ -201,13 +204,10 @@ def deficiency_map(
     """
     if not isinstance(resolution, (int, np.integer)) or resolution < 2:
         raise InvalidInput(f"resolution: expected an integer >= 2, got {resolution!r}")
-    projectors = tuple(projectors)
-    if not projectors or len(set(projectors)) != len(projectors) or any(
-            p not in ("pseudoinverse", "dynamic") for p in projectors):
-        raise InvalidInput(f"projectors: expected distinct 'pseudoinverse'/'dynamic' entries, got {projectors!r}")
+    kinds = projector_names(projectors)
     xs = np.linspace(0.25, 0.75, resolution)
     ys = np.linspace(-0.5, 0.3, resolution)
-    rows = parallel_map(functools.partial(_deficiency_row, xs=xs, projectors=projectors), list(ys),
+    rows = parallel_map(functools.partial(_deficiency_row, xs=xs, projectors=kinds), list(ys),
                         executor=executor, workers=workers, progress=progress, units=[resolution] * resolution)
     maps = np.stack(rows, axis=1)  # (3 P, resolution, resolution), rows = y
 
@@ -216,7 +216,7 @@ def deficiency_map(
 
     arrays = {"x": xs, "y": ys}
     table_rows = []
-    for p, projector in enumerate(projectors):
+    for p, projector in enumerate(kinds):
         f_wo, f_ascm, f_lp = maps[3 * p: 3 * p + 3]
         pd = 100.0 * (f_ascm - f_wo) / f_ascm
         pd_lp = 100.0 * (f_lp - f_wo) / f_lp
@@ -243,6 +243,6 @@ def deficiency_map(
         [Table("Fig. 7.5 percent deficiency (eq. 7.19)", table_rows)],
         arrays,
         ["The thesis shows Fig. 7.5 as a map only; we report its extremes for each projector.",
-         f"Configurations by IK continued along each row; projectors {', '.join(projectors)} (the first is "
+         f"Configurations by IK continued along each row; projectors {', '.join(kinds)} (the first is "
          "drawn); limits ±[3, 3, 1, 1] N m."],
     )

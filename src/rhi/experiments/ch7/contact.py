@@ -46,6 +46,7 @@ start in `settle` seconds; the thesis does not print its configuration.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 
@@ -62,6 +63,7 @@ from rhi.control import (
     ObjectiveTerm,
 )
 from rhi.control.configuration import optimal_configuration
+from rhi.control.controller import Saturation
 from rhi.control.saturation import force_capability
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
@@ -73,6 +75,8 @@ from rhi.experiments.ch3.nullspace import (
     with_barrier,
 )
 from rhi.experiments.result import Result, Row, Table
+from rhi.experiments.setups import ProgressChain, is_projector, is_saturation
+from rhi.metrics.force import ProjectorKind
 from rhi.sim import Hand, Path, Plant, Wall, simulate
 
 #: Palpation start X₀ [m] and direction u (thesis §7.5).
@@ -88,7 +92,8 @@ TORQUE_MAX = (3.0, 3.0, 1.0, 1.0)
 #: The thesis's result: ASCM raises the maximum force feedback by 73 % (§7.5, Fig. 7.6).
 THESIS_GAIN = T.GAIN_7_5
 #: (saturation, projector) of every simulated case; the first two are the thesis's cases (1) and (2).
-CASES = (("none", "dynamic"), ("ascm", "dynamic"), ("lp", "dynamic"), ("ascm", "pseudoinverse"), ("lp", "pseudoinverse"))
+CASES: tuple[tuple[Saturation, ProjectorKind], ...] = (
+    ("none", "dynamic"), ("ascm", "dynamic"), ("lp", "dynamic"), ("ascm", "pseudoinverse"), ("lp", "pseudoinverse"))
 #: The simulated hand: stiffness [N/m], damping [N s/m], largest push [N].
 HAND_STIFFNESS = 2000.0
 HAND_DAMPING = 20.0
@@ -108,7 +113,7 @@ def _held(ctrl: NullSpaceController) -> dict[str, np.ndarray]:
     return {"saturated": np.zeros(ctrl.device.n, bool) if s is None else np.array(s, dtype=bool)}
 
 
-def palpation_controller(dev: Device, saturation: str, projector: str = "dynamic", *, gain: float = GAIN,
+def palpation_controller(dev: Device, saturation: Saturation, projector: ProjectorKind = "dynamic", *, gain: float = GAIN,
                          damping: float = NULL_DAMPING) -> NullSpaceController:
     """Eq. 7.20 rendering + `saturation` allocation + tertiary VME matching to M^des (eqs. 7.16–7.18) + limit barrier.
 
@@ -126,8 +131,9 @@ def palpation_controller(dev: Device, saturation: str, projector: str = "dynamic
     return NullSpaceController(dev, cfg)
 
 
-def _first(mask: np.ndarray) -> int:
-    """Index of the first True in mask, or len(mask)."""
+def _first(mask) -> int:
+    """Index of the first True in mask (N,), or N."""
+    mask = np.asarray(mask, dtype=bool)
     return int(np.argmax(mask)) if mask.any() else len(mask)
 
 
@@ -210,7 +216,7 @@ def palpation(
     speed: float = 0.02,
     hold: float = 0.3,
     stiffness: float = K_E,
-    cases: Sequence[tuple[str, str]] = CASES,
+    cases: Sequence[tuple[Saturation, ProjectorKind]] = CASES,
     gain: float = GAIN,
     damping: float = NULL_DAMPING,
     progress: Callable[[int, int], None] | None = None,
@@ -253,12 +259,16 @@ def palpation(
         raise InvalidInput(f"hold: must be finite and >= 0 [s], got {hold!r}")
     if start not in ("rehab", "optimum"):
         raise InvalidInput(f"start: expected 'rehab' or 'optimum', got {start!r}")
-    cases = [tuple(c) for c in cases]
-    if not cases:
-        raise InvalidInput("cases: give at least one (saturation, projector) pair")
+    pairs: list[tuple[Saturation, ProjectorKind]] = []
     for c in cases:
-        if len(c) != 2 or c[0] not in ("none", "scaling", "ascm", "lp") or c[1] not in ("dynamic", "pseudoinverse"):
-            raise InvalidInput(f"cases: expected (saturation, projector) pairs, got {c!r}")
+        given = tuple(c)
+        sat, proj = given if len(given) == 2 else (None, None)
+        if sat == "active_set" or not is_saturation(sat) or not is_projector(proj):
+            raise InvalidInput(f"cases: expected (saturation, projector) pairs, saturation in 'none', 'scaling', "
+                               f"'ascm', 'lp' and projector 'dynamic' or 'pseudoinverse', got {given!r}")
+        pairs.append((sat, proj))
+    if not pairs:
+        raise InvalidInput("cases: give at least one (saturation, projector) pair")
     dev = device("rhi4")
     x0, u = as_array("X0", X0), as_array("U", U)
     hi = np.asarray(TORQUE_MAX)
@@ -268,7 +278,7 @@ def palpation(
     t_start = 0.1
     case_ticks = int(round((t_start + push + hold) * 1000.0))
     settle_ticks = int(round(settle * 1000.0))
-    total = settle_ticks + case_ticks * len(cases)
+    chain = ProgressChain(progress, settle_ticks + case_ticks * len(pairs))
 
     # 1. settle: the hand holds X0, the tertiary objective sets the contact configuration
     q_start = start_configuration(dev, x0, "rehab")
@@ -278,9 +288,9 @@ def palpation(
     plant.reset(q_start)
     ctrl = palpation_controller(dev, "ascm", gain=gain, damping=damping)
     wall = Wall(x0, u, stiffness)
-    cb = None if progress is None else (lambda k, n: progress(k, total))
-    hold_hand = Hand(Path([x0]), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
-    log0 = simulate(plant, ctrl, duration=settle, hand=hold_hand, virtual=wall, progress=cb)
+    hold_hand = Hand(Path(x0[None]), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
+    log0 = simulate(plant, ctrl, duration=settle, hand=hold_hand, virtual=wall,
+                    progress=chain.run(settle_ticks))
     q_c = dev.ik(x0, log0.q[-1], k_null=0.0)  # remove the sub-0.1 mm drift so every case starts on X0
     arrays: dict[str, np.ndarray] = {
         "settle_t": log0.t[::10], "settle_nu": np.array([vme.value(dev, q) for q in log0.q[::10]]),
@@ -291,24 +301,24 @@ def palpation(
     # 2. static force capability along u at the contact configuration
     J, M = dev.jacobian(q_c), dev.mass_matrix(q_c)
     cap = {"scaling": force_capability(J, u, lo, hi, method="scaling")}
-    for proj, Mp in (("dynamic", M), ("pseudoinverse", None)):
+    projected: tuple[tuple[ProjectorKind, np.ndarray | None], ...] = (("dynamic", M), ("pseudoinverse", None))
+    for proj, Mp in projected:
         for meth in ("ascm", "lp"):
             cap[f"{meth}_{proj}"] = force_capability(J, u, lo, hi, method=meth, projector=proj, M=Mp)
     for k, v in cap.items():
         arrays[f"capability_{k}"] = np.array(v)
 
     # 3. the palpation cases
-    results: dict[tuple[str, str], dict] = {}
-    for r, (sat, proj) in enumerate(cases):
+    results: dict[tuple[Saturation, ProjectorKind], dict] = {}
+    for sat, proj in pairs:
         plant = Plant(dev)
         plant.reset(q_c)
         ctrl = palpation_controller(dev, sat, proj, gain=gain, damping=damping)
-        hand = Hand(Path([x0, x0 + depth * u], speed=speed, start=t_start), stiffness=HAND_STIFFNESS,
+        hand = Hand(Path(np.array([x0, x0 + depth * u]), speed=speed, start=t_start), stiffness=HAND_STIFFNESS,
                     damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
-        off = settle_ticks + r * case_ticks
-        cb = None if progress is None else (lambda k, n, off=off: progress(off + k, total))
-        log = simulate(plant, ctrl, duration=t_start + push + hold, hand=hand, virtual=wall, progress=cb,
-                       record=lambda ctrl=ctrl: _held(ctrl))
+        log = simulate(plant, ctrl, duration=t_start + push + hold, hand=hand, virtual=wall,
+                       progress=chain.run(case_ticks),
+                       record=functools.partial(_held, ctrl))
         m = _case_metrics(dev, log, log.extra["saturated"].astype(bool), sat, x0, u, lo, hi, BARRIER)
         results[sat, proj] = m
         key = f"{sat}_{proj}"
@@ -317,7 +327,7 @@ def palpation(
         arrays[f"{key}_events"] = np.array([m["t_sat"], m["t_full"], m["t_lim"]])
 
     # 4. tables
-    ref = cases[0]
+    ref = pairs[0]
     rows = []
     for (sat, proj), m in results.items():
         lbl = f"{sat} ({proj} projector)"
