@@ -50,11 +50,11 @@ def _in_tick(a, b, P, lo, hi, r):
     sat = np.zeros(a.shape[0], bool)
     tau, alpha, clipped = allocation.active_set_start(a, b, P, lo, hi, r, sat)
     if clipped:
-        return allocate_active_set(a, b, allocation.basis(P, r), lo, hi)
+        return allocate_active_set(a, b, allocation.basis(P, r), torque_min=lo, torque_max=hi)
     Z = allocation.basis(P, r)
     ok, alpha, y = allocation.active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
     if not ok:
-        return allocate_active_set(a, b, Z, lo, hi)
+        return allocate_active_set(a, b, Z, torque_min=lo, torque_max=hi)
     tau, alpha = allocation.active_set_result(alpha, y, a, b, Z, lo, hi, sat)
     return SimpleNamespace(tau=tau, alpha=alpha)
 

@@ -74,7 +74,7 @@ def naive_step(dev: rhi.Device, kin: WMMKinematics, cfg: AMDConfig, bounds, stat
     for _ in range(n):  # B.9 with the selection matrix and np.linalg.pinv
         JSp = np.linalg.pinv(J @ np.diag(active.astype(float)))
         ddq = JSp @ (ddx - b) + (np.eye(n) - JSp @ J) @ qN
-        s, i = scale_factor(JSp @ ddx, ddq - JSp @ ddx, lo, hi, active)
+        s, i = scale_factor(JSp @ ddx, ddq - JSp @ ddx, lo=lo, hi=hi, active=active)
         if s >= 1.0 or i < 0:
             break
         qN[i] = hi[i] if ddq[i] > hi[i] else lo[i]
@@ -86,7 +86,7 @@ def naive_step(dev: rhi.Device, kin: WMMKinematics, cfg: AMDConfig, bounds, stat
     qa[nb:] = cfg.gamma1 * H @ dq[nb:] + cfg.gamma2 * (cfg.gamma1 * g - dq[nb:])
     P_N = np.eye(n) - np.linalg.pinv(J) @ J
     lam = auxiliary_projector(P_N, active) @ qa  # B.10
-    beta, _ = scale_factor(lam, ddq, lo, hi)
+    beta, _ = scale_factor(lam, ddq, lo=lo, hi=hi)
     return np.clip(ddq + beta * lam, lo, hi)
 
 

@@ -43,15 +43,15 @@ def test_penalty_and_its_derivative(devs, rng):
     dev = devs["RHI"]
     for q in random_q(dev, rng, 5):
         for k in (1.0, 10.0):
-            p, dp = penalty(q, dev.q_min, dev.q_max, k)
-            np.testing.assert_allclose(p, joint_limit_penalty(q, dev.q_min, dev.q_max, k), rtol=1e-12, atol=1e-15)
-            fd = [(penalty(q + 1e-6 * e, dev.q_min, dev.q_max, k)[0]
-                   - penalty(q - 1e-6 * e, dev.q_min, dev.q_max, k)[0])[i] / 2e-6 for i, e in enumerate(np.eye(4))]
+            p, dp = penalty(q, q_min=dev.q_min, q_max=dev.q_max, k_q=k)
+            np.testing.assert_allclose(p, joint_limit_penalty(q, q_min=dev.q_min, q_max=dev.q_max, k_q=k), rtol=1e-12, atol=1e-15)
+            lim = dict(q_min=dev.q_min, q_max=dev.q_max, k_q=k)
+            fd = [(penalty(q + 1e-6 * e, **lim)[0] - penalty(q - 1e-6 * e, **lim)[0])[i] / 2e-6 for i, e in enumerate(np.eye(4))]
             np.testing.assert_allclose(dp, fd, rtol=1e-6, atol=1e-8)
     # outside the limits: clipped to 0 with zero slope; no finite limits: 1
-    p, dp = penalty(dev.q_min - 0.1, dev.q_min, dev.q_max, 10.0)
+    p, dp = penalty(dev.q_min - 0.1, q_min=dev.q_min, q_max=dev.q_max, k_q=10.0)
     assert np.all(p == 0) and np.all(dp == 0)
-    p, dp = penalty(np.zeros(2), np.full(2, -np.inf), np.full(2, np.inf), 10.0)
+    p, dp = penalty(np.zeros(2), q_min=np.full(2, -np.inf), q_max=np.full(2, np.inf), k_q=10.0)
     assert np.all(p == 1) and np.all(dp == 0)
 
 
@@ -67,9 +67,9 @@ def test_tmi_objective_value_and_gradient(devs, rng, k_q, pen_slave, rot):
         J = rhi.jacobian(q)
         Js = slave.jacobian(qs)
         if k_q is not None:
-            J = penalized_jacobian(J, q, rhi.q_min, rhi.q_max, k_q)
+            J = penalized_jacobian(J, q, q_min=rhi.q_min, q_max=rhi.q_max, k_q=k_q)
             if pen_slave:
-                Js = penalized_jacobian(Js, qs, slave.q_min, slave.q_max, k_q)
+                Js = penalized_jacobian(Js, qs, q_min=slave.q_min, q_max=slave.q_max, k_q=k_q)
         if H is not None:
             J = H @ J
         assert obj.value(rhi, q) == pytest.approx(float(jbld(Js @ Js.T, J @ J.T)), rel=1e-12)

@@ -211,13 +211,14 @@ def test_joint_limit_barrier_bad_input():
 # ------------------------------------------------------------------ ASO, hysteresis, transition
 def test_aso_range_and_shape(rng):
     lo, hi = np.array([-0.5, -2.0]), np.array([0.5, 2.0])
-    assert aso_volume([0.0, 0.0], lo, hi) == pytest.approx(1.0)
-    assert aso_volume([0.5, 0.0], lo, hi) == 0.0
-    assert aso_volume([0.6, 3.0], lo, hi) == 0.0  # two joints outside: the formula's sign flips back; V stays 0
-    V = [aso_volume(t, lo, hi, S) for t in rng.uniform(-3, 3, (2000, 2)) for S in (1.0, 50.0)]
+    assert aso_volume([0.0, 0.0], torque_min=lo, torque_max=hi) == pytest.approx(1.0)
+    assert aso_volume([0.5, 0.0], torque_min=lo, torque_max=hi) == 0.0
+    # two joints outside: the formula's sign flips back; V stays 0
+    assert aso_volume([0.6, 3.0], torque_min=lo, torque_max=hi) == 0.0
+    V = [aso_volume(t, torque_min=lo, torque_max=hi, S=S) for t in rng.uniform(-3, 3, (2000, 2)) for S in (1.0, 50.0)]
     assert min(V) >= 0.0 and max(V) <= 1.0
     # monotone towards a limit
-    vs = [aso_volume([0.0, s], lo, hi) for s in np.linspace(0, 1.99, 50)]
+    vs = [aso_volume([0.0, s], torque_min=lo, torque_max=hi) for s in np.linspace(0, 1.99, 50)]
     assert np.all(np.diff(vs) <= 1e-15)
 
 
@@ -287,7 +288,7 @@ def test_ascm_never_exceeds_limits_and_preserves_direction(name, projector, rng)
         F = rng.normal(size=dev.m) * rng.uniform(0.5, 60.0)
         b = J.T @ (0.1 * rng.normal(size=dev.m))
         Z = null_basis(J, M if projector == "dynamic" else None)
-        al = ascm(J.T @ F, b, Z, lo, hi)
+        al = ascm(J.T @ F, b, Z, torque_min=lo, torque_max=hi)
         assert np.all(al.tau <= hi + 1e-12) and np.all(al.tau >= lo - 1e-12)
         assert 0.0 <= al.alpha <= 1.0
         Jp_T = (dynamic_pinv(J, M) if projector == "dynamic" else np.linalg.pinv(J)).T
@@ -326,9 +327,9 @@ def test_active_set_reaches_the_lp_optimum(name, projector, rng):
         u /= np.linalg.norm(u)
         Z = null_basis(J, M if projector == "dynamic" else None)
         a, b = 100.0 * (J.T @ u), J.T @ (0.05 * rng.normal(size=dev.m))
-        lp = allocate_lp(a, b, Z, lo, hi)
-        A = ascm(a, b, Z, lo, hi)
-        S = allocate_active_set(a, b, Z, lo, hi, start=A)
+        lp = allocate_lp(a, b, Z, torque_min=lo, torque_max=hi)
+        A = ascm(a, b, Z, torque_min=lo, torque_max=hi)
+        S = allocate_active_set(a, b, Z, torque_min=lo, torque_max=hi, start=A)
         for al in (lp, A, S):
             assert np.all(al.tau <= hi + 1e-12) and np.all(al.tau >= lo - 1e-12)
         assert A.alpha <= lp.alpha * (1 + 1e-7) + 1e-12
@@ -346,9 +347,9 @@ def test_tertiary_respects_limits_and_held_joints(rng, rhi4):
     lo, hi = rhi4.torque_limits
     for _q, J, M in _cases(rhi4, rng, 200):
         Z = null_basis(J, M)
-        al = ascm(J.T @ (rng.normal(size=2) * 30), np.zeros(4), Z, lo, hi)
+        al = ascm(J.T @ (rng.normal(size=2) * 30), np.zeros(4), Z, torque_min=lo, torque_max=hi)
         N = np.eye(4) - J.T @ dynamic_pinv(J, M).T
-        d, beta = tertiary(al.tau, al.saturated, Z, rng.normal(size=4) * 5, lo, hi, N)
+        d, beta = tertiary(al.tau, al.saturated, Z, rng.normal(size=4) * 5, torque_min=lo, torque_max=hi, N=N)
         tau = al.tau + d
         assert 0.0 <= beta <= 1.0
         assert np.all(tau <= hi + 1e-12) and np.all(tau >= lo - 1e-12)
@@ -744,7 +745,8 @@ def test_ascm_projector_equals_ascm(rng):
             Z = null_basis(J, M)
             P = null_projector(J, M)
             np.testing.assert_allclose(P, Z @ Z.T, atol=1e-12)
-            ref, new = ascm(J.T @ F, b, Z, lo, hi), ascm_projector(J.T @ F, b, P, lo, hi)
+            ref = ascm(J.T @ F, b, Z, torque_min=lo, torque_max=hi)
+            new = ascm_projector(J.T @ F, b, P, torque_min=lo, torque_max=hi)
             if ref.saturated.any():
                 ok = kernels.ascm(J.T @ F, b, P, lo, hi, dev.n - dev.m, np.zeros(dev.n, bool))[3]
                 handed_over += not ok
@@ -798,11 +800,11 @@ def test_projector_forms(rng, rhi4):
         np.testing.assert_allclose(P, Z @ Z.T, atol=1e-12)
         Zp = basis_from_projector(P)
         np.testing.assert_allclose(Zp @ Zp.T, P, atol=1e-12)
-        al = ascm(J.T @ (rng.normal(size=2) * 30), np.zeros(4), Z, lo, hi)
+        al = ascm(J.T @ (rng.normal(size=2) * 30), np.zeros(4), Z, torque_min=lo, torque_max=hi)
         N = nullspace_projector(J, M)
         tau_to = rng.normal(size=4) * 5
-        d1, b1 = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
-        d2, b2 = tertiary_projector(al.tau, al.saturated, P, tau_to, lo, hi, N)
+        d1, b1 = tertiary(al.tau, al.saturated, Z, tau_to, torque_min=lo, torque_max=hi, N=N)
+        d2, b2 = tertiary_projector(al.tau, al.saturated, P, tau_to, torque_min=lo, torque_max=hi, N=N)
         np.testing.assert_allclose(d2, d1, atol=1e-10)
         assert b2 == pytest.approx(b1, abs=1e-10)
     with pytest.raises(Singular, match="J"):

@@ -173,7 +173,7 @@ def test_continuous_joints_unbounded():
     assert np.isfinite(res["max_force (LP, dynamic projector) [N]"])
     # every limit-aware function takes the unbounded joint: no penalty, no barrier force, a plant without a range
     q = np.array([7.0, 0.3, 0.4])
-    P = metrics.joint_limit_penalty(q, dev.q_min, dev.q_max, 1.0)
+    P = metrics.joint_limit_penalty(q, q_min=dev.q_min, q_max=dev.q_max, k_q=1.0)
     assert P[0] == 1.0 and 0 < P[1] < 1
     from rhi import control as ctl
 

@@ -454,28 +454,28 @@ def test_desired_ellipsoids(rng):
 def test_joint_limit_penalty(rng):
     lo = np.array([-1.0, 0.0, -2.0])
     hi = np.array([1.0, 0.5, 3.0])
-    np.testing.assert_allclose(rm.joint_limit_penalty((lo + hi) / 2, lo, hi, 5.0), 1.0, rtol=1e-14)
-    np.testing.assert_allclose(rm.joint_limit_penalty(lo, lo, hi, 5.0), 0.0, atol=1e-15)
-    np.testing.assert_allclose(rm.joint_limit_penalty(hi, lo, hi, 5.0), 0.0, atol=1e-15)
+    np.testing.assert_allclose(rm.joint_limit_penalty((lo + hi) / 2, q_min=lo, q_max=hi, k_q=5.0), 1.0, rtol=1e-14)
+    np.testing.assert_allclose(rm.joint_limit_penalty(lo, q_min=lo, q_max=hi, k_q=5.0), 0.0, atol=1e-15)
+    np.testing.assert_allclose(rm.joint_limit_penalty(hi, q_min=lo, q_max=hi, k_q=5.0), 0.0, atol=1e-15)
     q = rng.uniform(lo, hi, size=(100, 3))
-    p = rm.joint_limit_penalty(q, lo, hi, 2.0)
+    p = rm.joint_limit_penalty(q, q_min=lo, q_max=hi, k_q=2.0)
     assert np.all((p >= 0) & (p <= 1))
     x = -8.0 * (q - lo) * (hi - q) / (hi - lo) ** 2
     np.testing.assert_allclose(p, (1 - np.exp(x)) / (1 - np.exp(-2.0)), rtol=1e-12)
-    assert np.all(rm.joint_limit_penalty(hi + 0.1, lo, hi, 5.0) == 0.0)  # beyond a limit: clipped
+    assert np.all(rm.joint_limit_penalty(hi + 0.1, q_min=lo, q_max=hi, k_q=5.0) == 0.0)  # beyond a limit: clipped
     J = rng.normal(size=(100, 2, 3))
-    np.testing.assert_allclose(rm.penalized_jacobian(J, q, lo, hi, 2.0), J * p[:, None, :], rtol=1e-14)
+    np.testing.assert_allclose(rm.penalized_jacobian(J, q, q_min=lo, q_max=hi, k_q=2.0), J * p[:, None, :], rtol=1e-14)
 
 
 def test_joint_limit_penalty_errors():
     with pytest.raises(InfeasibleLimits, match="q_min"):
-        rm.joint_limit_penalty([0.0, 0.0], [1.0, -1.0], [0.5, 1.0], 1.0)
+        rm.joint_limit_penalty([0.0, 0.0], q_min=[1.0, -1.0], q_max=[0.5, 1.0], k_q=1.0)
     with pytest.raises(InfeasibleLimits, match="q_min"):
-        rm.joint_limit_penalty([0.0], [0.0], [0.0], 1.0)
+        rm.joint_limit_penalty([0.0], q_min=[0.0], q_max=[0.0], k_q=1.0)
     with pytest.raises(InvalidInput, match="k_q"):
-        rm.joint_limit_penalty([0.0], [-1.0], [1.0], 0.0)
+        rm.joint_limit_penalty([0.0], q_min=[-1.0], q_max=[1.0], k_q=0.0)
     with pytest.raises(InvalidInput, match="q"):
-        rm.penalized_jacobian(np.ones((2, 3)), [0.0, 0.0], [-1.0, -1.0], [1.0, 1.0], 1.0)
+        rm.penalized_jacobian(np.ones((2, 3)), [0.0, 0.0], q_min=[-1.0, -1.0], q_max=[1.0, 1.0], k_q=1.0)
 
 
 # --- teleoperation ----------------------------------------------------------------------------
@@ -701,7 +701,7 @@ def _batch_cases(rng):
         (rm.effective_inertia, (J, M, u)),
         (rm.jbld, (A, A[::-1])),
         (rm.desired_vme, (u, np.full(B, 0.1))),
-        (lambda j, qq: rm.penalized_jacobian(j, qq, -np.ones(3), np.ones(3), 3.0), (J, q)),
+        (lambda j, qq: rm.penalized_jacobian(j, qq, q_min=-np.ones(3), q_max=np.ones(3), k_q=3.0), (J, q)),
         (rm.teleoperation_ellipsoid, (J, Js)),
         (rm.tmi, (J, Js)),
         (rm.joint_energy, (A, u)),

@@ -238,10 +238,10 @@ def test_velocity_bounds_A13(bounds):
 
 def test_scale_factor_fig_B4():
     lo, hi = -np.ones(3), np.ones(3)
-    assert scale_factor([0.5, 0, 0], [0, 0, 0], lo, hi) == (1.0, 0)
-    s, i = scale_factor([2.0, 0.5, -4.0], [0.0, 0.0, 0.0], lo, hi)
+    assert scale_factor([0.5, 0, 0], [0, 0, 0], lo=lo, hi=hi) == (1.0, 0)
+    s, i = scale_factor([2.0, 0.5, -4.0], [0.0, 0.0, 0.0], lo=lo, hi=hi)
     assert (s, i) == (0.25, 2)
-    s, i = scale_factor([1.0, 0, 0], [0.0, 1.5, 0.0], lo, hi)  # a fixed part out of bounds
+    s, i = scale_factor([1.0, 0, 0], [0.0, 1.5, 0.0], lo=lo, hi=hi)  # a fixed part out of bounds
     assert (s, i) == (0.0, 1)
 
 
@@ -321,7 +321,7 @@ def test_sns_meets_the_task_exactly_when_feasible(kin, bounds):
         lo, hi = acceleration_bounds(q, dq, bounds, T)
         ddx = rng.normal(scale=rng.choice([0.1, 3.0]), size=3)
         enabled = np.r_[np.zeros(3, bool), np.ones(7, bool)]
-        res = sns_acceleration(J, b, ddx, lo, hi, enabled, np.zeros(10))
+        res = sns_acceleration(J, b, ddx, lo=lo, hi=hi, enabled=enabled, fixed=np.zeros(10))
         assert np.all(res.ddq >= lo - 1e-12) and np.all(res.ddq <= hi + 1e-12)
         assert np.all(res.ddq[:3] == 0)  # the disabled base stays at its fixed (zero) acceleration
         if res.feasible:
@@ -357,7 +357,8 @@ def test_auxiliary_projection_is_the_B10_projector(kin, bounds):
         q, dq = _state(rng)
         J = kin.jacobian6(q)[1][:3]
         lo, hi = acceleration_bounds(q, dq, bounds, 0.005)
-        res = sns_acceleration(J, kin.drift(q, dq), rng.normal(scale=3.0, size=3), lo, hi, enabled, np.zeros(10))
+        res = sns_acceleration(J, kin.drift(q, dq), rng.normal(scale=3.0, size=3), lo=lo, hi=hi, enabled=enabled,
+                               fixed=np.zeros(10))
         if res.gram_inv is None:
             continue
         v = rng.normal(size=10)

@@ -24,11 +24,11 @@ from rhi.control import kernels
 from rhi.control.saturation import Allocation, allocate_lp
 
 
-def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max_iter: int = 50) -> Allocation:
+def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | None = None, max_iter: int = 50) -> Allocation:
     """The LP-optimal allocation of ASCM's problem by a primal active-set method warm-started at ASCM.
 
     Same problem and result as `rhi.control.saturation.allocate_lp`: the largest α <= 1 with
-    ``lo <= α a + b + Z y <= hi`` (eq. 7.9 with every null-space torque allowed). Falls back to
+    ``torque_min <= α a + b + Z y <= torque_max`` (eq. 7.9 with every null-space torque allowed). Falls back to
     `allocate_lp` if ASCM's start is not feasible (b itself outside the box) or the
     iteration does not settle within `max_iter` steps (degenerate cycling). The iteration is
     the compiled `rhi.control.kernels.active_set`.
@@ -37,8 +37,8 @@ def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
         b: (n,) unscaled torque [N m].
         Z: (n, r) orthonormal basis of the null-space torques (`null_basis`, either projector).
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
         start: a feasible allocation to start from (default: ASCM in projector form on P = Z Zᵀ, or
             simple scaling where that form cannot decide; `rhi.control.kernels.allocation.active_set_start`).
         max_iter: iteration limit.
@@ -47,7 +47,7 @@ def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max
         Allocation with method "active_set"; ``saturated`` marks the joints at a limit, and
         ``J#ᵀ τ = J#ᵀ(α a + b)`` (or J⁺ᵀ with the pseudoinverse basis).
     """
-    a, b, Z, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (a, b, Z, lo, hi))
+    a, b, Z, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (a, b, Z, torque_min, torque_max))
     n, r = Z.shape
     tau0 = a + b
     if np.all(tau0 <= hi) and np.all(tau0 >= lo):
@@ -68,7 +68,7 @@ def allocate_active_set(a, b, Z, lo, hi, *, start: Allocation | None = None, max
 
 
 def _lp(a, b, Z, lo, hi) -> Allocation:
-    al = allocate_lp(a, b, Z, lo, hi)
+    al = allocate_lp(a, b, Z, torque_min=lo, torque_max=hi)
     return Allocation(al.tau, al.alpha, al.saturated, al.tau_null, "active_set", al.clipped)
 
 

@@ -232,7 +232,7 @@ class NullSpaceController:
                                f"got {primary!r:.80}")
         lo = device.torque_min if config.torque_min is None else config.torque_min
         hi = device.torque_max if config.torque_max is None else config.torque_max
-        self.lo, self.hi = check_torque_limits(lo, hi, device.n)
+        self.lo, self.hi = check_torque_limits(torque_min=lo, torque_max=hi, n=device.n)
         if config.fme is not None and config.fme.free.shape != (device.m, device.m):
             raise InvalidInput(f"fme: desired FMEs must be ({device.m}, {device.m}), got {config.fme.free.shape}")
         check = getattr(config.primary, "check", None)

@@ -41,7 +41,7 @@ class Manipulability:
         q = np.asarray(q, dtype=float)
         J = device.jacobian(q)
         if self.k_q is not None:
-            J = J * penalty(q, device.q_min, device.q_max, self.k_q)[0]
+            J = J * penalty(q, q_min=device.q_min, q_max=device.q_max, k_q=self.k_q)[0]
         ld = np.linalg.slogdet(J @ J.T)[1]
         return float(-0.5 * ld if self.log else -np.exp(0.5 * ld))
 
@@ -61,12 +61,13 @@ class Manipulability:
         return -g if self.log else -np.sqrt(np.linalg.det(A)) * g
 
 
-def penalty(q: np.ndarray, lo: np.ndarray, hi: np.ndarray, k_q: float) -> tuple[np.ndarray, np.ndarray]:
+def penalty(q: np.ndarray, *, q_min: np.ndarray, q_max: np.ndarray, k_q: float) -> tuple[np.ndarray, np.ndarray]:
     """P_i (eq. 4.20, as `rhi.metrics.joint_limit_penalty`) and dP_i/dq_i for q: (n,) [rad].
 
     Joints without finite limits get P = 1, dP = 0; outside its limits P is clipped to 0 (dP = 0).
     Inlined (no input validation) because it runs every control tick.
     """
+    lo, hi = q_min, q_max
     span2 = (hi - lo) ** 2
     with np.errstate(invalid="ignore"):
         e = np.exp(-4.0 * k_q * (q - lo) * (hi - q) / span2)
@@ -82,7 +83,7 @@ def penalized(device: Device, q: np.ndarray, J: np.ndarray, dJ: np.ndarray, k_q:
     """(J^q, ∂J^q/∂q) with J^q = J diag(P(q)) (eq. 4.19): ∂J^q_k = ∂J_k diag(P) + J_k P'_k e_kᵀ."""
     if k_q is None:
         return J, dJ
-    p, dp = penalty(q, device.q_min, device.q_max, k_q)
+    p, dp = penalty(q, q_min=device.q_min, q_max=device.q_max, k_q=k_q)
     dJ = dJ * p[None, :, None]
     idx = np.arange(q.size)
     dJ[:, idx, idx] += J * dp
@@ -139,7 +140,7 @@ class TMIMatching:
             return self._cache[1]
         Js = self.slave.jacobian(qs)
         if self.penalize_slave and self.k_q is not None:
-            Js = Js * penalty(qs, self.slave.q_min, self.slave.q_max, self.k_q)[0]
+            Js = Js * penalty(qs, q_min=self.slave.q_min, q_max=self.slave.q_max, k_q=self.k_q)[0]
         M = Js @ Js.T
         self._cache = (key, M)
         return M
@@ -149,7 +150,7 @@ class TMIMatching:
         q = np.asarray(q, dtype=float)
         J = device.jacobian(q)
         if self.k_q is not None:
-            J = J * penalty(q, device.q_min, device.q_max, self.k_q)[0]
+            J = J * penalty(q, q_min=device.q_min, q_max=device.q_max, k_q=self.k_q)[0]
         return J if self.H is None else self.H @ J
 
     def value(self, device: Device, q) -> float:

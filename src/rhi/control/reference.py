@@ -70,7 +70,7 @@ def reference_tick(
     if cfg.gravity_compensation and kin.g @ kin.g != 0.0:
         b = b + (kin.g - J.T @ kin.Gx)  # (I − JᵀJ#ᵀ) g: the part G_x leaves out
     tau_m = a + b
-    s.V = aso_volume(tau_m, lo, hi, ctrl.aso_shape)
+    s.V = aso_volume(tau_m, torque_min=lo, torque_max=hi, S=ctrl.aso_shape)
     fme = cfg.fme
     if fme is not None:
         s.transition, s.omega = transition_step(s.transition, t, s.V, fme.distance, fme.transition)
@@ -90,21 +90,22 @@ def reference_tick(
     Z = null_basis(J, M)
     sat = cfg.saturation
     if sat == "ascm":
-        al = ascm(a, b, Z, lo, hi)
+        al = ascm(a, b, Z, torque_min=lo, torque_max=hi)
     elif sat == "lp":
-        al = allocate_lp(a, b, Z, lo, hi)
+        al = allocate_lp(a, b, Z, torque_min=lo, torque_max=hi)
     elif sat == "active_set":
-        al = allocate_active_set(a, b, Z, lo, hi)
+        al = allocate_active_set(a, b, Z, torque_min=lo, torque_max=hi)
     elif sat == "scaling":
-        al = allocate_scaling(a, b, lo, hi)
+        al = allocate_scaling(a, b, torque_min=lo, torque_max=hi)
     else:
-        al = allocate_none(a, b, lo, hi)
+        al = allocate_none(a, b, torque_min=lo, torque_max=hi)
     N = nullspace_projector(J, M)
     gamma = 1.0
     if al.saturated.any() and al.method in SAFE:  # safety the held joints would block
-        tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), lo, hi, skip=al.clipped)
+        tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), torque_min=lo, torque_max=hi,
+                                 skip=al.clipped)
         al = dataclasses.replace(al, tau=tau1)
-    delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, lo, hi, N)
+    delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, torque_min=lo, torque_max=hi, N=N)
     return (al.tau + delta if beta else al.tau), gamma * al.alpha, beta, al.saturated, al.clipped
 
 

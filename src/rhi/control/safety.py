@@ -14,7 +14,7 @@ import numpy as np
 from rhi.control.saturation import negligible, scaling_alpha
 
 
-def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarray, float]:
+def safety_room(tau, b, delta, *, torque_min, torque_max, skip: bool = False) -> tuple[np.ndarray, float]:
     """Add a null-space safety torque (damping, joint-limit barrier) that acts whatever the allocation holds.
 
     Returns ``τ' = b + δ + γ (τ − b)`` with the largest γ ∈ [0, 1] that keeps τ' in the box:
@@ -27,8 +27,8 @@ def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarra
         tau: (n,) allocated torque [N m], within the box.
         b: (n,) unscaled torque of the allocation [N m].
         delta: (n,) safety torque, already projected into the task's null space [N m].
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
         skip: return (τ, 1) unchanged (the allocation had to clip b).
 
     Returns:
@@ -36,10 +36,11 @@ def safety_room(tau, b, delta, lo, hi, *, skip: bool = False) -> tuple[np.ndarra
     """
     if skip or not np.any(np.abs(delta) > negligible(delta)):
         return tau, 1.0
+    lo, hi = torque_min, torque_max
     c = b + delta
-    gamma = scaling_alpha(tau - b, c, lo, hi)
+    gamma = scaling_alpha(tau - b, c, lo=lo, hi=hi)
     if gamma is None:
-        sigma = scaling_alpha(delta, np.clip(tau, lo, hi), lo, hi)
+        sigma = scaling_alpha(delta, np.clip(tau, lo, hi), lo=lo, hi=hi)
         return tau + (0.0 if sigma is None else sigma) * delta, 1.0
     return np.clip(c + gamma * (tau - b), lo, hi), gamma
 

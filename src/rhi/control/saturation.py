@@ -40,7 +40,7 @@ RANK_TOL = 1e-9
 
 
 # ------------------------------------------------------------------ limits, bases
-def check_torque_limits(torque_min, torque_max, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def check_torque_limits(*, torque_min, torque_max, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Validate torque limits for control: finite, ``torque_min < 0 < torque_max``.
 
     Args:
@@ -114,7 +114,7 @@ def basis_from_projector(P: np.ndarray, rank: int | None = None) -> np.ndarray:
     return V[:, w.size - r:]
 
 
-def scaling_alpha(p, c, lo, hi) -> float | None:
+def scaling_alpha(p, c, *, lo, hi) -> float | None:
     """Largest α in [0, 1] with ``lo <= α p + c <= hi``; None when no α in [0, 1] is feasible.
 
     Entries with |p| negligible only need c itself in the box.
@@ -163,16 +163,18 @@ class Allocation:
     clipped: bool = False
 
 
-def allocate_none(a, b, lo, hi) -> Allocation:
-    """No compensation: clip τ = a + b to the box (distorts the force direction, Fig. 7.1a)."""
+def allocate_none(a, b, *, torque_min, torque_max) -> Allocation:
+    """No compensation: clip τ = a + b to the torque box [N m] (distorts the force direction, Fig. 7.1a)."""
+    lo, hi = torque_min, torque_max
     tau = a + b
     out = np.clip(tau, lo, hi)
     return Allocation(out, 1.0, (tau > hi) | (tau < lo), np.zeros_like(a), "none")
 
 
-def allocate_scaling(a, b, lo, hi) -> Allocation:
-    """Simple scaling: the largest α <= 1 with lo <= α a + b <= hi (Fig. 7.1b, direction preserved)."""
-    alpha = scaling_alpha(a, b, lo, hi)
+def allocate_scaling(a, b, *, torque_min, torque_max) -> Allocation:
+    """Simple scaling: the largest α <= 1 with torque_min <= α a + b <= torque_max [N m] (Fig. 7.1b, direction preserved)."""
+    lo, hi = torque_min, torque_max
+    alpha = scaling_alpha(a, b, lo=lo, hi=hi)
     n = a.size
     if alpha is None:  # b alone is infeasible
         tau = np.clip(b, lo, hi)
@@ -192,7 +194,7 @@ def _fixed_solution(a, b, Z, S, ts, alpha):
     return base + d, d
 
 
-def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
+def ascm(a, b, Z, *, torque_min, torque_max, max_iter: int | None = None) -> Allocation:
     """Actuator Saturation Compensation Method (thesis Algorithm 1, eqs. 7.5–7.9).
 
     Starting from τ = a + b, repeatedly selects the most overloaded joint k (largest excess
@@ -211,13 +213,14 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
         b: (n,) unscaled torque [N m].
         Z: (n, n−m) orthonormal basis of the null-space torques (`null_basis`).
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
         max_iter: most joints held before giving up (default n + 1: every joint once).
 
     Returns:
         The allocation; ``J#ᵀ τ = J#ᵀ(α a + b)``.
     """
+    lo, hi = torque_min, torque_max
     n, r = Z.shape
     S = np.zeros(n, bool)
     ts = np.zeros(n)
@@ -243,15 +246,15 @@ def ascm(a, b, Z, lo, hi, *, max_iter: int | None = None) -> Allocation:
         p = a - Z @ (P @ a[S])
         c = b + Z @ (P @ (ts[S] - b[S]))
         free = ~S
-        alpha = scaling_alpha(p[free], c[free], lo[free], hi[free])
+        alpha = scaling_alpha(p[free], c[free], lo=lo[free], hi=hi[free])
         if alpha is not None:
             tau = np.clip(alpha * p + c, lo, hi)
             return Allocation(tau, alpha, S, tau - alpha * a - b, "ascm")
-    res = allocate_scaling(a, b, lo, hi)
+    res = allocate_scaling(a, b, torque_min=lo, torque_max=hi)
     return dataclasses.replace(res, method="ascm")
 
 
-def ascm_projector(a, b, P, lo, hi, *, rank: int | None = None) -> Allocation:
+def ascm_projector(a, b, P, *, torque_min, torque_max, rank: int | None = None) -> Allocation:
     """ASCM (thesis Algorithm 1) from the null-space projector P = Z Zᵀ: the allocation of `ascm`.
 
     Same iteration as `ascm` (most overloaded joint first, least-norm null-space torque,
@@ -265,31 +268,32 @@ def ascm_projector(a, b, P, lo, hi, *, rank: int | None = None) -> Allocation:
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
         b: (n,) unscaled torque [N m].
         P: (n, n) orthogonal projector onto the null-space torques (`null_projector`).
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
         rank: n − m, the rank of P (default: its rounded trace).
 
     Returns:
-        The allocation; equal to ``ascm(a, b, Z, lo, hi)`` for any orthonormal Z with Z Zᵀ = P.
+        The allocation; equal to ``ascm(a, b, Z, torque_min=..., torque_max=...)`` for any orthonormal Z with Z Zᵀ = P.
     """
     r = int(round(float(np.trace(P)))) if rank is None else rank
-    a, b, P, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (a, b, P, lo, hi))
+    a, b, P, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (a, b, P, torque_min, torque_max))
     sat = np.zeros(a.shape[0], bool)
     tau, alpha, clipped, ok = kernels.ascm(a, b, P, lo, hi, r, sat)
     if not ok:
-        return ascm(a, b, basis_from_projector(P, r), lo, hi)
+        return ascm(a, b, basis_from_projector(P, r), torque_min=lo, torque_max=hi)
     if clipped:
-        return dataclasses.replace(allocate_scaling(a, b, lo, hi), method="ascm")
+        return dataclasses.replace(allocate_scaling(a, b, torque_min=lo, torque_max=hi), method="ascm")
     return Allocation(tau, alpha, sat, tau - alpha * a - b, "ascm")
 
 
-def allocate_lp(a, b, Z, lo, hi) -> Allocation:
+def allocate_lp(a, b, Z, *, torque_min, torque_max) -> Allocation:
     """Optimal allocation: the largest α <= 1 over every null-space torque, by linear programming.
 
-    Solves ``max α`` s.t. ``lo <= α a + b + Z y <= hi``, ``0 <= α <= 1`` (HiGHS). For
+    Solves ``max α`` s.t. ``torque_min <= α a + b + Z y <= torque_max``, ``0 <= α <= 1`` (HiGHS). For
     ``b = 0`` and a request at or above the capability, ``α |F|`` equals the optimum of
     `rhi.metrics.max_force`. Falls back to simple scaling if the LP fails.
     """
+    lo, hi = torque_min, torque_max
     n, r = Z.shape
     tau0 = a + b
     if np.all(tau0 <= hi) and np.all(tau0 >= lo):
@@ -305,7 +309,7 @@ def allocate_lp(a, b, Z, lo, hi) -> Allocation:
         method="highs",
     )
     if res.status != 0:
-        return dataclasses.replace(allocate_scaling(a, b, lo, hi), method="lp")
+        return dataclasses.replace(allocate_scaling(a, b, torque_min=lo, torque_max=hi), method="lp")
     alpha = float(res.x[0])
     d = Z @ res.x[1:]
     tau = np.clip(alpha * a + b + d, lo, hi)
@@ -313,7 +317,7 @@ def allocate_lp(a, b, Z, lo, hi) -> Allocation:
     return Allocation(tau, alpha, sat, d, "lp")
 
 
-def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+def tertiary(tau, saturated, Z, tau_to, *, torque_min, torque_max, N: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Tertiary-objective torque in the null space of the primary task and of ASCM (eqs. 7.16, Algorithm 2).
 
     The objective torque is projected by N (eq. 3.20; orthogonally onto range(Z) if N is
@@ -327,8 +331,8 @@ def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> 
         saturated: (n,) bool, ASCM's 𝒮.
         Z: (n, n−m) null-space basis.
         tau_to: (n,) tertiary torque τ_to, e.g. −Λ ∂ν/∂q − k_D q̇ [N m].
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
         N: (n, n) torque null-space projector I − JᵀJ#ᵀ, or None.
 
     Returns:
@@ -344,7 +348,8 @@ def tertiary(tau, saturated, Z, tau_to, lo, hi, N: np.ndarray | None = None) -> 
     delta = Z @ c
     if not np.any(np.abs(delta) > negligible(tau_to)):
         return np.zeros_like(tau), 0.0
-    beta = scaling_alpha(delta, np.clip(tau, lo, hi), lo, hi)
+    lo, hi = torque_min, torque_max
+    beta = scaling_alpha(delta, np.clip(tau, lo, hi), lo=lo, hi=hi)
     beta = 0.0 if beta is None else beta
     return beta * delta, beta
 
@@ -354,7 +359,9 @@ def negligible(tau) -> float:
     return 1e-12 * (1.0 + float(np.max(np.abs(tau))))
 
 
-def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+def tertiary_projector(
+    tau, saturated, P, tau_to, *, torque_min, torque_max, N: np.ndarray | None = None
+) -> tuple[np.ndarray, float]:
     """`tertiary` from the projector P = Z Zᵀ instead of a basis (same result).
 
     Args:
@@ -362,25 +369,25 @@ def tertiary_projector(tau, saturated, P, tau_to, lo, hi, N: np.ndarray | None =
         saturated: (n,) bool, ASCM's 𝒮.
         P: (n, n) orthogonal projector onto the null-space torques (`null_projector`).
         tau_to: (n,) tertiary torque τ_to [N m].
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
         N: (n, n) torque null-space projector I − JᵀJ#ᵀ, or None (then P).
 
     Returns:
         (β δ (n,) [N m] to add to tau, β).
     """
     r = int(round(float(np.trace(P))))
-    tau, P, tau_to, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (tau, P, tau_to, lo, hi))
+    tau, P, tau_to, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (tau, P, tau_to, torque_min, torque_max))
     saturated = np.ascontiguousarray(saturated, dtype=bool)
     Ntau = (P if N is None else np.asarray(N, dtype=float)).dot(tau_to)
     delta, beta, ok = kernels.tertiary(tau, saturated, P, tau_to, Ntau, lo, hi, r)
     if not ok:
-        return tertiary(tau, saturated, basis_from_projector(P, r), tau_to, lo, hi, N)
+        return tertiary(tau, saturated, basis_from_projector(P, r), tau_to, torque_min=lo, torque_max=hi, N=N)
     return delta, beta
 
 
 def force_capability(
-    J, u, torque_min, torque_max, *, method: str = "ascm", projector: Literal["dynamic", "pseudoinverse"] = "dynamic",
+    J, u, *, torque_min, torque_max, method: str = "ascm", projector: Literal["dynamic", "pseudoinverse"] = "dynamic",
     M=None, samples: int = 41,
 ) -> float:
     """Largest force along u a static allocation method renders, over a ramp of requests [N].
@@ -407,7 +414,7 @@ def force_capability(
 
     if projector not in ("dynamic", "pseudoinverse"):
         raise InvalidInput(f"projector: expected 'dynamic' or 'pseudoinverse', got {projector!r}")
-    lo, hi = check_torque_limits(torque_min, torque_max, np.shape(J)[-1])
+    lo, hi = check_torque_limits(torque_min=torque_min, torque_max=torque_max, n=np.shape(J)[-1])
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     f_s = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
     if method == "scaling":
@@ -422,6 +429,6 @@ def force_capability(
     b = np.zeros_like(t)
     best = f_s
     for f in np.concatenate([np.linspace(f_s, 1.5 * f_lp, samples), [f_lp]]):
-        al = ascm(f * t, b, Z, lo, hi)
+        al = ascm(f * t, b, Z, torque_min=lo, torque_max=hi)
         best = max(best, al.alpha * f)
     return min(best, f_lp) if best <= f_lp * (1 + 1e-9) else best

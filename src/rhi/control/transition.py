@@ -17,7 +17,7 @@ from rhi.control.saturation import check_torque_limits
 from rhi.errors import InvalidInput
 
 
-def aso_volume(tau, torque_min, torque_max, S: float = 50.0) -> float:
+def aso_volume(tau, *, torque_min, torque_max, S: float = 50.0) -> float:
     """Actuator saturation observer V ∈ [0, 1]: the tank of unused torque capacity (thesis eq. 6.14).
 
     V = (1 − exp(−S (−1)ⁿ Πᵢ (τᵢ − T_max,i)(τᵢ − T_min,i)/(T_max,i − T_min,i)²)) / (1 − exp(−S/4ⁿ)).
@@ -30,7 +30,7 @@ def aso_volume(tau, torque_min, torque_max, S: float = 50.0) -> float:
         torque_max: (n,) upper limits [N m], > torque_min.
         S: shape factor S > 0 (Fig. 6.6 uses 50).
     """
-    lo, hi = check_torque_limits(torque_min, torque_max)
+    lo, hi = check_torque_limits(torque_min=torque_min, torque_max=torque_max)
     t = as_array("tau", tau, shape_tail=(lo.shape[-1],))
     if t.ndim != 1:
         raise InvalidInput(f"tau: expected shape ({lo.shape[-1]},), got {t.shape}")

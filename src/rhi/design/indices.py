@@ -26,7 +26,7 @@ def penalize(J: np.ndarray, q: np.ndarray, q_min: np.ndarray, q_max: np.ndarray,
     lo = np.where(finite, q_min, -1.0)
     hi = np.where(finite, q_max, 1.0)
     qq = np.where(finite, np.clip(q, lo, hi), 0.0)
-    Jq = penalized_jacobian(J, qq, lo, hi, k_q)
+    Jq = penalized_jacobian(J, qq, q_min=lo, q_max=hi, k_q=k_q)
     return np.where(finite[None, None, :], Jq, J)
 
 

@@ -10,7 +10,7 @@ from rhi.errors import InfeasibleLimits, InvalidInput
 from rhi.metrics._common import FloatArray, jacobian, positive
 
 
-def joint_limit_penalty(q: ArrayLike, q_min: ArrayLike, q_max: ArrayLike, k_q: ArrayLike) -> FloatArray:
+def joint_limit_penalty(q: ArrayLike, *, q_min: ArrayLike, q_max: ArrayLike, k_q: ArrayLike) -> FloatArray:
     """Joint-wise joint-limit penalty ``P_i`` (thesis eq. 4.20).
 
     ``P_i = (1 − exp(−4 k_q (q_i − q_min,i)(q_max,i − q_i) / (q_max,i − q_min,i)²)) / (1 − exp(−k_q))``.
@@ -53,7 +53,7 @@ def joint_limit_penalty(q: ArrayLike, q_min: ArrayLike, q_max: ArrayLike, k_q: A
 
 
 def penalized_jacobian(
-    J: ArrayLike, q: ArrayLike, q_min: ArrayLike, q_max: ArrayLike, k_q: ArrayLike
+    J: ArrayLike, q: ArrayLike, *, q_min: ArrayLike, q_max: ArrayLike, k_q: ArrayLike
 ) -> FloatArray:
     """Joint-limit constrained Jacobian ``J^q``, column ``i`` scaled by ``P_i`` (thesis eq. 4.19).
 
@@ -72,7 +72,7 @@ def penalized_jacobian(
         InfeasibleLimits: ``q_min >= q_max`` for some joint.
     """
     J = jacobian("J", J)
-    p = joint_limit_penalty(q, q_min, q_max, k_q)
+    p = joint_limit_penalty(q, q_min=q_min, q_max=q_max, k_q=k_q)
     if p.shape[-1] != J.shape[-1]:
         raise InvalidInput(f"q: expected {J.shape[-1]} joint values to match J, got shape {p.shape}")
     return J * p[..., None, :]

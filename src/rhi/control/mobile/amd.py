@@ -119,7 +119,7 @@ class SNSResult:
     gram_inv: np.ndarray | None = None
 
 
-def sns_acceleration(J, b, ddx, lo, hi, enabled, fixed, *, rank_tol: float = 1e-6) -> SNSResult:
+def sns_acceleration(J, b, ddx, *, lo, hi, enabled, fixed, rank_tol: float = 1e-6) -> SNSResult:
     """Adaptive motion distribution q̈ = (JS)⁺(α ẍ − J̇q̇) + [I − (JS)⁺J] q̈_N (thesis eq. B.9).
 
     Saturation in the null space [51]: start with the enabled joints active and every
@@ -167,7 +167,7 @@ def sns_acceleration(J, b, ddx, lo, hi, enabled, fixed, *, rank_tol: float = 1e-
         c = qN.copy()
         c[idx] += JS.T @ yc
         al, cl = a.tolist(), c.tolist()
-        s, crit = scale_factor_lists(al, cl, lo_l, hi_l, active.tolist())
+        s, crit = scale_factor_lists(al, cl, lo=lo_l, hi=hi_l, act=active.tolist())
         if s >= 1.0:
             return SNSResult(np.minimum(np.maximum(a + c, lo), hi), 1.0, active, True, Ginv)
         if s > best_s:
@@ -369,12 +369,12 @@ class AMDController(AccelControllerBase):
         if not near_singular:
             fixed = np.zeros(n)
             fixed[:nb] = base_stop_acceleration(dq[:nb], lo[:nb], hi[:nb], c.dt)
-            res = sns_acceleration(J, b, ddx, lo, hi, self._arm_mask, fixed)
+            res = sns_acceleration(J, b, ddx, lo=lo, hi=hi, enabled=self._arm_mask, fixed=fixed)
             if not res.feasible:
                 res = None
         base_active = res is None
         if res is None:
-            res = sns_acceleration(J, b, ddx, lo, hi, self._all_mask, self._zeros)
+            res = sns_acceleration(J, b, ddx, lo=lo, hi=hi, enabled=self._all_mask, fixed=self._zeros)
             st.stop_t0, st.stop_v = None, None
         elif st.base_active or (st.stop_t0 is None and np.any(dq[:nb] != 0)):
             st.stop_t0, st.stop_v = t, dq[:nb].copy()  # B.20: t₀ and V_b
@@ -382,7 +382,7 @@ class AMDController(AccelControllerBase):
         if c.singularity_avoidance and res.gram_inv is not None:
             # q̈_t = β P_A q̈_A (B.10–B.11, B.13) with the β of Fig. B.4, then B.19
             lam = auxiliary_projection(J, res.active, res.gram_inv, ddq_A)
-            beta, _ = scale_factor_lists(lam.tolist(), ddq.tolist(), lo.tolist(), hi.tolist(), [True] * n)
+            beta, _ = scale_factor_lists(lam.tolist(), ddq.tolist(), lo=lo.tolist(), hi=hi.tolist(), act=[True] * n)
             ddq = np.minimum(np.maximum(ddq + beta * lam, lo), hi)
         st.base_active, st.t = base_active, t
         st.steps += 1

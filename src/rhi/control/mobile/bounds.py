@@ -237,7 +237,7 @@ def velocity_bounds_unchecked(q, b: JointBounds, T: float) -> tuple[np.ndarray, 
     return np.minimum(lo, 0.0), np.maximum(hi, 0.0)
 
 
-def scale_factor(a, c, lo, hi, active=None) -> tuple[float, int]:
+def scale_factor(a, c, *, lo, hi, active=None) -> tuple[float, int]:
     """Largest task scaling s ∈ [0, 1] with lo ≤ c + s a ≤ hi on the active joints (thesis Fig. B.4).
 
     λ = a is the joint acceleration the (scalable) task requires, ξ = c what the other
@@ -257,11 +257,11 @@ def scale_factor(a, c, lo, hi, active=None) -> tuple[float, int]:
     a = np.asarray(a, dtype=float)
     n = a.shape[0]
     act = [True] * n if active is None else np.asarray(active, bool).tolist()
-    return scale_factor_lists(a.tolist(), np.asarray(c, dtype=float).tolist(), np.asarray(lo, dtype=float).tolist(),
-                  np.asarray(hi, dtype=float).tolist(), act)
+    return scale_factor_lists(a.tolist(), np.asarray(c, dtype=float).tolist(), lo=np.asarray(lo, dtype=float).tolist(),
+                              hi=np.asarray(hi, dtype=float).tolist(), act=act)
 
 
-def scale_factor_lists(a: list, c: list, lo: list, hi: list, act: list) -> tuple[float, int]:
+def scale_factor_lists(a: list, c: list, *, lo: list, hi: list, act: list) -> tuple[float, int]:
     """`scale_factor` on Python lists (n ≈ 10: faster than NumPy's per-call overhead)."""
     s_hi, i_hi = math.inf, -1
     s_lo, i_lo = -math.inf, -1

@@ -220,7 +220,7 @@ def spatial_force_capability(
         for i, q in enumerate(Q):
             J, M = dev.jacobian(q), dev.mass_matrix(q)
             for k, u in enumerate(Us[i]):
-                F[i, k] = [_capability(J, u, lo, hi, method=mth, M=M) for mth in ("scaling", "ascm", "lp")]
+                F[i, k] = [_capability(J, u, torque_min=lo, torque_max=hi, method=mth, M=M) for mth in ("scaling", "ascm", "lp")]
             done += 1
             if progress is not None:
                 progress(done, total)

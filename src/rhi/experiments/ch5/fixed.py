@@ -109,9 +109,9 @@ def fixed_point(
     last = log.t >= log.t[-1] - 1.0
     drift = float(np.max(np.linalg.norm(log.x - x0, axis=1)))
     kq_str = "none" if k_q is None else f"{k_q:g}"
-    Jp0 = penalized_jacobian(J0, q0, rhi.q_min, rhi.q_max, K_Q)
-    JpT = penalized_jacobian(JT, qT, rhi.q_min, rhi.q_max, K_Q)
-    Jsp = penalized_jacobian(Js, qs, slave.q_min, slave.q_max, K_Q)
+    Jp0 = penalized_jacobian(J0, q0, q_min=rhi.q_min, q_max=rhi.q_max, k_q=K_Q)
+    JpT = penalized_jacobian(JT, qT, q_min=rhi.q_min, q_max=rhi.q_max, k_q=K_Q)
+    Jsp = penalized_jacobian(Js, qs, q_min=slave.q_min, q_max=slave.q_max, k_q=K_Q)
     p0, pT = float(tmi(Jp0, Jsp)), float(tmi(JpT, Jsp))
     rows = [
         Row("TME area increase by the TMI null-space controller", THESIS_TME_INCREASE, 100.0 * (aT / a0 - 1.0), "%",

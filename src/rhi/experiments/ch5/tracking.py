@@ -132,8 +132,8 @@ def w_trajectory(
         err_path = distance_to_polyline(log.slave_x[moving], path.points)
         W0 = log.work[np.argmax(moving)]
         work = log.work - W0
-        Jsp = penalized_jacobian(Js, qs, slave.q_min, slave.q_max, K_Q)
-        Jmp = penalized_jacobian(Jm, log.q, dev.q_min, dev.q_max, K_Q)
+        Jsp = penalized_jacobian(Js, qs, q_min=slave.q_min, q_max=slave.q_max, k_q=K_Q)
+        Jmp = penalized_jacobian(Jm, log.q, q_min=dev.q_min, q_max=dev.q_max, k_q=K_Q)
         lim = np.min(np.minimum(log.q - dev.q_min, dev.q_max - log.q), axis=1)
         dt = np.diff(log.t, append=log.t[-1] + (log.t[1] - log.t[0]))[moving]
         dq = log.dq[moving]

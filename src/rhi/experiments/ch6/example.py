@@ -58,7 +58,7 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = F_3
         tau = np.empty((steps, dev.n))
         alpha = np.empty(steps)
         for k, F in enumerate(Fe):
-            al = allocate_scaling(J.T @ F, np.zeros(dev.n), lo, hi)
+            al = allocate_scaling(J.T @ F, np.zeros(dev.n), torque_min=lo, torque_max=hi)
             tau[k], alpha[k] = al.tau, al.alpha
         force = tau @ weighted_pinv(J)  # (J⁺ᵀ τ)ᵀ = τᵀ J⁺
         fs = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))

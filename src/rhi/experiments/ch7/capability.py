@@ -41,12 +41,12 @@ U = np.array([0.0, 1.0])
 
 def _allocate(method: str, a, b, Z, lo, hi):
     if method == "none":
-        return allocate_none(a, b, lo, hi)
+        return allocate_none(a, b, torque_min=lo, torque_max=hi)
     if method == "scaling":
-        return allocate_scaling(a, b, lo, hi)
+        return allocate_scaling(a, b, torque_min=lo, torque_max=hi)
     if method == "ascm":
-        return ascm(a, b, Z, lo, hi)
-    return allocate_lp(a, b, Z, lo, hi)
+        return ascm(a, b, Z, torque_min=lo, torque_max=hi)
+    return allocate_lp(a, b, Z, torque_min=lo, torque_max=hi)
 
 
 def force_run(dev, q, t, Fe, *, projector: str = "pseudoinverse") -> dict[str, dict[str, np.ndarray]]:
@@ -167,12 +167,13 @@ def _deficiency_row(y: float, xs: np.ndarray, projectors: tuple[ProjectorKind, .
         J = dev.jacobian(q)
         if np.linalg.svd(J, compute_uv=False)[-1] < 1e-3:
             continue
-        f_wo = force_capability(J, U, lo, hi, method="scaling")
+        f_wo = force_capability(J, U, torque_min=lo, torque_max=hi, method="scaling")
         for p, projector in enumerate(projectors):
             M = dev.mass_matrix(q) if projector == "dynamic" else None
             out[3 * p, i] = f_wo
-            out[3 * p + 1, i] = force_capability(J, U, lo, hi, method="ascm", projector=projector, M=M, samples=21)
-            out[3 * p + 2, i] = force_capability(J, U, lo, hi, method="lp", projector=projector, M=M)
+            out[3 * p + 1, i] = force_capability(J, U, torque_min=lo, torque_max=hi, method="ascm", projector=projector,
+                                                M=M, samples=21)
+            out[3 * p + 2, i] = force_capability(J, U, torque_min=lo, torque_max=hi, method="lp", projector=projector, M=M)
     return out
 
 

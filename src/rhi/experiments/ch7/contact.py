@@ -300,11 +300,11 @@ def palpation(
 
     # 2. static force capability along u at the contact configuration
     J, M = dev.jacobian(q_c), dev.mass_matrix(q_c)
-    cap = {"scaling": force_capability(J, u, lo, hi, method="scaling")}
+    cap = {"scaling": force_capability(J, u, torque_min=lo, torque_max=hi, method="scaling")}
     projected: tuple[tuple[ProjectorKind, np.ndarray | None], ...] = (("dynamic", M), ("pseudoinverse", None))
     for proj, Mp in projected:
         for meth in ("ascm", "lp"):
-            cap[f"{meth}_{proj}"] = force_capability(J, u, lo, hi, method=meth, projector=proj, M=Mp)
+            cap[f"{meth}_{proj}"] = force_capability(J, u, torque_min=lo, torque_max=hi, method=meth, projector=proj, M=Mp)
     for k, v in cap.items():
         arrays[f"capability_{k}"] = np.array(v)
 
