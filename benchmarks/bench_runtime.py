@@ -49,7 +49,7 @@ from rhi.control import (
 )
 from rhi.runtime import SafetyConfig, SimLink, run
 from rhi.runtime.config import load_config
-from rhi.sim import Hand, Path as HandPath, Plant, Wall
+from rhi.sim import Hand, HandPath, Plant, Wall
 
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 PERIOD_US = 1000.0

@@ -26,19 +26,19 @@ import sys
 import tarfile
 import tempfile
 import time
-from pathlib import Path as FilePath
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
 import rhi
-from rhi.sim import Hand, Path, Plant, Wall, simulate
+from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 TARGET = 25.0
 #: main before the loop's speed work of issue 14
 PREVIOUS = "2e43554"
-ROOT = FilePath(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[1]
 
 
 class Zero:
@@ -64,7 +64,7 @@ def run(controller, seconds: float, record: bool = False):
     plant = Plant(dev)
     plant.reset(Q0)
     x0 = dev.fk(Q0)
-    hand = Hand(Path([x0, x0 + [0.0, 0.03]], speed=0.01), stiffness=300.0)
+    hand = Hand(HandPath([x0, x0 + [0.0, 0.03]], speed=0.01), stiffness=300.0)
     if record:
         hand = Recorder(hand)
     w0, c0 = time.perf_counter(), time.process_time()

@@ -23,7 +23,7 @@ import numpy as np
 
 import rhi
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
-from rhi.sim import Hand, Path as HandPath, Plant, Wall, simulate, stop
+from rhi.sim import Hand, HandPath, Plant, Wall, simulate, stop
 
 dev = rhi.device("rhi4")
 q0 = np.array([-0.63, 0.25, 0.28, 0.09])  # [rad]

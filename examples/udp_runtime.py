@@ -24,7 +24,7 @@ from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
 from rhi.runtime import SimLink, run
 from rhi.runtime.server import DeviceServer
 from rhi.runtime.udp import UDPLink
-from rhi.sim import Hand, Path, Plant, Wall, simulate, stop
+from rhi.sim import Hand, HandPath, Plant, Wall, simulate, stop
 
 dev = rhi.device("rhi4")
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])  # [rad]
@@ -36,7 +36,7 @@ def scenario():
     plant.reset(Q0)
     x0 = dev.fk(Q0)
     ctrl = NullSpaceController(dev, ControllerConfig(primary=ForceRendering(passivity=None), saturation="ascm"))
-    hand = Hand(Path([x0, x0 + [0, 0.05]], speed=0.05))
+    hand = Hand(HandPath([x0, x0 + [0, 0.05]], speed=0.05))
     wall = Wall(x0 + [0, 0.01], normal=[0, 1], stiffness=1000.0)
     return plant, ctrl, hand, wall, stop(x0 + [0, 0.03], [0, 1])
 

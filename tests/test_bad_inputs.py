@@ -255,7 +255,7 @@ DEVICE = [
          _v(damping=np.zeros(3)), {"damping": opt(ARRAY) + ("negative", "shape")}, names={"damping": "damping"}),
     Case("device_from_mjcf", rhi.device_from_mjcf, _v(path="x.xml", ee_frame="tip"), {"path": ("unknown", "none", "int")}),
     Case("description_path", rhi.description_path, _v(robot="panda"), {"robot": NAME}),
-    Case("measure", rhi.measure, _v(device=DEV, q=Q3, u=np.array([1.0, 0.0])),
+    Case("all_measures", rhi.all_measures, _v(device=DEV, q=Q3, u=np.array([1.0, 0.0])),
          {"q": QV, "u": opt(ARRAY) + ("zeros", "shape")}),
 ]
 DEVICE_TRIPLES = [t for c in DEVICE for t in c.triples()]
@@ -361,7 +361,7 @@ SIM = [
     Case("Fixture", sim.Fixture, _v(point=np.zeros(2), direction=np.array([1.0, 0.0]), stiffness=100.0, damping=1.0),
          {"point": ARRAY, "direction": ARRAY + ("zeros", "shape"), "stiffness": NONNEG_SCALAR,
           "damping": SCALAR + ("negative_scalar",)}),
-    Case("Path", sim.Path, _v(points=np.array([[0.3, 0.2], [0.35, 0.2]]), speed=0.02, start=0.0),
+    Case("HandPath", sim.HandPath, _v(points=np.array([[0.3, 0.2], [0.35, 0.2]]), speed=0.02, start=0.0),
          {"points": ARRAY, "speed": NONNEG_SCALAR + ("zero_scalar",), "start": SCALAR}),
     Case("w_path", sim.w_path, _v(center=np.array([0.3, 0.2]), width=0.08, height=0.04, speed=0.02),
          {"center": ARRAY, "width": POS_SCALAR, "height": POS_SCALAR, "speed": POS_SCALAR}),

@@ -12,7 +12,7 @@ from rhi.errors import InvalidInput
 from rhi.experiments.beyond.bilateral import Q_MASTER, Q_SLAVE, metrics, scenario
 from rhi.runtime.bilateral import Master, Slave, run_slave
 from rhi.runtime.channel import ChannelConfig, UDPEnd
-from rhi.sim import Hand, Path, Plant, Wall
+from rhi.sim import Hand, HandPath, Plant, Wall
 
 
 def test_tdpa_makes_the_50ms_channel_passive():
@@ -93,7 +93,7 @@ def test_two_processes_over_udp_with_delay():
                 return tau
 
         end = UDPEnd(ChannelConfig(delay=0.01, seed=1), peer=("127.0.0.1", port))
-        hand = Hand(Path([x0, x0 + [0, 0.015]], speed=0.05), stiffness=300.0)
+        hand = Hand(HandPath([x0, x0 + [0, 0.015]], speed=0.05), stiffness=300.0)
         from rhi.runtime import SimLink, run
 
         res = run(SimLink(mp_, hand=hand), Watch(ctrl, end), duration=3.0)

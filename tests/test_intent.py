@@ -19,7 +19,7 @@ from rhi.errors import InvalidInput
 from rhi.experiments.beyond.intent import error_and_lag, trained_hmm
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.setups import path_hand
-from rhi.sim import Hand, Path, Plant, simulate
+from rhi.sim import Hand, HandPath, Plant, simulate
 from rhi.sim.strokes import synthetic_strokes
 
 #: Stated bounds (measured on 40 test strokes, seed 202: filtered 9.4° / 10.8°, HMM 5.4° / 9.3° mean axial error
@@ -88,7 +88,7 @@ def test_known_u_equals_existing_controllers():
     np.testing.assert_array_equal(a.tau, b.tau)
     np.testing.assert_array_equal(a.q, b.q)
     # VME matching (ch. 3/5) with the impedance law
-    p = Path(np.array([x0, x0 + [0.02, 0.0]]), speed=0.05)
+    p = HandPath(np.array([x0, x0 + [0.02, 0.0]]), speed=0.05)
     for obj in (VMEMatching((0.0, 1.0), 0.01), IntentVME(KnownIntent([0.0, 1.0]), 0.01)):
         cfg = ControllerConfig(primary=ImpedanceControl(damping=0.3), objectives=(ObjectiveTerm(obj, 1.0),),
                                damping=0.05, saturation="none")

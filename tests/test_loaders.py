@@ -169,7 +169,7 @@ def test_continuous_joints_unbounded():
     assert dev.within_limits([10.0, 0.1, 0.1])
     q = dev.ik(dev.fk([0.2, 0.3, 0.4]), [0.0, 0.1, 0.1])
     np.testing.assert_allclose(dev.fk(q), dev.fk([0.2, 0.3, 0.4]), atol=1e-8)
-    res = rhi.measure(dev, [0.2, 0.3, 0.4])
+    res = rhi.all_measures(dev, [0.2, 0.3, 0.4])
     assert np.isfinite(res["max_force (LP, dynamic projector) [N]"])
     # every limit-aware function takes the unbounded joint: no penalty, no barrier force, a plant without a range
     q = np.array([7.0, 0.3, 0.4])

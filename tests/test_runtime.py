@@ -15,7 +15,7 @@ from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
 from rhi.errors import InvalidInput
 from rhi.runtime import Reading, Safety, SafetyConfig, SimLink, Telemetry, run
 from rhi.runtime.inject import Inject
-from rhi.sim import Hand, Log, Path, Plant, PushForce, Wall, simulate, stop
+from rhi.sim import Hand, HandPath, Log, Plant, PushForce, Wall, simulate, stop
 
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 
@@ -31,7 +31,7 @@ def _scenario(dev):
     plant.reset(Q0)
     x0 = dev.fk(Q0)
     ctrl = NullSpaceController(dev, ControllerConfig(primary=ForceRendering(), saturation="ascm"))
-    hand = Hand(Path([x0, x0 + [0, 0.05]], speed=0.05))
+    hand = Hand(HandPath([x0, x0 + [0, 0.05]], speed=0.05))
     wall = Wall(x0 + [0, 0.01], normal=[0, 1], stiffness=1000.0)
     return plant, ctrl, hand, wall, stop(x0 + [0, 0.03], [0, 1])
 

@@ -9,7 +9,7 @@ from rhi.errors import InvalidInput, Unreachable
 from rhi.sim import (
     Fixture,
     Hand,
-    Path,
+    HandPath,
     Plant,
     PlantFriction,
     PushForce,
@@ -113,7 +113,7 @@ def test_user_work_equals_kinetic_energy(rhi4):
 
 
 def test_path_and_w_trajectory():
-    p = Path([[0, 0], [0.1, 0], [0.1, 0.1]], speed=0.05, start=1.0)
+    p = HandPath([[0, 0], [0.1, 0], [0.1, 0.1]], speed=0.05, start=1.0)
     assert p.length == pytest.approx(0.2) and p.duration == pytest.approx(4.0)
     np.testing.assert_allclose(p(0.5)[0], [0, 0])
     x, v = p(3.0)
@@ -125,7 +125,7 @@ def test_path_and_w_trajectory():
     w = w_path([0.45, 0.0], width=0.08, height=0.04, speed=0.02)
     assert len(w.points) == 5 and w.points[0, 1] - w.points[1, 1] == pytest.approx(0.04)
     with pytest.raises(InvalidInput, match="speed"):
-        Path([[0, 0], [1, 0]], speed=0.0)
+        HandPath([[0, 0], [1, 0]], speed=0.0)
 
 
 def test_environments():
@@ -154,7 +154,7 @@ def test_palpation_renders_wall_and_stop(rhi4):
     plant.reset(Q_CH5)
     x0 = rhi4.fk(Q_CH5)
     ctrl = NullSpaceController(rhi4, ControllerConfig(primary=ForceRendering(), saturation="ascm"))
-    hand = Hand(Path([x0, x0 + [0, 0.06]], speed=0.05), stiffness=200.0)
+    hand = Hand(HandPath([x0, x0 + [0, 0.06]], speed=0.05), stiffness=200.0)
     log = simulate(plant, ctrl, duration=1.6, hand=hand, virtual=Wall(x0 + [0, 0.01], [0, 1], 1000.0),
                    physical=stop(x0 + [0, 0.03], [0, 1]))
     assert log.fault is None
@@ -179,7 +179,7 @@ def test_nan_mid_run_stops_safely(rhi4):
     def progress(k, n):
         glitch[0] = k > n // 2
 
-    log = simulate(plant, ctrl, duration=0.2, hand=Hand(Path([rhi4.fk(Q_CH5)])), virtual=Glitch(), progress=progress)
+    log = simulate(plant, ctrl, duration=0.2, hand=Hand(HandPath([rhi4.fk(Q_CH5)])), virtual=Glitch(), progress=progress)
     assert log.fault is not None and "force" in log.fault
     stopped = np.flatnonzero(np.all(log.tau == 0, axis=1) & (log.t > 0.1))
     assert stopped.size > 0 and np.all(log.tau[stopped[0]:] == 0)
@@ -195,7 +195,7 @@ def test_nullspace_motion_keeps_held_handle(rhi4):
     # objectives reconfigure only on the energy the hand supplies (rhi.control.passivity)
     law = ForceRendering(passivity=None)
     ctrl = NullSpaceController(rhi4, ControllerConfig(primary=law, objectives=[ObjectiveTerm(obj, 2.0)], damping=0.05))
-    hand = Hand(Path([x0]), stiffness=3000.0, damping=40.0)
+    hand = Hand(HandPath([x0]), stiffness=3000.0, damping=40.0)
     log = simulate(plant, ctrl, duration=1.0, hand=hand)
     assert np.linalg.norm(log.q[-1] - Q_CH5) > 0.05  # it did reconfigure
     assert np.max(np.linalg.norm(log.x - x0, axis=1)) < 5e-4
@@ -209,7 +209,7 @@ def test_teleoperation_slave_tracks_master(rhi4, tmp_path):
     plant = Plant(rhi4)
     plant.reset(Q_CH5)
     ctrl = NullSpaceController(rhi4, ControllerConfig(primary=ForceRendering()))
-    hand = Hand(Path([x_m, x_m + [0.03, 0.03]], speed=0.03))
+    hand = Hand(HandPath([x_m, x_m + [0.03, 0.03]], speed=0.03))
     log = simulate(plant, ctrl, duration=2.0, hand=hand, teleop=tele,
                    record=lambda: {"slave_q": slave.q, "alpha2": 2 * ctrl.state.alpha})
     err = np.linalg.norm(log.slave_x - log.x, axis=1)
@@ -236,4 +236,4 @@ def test_bad_input(rhi4):
     with pytest.raises(InvalidInput, match="friction"):
         Plant(rhi4, friction="sticky")
     with pytest.raises(Unreachable, match="path"):
-        check_path_in_workspace(rhi4, Path([[0.5, -0.2], [3.0, 0.0]], speed=0.5), step=0.2)
+        check_path_in_workspace(rhi4, HandPath([[0.5, -0.2], [3.0, 0.0]], speed=0.5), step=0.2)

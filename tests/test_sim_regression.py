@@ -8,7 +8,7 @@ while the full ch7 controller (force rendering, FME schedule, ASO, ASCM) runs at
 
 from __future__ import annotations
 
-from pathlib import Path as FilePath
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -23,10 +23,10 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
-from rhi.sim import Hand, Path, Plant, Wall, simulate
+from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 from rhi.sim.loop import Kinematics
 
-REFERENCE = FilePath(__file__).parent / "data" / "sim_palpation_rhi4.npz"
+REFERENCE = Path(__file__).parent / "data" / "sim_palpation_rhi4.npz"
 FIELDS = ["t", "q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "ft", "work", "V", "omega", "alpha", "beta"]
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 
@@ -40,7 +40,7 @@ def scenario(duration: float = 0.9):
     plant = Plant(dev)
     plant.reset(Q0)
     x0 = dev.fk(Q0)
-    hand = Hand(Path([x0, x0 + [0.01, 0.0], x0 + [0.01, 0.03]], speed=0.02), stiffness=300.0)
+    hand = Hand(HandPath([x0, x0 + [0.01, 0.0], x0 + [0.01, 0.03]], speed=0.02), stiffness=300.0)
     return simulate(plant, NullSpaceController(dev, cfg), duration=duration, hand=hand,
                     virtual=Wall(x0 + [0.0, 0.005], [0, 1], 1000.0))
 
@@ -56,7 +56,7 @@ def test_log_equals_previous_loop():
 
 def test_path_segment_lookup_matches_linear_scan():
     P = np.array([[0.0, 0.0], [0.01, 0.0], [0.01, 0.0], [0.01, 0.02], [-0.01, 0.02]])  # a zero-length segment
-    path = Path(P, speed=0.05, start=0.1)
+    path = HandPath(P, speed=0.05, start=0.1)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))])
     for t in np.linspace(0.0, 1.2, 241):
         d = (t - 0.1) * 0.05
@@ -90,7 +90,7 @@ def test_hand_and_wall_floats_equal_array_formulas():
     """Hand and Wall evaluate one point on plain floats; the array formulas are the reference."""
     rng = np.random.default_rng(3)
     P = np.array([[0.0, 0.0], [0.02, 0.0], [0.02, 0.03]])
-    hand = Hand(Path(P, speed=0.02, start=0.1), stiffness=300.0, damping=10.0, max_force=2.0)
+    hand = Hand(HandPath(P, speed=0.02, start=0.1), stiffness=300.0, damping=10.0, max_force=2.0)
     wall = Wall([0.01, 0.005], [0.6, 0.8], 1000.0, damping=5.0)
     saturated = 0
     for t in np.linspace(0.0, 3.0, 61):

@@ -14,11 +14,12 @@ headless_default()  # before anything imports MuJoCo (see rhi._gl)
 
 from rhi import errors, metrics  # noqa: E402
 from rhi.device import Device, available_devices, device  # noqa: E402
+from rhi.device_measures import all_measures  # noqa: E402
 from rhi.loaders import description_path, device_from_description, device_from_mjcf, device_from_urdf  # noqa: E402
-from rhi.measure import measure  # noqa: E402
 
 __all__ = [
     "Device",
+    "all_measures",
     "available_devices",
     "description_path",
     "device",
@@ -26,7 +27,6 @@ __all__ = [
     "device_from_mjcf",
     "device_from_urdf",
     "errors",
-    "measure",
     "metrics",
 ]
 __version__ = "0.1.0"

@@ -38,10 +38,10 @@ def _devices(args: argparse.Namespace) -> int:
 
 def _measure(args: argparse.Namespace) -> int:
     from rhi.device import device
-    from rhi.measure import measure
+    from rhi.device_measures import all_measures
 
     dev = device(args.device, **dict(args.param or []))
-    res = measure(dev, args.q, args.u)
+    res = all_measures(dev, args.q, args.u)
     if args.json:
         print(json.dumps(res, indent=1))
         return 0

@@ -17,7 +17,7 @@ from rhi.control.controller import Saturation
 from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.metrics.force import ProjectorKind
-from rhi.sim import Hand, Log, Path, Plant, simulate
+from rhi.sim import Hand, HandPath, Log, Plant, simulate
 
 #: A progress callback: progress(done, total), in ticks or items.
 Progress = Callable[[int, int], None]
@@ -51,14 +51,14 @@ def path_hand(points, speed: float, start: float, stiffness: float, damping: flo
     """A hand following the polyline `points` (k, m) [m] at `speed` [m/s] after `start` [s].
 
     Args:
-        points: (k, m) polyline of the `rhi.sim.Path` [m].
+        points: (k, m) polyline of the `rhi.sim.HandPath` [m].
         speed: its speed [m/s].
         start: when it starts [s].
         stiffness: the grip stiffness [N/m].
         damping: the grip damping [N s/m].
         max_force: saturation of the hand's force [N] (None: none).
     """
-    return Hand(Path(np.asarray(points, dtype=float), speed=speed, start=start), stiffness=stiffness,
+    return Hand(HandPath(np.asarray(points, dtype=float), speed=speed, start=start), stiffness=stiffness,
                 damping=damping, max_force=max_force)
 
 

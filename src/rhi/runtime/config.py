@@ -63,7 +63,7 @@ from rhi.errors import InvalidInput
 from rhi.runtime import schema as S
 from rhi.runtime.safety import SafetyConfig
 from rhi.runtime.simlink import SimLink
-from rhi.sim import Fixture, Hand, Path as HandPath, Plant, PlantFriction, Spring, Wall, compose, stop
+from rhi.sim import Fixture, Hand, HandPath, Plant, PlantFriction, Spring, Wall, compose, stop
 
 _num, _pos, _nonneg = S.number(), S.number(low=0.0, strict=True), S.number(low=0.0)
 _vec = S.vector()

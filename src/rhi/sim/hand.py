@@ -1,7 +1,7 @@
 """The simulated user: a hand that holds the handle and moves it along a reference path.
 
 `Hand` is a Cartesian impedance (PD) between the handle and a reference point that moves
-along a `Path`, F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) [N], optionally saturated at the force
+along a `HandPath`, F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) [N], optionally saturated at the force
 a person comfortably applies. `PushForce` is the constant external force of the system
 identification experiments (§3.5, §6.4). The simulation loop logs F_h, ẋ and the user's
 work W = ∫ F_hᵀ ẋ dt (eq. 5.15).
@@ -20,7 +20,7 @@ from rhi.errors import InvalidInput, Unreachable
 
 
 @dataclasses.dataclass(frozen=True)
-class Path:
+class HandPath:
     """A polyline through `points` travelled at constant `speed` from time `start` [s], then held.
 
     After its last point the reference stays there; a single point is a hold.
@@ -64,7 +64,7 @@ class Path:
 
     @property
     def length(self) -> float:
-        """Path length [m]."""
+        """Length of the path [m]."""
         return float(self._s[-1])
 
     @property
@@ -100,7 +100,7 @@ class Path:
         return np.array([self(self.start + di / self.speed)[0] for di in d]) if self.length > 0 else self.points.copy()
 
 
-def w_path(center, *, width: float = 0.08, height: float = 0.04, speed: float = 0.02) -> Path:
+def w_path(center, *, width: float = 0.08, height: float = 0.04, speed: float = 0.02) -> HandPath:
     """The W-shaped trajectory of §5.4 (Fig. 5.5) centred at `center` (m,) [m], 2 cm/s by default.
 
     Four strokes across `width` [m] with peaks `height` [m] apart along the second axis.
@@ -112,7 +112,7 @@ def w_path(center, *, width: float = 0.08, height: float = 0.04, speed: float = 
     speed = scalar("speed", speed, positive=True)
     xs = c[0] + width * np.linspace(-0.5, 0.5, 5)
     ys = c[1] + height * np.array([0.5, -0.5, 0.5, -0.5, 0.5])
-    return Path(np.column_stack([xs, ys] + ([np.full(5, c[2])] if c.shape[0] > 2 else [])), speed)
+    return HandPath(np.column_stack([xs, ys] + ([np.full(5, c[2])] if c.shape[0] > 2 else [])), speed)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,14 +126,14 @@ class Hand:
         max_force: saturation of |F_h| [N] (None: unbounded).
     """
 
-    path: Path
+    path: HandPath
     stiffness: float = 300.0
     damping: float = 10.0
     max_force: float | None = 20.0
 
     def __post_init__(self) -> None:
-        if not isinstance(self.path, Path):
-            raise InvalidInput(f"path: expected a rhi.sim.Path, got {type(self.path).__name__}")
+        if not isinstance(self.path, HandPath):
+            raise InvalidInput(f"path: expected a rhi.sim.HandPath, got {type(self.path).__name__}")
         for f in ("stiffness", "damping"):
             object.__setattr__(self, f, scalar(f, getattr(self, f), nonnegative=True))
         if self.max_force is not None:
@@ -185,7 +185,7 @@ class PushForce:
         return self.magnitude * self.direction if t >= self.start else np.zeros_like(self.direction)
 
 
-def check_path_in_workspace(device, path: Path, *, q0=None, step: float = 0.005) -> np.ndarray:
+def check_path_in_workspace(device, path: HandPath, *, q0=None, step: float = 0.005) -> np.ndarray:
     """IK along the path, every `step` [m].
 
     Returns:

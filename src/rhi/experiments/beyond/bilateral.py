@@ -21,7 +21,7 @@ from rhi.device import device
 from rhi.experiments.result import Result, Row, Table
 from rhi.runtime.bilateral import BilateralLog, simulate_bilateral
 from rhi.runtime.channel import ChannelConfig
-from rhi.sim import Hand, Path, Plant, Wall
+from rhi.sim import Hand, HandPath, Plant, Wall
 
 Q_MASTER = np.array([-0.63, 0.25, 0.28, 0.09])  # rad, the ch5 start of rhi4
 Q_SLAVE = np.radians([30.0, 70.0])  # rad, mid-range of the rehab slave (its linear limit holds)
@@ -38,7 +38,7 @@ def scenario(delay: float, passivity: bool, *, stiffness: float = 1000.0, durati
     x0, xs0 = dm.fk(Q_MASTER), ds.fk(Q_SLAVE)
     ctrl = NullSpaceController(dm, ControllerConfig(ForceRendering(damping=0.01, passivity=None), saturation="ascm",
                                                     damping=0.1))
-    hand = Hand(Path(np.array([x0, x0 + [0, 0.02]]), speed=0.02), stiffness=300.0)
+    hand = Hand(HandPath(np.array([x0, x0 + [0, 0.02]]), speed=0.02), stiffness=300.0)
     fwd = ChannelConfig(delay=delay, jitter=jitter, loss=loss, seed=2 * seed + 1)
     bwd = ChannelConfig(delay=delay, jitter=jitter, loss=loss, seed=2 * seed + 2)
     tissue = Wall(xs0 + [0, 0.01], np.array([0.0, 1.0]), stiffness)

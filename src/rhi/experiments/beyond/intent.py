@@ -102,7 +102,7 @@ def intent_strokes(train: int = 80, test: int = 40, progress: Progress | None = 
 
 
 class PathIntent:
-    """The known intent along a `rhi.sim.Path`: the reference's direction of motion at time t (held when at rest)."""
+    """The known intent along a `rhi.sim.HandPath`: the reference's direction of motion at time t (held when at rest)."""
 
     def __init__(self, path, u0) -> None:
         self.path, self.u0 = path, np.asarray(u0, dtype=float)

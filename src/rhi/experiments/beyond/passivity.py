@@ -120,12 +120,12 @@ def _energies(dev: Device, log, friction, stiffness: float) -> dict[str, float]:
 
 def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: float, depth: float, speed: float,
          progress, offset: int, total: int) -> tuple[dict, dict]:
-    from rhi.sim import Hand, Path, Plant, Wall, simulate
+    from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 
     u, x0 = np.array(ch6.U), np.array(ch6.X0)
     strokes = int(math.ceil(duration * speed / (OUT + depth))) + 1
     pts = [x0] + [x0 - OUT * u, x0 + depth * u] * strokes
-    hand = Hand(Path(np.array(pts), speed=speed, start=0.2), stiffness=HAND[0], damping=HAND[1], max_force=HAND[2])
+    hand = Hand(HandPath(np.array(pts), speed=speed, start=0.2), stiffness=HAND[0], damping=HAND[1], max_force=HAND[2])
     plant = Plant(dev)
     plant.reset(q0)
     objectives, port, saturation = CASES[case]

@@ -161,7 +161,7 @@ def spatial_vme(duration: float = 2.0, u: tuple[float, float, float] = (0.0, 1.0
     null-space controller with ImpedanceControl (eq. 5.6, gravity compensated) and
     VMEMatching(u, β = 0.01) with step `gain`; the hand holds X₀ (3000 N/m).
     """
-    from rhi.sim import Hand, Path
+    from rhi.sim import Hand, HandPath
 
     check_motion(duration=duration, gain=gain)
     uu = np.asarray(u, dtype=float)
@@ -175,7 +175,7 @@ def spatial_vme(duration: float = 2.0, u: tuple[float, float, float] = (0.0, 1.0
     cfg = ControllerConfig(primary=ImpedanceControl(damping=1.0),
                            objectives=(ObjectiveTerm(obj, gain), ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN)),
                            damping=ch6.K_D, saturation="ascm")
-    hand = Hand(Path(np.array([x0, x0]), speed=0.01), stiffness=3000.0, damping=40.0, max_force=60.0)
+    hand = Hand(HandPath(np.array([x0, x0]), speed=0.01), stiffness=3000.0, damping=40.0, max_force=60.0)
     log = run(dev, NullSpaceController(dev, cfg), hand, q0, duration, progress, 0,
                    int(round(duration * 1000.0)))
     if log.fault is not None:

@@ -73,7 +73,7 @@ from rhi.experiments.ch3.measures import BETA, POINTS, THESIS_LAMBDA, THESIS_Q, 
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import FreeSpace
 from rhi.metrics import nullspace_projector
-from rhi.sim import Hand, Log, Path, Plant, simulate
+from rhi.sim import Hand, HandPath, Log, Plant, simulate
 
 #: Gradient step α of eq. 3.21 (not given in the thesis).
 GAIN = 10.0
@@ -148,7 +148,7 @@ def hold_run(dev: Device, x, q0, ctrl: NullSpaceController, *, duration: float,
     """Simulate the hand holding the handle at x from q0 while `ctrl` runs (the null space moves)."""
     plant = Plant(dev)
     plant.reset(q0)
-    hand = Hand(Path(np.asarray([x], dtype=float)), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=None)
+    hand = Hand(HandPath(np.asarray([x], dtype=float)), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=None)
     return simulate(plant, ctrl, duration=duration, hand=hand, virtual=FreeSpace(), progress=progress)
 
 

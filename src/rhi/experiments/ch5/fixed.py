@@ -23,7 +23,7 @@ from rhi.experiments.ch5.setup import (
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress, ProgressChain, positive, ticks
 from rhi.metrics import ellipsoid_axes, penalized_jacobian, teleoperation_ellipsoid, tmi, velocity_ellipsoid
-from rhi.sim import Hand, Path, Plant, simulate
+from rhi.sim import Hand, HandPath, Plant, simulate
 
 
 def fixed_point(
@@ -90,7 +90,7 @@ def fixed_point(
         runs["Yoshikawa μ of J, literal eq. 5.14"] = Manipulability(log=True)
     N = ticks(duration)
     chain = ProgressChain(progress, N * len(runs))
-    hand = Hand(Path(x0[None]), **HOLD)
+    hand = Hand(HandPath(x0[None]), **HOLD)
     out = {}
     for name, obj in runs.items():
         plant = Plant(rhi, friction=plant_friction(friction, rhi))

@@ -15,7 +15,7 @@ from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.setups import positive
 from rhi.metrics import tmi
-from rhi.sim import Path, Plant, PlantFriction, w_path
+from rhi.sim import HandPath, Plant, PlantFriction, w_path
 
 D2 = 0.1405  #: rehab link 2 length in chapter 5 [m] (§5.4)
 Q_FIXED = np.array([-0.63, 0.25, 0.28, 0.09])  #: initial HI configuration of §5.4.1 [rad]
@@ -98,8 +98,8 @@ def tme_area(Jm: np.ndarray, Js: np.ndarray) -> np.ndarray:
 
 
 def w_reference(center=W_CENTER, width: float = W_WIDTH, height: float = W_HEIGHT, speed: float = SPEED,
-                start: float = 0.0) -> Path:
-    """The W of Figs 5.4–5.5 (our dimensions, `rhi.experiments.ch5`): a `Path` of 5 points [m].
+                start: float = 0.0) -> HandPath:
+    """The W of Figs 5.4–5.5 (our dimensions, `rhi.experiments.ch5`): a `HandPath` of 5 points [m].
 
     It moves at `speed` [m/s] from `start` [s].
     """
@@ -108,7 +108,7 @@ def w_reference(center=W_CENTER, width: float = W_WIDTH, height: float = W_HEIGH
     positive("speed", speed)
     positive("start", start, allow_zero=True)
     p = w_path(center, width=width, height=height, speed=speed)
-    return Path(p.points, speed, start)
+    return HandPath(p.points, speed, start)
 
 
 def distance_to_polyline(X: np.ndarray, P: np.ndarray) -> np.ndarray:

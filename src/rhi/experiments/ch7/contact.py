@@ -77,7 +77,7 @@ from rhi.experiments.ch3.nullspace import (
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain, is_projector, is_saturation
 from rhi.metrics.force import ProjectorKind
-from rhi.sim import Hand, Path, Plant, Wall, simulate
+from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 
 #: Palpation start X₀ [m] and direction u (thesis §7.5).
 X0 = (0.45, 0.0)
@@ -288,7 +288,7 @@ def palpation(
     plant.reset(q_start)
     ctrl = palpation_controller(dev, "ascm", gain=gain, damping=damping)
     wall = Wall(x0, u, stiffness)
-    hold_hand = Hand(Path(x0[None]), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
+    hold_hand = Hand(HandPath(x0[None]), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
     log0 = simulate(plant, ctrl, duration=settle, hand=hold_hand, virtual=wall,
                     progress=chain.run(settle_ticks))
     q_c = dev.ik(x0, log0.q[-1], k_null=0.0)  # remove the sub-0.1 mm drift so every case starts on X0
@@ -314,7 +314,7 @@ def palpation(
         plant = Plant(dev)
         plant.reset(q_c)
         ctrl = palpation_controller(dev, sat, proj, gain=gain, damping=damping)
-        hand = Hand(Path(np.array([x0, x0 + depth * u]), speed=speed, start=t_start), stiffness=HAND_STIFFNESS,
+        hand = Hand(HandPath(np.array([x0, x0 + depth * u]), speed=speed, start=t_start), stiffness=HAND_STIFFNESS,
                     damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
         log = simulate(plant, ctrl, duration=t_start + push + hold, hand=hand, virtual=wall,
                        progress=chain.run(case_ticks),

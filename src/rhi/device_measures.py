@@ -1,4 +1,4 @@
-"""Every measure of a device at one configuration (what `rhi measure` prints)."""
+"""Every measure of a device at one configuration, at once (what `rhi measure` prints)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from rhi.device import Device
 from rhi.errors import Singular
 
 
-def measure(device: Device, q, u=None, *, exact_force: bool = True) -> dict[str, object]:
+def all_measures(device: Device, q, u=None, *, exact_force: bool = True) -> dict[str, object]:
     """Kinematic, inertial and force measures of `device` at q.
 
     Args:
