@@ -219,6 +219,30 @@ def test_manipulability_and_isotropy(rng):
     assert rm.isotropy(np.zeros((2, 3))) == 0.0
 
 
+@pytest.mark.parametrize("n", [2, 3, 4, 7])
+def test_two_row_closed_form_svd_matches_lapack(rng, n):
+    """The closed-form SVD of planar (two-row) maps gives LAPACK's singular values and directions."""
+    from rhi.metrics._common import principal_axes_of_map, singular_values
+
+    B = rng.normal(size=(3000, 2, n))
+    B[:800, 1] = B[:800, 0] * rng.normal(size=(800, 1)) + 1e-9 * rng.normal(size=(800, n))  # nearly singular
+    B[800:850] = 0.0
+    B[850:900, 0] = 0.0  # a zero row (pivoting)
+    B[900:950, :, 0] = 0.0
+    B[950:1000] *= 1e200  # no overflow in the squares
+    B[1000:1050] *= 1e-200
+    U0, s0, _ = np.linalg.svd(B)
+    s, U = principal_axes_of_map(B)
+    scale = np.maximum(s0[:, :1], 1e-300)
+    np.testing.assert_allclose(s / scale, s0 / scale, rtol=0, atol=4e-15)
+    np.testing.assert_array_equal(singular_values(B), s)
+    np.testing.assert_allclose(np.swapaxes(U, -1, -2) @ U, np.broadcast_to(np.eye(2), U.shape), atol=1e-15)
+    gap = (s0[:, 0] - s0[:, 1]) / scale[:, 0] > 1e-6  # directions are defined (up to sign)
+    np.testing.assert_allclose(np.abs(np.einsum("kij,kij->kj", U, U0))[gap], 1.0, atol=1e-9)
+    np.testing.assert_array_equal(U[800:850], np.broadcast_to(np.eye(2), (50, 2, 2)))
+    assert rm.manipulability(B[:1, :, :1]).shape == (1,)  # one column: LAPACK path, padded
+
+
 def test_velocity_transmission_and_reflected_friction(rng):
     """Thesis eqs. 4.4-4.6: sigma * lambda <= 1, with equality along the principal axes."""
     J = rng.normal(size=(2, 3))

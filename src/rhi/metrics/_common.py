@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from rhi._validate import all_finite, as_array, unit_vector
 from rhi.errors import InvalidInput, NotSPD, Singular
+from rhi.metrics._svd2 import singular_values2, svd2
 
 FloatArray = NDArray[np.floating[Any]]
 
@@ -143,6 +144,8 @@ def _pad_axes(s: FloatArray, m: int) -> FloatArray:
 
 def singular_values(B: FloatArray) -> FloatArray:
     """Descending semi-axis lengths (..., m) of the ellipsoid ``B B^T``, as in `principal_axes_of_map`."""
+    if B.shape[-2] == 2 and B.shape[-1] >= 2:
+        return singular_values2(B)
     return _pad_axes(np.linalg.svd(B, compute_uv=False), B.shape[-2])
 
 
@@ -152,7 +155,11 @@ def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
     Returns:
         ``(s, U)``: ``s`` (..., m) descending semi-axis lengths (zero-padded when the map
         has fewer columns than rows) and ``U`` (..., m, m) orthonormal directions as columns.
+        Two-row maps (planar tasks) take the closed form of `rhi.metrics._svd2` (LAPACK's values
+        to round-off; each direction up to its sign, as LAPACK's own).
     """
+    if B.shape[-2] == 2 and B.shape[-1] >= 2:
+        return svd2(B)
     U, s, _ = np.linalg.svd(B, full_matrices=True)
     return _pad_axes(s, B.shape[-2]), U
 
