@@ -88,6 +88,38 @@ def test_closed_form_phantom3_matches_device_ik():
         assert ea[k] == pytest.approx(eb[k], rel=1e-6)
 
 
+def test_compiled_planar_indices_match_the_metrics_composition():
+    """`evaluate`'s one-pass kernel gives GM, GC (`device_indices`) and GM_T (`teleoperation_index`) to round-off."""
+    from rhi.design import penalize, teleoperation_index
+    from rhi.design.planar import planar_indices
+
+    prob = ch4.setup.problem("full", density=40)
+    rng = np.random.default_rng(3)
+    lo, hi = (np.array([b[i] for b in prob.bounds.values()]) for i in (0, 1))
+    for x in [rng.uniform(lo, hi) for _ in range(12)] + [np.array([0.25, 0.3, -0.1])]:
+        sol = prob.solve(x)
+        ok = sol.ok & prob.slave.ok
+        if not ok.any():
+            continue
+        Jm = penalize(sol.J, sol.q, sol.q_min, sol.q_max, prob.k_q)
+        Js = prob._slave_Jq
+        Jm[0] = 0.0  # a zero Jacobian (μ = 1/κ = λ = 0) and a singular one (a lost axis)
+        Jm[1, 1] = 2.0 * Jm[1, 0]
+        want = device_indices(Jm, ok, prob.workspace.weights)
+        got = planar_indices(Jm, Js, ok, prob.workspace.weights)
+        for k in ("GM", "GC", "coverage"):
+            assert got[k] == pytest.approx(want[k], rel=1e-13, abs=1e-16)
+        assert got["GM_T"] == pytest.approx(teleoperation_index(Jm, Js, ok, prob.workspace.weights), rel=1e-13)
+    with pytest.raises(InvalidInput, match="J_master"):
+        planar_indices(np.zeros((3, 3, 2)), np.zeros((3, 2, 2)), np.ones(3, bool), np.ones(3))
+    with pytest.raises(InvalidInput, match="J_master"):
+        planar_indices(np.full((3, 2, 2), np.nan), np.zeros((3, 2, 2)), np.ones(3, bool), np.ones(3))
+    with pytest.raises(InvalidInput, match="ok/weights"):
+        planar_indices(np.zeros((3, 2, 2)), np.zeros((3, 2, 2)), np.ones(2, bool), np.ones(3))
+    with pytest.raises(Unreachable):
+        planar_indices(np.zeros((3, 2, 2)), np.zeros((3, 2, 2)), np.zeros(3, bool), np.ones(3))
+
+
 def test_bad_bounds_raise_clear_errors():
     with pytest.raises(InfeasibleLimits, match="theta_z"):
         check_bounds({"theta_z": (1.0, -1.0)})

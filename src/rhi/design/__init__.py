@@ -4,6 +4,7 @@
 * `indices`: GM, GC (eqs. 4.8, 4.10) and GM_T (eq. 4.18) with the penalized Jacobian (4.19–4.20).
 * `kinematics`: HI models (closed-form phantom3, any bundled device), the slave's IK, declared bounds.
 * `cost`: `DesignProblem`, `evaluate`, C1 and C2 (eqs. 4.23, 4.24), bound checks.
+* `planar`: the compiled one-pass GM, GC, GM_T of a planar pair (what `evaluate` runs).
 * `optimize`: seeded differential evolution + Nelder–Mead refinement, `sweep`.
 * `executors`: serial, local process pool, Ray — one ``map``/``imap`` interface; `parallel_map` for maps.
 * `checkpoint`: resumable evaluation cache.

@@ -21,7 +21,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from rhi._validate import as_array, scalar
-from rhi.design.indices import device_indices, penalize, teleoperation_index
+from rhi.design.indices import penalize
+from rhi.design.planar import planar_indices
 from rhi.design.kinematics import Master, Solution
 from rhi.design.workspace import Workspace
 from rhi.errors import InfeasibleLimits, InvalidInput, Unreachable
@@ -153,11 +154,9 @@ def evaluate(problem: DesignProblem, x: ArrayLike) -> dict[str, float]:
     ok = sol.ok & problem.slave.ok
     if not ok.any():
         return {"GM_M": 0.0, "GC_M": 0.0, "GM_T": 0.0, "coverage": 0.0, "C1": 0.0, "C2": 0.0}
-    w = problem.workspace.weights
     Jm = penalize(sol.J, sol.q, sol.q_min, sol.q_max, problem.k_q)
-    Js = problem._slave_Jq
-    d = device_indices(Jm, ok, w)
-    gmt = teleoperation_index(Jm, Js, ok, w)
+    d = planar_indices(Jm, problem._slave_Jq, ok, problem.workspace.weights)
+    gmt = d["GM_T"]
     return {"GM_M": d["GM"], "GC_M": d["GC"], "GM_T": gmt, "coverage": d["coverage"],
             "C1": problem.K1 * d["GC"] + problem.K2 * d["GM"], "C2": problem.K1 * d["GC"] + problem.K2 * gmt}
 

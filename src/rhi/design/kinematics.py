@@ -167,28 +167,37 @@ class Phantom3Master:
         s1, c1, s2, c2, s3, c3 = np.sin(th1), np.cos(th1), np.sin(th2), np.cos(th2), np.sin(th3), np.cos(th3)
         a = l1 * c2 + l2 * s3
         J = np.empty((len(t), 2, 3))
-        # eq. 4.25b rows x, y
-        j0 = np.stack([-s1 * a, -l1 * c1 * s2, l2 * c1 * c3], -1)
-        j1 = np.stack([c1 * a, -l1 * s1 * s2, l2 * c3 * s1], -1)
-        J[:, 0] = cz * j0 - sz * j1  # eq. 4.26
-        J[:, 1] = sz * j0 + cz * j1
+        # eq. 4.25b rows x (j0), y (j1), rotated by θz (eq. 4.26)
+        for i, (j0, j1) in enumerate(((-s1 * a, c1 * a), (-l1 * c1 * s2, -l1 * s1 * s2), (l2 * c1 * c3, l2 * c3 * s1))):
+            J[:, 0, i] = cz * j0 - sz * j1
+            J[:, 1, i] = sz * j0 + cz * j1
         return Solution(q, J, ok, q_min, q_max)
 
 
 _LIMITS_CACHE: dict[str, tuple] = {}
 
 
+@functools.lru_cache(maxsize=8)
+def _radial_grid(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """θ2 grid (n,) over its limits with its sine and cosine (they do not depend on the design)."""
+    q_min, q_max, _, _ = _phantom3_limits()
+    th2 = np.linspace(q_min[1], q_max[1], n)
+    return th2, np.sin(th2), np.cos(th2)
+
+
 @functools.lru_cache(maxsize=4096)
 def _radial_range(l1: float, l2: float, z: float, n: int) -> tuple[float, float]:
     q_min, q_max, lo, hi = _phantom3_limits()
-    th2 = np.linspace(q_min[1], q_max[1], n)
-    c3 = (l1 * np.sin(th2) - z) / l2
+    th2, s2, c2 = _radial_grid(n)
+    c3 = (l1 * s2 - z) / l2
     valid = np.abs(c3) <= 1
+    a = np.arccos(np.clip(c3, -1, 1))
+    sa = np.sin(a)
+    x2 = l1 * c2
     parts = []
-    for sgn in (1.0, -1.0):
-        th3 = sgn * np.arccos(np.clip(c3, -1, 1))
+    for th3, s3 in ((a, sa), (-a, -sa)):  # both elbow branches (sin is odd)
         ok = valid & (th3 >= q_min[2]) & (th3 <= q_max[2]) & (th2 - th3 >= lo) & (th2 - th3 <= hi)
-        parts.append((l1 * np.cos(th2) + l2 * np.sin(th3))[ok])
+        parts.append((x2 + l2 * s3)[ok])
     r = np.concatenate(parts)
     r = r[r > 0]
     return (float(r.min()), float(r.max())) if r.size else (0.0, 0.0)
