@@ -59,7 +59,7 @@ from rhi.control.saturation import (
 from rhi.control.tick import KernelTick
 from rhi.control.transition import TransitionConfig, TransitionState
 from rhi.device import Device
-from rhi.errors import InvalidInput, Singular
+from rhi.errors import InvalidInput, RhiError, Singular
 from rhi.metrics import dynamic_pinv, weighted_pinv
 from rhi.metrics.spd import spd_matrix
 
@@ -277,8 +277,11 @@ class NullSpaceController:
         for k in range(5):
             twin = NullSpaceController(dev, self.config)
             q = 0.5 * (lo + hi) if k == 0 else rng.uniform(lo, hi)
-            twin.step(0.0, q, np.zeros(self._n), sensors)
-            twin.step(1e-3, q, np.full(self._n, 1e-3), sensors)
+            try:
+                twin.step(0.0, q, np.zeros(self._n), sensors)
+                twin.step(1e-3, q, np.full(self._n, 1e-3), sensors)
+            except (RhiError, np.linalg.LinAlgError):  # this configuration does not suit the law: try another
+                continue
             if twin.state.ticks == 2:
                 return
 
