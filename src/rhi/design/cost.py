@@ -22,8 +22,8 @@ from numpy.typing import ArrayLike
 
 from rhi._validate import as_array, scalar
 from rhi.design.indices import penalize
-from rhi.design.planar import planar_indices
 from rhi.design.kinematics import Master, Solution
+from rhi.design.planar import planar_indices
 from rhi.design.workspace import Workspace
 from rhi.errors import InfeasibleLimits, InvalidInput, Unreachable
 

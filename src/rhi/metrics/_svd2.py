@@ -19,10 +19,9 @@ column, and like LAPACK's they are only as well determined as the gap ``σ₁ �
 
 from __future__ import annotations
 
-import numpy as np
-
 from typing import Any
 
+import numpy as np
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.floating[Any]]

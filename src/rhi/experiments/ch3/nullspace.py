@@ -161,32 +161,6 @@ def settling_time(t: np.ndarray, v: np.ndarray, tol: float = 1e-3) -> float:
     return float(t[min(k, len(t) - 1)])
 
 
-def local_optimum(dev: Device, x, objective, q: np.ndarray, *, tol: float = 1e-10) -> np.ndarray:
-    """The local minimum of `objective` on the self-motion manifold f(q) = x nearest to q (SLSQP started at q).
-
-    The same SLSQP problem as `rhi.control.configuration.optimal_configuration`, but started
-    exactly at q (a simulated end configuration, off f(q) = x by the run's drift) and returned
-    without projecting it back by IK, so it tells whether q is itself a constrained local
-    minimum. (`optimal_configuration` from the same q differs by up to 5e-8 rad here.) Joint box
-    and linear limits are bounds.
-
-    Returns:
-        q*: (n,) [rad]; q itself if SLSQP does not improve on it.
-    """
-    from scipy.optimize import LinearConstraint, NonlinearConstraint, minimize
-
-    x = np.asarray(x, dtype=float)
-    cons = [NonlinearConstraint(lambda v: dev.fk(v) - x, 0.0, 0.0, jac=lambda v: dev.jacobian(v))]
-    if dev.linear_limits is not None:
-        L = dev.linear_limits
-        cons.append(LinearConstraint(L.C, L.lower, L.upper))
-    res = minimize(lambda v: objective.value(dev, v), q, jac=lambda v: objective.gradient(dev, v), method="SLSQP",
-                   bounds=list(zip(dev.q_min, dev.q_max)), constraints=cons, options={"maxiter": 300, "ftol": tol})
-    qs = np.clip(res.x, dev.q_min, dev.q_max)
-    ok = np.linalg.norm(dev.fk(qs) - x) < 1e-7 and dev.within_limits(qs)
-    return qs if ok and objective.value(dev, qs) <= objective.value(dev, q) else np.array(q, dtype=float)
-
-
 def _run_summary(dev: Device, x, log: Log, vme: VMEMatching, objective, gain: float) -> dict:
     x = np.asarray(x, dtype=float)
     q_end = log.q[-1]
@@ -313,7 +287,7 @@ def nullspace_configurations(
         ]
         for s in starts:
             sm = summaries[i, s, True]
-            q_p = local_optimum(dev, x, with_barrier(vme), sm["q"])
+            q_p = optimal_configuration(dev, x, with_barrier(vme), sm["q"], tol=1e-10, max_iter=300, exact_start=True)
             arrays[f"p{i}_{s}_barrier_q_polished"] = q_p
             lbl = f"at {where} from the {s} start"
             conv_rows += [
