@@ -20,9 +20,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from rhi.control.active_set import allocate_active_set
+from rhi.control.allocation import allocate_active_set, allocate_lp, ascm
 from rhi.control.kernels import allocation
-from rhi.control.saturation import allocate_lp, ascm, null_basis
+from rhi.control.saturation import null_basis
 from rhi.device import device
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import typing
 
 import numpy as np
 import pytest
@@ -10,6 +12,7 @@ from conftest import fd_jacobian, random_q
 
 import rhi
 from rhi.control import (
+    Allocator,
     ControllerConfig,
     EllipsoidMatching,
     FMEMatching,
@@ -27,6 +30,8 @@ from rhi.control import (
     VMEMatching,
     WeightedSum,
     allocate_lp,
+    allocate_scaling,
+    allocation_method,
     ascm,
     ascm_projector,
     aso_volume,
@@ -34,6 +39,7 @@ from rhi.control import (
     desired_fme_free,
     desired_fme_stiff,
     fme_shape,
+    force_capability,
     gradient_function,
     hysteresis,
     kernels,
@@ -44,7 +50,7 @@ from rhi.control import (
     tertiary_projector,
     transition_step,
 )
-from rhi.control.active_set import allocate_active_set
+from rhi.control.allocation import Saturation, allocate_active_set, method_names, register
 from rhi.errors import InfeasibleLimits, InvalidInput, NotSPD, Singular
 from rhi.metrics import apparent_inertia, dynamic_pinv, force_ellipsoid, nullspace_projector
 
@@ -539,6 +545,46 @@ def test_controller_other_allocations_stay_in_limits(method, planar3r, rng):
     for k, q in enumerate(random_q(planar3r, rng, 50)):
         tau = c.step(k * 1e-3, q, rng.normal(size=3), {"force": rng.normal(size=2) * 20})
         assert np.all(tau <= hi + 1e-12) and np.all(tau >= lo - 1e-12)
+
+
+
+def test_allocation_strategies_are_one_registry(planar3r, rng):
+    """The allocation strategies are one registry, and a new strategy is one object.
+
+    The bundled names are the `Saturation` literal; the new strategy here is a half-force scaling defined in the test,
+    which both implementations run (through the reference: it has no compiled branch).
+    """
+    assert set(typing.get_args(Saturation)) <= set(method_names())
+    for name in typing.get_args(Saturation):
+        assert allocation_method(name).name == name
+    with pytest.raises(InvalidInput, match="saturation"):
+        allocation_method("magic")
+    with pytest.raises(InvalidInput, match="already registered"):
+        register(Allocator("ascm", ascm))
+    assert [allocation_method(s).safe for s in ("none", "scaling", "ascm", "lp", "active_set")] == [
+        True, False, True, True, True]
+
+    def half(a, b, Z, *, torque_min, torque_max):
+        return dataclasses.replace(allocate_scaling(0.5 * a, b, torque_min=torque_min, torque_max=torque_max),
+                                   method="half")
+
+    law = ForceRendering(passivity=None)
+    new = [NullSpaceController(planar3r, ControllerConfig(law, saturation=Allocator("half", half, safe=False),
+                                                          damping=0.0, implementation=impl))
+           for impl in ("fast", "reference")]
+    scaling = NullSpaceController(planar3r, ControllerConfig(law, saturation="scaling", damping=0.0))
+    for k, q in enumerate(random_q(planar3r, rng, 20)):
+        F = rng.normal(size=2) * 20
+        want = scaling.step(k * 1e-3, q, np.zeros(3), {"force": 0.5 * F})
+        for c in new:
+            np.testing.assert_allclose(c.step(k * 1e-3, q, np.zeros(3), {"force": F}), want, atol=1e-12)
+    # the capability of the active set (the LP optimum by another method) is the LP's
+    J = planar3r.jacobian(np.array([0.3, 0.5, 0.2]))
+    lim = dict(torque_min=planar3r.torque_min, torque_max=planar3r.torque_max, projector="pseudoinverse")
+    assert force_capability(J, [0.0, 1.0], method="active_set", **lim) == pytest.approx(
+        force_capability(J, [0.0, 1.0], method="lp", **lim), rel=1e-9)
+    with pytest.raises(InvalidInput, match="method"):
+        force_capability(J, [0.0, 1.0], method="none", **lim)
 
 
 # ------------------------------------------------------------------ device terms, task-space dynamics

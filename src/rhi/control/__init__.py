@@ -1,5 +1,18 @@
 """Control: objectives (cost + analytic gradient), primary laws, saturation handling, the null-space controller."""
 
+from rhi.control.allocation import (
+    Allocation,
+    AllocationMethod,
+    Allocator,
+    allocate_active_set,
+    allocate_lp,
+    allocate_none,
+    allocate_scaling,
+    allocation_method,
+    ascm,
+    ascm_projector,
+    force_capability,
+)
 from rhi.control.barrier import JointLimitBarrier
 from rhi.control.controller import (
     ControllerConfig,
@@ -32,12 +45,6 @@ from rhi.control.primary import (
 )
 from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import (
-    Allocation,
-    allocate_lp,
-    allocate_none,
-    allocate_scaling,
-    ascm,
-    ascm_projector,
     basis_from_projector,
     null_basis,
     null_projector,
@@ -54,6 +61,8 @@ from rhi.control.transition import (
 
 __all__ = [
     "Allocation",
+    "AllocationMethod",
+    "Allocator",
     "ControllerConfig",
     "ControllerState",
     "EllipsoidMatching",
@@ -77,9 +86,11 @@ __all__ = [
     "TransitionState",
     "VMEMatching",
     "WeightedSum",
+    "allocate_active_set",
     "allocate_lp",
     "allocate_none",
     "allocate_scaling",
+    "allocation_method",
     "ascm",
     "ascm_projector",
     "aso_volume",
@@ -87,6 +98,7 @@ __all__ = [
     "desired_fme_free",
     "desired_fme_stiff",
     "fme_shape",
+    "force_capability",
     "gradient_function",
     "held_part",
     "hysteresis",

@@ -10,10 +10,11 @@ One tick (`NullSpaceController.step`) computes, from the joint sensors and the s
 3. the actuator saturation observer V of τ_m (eq. 6.14) and, when a desired-FME schedule
    is configured, the hysteresis and cosine transition Ω (eqs. 6.15–6.19) giving
    M_des = Ω M_Free + (1 − Ω) M_Stiff for the FME-matching objective (eq. 6.10);
-4. the allocation of τ_m within the torque box: none / simple scaling / ASCM (Algorithm 1) /
-   LP optimum, with force scaling α (eq. 7.9);
+4. the allocation of τ_m within the torque box by the configured strategy (`rhi.control.allocation`:
+   none / simple scaling / ASCM (Algorithm 1) / LP optimum / active set), with force scaling α (eq. 7.9);
 5. the safety torque τ_s = −k_D q̇ − Σ w ∂ν_lim/∂q (null-space damping and every
-   `JointLimitBarrier` term) acts whatever the allocation holds or clips (simple scaling keeps
+   `JointLimitBarrier` term) acts whatever the allocation holds or clips (a strategy that is not
+   ``safe``, simple scaling, keeps
    Algorithm 2 as it is, the balance chapter 6's FME term and barrier rely on): the part of
    N τ_s that the joints held at a limit would block (all of it when they leave no redundancy, where
    Algorithm 2 gives β = 0) is added in full, and when it does not fit in the box the
@@ -34,7 +35,8 @@ Pinocchio pass, `Device.terms`, then steps 2–6 in one compiled kernel,
 `rhi.control.tick` and `rhi.control.kernels`) and ``"reference"`` (`rhi.control.reference`:
 per-call Device methods, `null_basis` SVD, `ascm`/`tertiary` on the orthonormal basis,
 `rhi.metrics` projectors) — the readable composition of the equations, kept as the oracle
-the kernel is tested against. The LP allocation (``saturation="lp"``) runs in the reference.
+the kernel is tested against. A strategy without a compiled branch (``kernel=None``: the LP,
+``saturation="lp"``) runs every tick in the reference.
 """
 
 from __future__ import annotations
@@ -47,23 +49,19 @@ from typing import Literal
 import numpy as np
 
 from rhi._validate import scalar
+from rhi.control.allocation import Allocation, AllocationMethod, Saturation, allocation_method
 from rhi.control.barrier import JointLimitBarrier
 from rhi.control.objectives import FMEMatching, Objective
 from rhi.control.passivity import PassivityController, PassivityState
 from rhi.control.primary import PrimaryLaw
 from rhi.control.reference import reference_terms, reference_tick
-from rhi.control.saturation import (
-    Allocation,
-    check_torque_limits,
-)
+from rhi.control.saturation import check_torque_limits
 from rhi.control.tick import KernelTick
 from rhi.control.transition import TransitionConfig, TransitionState
 from rhi.device import Device
 from rhi.errors import InvalidInput, RhiError, Singular
 from rhi.metrics import dynamic_pinv, weighted_pinv
 from rhi.metrics.spd import spd_matrix
-
-Saturation = Literal["none", "scaling", "ascm", "lp", "active_set"]
 
 
 def _reading(name: str, v) -> np.ndarray:
@@ -142,8 +140,9 @@ class ControllerConfig:
         objectives: null-space objectives with step sizes (τ_to = −Σ gain ∂ν/∂q).
         fme: optional ASO-switched FME matching (adds FMEMatching(M_des(t)) to the objectives).
         damping: null-space joint damping k_D [N m s/rad] (eqs. 3.20, 6.6).
-        saturation: "none" | "scaling" | "ascm" | "lp" | "active_set" (the LP optimum by an active-set
-            method warm-started at ASCM, `rhi.control.active_set`; "lp" solves the same LP with HiGHS).
+        saturation: the allocation strategy (`rhi.control.allocation`), by name — "none" | "scaling" |
+            "ascm" | "lp" | "active_set" (the LP optimum by an active-set method warm-started at ASCM;
+            "lp" solves the same LP with HiGHS) or any registered one — or an `AllocationMethod` itself.
         projector: "dynamic" (J# = M⁻¹Jᵀ(JM⁻¹Jᵀ)⁻¹) or "pseudoinverse" (J⁺).
         torque_min, torque_max: (n,) limits [N m]; None: the device's.
         gravity_compensation: add the null-space part (I − JᵀJ#ᵀ) g(q) of the gravity torque;
@@ -156,7 +155,7 @@ class ControllerConfig:
     objectives: Sequence[ObjectiveTerm] = ()
     fme: FMESchedule | None = None
     damping: float = 0.1
-    saturation: Saturation = "ascm"
+    saturation: Saturation | AllocationMethod = "ascm"
     projector: Literal["dynamic", "pseudoinverse"] = "dynamic"
     torque_min: np.ndarray | None = None
     torque_max: np.ndarray | None = None
@@ -217,9 +216,7 @@ class NullSpaceController:
     """
 
     def __init__(self, device: Device, config: ControllerConfig, state: ControllerState | None = None) -> None:
-        if config.saturation not in ("none", "scaling", "ascm", "lp", "active_set"):
-            raise InvalidInput(
-                f"saturation: expected 'none', 'scaling', 'ascm', 'lp' or 'active_set', got {config.saturation!r}")
+        allocation = allocation_method(config.saturation)
         if config.projector not in ("dynamic", "pseudoinverse"):
             raise InvalidInput(f"projector: expected 'dynamic' or 'pseudoinverse', got {config.projector!r}")
         if config.implementation not in ("fast", "reference"):
@@ -240,6 +237,8 @@ class NullSpaceController:
             check(device)
         self.device = device
         self.config = config
+        #: The allocation strategy ``config.saturation`` names.
+        self.allocation = allocation
         self.state = state or ControllerState()
         #: The FME-matching objective the schedule's desired FME is swapped into (None without a schedule).
         self.fme_objective = None if config.fme is None else FMEMatching(config.fme.free, self.hi)
@@ -256,7 +255,7 @@ class NullSpaceController:
         pas = getattr(config.primary, "passivity", None)
         self._pc = None if pas is None else PassivityController(pas, reference=config.implementation == "reference")
         self._n = device.n
-        self._kernel = (None if config.implementation == "reference" or config.saturation == "lp"
+        self._kernel = (None if config.implementation == "reference" or allocation.kernel is None
                         else KernelTick(self))
 
     @property

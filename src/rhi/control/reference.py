@@ -2,11 +2,11 @@
 
 `reference_tick` computes what `rhi.control.kernels.tick` computes (steps 2–6 of
 `rhi.control.controller`), one equation per line, with an orthonormal null-space basis Z
-from an SVD (`null_basis`), `ascm` / `allocate_lp` / `allocate_active_set` on that basis,
+from an SVD (`null_basis`), the configured strategy's `allocate` on that basis (`rhi.control.allocation`),
 `tertiary`, `safety_room` and `held_part`, the objectives' own `gradient(device, q)` and the
 `rhi.metrics` projectors. ``ControllerConfig(implementation="reference")`` runs every tick
 here; the fast controller runs a tick here only where the kernel cannot decide accurately
-(a held set whose projector block is ill-conditioned) and for the LP allocation.
+(a held set whose projector block is ill-conditioned) and for a strategy without a compiled branch (the LP).
 """
 
 from __future__ import annotations
@@ -18,16 +18,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rhi.control.active_set import allocate_active_set
 from rhi.control.safety import held_part, safety_room
-from rhi.control.saturation import (
-    allocate_lp,
-    allocate_none,
-    allocate_scaling,
-    ascm,
-    null_basis,
-    tertiary,
-)
+from rhi.control.saturation import null_basis, tertiary
 from rhi.control.transition import aso_volume, transition_step
 from rhi.device import DeviceTerms
 from rhi.errors import InvalidInput
@@ -36,11 +28,6 @@ from rhi.metrics import nullspace_projector
 if TYPE_CHECKING:
     from rhi.control.controller import NullSpaceController
     from rhi.control.passivity import PassivityController
-
-#: Allocations after which the safety torque acts whatever the held (or clipped) joints: all but simple
-#: scaling, which keeps chapter 6's Algorithm 2 (its FME term and limit barrier balance each other there).
-SAFE = ("ascm", "lp", "active_set", "none")
-
 
 def reference_terms(ctrl: NullSpaceController, q: np.ndarray, dq: np.ndarray) -> DeviceTerms:
     """The device terms from per-call Device methods (fk, jacobian, jacobian_derivative, mass_matrix, gravity)."""
@@ -88,20 +75,10 @@ def reference_tick(
 
     M = kin.M if cfg.projector == "dynamic" else None
     Z = null_basis(J, M)
-    sat = cfg.saturation
-    if sat == "ascm":
-        al = ascm(a, b, Z, torque_min=lo, torque_max=hi)
-    elif sat == "lp":
-        al = allocate_lp(a, b, Z, torque_min=lo, torque_max=hi)
-    elif sat == "active_set":
-        al = allocate_active_set(a, b, Z, torque_min=lo, torque_max=hi)
-    elif sat == "scaling":
-        al = allocate_scaling(a, b, torque_min=lo, torque_max=hi)
-    else:
-        al = allocate_none(a, b, torque_min=lo, torque_max=hi)
+    al = ctrl.allocation.allocate(a, b, Z, torque_min=lo, torque_max=hi)
     N = nullspace_projector(J, M)
     gamma = 1.0
-    if al.saturated.any() and al.method in SAFE:  # safety the held joints would block
+    if al.saturated.any() and ctrl.allocation.safe:  # safety the held joints would block
         tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), torque_min=lo, torque_max=hi,
                                  skip=al.clipped)
         al = dataclasses.replace(al, tau=tau1)

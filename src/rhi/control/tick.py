@@ -24,10 +24,6 @@ from rhi.terms_kernel import TERMS, layout
 if TYPE_CHECKING:
     from rhi.control.controller import NullSpaceController
 
-_SATURATION = {"none": kernels.NONE, "scaling": kernels.SCALING, "ascm": kernels.ASCM,
-               "active_set": kernels.ACTIVE_SET}
-
-
 def _f64(v) -> np.ndarray:
     """V as a C-contiguous float64 array (one compiled specialisation of the kernel)."""
     if type(v) is np.ndarray and v.dtype == np.float64 and v.flags.c_contiguous:
@@ -62,7 +58,8 @@ class KernelTick:
         prm[kernels.P_ASO_S] = ctrl.aso_shape
         prm[kernels.P_GRAVITY] = float(cfg.gravity_compensation)
         prm[kernels.P_DYNAMIC] = float(cfg.projector == "dynamic")
-        prm[kernels.P_SATURATION] = _SATURATION[cfg.saturation]
+        prm[kernels.P_SATURATION] = ctrl.allocation.kernel
+        prm[kernels.P_SAFE] = float(ctrl.allocation.safe)
         self._free = self._stiff = np.eye(m)
         if fme is not None:
             prm[kernels.P_FME] = 1.0

@@ -2,7 +2,8 @@
 
 `step.tick` is the whole tick after the primary law; `allocation` holds ASCM in projector form,
 simple scaling, the active-set method, the safety room and the tertiary scaling, also used
-on their own by `rhi.control.saturation` and `rhi.control.active_set`.
+on their own by `rhi.control.saturation` and the strategies of `rhi.control.allocation` (each names
+the code of its branch in `step.tick`: NONE, SCALING, ASCM, ACTIVE_SET).
 """
 
 from rhi.control.kernels.allocation import active_set, active_set_result, active_set_start, ascm, tertiary
@@ -23,6 +24,7 @@ from rhi.control.kernels.step import (
     P_FME_GAIN,
     P_GRAVITY,
     P_RHO,
+    P_SAFE,
     P_SATURATION,
     SCALING,
     SINGULAR,
@@ -32,6 +34,6 @@ from rhi.control.kernels.step import (
 
 __all__ = [
     "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_DAMPING", "P_DYNAMIC", "P_EPS1",
-    "P_EPS2", "P_FME", "P_FME_DIST", "P_FME_GAIN", "P_GRAVITY", "P_RHO", "P_SATURATION", "SCALING", "SINGULAR",
+    "P_EPS2", "P_FME", "P_FME_DIST", "P_FME_GAIN", "P_GRAVITY", "P_RHO", "P_SAFE", "P_SATURATION", "SCALING", "SINGULAR",
     "active_set", "active_set_result", "active_set_start", "ascm", "aso_volume", "tertiary", "tick",
 ]

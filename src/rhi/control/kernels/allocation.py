@@ -7,7 +7,7 @@ The projector form writes the least-norm null-space torque that puts the joints 
 ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` with P = Z Zᵀ; it is trusted only while λ_min(P[𝒮, 𝒮]) > 1e-4
 (σ_min(Z_𝒮) > 0.01, since P[𝒮, 𝒮] squares Z_𝒮's condition number), where a held torque is
 accurate to ~ε r / λ < 1e-11 N m per N m; otherwise the functions say so (`ok` False) and
-the caller uses the basis form of `rhi.control.saturation`.
+the caller uses the basis form (`rhi.control.allocation`, `rhi.control.saturation`).
 """
 
 from __future__ import annotations
@@ -226,7 +226,7 @@ def active_set_start(a, b, P, lo, hi, r, sat):
 
 @jit
 def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
-    """The primal active-set method of `rhi.control.active_set` from a feasible start: (ok, α, y).
+    """The primal active-set method of `rhi.control.allocation.active_set` from a feasible start: (ok, α, y).
 
     Maximises α s.t. lo <= α a + b + Z y <= hi, 0 <= α <= 1 over x = (α |a|, y), from the
     start (α0, τ0 with the joints sat0 held); ok False when it does not settle (use the LP).

@@ -3,7 +3,7 @@
 `tick` computes steps 2–6 of `rhi.control.controller` (τ_m, the ASO volume V of eq. 6.14,
 the FME transition of eqs. 6.15–6.19, the FME- and VME-matching gradients of eqs. 6.10 and
 3.22, the allocation — none, simple scaling, ASCM (Algorithm 1) in projector form, or the
-active-set method on ASCM's LP started at ASCM (`rhi.control.active_set`) —, the
+active-set method on ASCM's LP started at ASCM (`rhi.control.allocation.active_set`) —, the
 safety torque and the tertiary torque of Algorithm 2) on small arrays, without a Python
 call in between. The readable composition of the same equations is
 `rhi.control.reference`, the oracle this kernel is tested against (same torques to
@@ -45,8 +45,9 @@ OK, FALLBACK, SINGULAR = 0, 1, 2
 #: Saturation codes of `tick`.
 NONE, SCALING, ASCM, ACTIVE_SET = 0, 1, 2, 3
 #: Indices of the parameter vector of `tick`.
-P_DAMPING, P_ASO_S, P_GRAVITY, P_DYNAMIC, P_SATURATION, P_FME, P_FME_GAIN, P_FME_DIST, P_EPS1, P_EPS2, P_RHO = range(11)
-N_PARAMS = 11
+(P_DAMPING, P_ASO_S, P_GRAVITY, P_DYNAMIC, P_SATURATION, P_SAFE, P_FME, P_FME_GAIN, P_FME_DIST, P_EPS1, P_EPS2,
+ P_RHO) = range(12)
+N_PARAMS = 12
 
 
 @jit
@@ -185,7 +186,7 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
     code = prm[P_SATURATION]
     clipped = False
     alpha = 1.0
-    safe = code != SCALING
+    safe = prm[P_SAFE] != 0.0
     if V > 0.0 and (code == ASCM or code == ACTIVE_SET):
         tau = tau_m
         sat[:] = False

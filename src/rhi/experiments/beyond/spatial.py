@@ -19,7 +19,7 @@ embedded configuration and SLSQP minimises eq. 3.22 within its joint limits
 Force capability (ch. 7): at seeded configurations and seeded random unit directions, the
 largest force along u rendered by simple scaling (§6.3.1), by ASCM (Algorithm 1) and the
 LP optimum (`rhi.metrics.max_force`, dynamic J#), all with m = 3
-(`rhi.control.saturation.force_capability`).
+(`rhi.control.allocation.force_capability`).
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ from collections.abc import Callable
 import numpy as np
 
 from rhi.control import VMEMatching
+from rhi.control.allocation import force_capability as _capability
 from rhi.control.configuration import optimal_configuration
-from rhi.control.saturation import force_capability as _capability
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
@@ -243,7 +243,7 @@ def spatial_force_capability(
         ["Static capability from the torque limits (device.toml): scaling keeps τ = α Jᵀ F u; ASCM (Algorithm 1) "
          "holds saturated joints and redistributes in the null space; the LP is the optimum over all null-space "
          "torques (dynamic J#). ASCM is evaluated over a ramp of requests up to 1.5× the LP optimum "
-         "(`rhi.control.saturation.force_capability`)."],
+         "(`rhi.control.allocation.force_capability`)."],
     )
 
 

@@ -17,15 +17,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from rhi import thesis as T
+from rhi.control.allocation import allocation_method, force_capability
 from rhi.control.controller import output_force
-from rhi.control.saturation import (
-    allocate_lp,
-    allocate_none,
-    allocate_scaling,
-    ascm,
-    force_capability,
-    null_basis,
-)
+from rhi.control.saturation import null_basis
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput, Unreachable
@@ -37,16 +31,6 @@ from rhi.metrics.force import ProjectorKind
 Q_3DOF = (np.pi / 4, -np.pi / 3, -np.pi / 6)
 METHODS = ("none", "scaling", "ascm", "lp")
 U = np.array([0.0, 1.0])
-
-
-def _allocate(method: str, a, b, Z, lo, hi):
-    if method == "none":
-        return allocate_none(a, b, torque_min=lo, torque_max=hi)
-    if method == "scaling":
-        return allocate_scaling(a, b, torque_min=lo, torque_max=hi)
-    if method == "ascm":
-        return ascm(a, b, Z, torque_min=lo, torque_max=hi)
-    return allocate_lp(a, b, Z, torque_min=lo, torque_max=hi)
 
 
 def force_run(dev, q, t, Fe, *, projector: str = "pseudoinverse") -> dict[str, dict[str, np.ndarray]]:
@@ -62,11 +46,12 @@ def force_run(dev, q, t, Fe, *, projector: str = "pseudoinverse") -> dict[str, d
     b = np.zeros(dev.n)
     out = {}
     for meth in METHODS:
+        strategy = allocation_method(meth)
         tau = np.empty((len(t), dev.n))
         alpha = np.empty(len(t))
         sat = np.zeros((len(t), dev.n), bool)
         for k, F in enumerate(Fe):
-            al = _allocate(meth, J.T @ F, b, Z, lo, hi)
+            al = strategy.allocate(J.T @ F, b, Z, torque_min=lo, torque_max=hi)
             tau[k], alpha[k], sat[k] = al.tau, al.alpha, al.saturated
         force = np.array([output_force(J, tk, M) for tk in tau])
         out[meth] = {"force": force, "tau": tau, "alpha": alpha, "saturated": sat}

@@ -31,7 +31,7 @@ force at a fixed indentation (`DEPTH_COMPARE`), the largest force over the run a
 force at the end; the peak self-motion joint speed |(I − J⁺J) q̇|∞ after the first torque
 saturation and while the allocation holds two joints (the controller's null-space damping
 and joint-limit barrier act whatever β, `rhi.control.controller`); the static force
-capability of the contact configuration (`rhi.control.saturation.force_capability`) for
+capability of the contact configuration (`rhi.control.allocation.force_capability`) for
 each allocation and projector.
 
 Why our numbers differ from the thesis's (+73 %): every case is compared with one
@@ -62,9 +62,9 @@ from rhi.control import (
     NullSpaceController,
     ObjectiveTerm,
 )
+from rhi.control.allocation import force_capability
 from rhi.control.configuration import optimal_configuration
 from rhi.control.controller import Saturation
-from rhi.control.saturation import force_capability
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch3.nullspace import (

@@ -1,6 +1,6 @@
-"""An active-set allocation on ASCM's linear program: ASCM that can release or flip the joints it holds.
+"""The active-set allocation (``saturation="active_set"``) on ASCM's LP: ASCM that can release or flip the joints it holds.
 
-ASCM (thesis Algorithm 1, `rhi.control.saturation.ascm`) holds the most overloaded joint at
+ASCM (thesis Algorithm 1, `rhi.control.allocation.ascm.ascm`) holds the most overloaded joint at
 its limit, then the next, and never lets a held joint go: a greedy path to a vertex of
 
     max α   s.t.   lo <= α a + b + Z y <= hi,   0 <= α <= 1,                     (LP)
@@ -21,13 +21,14 @@ from __future__ import annotations
 import numpy as np
 
 from rhi.control import kernels
-from rhi.control.saturation import Allocation, allocate_lp
+from rhi.control.allocation.base import Allocation, Allocator, register
+from rhi.control.allocation.lp import allocate_lp
 
 
 def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | None = None, max_iter: int = 50) -> Allocation:
     """The LP-optimal allocation of ASCM's problem by a primal active-set method warm-started at ASCM.
 
-    Same problem and result as `rhi.control.saturation.allocate_lp`: the largest α <= 1 with
+    Same problem and result as `rhi.control.allocation.lp.allocate_lp`: the largest α <= 1 with
     ``torque_min <= α a + b + Z y <= torque_max`` (eq. 7.9 with every null-space torque allowed). Falls back to
     `allocate_lp` if ASCM's start is not feasible (b itself outside the box) or the
     iteration does not settle within `max_iter` steps (degenerate cycling). The iteration is
@@ -72,4 +73,6 @@ def _lp(a, b, Z, lo, hi) -> Allocation:
     return Allocation(al.tau, al.alpha, al.saturated, al.tau_null, "active_set", al.clipped)
 
 
-__all__ = ["allocate_active_set"]
+ACTIVE_SET = register(Allocator("active_set", allocate_active_set, kernel=kernels.ACTIVE_SET))
+
+__all__ = ["ACTIVE_SET", "allocate_active_set"]

@@ -1,0 +1,50 @@
+"""The LP optimum (``saturation="lp"``): the largest α over every null-space torque, by HiGHS.
+
+No compiled branch: the controller runs every tick of this strategy through `rhi.control.reference`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from scipy.optimize import linprog
+
+from rhi.control.allocation.base import Allocation, Allocator, register
+from rhi.control.allocation.scaling import allocate_scaling
+
+
+def allocate_lp(a, b, Z, *, torque_min, torque_max) -> Allocation:
+    """Optimal allocation: the largest α <= 1 over every null-space torque, by linear programming.
+
+    Solves ``max α`` s.t. ``torque_min <= α a + b + Z y <= torque_max``, ``0 <= α <= 1`` (HiGHS). For
+    ``b = 0`` and a request at or above the capability, ``α |F|`` equals the optimum of
+    `rhi.metrics.max_force`. Falls back to simple scaling if the LP fails.
+    """
+    lo, hi = torque_min, torque_max
+    n, r = Z.shape
+    tau0 = a + b
+    if np.all(tau0 <= hi) and np.all(tau0 >= lo):
+        return Allocation(tau0, 1.0, np.zeros(n, bool), np.zeros(n), "lp")
+    A = np.concatenate([a[:, None], Z], axis=1)
+    c = np.zeros(r + 1)
+    c[0] = -1.0
+    res = linprog(
+        c,
+        A_ub=np.concatenate([A, -A]),
+        b_ub=np.concatenate([hi - b, b - lo]),
+        bounds=[(0.0, 1.0)] + [(None, None)] * r,
+        method="highs",
+    )
+    if res.status != 0:
+        return dataclasses.replace(allocate_scaling(a, b, torque_min=lo, torque_max=hi), method="lp")
+    alpha = float(res.x[0])
+    d = Z @ res.x[1:]
+    tau = np.clip(alpha * a + b + d, lo, hi)
+    sat = (np.abs(tau - hi) <= 1e-9) | (np.abs(tau - lo) <= 1e-9)
+    return Allocation(tau, alpha, sat, d, "lp")
+
+
+LP = register(Allocator("lp", allocate_lp))
+
+__all__ = ["LP", "allocate_lp"]
