@@ -227,6 +227,20 @@ def test_teleoperation_slave_tracks_master(rhi4, tmp_path):
         simulate(plant, ctrl, duration=0.01, record=lambda: next(names))
 
 
+def test_teleoperation_torque_is_the_cartesian_pd_of_the_device_api():
+    """`Teleoperation.follow`'s unchecked fast path applies τ_s = J_sᵀ(K_p(x_des − x_s) − K_d ẋ_s) + g_s exactly."""
+    dev = device("rehab_slave")
+    slave = Plant(dev)
+    slave.reset(dev.ik(np.array([0.42, -0.03]), q0=np.array([0.0, 1.0])), np.array([0.3, -0.2]))
+    tele = Teleoperation(slave, kp=1500.0, kd=40.0, scale=1.1, offset=[0.01, -0.02])
+    for x_m in ([0.40, -0.02], [0.41, -0.01]):
+        q, dq = slave.q.copy(), slave.dq.copy()
+        J = dev.jacobian(q)
+        want = J.T @ (1500.0 * (tele.target(x_m) - dev.fk(q)) - 40.0 * (J @ dq)) + dev.gravity(q)
+        tele.follow(np.array(x_m), 0.001)
+        np.testing.assert_array_equal(slave.data.ctrl, want)
+
+
 def test_bad_input(rhi4):
     plant = Plant(rhi4)
     with pytest.raises(InvalidInput, match="q: contains NaN"):

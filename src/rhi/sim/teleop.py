@@ -9,6 +9,7 @@ PD plus gravity compensation computed from its own encoders and model:
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from rhi._validate import as_array
 from rhi.errors import InvalidInput
@@ -48,8 +49,13 @@ class Teleoperation:
         """
         s, dev = self.slave, self.slave.device
         q, dq = s.q, s.dq
-        J = dev.jacobian(q)
-        F = self.kp * (self.target(x_master) - dev.fk(q)) - self.kd * (J @ dq)
-        s.apply(J.T @ F + dev.gravity(q))
+        # what dev.jacobian(q), dev.fk(q) and dev.gravity(q) compute, without their checks (q is the plant's
+        # own finite state) and with θ = A q + b formed once: this runs at every tick of a teleoperated run
+        model, data = dev.model, dev.data
+        th = q @ dev.A.T + dev.b
+        J = dev.jacobian_theta(th)  # its forward pass placed the end-effector's joint: no second one for x
+        x = pin.updateFramePlacement(model, data, dev.ee_frame_id).translation[dev.task_rows]
+        F = self.kp * (self.target(x_master) - x) - self.kd * (J @ dq)
+        s.apply(J.T @ F + dev.A.T @ pin.computeGeneralizedGravity(model, data, th))
         s.step(max(1, round(dt / s.timestep)))
         return s.x
