@@ -4,10 +4,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import re
+import signal
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
+
+from rhi import __version__
+from rhi.device import available_devices, device
+from rhi.device_measures import all_measures
+from rhi.errors import InvalidInput, LinkError, RhiError
+from rhi.viz.cli import add_commands
 
 
 def _floats(text: str) -> list[float]:
@@ -26,8 +37,6 @@ def _param(text: str) -> tuple[str, float]:
 
 
 def _devices(args: argparse.Namespace) -> int:
-    from rhi.device import available_devices, device
-
     print(f"{'name':<12} {'n':>2} {'task':<5} parameters")
     for name in available_devices():
         d = device(name)
@@ -37,9 +46,6 @@ def _devices(args: argparse.Namespace) -> int:
 
 
 def _measure(args: argparse.Namespace) -> int:
-    from rhi.device import device
-    from rhi.device_measures import all_measures
-
     dev = device(args.device, **dict(args.param or []))
     res = all_measures(dev, args.q, args.u)
     if args.json:
@@ -57,8 +63,6 @@ def _measure(args: argparse.Namespace) -> int:
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from rhi.design.executors import configure
     from rhi.report.reproduce import experiments, reproduce
 
@@ -82,9 +86,6 @@ def _reproduce(args: argparse.Namespace) -> int:
 
 
 def _device_server(args: argparse.Namespace) -> int:
-    import signal
-
-    from rhi.device import device
     from rhi.runtime import SimLink
     from rhi.runtime.config import load_config
     from rhi.runtime.server import DeviceServer
@@ -120,8 +121,6 @@ def _link(url: str, rate: float, cfg, realtime: bool):
     Without real time (`--fast`, e.g. against a lock-step device server) a reading may take up to 1 s and the
     device 10 s to answer.
     """
-    from rhi.errors import InvalidInput
-
     if url == "sim":
         return cfg.sim_link(rate=rate)
     if not url.startswith("udp://"):
@@ -147,8 +146,6 @@ class _SameDevice:
         return getattr(self._link, name)
 
     def open(self) -> None:
-        from rhi.errors import LinkError
-
         self._link.open()
         info, dev = self._link.info, self._device
         name = info.get("device")
@@ -162,8 +159,6 @@ class _Status:
     """The live status line: rewritten in place on a terminal, one line every `every` seconds when piped."""
 
     def __init__(self, stream, limit: float | None, every: float = 5.0) -> None:
-        import time
-
         self.stream, self.tty, self.every = stream, stream.isatty(), every
         self.limit, self.clock = limit, time.monotonic
         self.t0 = self.last = self.clock()
@@ -193,11 +188,6 @@ class _Status:
 
 
 def _run(args: argparse.Namespace) -> int:
-    import math
-    import time
-    from pathlib import Path
-
-    from rhi.errors import InvalidInput
     from rhi.runtime import run
     from rhi.runtime.config import load_config
 
@@ -248,8 +238,6 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _add_run(sub) -> None:
-    from pathlib import Path
-
     shipped = sorted(p.stem for p in (Path(__file__).parent / "runtime" / "configs").glob("*.toml"))  # no heavy import
     r = sub.add_parser("run", help="run a controller described by a configuration file on a device, in real time")
     r.add_argument("device", help="the device the controller models, e.g. rhi4")
@@ -298,12 +286,7 @@ _EXTRAS = {"mujoco": "sim", "psignifit": "analysis", "statsmodels": "analysis", 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `rhi` command."""
-    import os
-
     os.environ.setdefault("MPLBACKEND", "Agg")  # this process only writes figures to files
-    from rhi import __version__
-    from rhi.errors import RhiError
-
     p = argparse.ArgumentParser(prog="rhi", description=__doc__)
     p.add_argument("--version", action="version", version=f"rhi {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -342,8 +325,6 @@ def main(argv: list[str] | None = None) -> int:
     _add_realtime(d, "the device loop")
     d.set_defaults(func=_device_server)
     _add_run(sub)
-    from rhi.viz.cli import add_commands
-
     add_commands(sub, _floats)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     try:

@@ -17,6 +17,7 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from scipy.optimize import minimize
 
 from rhi import thesis as T
 from rhi.control.mobile import AMDConfig, AMDController, PinvAccelConfig, PinvAccelController
@@ -50,8 +51,6 @@ def best_sigma(x, starts: int = 6, seed: int = 0) -> float:
     SLSQP from the thesis's start configuration and `starts` − 1 seeded perturbations of it.
     Returns NaN if no start reaches x within the joint limits.
     """
-    from scipy.optimize import minimize
-
     arm = device("gen3")
     lo = np.where(np.isfinite(arm.q_min), arm.q_min, -2 * math.pi)
     hi = np.where(np.isfinite(arm.q_max), arm.q_max, 2 * math.pi)

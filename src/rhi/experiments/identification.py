@@ -70,6 +70,7 @@ from rhi.errors import InvalidInput
 from rhi.experiments.result import Row
 from rhi.experiments.setups import Progress, ZeroTorque
 from rhi.metrics import effective_inertia
+from rhi.sim import Plant, PushForce, device_friction, simulate
 from rhi.sim.loop import Controller
 
 #: Direction of motion of §3.5 and §6.4.
@@ -208,8 +209,6 @@ def push_trials(
     Raises:
         InvalidInput: the handle does not pass the point within ``max_duration``.
     """
-    from rhi.sim import Plant, PushForce, simulate
-
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     p_goal = float(np.asarray(point, dtype=float) @ u)
     recs, states = [], []
@@ -295,8 +294,6 @@ def identify_case(
         window: half-width of the position window [m].
         cutoff_hz: Butterworth cut-off [Hz] (`rhi.analysis.sysid.identify`).
     """
-    from rhi.sim import device_friction
-
     recs, states = push_trials(dev, q_start, point, forces=forces, u=u, after=window,
                                controller=controller, label=label, progress=progress)
     uu = np.asarray(u, dtype=float) / np.linalg.norm(u)

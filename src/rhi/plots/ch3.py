@@ -9,6 +9,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
 from rhi.experiments.result import Result
+from rhi.plots.draw import chain, ellipse
 
 
 def workspaces(result: Result) -> Figure:
@@ -54,7 +55,6 @@ def rho_ratio(result: Result) -> Figure:
 def configurations(result: Result) -> Figure:
     """Table 3.1 set-up: the three interfaces at the two points with their velocity ellipses (scaled ×0.3)."""
     from rhi.experiments.ch3.measures import POINTS, devices  # data access only
-    from rhi.plots.draw import chain, ellipse
 
     devs = devices()
     fig, axes = plt.subplots(1, 2, figsize=(10, 5), sharey=True)

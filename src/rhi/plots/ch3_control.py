@@ -6,7 +6,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from rhi.device import device
 from rhi.experiments.result import Result
+from rhi.plots.draw import chain, ellipse
 
 
 def _runs(result: Result) -> list[str]:
@@ -47,9 +49,6 @@ def convergence(result: Result) -> Figure:
 
 def configurations(result: Result) -> Figure:
     """The RHI at its start (thin) and converged (thick) configurations, with the velocity ellipse JJᵀ (×0.3)."""
-    from rhi.device import device
-    from rhi.plots.draw import chain, ellipse
-
     dev = device("rhi4")
     a = result.arrays
     pts = _points(result)

@@ -13,6 +13,7 @@ from pathlib import Path
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from rhi.design.executors import shared
+from rhi.errors import InvalidInput, RhiError
 from rhi.experiments import appa as exa, appb as exb, ch3 as ex3, ch4 as ex4, ch5 as ex5, ch6 as ex6, ch7 as ex7
 from rhi.experiments.beyond import (
     bilateral as exbi,
@@ -176,8 +177,6 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         quick: reduced resolution (seconds instead of minutes).
         experiment: one experiment id such as "ch7.example_3dof" (or its function name).
     """
-    from rhi.errors import InvalidInput, RhiError
-
     steps = [s for s in STEPS if only is None or s.chapter == only]
     if not steps:
         raise InvalidInput(f"only: unknown chapter {only!r}; available: {', '.join(chapters())}")

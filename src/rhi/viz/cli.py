@@ -7,6 +7,9 @@ import os
 import sys
 import time
 
+from rhi.device import device
+from rhi.errors import InvalidInput
+
 
 def _pick_gl() -> None:
     """Offscreen rendering without a display: MuJoCo's EGL backend unless the user chose one (MUJOCO_GL)."""
@@ -16,7 +19,6 @@ def _pick_gl() -> None:
 
 def _render(args: argparse.Namespace) -> int:
     _pick_gl()
-    from rhi.device import device
     from rhi.viz.posed import rest_configuration
     from rhi.viz.render import render, save_png
 
@@ -28,8 +30,6 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _view(args: argparse.Namespace) -> int:
-    from rhi.device import device
-    from rhi.errors import InvalidInput
     from rhi.viz.view import View
 
     dev = device(args.device)
@@ -74,9 +74,6 @@ def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False,
     With `mouse`, the simulated link's hand becomes a `SharedDraggableHand` moved by the browser's gizmo.
     With `loop_cpu` (the control loop's CPU), the view runs on the other CPUs.
     """
-    import os
-
-    from rhi.errors import InvalidInput
     from rhi.viz.remote import RemoteView, SharedDraggableHand
 
     hand = None

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import threading
 import time
+import types
 
 import numpy as np
 
@@ -147,8 +148,6 @@ class View:
                 hand.target = None
 
     def _rest_snapshot(self):
-        import types
-
         z = np.zeros(self.device.m)
         return types.SimpleNamespace(t=0.0, q=self.q0, tau=np.zeros(self.device.n), F_hand=z, F_env=z, V=np.nan,
                                      omega=np.nan, alpha=np.nan, beta=np.nan, safety="ok", fault=None)

@@ -44,6 +44,7 @@ from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.result import Result, Row, Table
+from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 
 #: The rendered wall [N/m], the stiff wall [N/m] and B^d [N s/m] (thesis §6.4, §7.5).
 K_E = 1000.0
@@ -120,8 +121,6 @@ def _energies(dev: Device, log, friction, stiffness: float) -> dict[str, float]:
 
 def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: float, depth: float, speed: float,
          progress, offset: int, total: int) -> tuple[dict, dict]:
-    from rhi.sim import Hand, HandPath, Plant, Wall, simulate
-
     u, x0 = np.array(ch6.U), np.array(ch6.X0)
     strokes = int(math.ceil(duration * speed / (OUT + depth))) + 1
     pts = [x0] + [x0 - OUT * u, x0 + depth * u] * strokes

@@ -42,6 +42,7 @@ from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress, check_motion, path_hand, run, smooth
 from rhi.metrics import effective_inertia, effective_manipulability, force_ellipsoid, max_force, max_force_scaling
+from rhi.sim import Hand, HandPath
 
 U = (0.0, 0.7071067811865476, -0.7071067811865476)  # down and sideways: where the FMEs differ most (static F_max)
 #: the PHANToM sub-chain configuration whose handle position is X₀ (shoulder 0.4 rad, forearm 0.5 rad)
@@ -161,8 +162,6 @@ def spatial_vme(duration: float = 2.0, u: tuple[float, float, float] = (0.0, 1.0
     null-space controller with ImpedanceControl (eq. 5.6, gravity compensated) and
     VMEMatching(u, β = 0.01) with step `gain`; the hand holds X₀ (3000 N/m).
     """
-    from rhi.sim import Hand, HandPath
-
     check_motion(duration=duration, gain=gain)
     uu = np.asarray(u, dtype=float)
     if uu.shape != (3,) or not np.all(np.isfinite(uu)) or np.linalg.norm(uu) == 0:

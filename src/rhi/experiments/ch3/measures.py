@@ -21,6 +21,7 @@ import functools
 from collections.abc import Callable
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from rhi import thesis as T
 from rhi.control import VMEMatching
@@ -115,8 +116,6 @@ def maybe_reachable(dev: Device, points: np.ndarray, n: int = 201) -> np.ndarray
     Returns:
         (N,) bool, True where IK must decide.
     """
-    from scipy.spatial import cKDTree
-
     if dev.n != 2 or not (np.all(np.isfinite(dev.q_min)) and np.all(np.isfinite(dev.q_max))):
         raise InvalidInput(f"dev: the workspace screen needs 2 joints with finite limits, got {dev.name}")
     g = [np.linspace(lo, hi, n) for lo, hi in zip(dev.q_min, dev.q_max)]

@@ -6,6 +6,7 @@ import numpy as np
 
 from rhi import thesis as T
 from rhi.errors import InvalidInput, Unreachable
+from rhi.experiments.ch3.measures import workspaces as sample
 from rhi.experiments.ch5.setup import Q_FIXED, REHAB_SEED, SLAVE_SEED, devices, w_reference
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import positive
@@ -31,8 +32,6 @@ def workspaces(samples: int = 20000, seed: int = 0, cell: float = 0.02, area_sam
         Result "ch5.workspaces" with arrays `workspaces` (3, samples, 2) [m] for RHI, Rehab, slave
         (NaN: rejected sample), `path` (the W's corners) and the table of areas.
     """
-    from rhi.experiments.ch3.measures import workspaces as sample
-
     if int(samples) < 1:
         raise InvalidInput(f"samples: must be >= 1, got {samples!r}")
     if int(area_samples) < int(samples):

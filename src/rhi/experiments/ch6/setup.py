@@ -26,6 +26,7 @@ from rhi.device import Device
 from rhi.errors import Unreachable
 from rhi.metrics import nullspace_projector
 from rhi.metrics.force import ProjectorKind
+from rhi.sim import device_friction
 
 #: §6.4 palpation set-up.
 U = (0.0, 1.0)
@@ -209,6 +210,4 @@ def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMES
 
 def plant_damping(dev: Device) -> np.ndarray:
     """Motor viscous damping of the plant (device.toml [plant]): (n,) [N m s/rad]."""
-    from rhi.sim import device_friction
-
     return np.asarray(device_friction(dev).damping, dtype=float)
