@@ -116,6 +116,24 @@ def test_batch_matches_per_configuration_api():
     np.testing.assert_allclose(dev.mass_matrix(Q[:2]), loop[:2], rtol=0, atol=0)  # small batches: Pinocchio
 
 
+def test_terms_in_one_pass_equal_the_device_methods():
+    """`rhi.batch.terms` runs one pass for several terms; each equals the `Device` method's batch."""
+    from rhi.errors import InvalidInput
+
+    dev = device("gen3")
+    Q = _configurations(dev, BATCH_MIN + 3, seed=6).reshape(-1, 1, dev.n)
+    got = batch.terms(dev, Q, ("x", "J", "dJ", "M", "g"))
+    for term in TERMS:
+        np.testing.assert_array_equal(got[term], getattr(dev, batch.TERMS[term])(Q))
+    assert set(batch.terms(dev, Q)) == {"J", "dJ", "M", "g"}
+    one = batch.terms(dev, Q[0, 0], ("J", "g"))  # a single configuration: the Pinocchio path
+    np.testing.assert_array_equal(one["J"], dev.jacobian(Q[0, 0]))
+    with pytest.raises(InvalidInput, match="what"):
+        batch.terms(dev, Q, ("J", "Lambda"))
+    with pytest.raises(InvalidInput, match="q"):
+        batch.terms(dev, Q[..., :3])
+
+
 def test_unsupported_joint_falls_back_to_pinocchio():
     model = pin.Model()
     jid = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "hinge")

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
-from rhi.errors import ModelError
+from rhi.errors import InvalidInput, ModelError
 
 _AXIS = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 CHUNK = 8192  # configurations per pass: (B,) work arrays stay small enough for the allocator's heap
@@ -355,3 +355,37 @@ class BatchChain:
                 HA = [_lin([A[j][a] for j in range(nt)], [H[j][k] for j in range(nt)]) for k in range(nt)]
                 for c in range(self.n):
                     out[r, a, c] = _lin([A[k][c] for k in range(nt)], HA)
+
+
+#: The terms `terms` returns, and the `Device` method that computes each one configuration at a time.
+TERMS = {"x": "fk", "J": "jacobian", "dJ": "jacobian_derivative", "M": "mass_matrix", "g": "gravity"}
+
+
+def terms(device, q, what: tuple[str, ...] = ("J", "dJ", "M", "g")) -> dict[str, np.ndarray]:
+    """Several terms of a batch of configurations of a `Device` from one vectorized pass.
+
+    `Device.jacobian(Q)`, `jacobian_derivative(Q)`, `mass_matrix(Q)` and `gravity(Q)` each run
+    `BatchChain.evaluate` on their own, so asking for all four repeats the forward kinematics four
+    times and the composite inertias twice; this runs the pass once. Same numbers as those methods.
+
+    Args:
+        device: an `rhi.device.Device`.
+        q: (..., n) motor positions [rad or m].
+        what: names among "x" (..., m) [m], "J" (..., m, n), "dJ" (..., m, n, n), "M" (..., n, n) [kg m²]
+            and "g" (..., n) [N m] (as `BatchChain.evaluate`).
+
+    Returns:
+        {name: array}, batch axes first; a device whose joints `rhi.batch` does not support gets the
+        `Device` methods' per-configuration results.
+
+    Raises:
+        InvalidInput: an unknown term name, or a bad q (named as `Device` does).
+    """
+    unknown = [k for k in what if k not in TERMS]
+    if unknown or not what:
+        raise InvalidInput(f"what: expected names among {list(TERMS)}, got {list(what)!r}")
+    th = device.theta(q)
+    chain = device._batch
+    if chain is None or th.ndim < 2:
+        return {k: getattr(device, TERMS[k])(q) for k in what}
+    return chain.evaluate(th, tuple(what))
