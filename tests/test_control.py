@@ -478,6 +478,16 @@ def test_controller_bad_input(rhi4):
         _controller(rhi4, saturation="magic")
     with pytest.raises(InvalidInput, match="implementation"):
         _controller(rhi4, implementation="turbo")
+
+    class NoCheck:  # a law without `check` (the PrimaryLaw protocol: forces, required_sensors, check)
+        def forces(self, t, kin, sensors):
+            return np.zeros(2), np.zeros(2)
+
+        def required_sensors(self):
+            return ()
+
+    with pytest.raises(InvalidInput, match="primary"):
+        _controller(rhi4, primary=NoCheck())
     with pytest.raises(InvalidInput, match="gain"):
         ObjectiveTerm(Manipulability(), -1.0)
     with pytest.raises(InvalidInput, match="x0"):

@@ -57,7 +57,7 @@ from rhi.control.primary import PrimaryLaw
 from rhi.control.reference import reference_terms, reference_tick
 from rhi.control.saturation import check_torque_limits
 from rhi.control.tick import KernelTick
-from rhi.control.transition import TransitionConfig, TransitionState
+from rhi.control.transition import TransitionConfig, TransitionState, transition_step
 from rhi.device import Device
 from rhi.errors import InvalidInput, RhiError, Singular
 from rhi.metrics import dynamic_pinv, weighted_pinv
@@ -94,6 +94,11 @@ class ObjectiveTerm:
 class FMESchedule:
     """Desired-FME matching switched by the ASO between M_Free^des and M_Stiff^des (thesis §6.3).
 
+    A schedule of objectives: each tick the controller advances it with the ASO volume V
+    (`advance`, eqs. 6.15–6.19) and adds ``gain ×`` the FME-matching objective it gives for that
+    tick's activation Ω (`objective`, eqs. 6.10, 6.16) to the other objective terms. The compiled
+    tick (`rhi.control.kernels.step`) runs the same two steps inside the kernel.
+
     Attributes:
         free: (m, m) SPD M_Free^des (eq. 6.12).
         stiff: (m, m) SPD M_Stiff^des (eq. 6.13).
@@ -129,6 +134,24 @@ class FMESchedule:
         if omega == 0.0:
             return self.stiff
         return omega * self.free + (1.0 - omega) * self.stiff
+
+    def check(self, device: Device) -> None:
+        """Raise InvalidInput unless the desired FMEs are (m, m) for `device`."""
+        if self.free.shape != (device.m, device.m):
+            raise InvalidInput(f"fme: desired FMEs must be ({device.m}, {device.m}), got {self.free.shape}")
+
+    def advance(self, state: TransitionState, t: float, V: float) -> tuple[TransitionState, float]:
+        """The transition state and activation Ω after a tick at t [s] with ASO volume V (eqs. 6.15–6.19)."""
+        return transition_step(state, t, V, self.distance, self.transition)
+
+    def objective(self, omega: float, torque_max: np.ndarray) -> FMEMatching:
+        """The FME-matching objective at activation Ω: JBLD of M̂ to `desired(omega)` (eqs. 6.10, 6.16).
+
+        Args:
+            omega: activation Ω ∈ [0, 1] (1: free, 0: stiff).
+            torque_max: (n,) torque limits T_i [N m] of the weighting W = diag(1/T_i) (eq. 6.9).
+        """
+        return FMEMatching(self.desired(omega), torque_max)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -224,24 +247,20 @@ class NullSpaceController:
         scalar("damping", config.damping, nonnegative=True)
         scalar("aso_shape", config.aso_shape, positive=True)
         primary = config.primary
-        if not (callable(getattr(primary, "forces", None)) and callable(getattr(primary, "required_sensors", None))):
-            raise InvalidInput(f"primary: expected a primary law (ForceRendering, ImpedanceControl, ...), "
-                               f"got {primary!r:.80}")
+        if not all(callable(getattr(primary, name, None)) for name in ("forces", "required_sensors", "check")):
+            raise InvalidInput(f"primary: expected a primary law (forces, required_sensors, check: ForceRendering, "
+                               f"ImpedanceControl, ...), got {primary!r:.80}")
         lo = device.torque_min if config.torque_min is None else config.torque_min
         hi = device.torque_max if config.torque_max is None else config.torque_max
         self.lo, self.hi = check_torque_limits(torque_min=lo, torque_max=hi, n=device.n)
-        if config.fme is not None and config.fme.free.shape != (device.m, device.m):
-            raise InvalidInput(f"fme: desired FMEs must be ({device.m}, {device.m}), got {config.fme.free.shape}")
-        check = getattr(config.primary, "check", None)
-        if callable(check):
-            check(device)
+        if config.fme is not None:
+            config.fme.check(device)
+        primary.check(device)
         self.device = device
         self.config = config
         #: The allocation strategy ``config.saturation`` names.
         self.allocation = allocation
         self.state = state or ControllerState()
-        #: The FME-matching objective the schedule's desired FME is swapped into (None without a schedule).
-        self.fme_objective = None if config.fme is None else FMEMatching(config.fme.free, self.hi)
         #: S of eq. 6.14 for the ASO.
         self.aso_shape = config.fme.transition.S if config.fme is not None else config.aso_shape
         #: (gain, objective) of the tertiary objectives and of the joint-limit barriers (part of the safety torque).

@@ -5,6 +5,9 @@ configuration optimisers compose objectives without special-casing them. The bun
 objectives also provide `gradient_at(terms)`, the same gradient from a `DeviceTerms`
 snapshot a controller already holds (J and ∂J/∂q from one Pinocchio pass); a
 controller wraps objectives without it once, at construction (`gradient_function`).
+The ASO-switched FME matching of chapter 6 (`rhi.control.controller.FMESchedule`) is a schedule
+of these objectives: each tick it gives the `FMEMatching` for that tick's activation Ω, which
+the controller adds to the other terms.
 
 Every JBLD gradient below uses ∂ν/∂q_k = Σ_ij (Y)_ij ∂J_ij/∂q_k for an (m, n) matrix Y,
 evaluated as one product ``Y.ravel() @ dJ.reshape(m n, n)``.
@@ -157,10 +160,6 @@ class FMEMatching:
             raise InvalidInput(f"torque_max: every torque limit must be finite and > 0, got {t.tolist()}")
         object.__setattr__(self, "torque_max", t)
         object.__setattr__(self, "_w2", np.atleast_1d(t**-2.0))
-
-    def with_desired(self, desired) -> FMEMatching:
-        """The same objective with another desired FME (e.g. during a transition, eq. 6.16)."""
-        return FMEMatching(desired, self.torque_max)
 
     def fme(self, J: np.ndarray) -> np.ndarray:
         """M̂: (m, m) for J: (m, n)."""

@@ -48,6 +48,13 @@ class PrimaryLaw(Protocol):
         """Names of the sensor entries `forces` reads."""
         ...
 
+    def check(self, device: Device) -> None:
+        """Raise InvalidInput unless the law's parameters fit `device` (its m task rows and n joints).
+
+        The controller calls it once, at construction.
+        """
+        ...
+
 
 def _damping(name: str, B) -> np.ndarray:
     B = as_array(name, B)

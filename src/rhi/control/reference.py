@@ -20,7 +20,7 @@ import numpy as np
 
 from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import null_basis, tertiary
-from rhi.control.transition import aso_volume, transition_step
+from rhi.control.transition import aso_volume
 from rhi.device import DeviceTerms
 from rhi.errors import InvalidInput
 from rhi.metrics import nullspace_projector
@@ -58,19 +58,18 @@ def reference_tick(
         b = b + (kin.g - J.T @ kin.Gx)  # (I − JᵀJ#ᵀ) g: the part G_x leaves out
     tau_m = a + b
     s.V = aso_volume(tau_m, torque_min=lo, torque_max=hi, S=ctrl.aso_shape)
+    objectives = ctrl.objectives
     fme = cfg.fme
-    if fme is not None:
-        s.transition, s.omega = transition_step(s.transition, t, s.V, fme.distance, fme.transition)
+    if fme is not None:  # the schedule's objective for this tick's Ω joins the others
+        s.transition, s.omega = fme.advance(s.transition, t, s.V)
+        if fme.gain > 0:
+            objectives = [(fme.gain, fme.objective(s.omega, hi)), *objectives]
 
     # a controller's tick always has q̇ (dq is not None)
     tau_s = -cfg.damping * dq - sum((gain * np.asarray(obj.gradient(dev, q)) for gain, obj in ctrl.barriers),  # type: ignore[operator]
                                     np.zeros(dev.n))
     tau_to = tau_s
-    if fme is not None and fme.gain > 0:
-        # ctrl.fme_objective is built whenever config.fme is set
-        tau_to = tau_to - fme.gain * ctrl.fme_objective.with_desired(  # type: ignore[union-attr]
-            fme.desired(s.omega)).gradient(dev, q)
-    for gain, obj in ctrl.objectives:
+    for gain, obj in objectives:
         tau_to = tau_to - gain * np.asarray(obj.gradient(dev, q), dtype=float)
 
     M = kin.M if cfg.projector == "dynamic" else None
