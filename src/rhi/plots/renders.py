@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from rhi.device import Device
+from rhi.device import Device, device
 from rhi.experiments.result import Result
 from rhi.viz.posed import Posed
 from rhi.viz.render import RenderUnavailable, render
@@ -55,7 +55,6 @@ def ch3_configurations(result: Result) -> Figure:
 
 def wmm_configurations(result: Result) -> Figure:
     """Fig. A.7: the mobile manipulator at its start and after DM enhancement along z and along x, rendered."""
-    from rhi.device import device
     from rhi.experiments.appa import Q0
 
     dev = device("wmm")

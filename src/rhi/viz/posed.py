@@ -15,6 +15,8 @@ from rhi._validate import as_array
 from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.mobile_base import BASE_JOINTS
+from rhi.sim.mobile import MobilePlant
+from rhi.sim.plant import Plant
 
 
 def rest_configuration(device: Device) -> np.ndarray:
@@ -39,14 +41,10 @@ class Posed:
     def __init__(self, device: Device, *, collision: bool = False) -> None:
         self.device = device
         if tuple(device.joint_names[:3]) == BASE_JOINTS:
-            from rhi.sim.mobile import MobilePlant
-
             plant: Plant | MobilePlant = MobilePlant(device)
             self._qadr = np.array([plant.model.joint(nm).qposadr[0] for nm in device.joint_names])
             self._A = self._b = None
         else:
-            from rhi.sim.plant import Plant
-
             plant = Plant(device, friction=None, collision=collision)
             moving = np.any(device.A != 0, axis=1)
             self._A, self._b = device.A[moving], device.b[moving]
