@@ -71,6 +71,9 @@ from rhi.control.reference import reference_passivity
 from rhi.device import DeviceTerms
 from rhi.errors import InvalidInput
 
+#: The port the observer watches: the motors (τ against q̇) or the handle (J#ᵀτ against ẋ).
+Port = Literal["motors", "handle"]
+
 
 @dataclasses.dataclass(frozen=True)
 class Passivity:
@@ -85,7 +88,7 @@ class Passivity:
             it counts as active (0: the rendered environment starts empty).
     """
 
-    port: Literal["motors", "handle"] = "motors"
+    port: Port = "motors"
     alpha_max: float | None = None
     control: bool = True
     initial_energy: float = 0.0
@@ -190,4 +193,4 @@ class PassivityController:
         return tau
 
 
-__all__ = ["Passivity", "PassivityController", "PassivityState"]
+__all__ = ["Passivity", "PassivityController", "PassivityState", "Port"]

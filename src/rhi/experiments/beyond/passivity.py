@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from typing import Literal
 
 import numpy as np
 
@@ -40,6 +39,7 @@ from rhi.control import (
     WeightedSum,
 )
 from rhi.control.controller import Saturation
+from rhi.control.passivity import Port
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch6 import setup as ch6
@@ -55,8 +55,6 @@ HAND = (3000.0, 40.0, 60.0)
 OUT, DEPTH, SPEED = 0.002, 0.015, 0.01
 #: Target of the issue: the hand's work with the passivity controller [J].
 TARGET_W = -1e-3
-#: The port of the passivity controller (`rhi.control.Passivity.port`).
-Port = Literal["motors", "handle"]
 #: case key: (null-space objectives, passivity port or None, saturation handling)
 CASES: dict[str, tuple[bool, Port | None, Saturation]] = {
     "objectives": (True, None, "ascm"),
