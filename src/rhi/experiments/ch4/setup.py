@@ -6,6 +6,7 @@ See `rhi.experiments.ch4` for the choices the thesis leaves open.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +16,8 @@ from rhi import thesis as T
 from rhi.design import (
     DesignProblem,
     Phantom3Master,
+    Solution,
+    Workspace,
     penalize,
     rectangle,
     slave_solution,
@@ -61,8 +64,10 @@ def problem(
     r0: float | str = "auto",
 ) -> DesignProblem:
     """The §4.4 design problem: ``design`` = "theta_z" (first round) or "full" (D = {l2, θz, Z_PH})."""
-    ws = rectangle(xlim, ylim, density=density, kind=kind)
-    slave = slave_solution("rehab_slave", ws.points, SLAVE_Q0)
+    try:
+        ws, slave = _sampled(tuple(map(float, xlim)), tuple(map(float, ylim)), float(density), kind)
+    except (TypeError, ValueError):  # not a pair of numbers, an unhashable kind: rectangle names the argument
+        ws, slave = _sampled.__wrapped__(xlim, ylim, density, kind)
     center = (0.5 * (xlim[0] + xlim[1]), 0.5 * (ylim[0] + ylim[1]))
     if design == "theta_z":
         bounds, fixed = {"theta_z": BOUNDS["theta_z"]}, dict(FIXED_ROUND1)
@@ -71,6 +76,17 @@ def problem(
     else:
         raise InvalidInput(f"design: expected 'theta_z' or 'full', got {design!r}")
     return DesignProblem(Phantom3Master(), ws, slave, center, r0, bounds, fixed, k_q=k_q, K1=K1, K2=K2)
+
+
+@functools.lru_cache(maxsize=16)
+def _sampled(xlim, ylim, density, kind) -> tuple[Workspace, Solution]:
+    """The workspace samples and the slave's IK at them (400 IK solves at 100 /m).
+
+    They do not depend on the design, K2, k_q or r0, so the problems of one sweep (`sensitivity`'s
+    variants, the K2 scan) share them: cached.
+    """
+    ws = rectangle(xlim, ylim, density=density, kind=kind)
+    return ws, slave_solution("rehab_slave", ws.points, SLAVE_Q0)
 
 
 def checkpoint(checkpoint_dir: str | Path | None, name: str) -> str | None:
