@@ -29,7 +29,7 @@ from rhi.control.allocation.scaling import allocate_scaling
 MODULES = (none, scaling, compensation, lp, active_set)
 
 #: The bundled strategies' names, for type checkers and the run-configuration schema (`method_names`
-#: also lists strategies registered elsewhere; tests/test_control.py checks the two agree).
+#: also lists strategies registered elsewhere; tests/test_control.py checks the bundled ones agree).
 Saturation = Literal["none", "scaling", "ascm", "lp", "active_set"]
 
 __all__ = [
