@@ -33,7 +33,7 @@ from rhi.device_spec import (
     bundled_spec,
     read_spec,
 )
-from rhi.device_terms import DeviceTerms, FastMaps, eye, fast_maps, inv_small, lazy
+from rhi.device_terms import DeviceTerms, FastMaps, compiled_terms, eye, fast_maps, inv_small, lazy
 from rhi.errors import InvalidInput, ModelError
 
 __all__ = ["BATCH_MIN", "MODELS", "Device", "DeviceTerms", "LinearLimits", "available_devices", "device", "eye",
@@ -231,10 +231,11 @@ class Device:
                          "g")
 
     def terms(self, q, dq=None, *, check: bool = True) -> DeviceTerms:
-        """Every kinematic and dynamic term of one state from a single Pinocchio pass.
+        """Every kinematic and dynamic term of one state from a single pass.
 
-        One `computeJointJacobians` (forward kinematics + joint Jacobians), the frame
-        Jacobian, `crba` and `computeGeneralizedGravity`; ∂J/∂q follows in closed form
+        Trees of revolute/prismatic joints: one compiled call (`rhi.chain_kernel`, equal to
+        Pinocchio's algorithms to round-off). Otherwise one `computeJointJacobians` (forward
+        kinematics + joint Jacobians), the frame Jacobian, `crba` and `computeGeneralizedGravity`; ∂J/∂q follows in closed form
         from the 6-D frame Jacobian (∂J_j/∂θ_k = ω_k × J_j when joint k supports joint j,
         ω_j × J_k otherwise; one-DoF joints). Equal to `fk`, `jacobian`,
         `jacobian_derivative`, `mass_matrix` and `gravity` called one by one, several
@@ -265,25 +266,18 @@ class Device:
         last = self.__dict__.get("_last_terms")
         if last is not None and last[0] == key:  # same state again (the loop's virtual environment, then the controller)
             return last[1]
-        model, data, fid = self.model, self.data, self.ee_frame_id
         fast = self._fast_maps
         th = self.A.dot(q)
         if fast.offset:
             th += self.b
+        if fast.kernel is not None:  # every term, the task-space dynamics included, compiled
+            terms = compiled_terms(self, fast, fast.kernel, q, dq, th)
+            self._last_terms = (key, terms)
+            return terms
+        model, data, fid = self.model, self.data, self.ee_frame_id
         pin.computeJointJacobians(model, data, th)
         J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
         x = data.oMf[fid].translation[fast.rows].copy()
-        if fast.kernel is not None:  # every term, the task-space dynamics included, in one compiled call
-            v = np.zeros(self.n) if dq is None else dq
-            Ct = pin.computeCoriolisMatrix(model, data, th, self.A.dot(v))
-            Mt = pin.crba(model, data, th)
-            gt = pin.computeGeneralizedGravity(model, data, th)
-            buf = np.empty(fast.size)
-            fast.kernel(J6, Mt, gt, Ct, self.A, fast.rows_idx, self.armature, fast.supports, fast.identity,
-                        not fast.crba_symmetric, np.ascontiguousarray(v, dtype=float), buf)
-            terms = DeviceTerms.from_buffer(self, q, dq, x, th, buf, fast.position_layout if dq is None else fast.layout)
-            self._last_terms = (key, terms)
-            return terms
         Mt = pin.crba(model, data, th)  # a chain with a joint that is not one-DoF
         if not fast.crba_symmetric:
             il = fast.tril
@@ -305,7 +299,7 @@ class Device:
     @lazy
     def _fast_maps(self) -> FastMaps:
         """Constant maps and flags of `terms`, built on first use."""
-        return fast_maps(self.model, self.A, self.b, self.armature, self._rows)
+        return fast_maps(self.model, self.ee_frame_id, self.A, self.b, self.armature, self._rows)
 
     def coriolis_theta(self, th: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """C_q (n, n) at chain coordinates θ: (nθ,) and q̇: (n,), unchecked (for `DeviceTerms.C`)."""

@@ -1,10 +1,12 @@
 """`DeviceTerms`: the kinematic and dynamic terms of a device at one state, and the constant maps behind them.
 
-`Device.terms` fills a `DeviceTerms` from one Pinocchio pass: for chains of one-DoF joints the
-compiled `rhi.terms_kernel.task_terms` writes every term (∂J/∂q in closed form from the 6-D
-frame Jacobian, the task-space dynamics of thesis eqs. 5.2 / 7.1) into one flat buffer the
-snapshot's attributes view; otherwise the task-space dynamics are computed on first access. Also the small
-numeric helpers the 1 kHz paths share: `eye`, `inv_small` and the `lazy` attribute.
+`Device.terms` fills a `DeviceTerms` from one pass: for trees of revolute/prismatic joints the
+compiled `rhi.chain_kernel` computes the chain's kinematics and dynamics (otherwise Pinocchio);
+for chains of one-DoF joints the compiled `rhi.terms_kernel.task_terms` writes every term
+(∂J/∂q in closed form from the 6-D frame Jacobian, the task-space dynamics of thesis eqs.
+5.2 / 7.1) into one flat buffer the snapshot's attributes view; otherwise the task-space
+dynamics are computed on first access. Also the small numeric helpers the 1 kHz paths
+share: `eye`, `inv_small` and the `lazy` attribute.
 """
 
 from __future__ import annotations
@@ -114,7 +116,8 @@ class FastMaps:
     crba_symmetric: bool
     rows_idx: np.ndarray  # (m,) int64 task rows of the 6-D frame Jacobian
     supports: np.ndarray | None  # (nθ, nθ) bool: chain joint k supports joint j (or is j); None: not all one-DoF
-    kernel: Callable | None  # rhi.terms_kernel.task_terms (with `supports`), else None
+    kernel: Callable | None  # rhi.chain_kernel.chain_terms (with `chain`), else rhi.terms_kernel.task_terms, else None
+    chain: tuple[np.ndarray, ...] | None  # rhi.chain_kernel.pack constants: trees of revolute/prismatic joints
     layout: dict[str, tuple[int, int, tuple[int, ...]]]  # where each term lies in the kernel's output
     position_layout: dict[str, tuple[int, int, tuple[int, ...]]]  # the same without the velocity terms
     size: int  # length of the kernel's output
@@ -270,11 +273,13 @@ class DeviceTerms:
         return f"DeviceTerms({self.device.name!r}, q={np.round(self.q, 4).tolist()})"
 
 
-def fast_maps(model: pin.Model, A: np.ndarray, b: np.ndarray, armature: np.ndarray, rows: list[int]) -> FastMaps:
+def fast_maps(model: pin.Model, frame_id: int, A: np.ndarray, b: np.ndarray, armature: np.ndarray,
+              rows: list[int]) -> FastMaps:
     """The constant maps and flags of `Device.terms` for a chain model with actuation map θ = A q + b.
 
     Args:
         model: Pinocchio model of the chain (nv = nθ).
+        frame_id: end-effector frame id in `model`.
         A: (nθ, n) actuation map.
         b: (nθ,) actuation offset.
         armature: (n,) rotor inertia [kg m²].
@@ -286,9 +291,10 @@ def fast_maps(model: pin.Model, A: np.ndarray, b: np.ndarray, armature: np.ndarr
     th = np.random.default_rng(0).uniform(-1.0, 1.0, nt)
     Mt = pin.crba(model, data, th)
     mask = hessian_mask(model)
-    from rhi import terms_kernel  # Numba: imported on the first `Device.terms`, not with `import rhi`
+    from rhi import batch, chain_kernel, terms_kernel  # Numba: imported on the first `Device.terms`, not with `import rhi`
 
     where, _, size = terms_kernel.layout(n, m)
+    chain = chain_kernel.pack(model, frame_id) if mask is not None and batch.supported(model) else None
     return FastMaps(
         rows=rows_idx,
         offset=bool(np.any(b != 0)),
@@ -299,11 +305,44 @@ def fast_maps(model: pin.Model, A: np.ndarray, b: np.ndarray, armature: np.ndarr
         crba_symmetric=bool(np.array_equal(Mt, Mt.T)) and bool(np.any(np.tril(Mt, -1) != 0) or nt == 1),
         rows_idx=np.array(rows, dtype=np.int64),
         supports=mask,
-        kernel=None if mask is None else terms_kernel.task_terms,
+        kernel=None if mask is None else chain_kernel.chain_terms if chain is not None else terms_kernel.task_terms,
+        chain=chain,
         layout=where,
         position_layout={k: v for k, v in where.items() if k not in ("xdot", "Jdot", "C", "Cx")},
         size=size,
     )
+
+
+def compiled_terms(device: Device, fast: FastMaps, kernel: Callable, q: np.ndarray, dq: np.ndarray | None,
+                   th: np.ndarray) -> DeviceTerms:
+    """Every term of one state, the task-space dynamics included, from compiled kernels.
+
+    Trees of revolute/prismatic joints (``fast.chain``): one `rhi.chain_kernel.chain_terms` call
+    computes Pinocchio's terms too; other one-DoF joints: Pinocchio's algorithms, then
+    `rhi.terms_kernel.task_terms`.
+
+    Args:
+        device: the device.
+        fast: its `FastMaps`.
+        kernel: ``fast.kernel``.
+        q: (n,) joint positions [rad or m].
+        dq: (n,) joint velocities [rad/s], or None.
+        th: (nθ,) chain coordinates θ = A q + b.
+    """
+    v = np.zeros(device.n) if dq is None else np.ascontiguousarray(dq, dtype=float)
+    buf = np.empty(fast.size)
+    if fast.chain is not None:
+        x = np.empty(fast.rows_idx.shape[0])
+        kernel(*fast.chain, th, device.A, fast.rows_idx, device.armature, fast.supports, fast.identity, v, x, buf)
+    else:
+        model, data, fid = device.model, device.data, device.ee_frame_id
+        pin.computeJointJacobians(model, data, th)
+        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
+        x = data.oMf[fid].translation[fast.rows].copy()
+        Ct = pin.computeCoriolisMatrix(model, data, th, device.A.dot(v))
+        kernel(J6, pin.crba(model, data, th), pin.computeGeneralizedGravity(model, data, th), Ct, device.A,
+                    fast.rows_idx, device.armature, fast.supports, fast.identity, not fast.crba_symmetric, v, buf)
+    return DeviceTerms.from_buffer(device, q, dq, x, th, buf, fast.position_layout if dq is None else fast.layout)
 
 
 def hessian_mask(model: pin.Model) -> np.ndarray | None:

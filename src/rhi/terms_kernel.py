@@ -1,7 +1,7 @@
-"""Compiled kernel behind `Device.terms`: every kinematic and dynamic term of one state from one Pinocchio pass.
+"""Compiled kernel behind `Device.terms`: the motor-coordinate and task-space terms of one state.
 
 `task_terms` maps the chain's 6-D frame Jacobian, inertia, gravity and Coriolis matrices
-(Pinocchio, chain coordinates θ = A q + b) to motor coordinates and computes the
+(`rhi.chain_kernel` or Pinocchio, chain coordinates θ = A q + b) to motor coordinates and computes the
 task-space dynamics of thesis eq. 5.2 (M_x, J#, C_x, G_x) in one call. Imported on the
 first `Device.terms` call, not with `rhi` (Numba's import and, once per machine, the
 compilation stay out of ``import rhi``).
