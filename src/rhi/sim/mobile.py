@@ -260,17 +260,21 @@ class MobilePlant:
             dq_arm: callable s ↦ (m,) or (m,) arm velocity reference [rad/s].
             duration: time to advance [s].
         """
-        k = max(1, int(round(duration / self.timestep)))
-        twist = self.realised_twist(np.asarray(wheels, dtype=float), duration)
-        d = self.data
+        h = self.timestep
+        k = max(1, int(round(duration / h)))
+        v0, v1, w = self.realised_twist(np.asarray(wheels, dtype=float), duration).tolist()
+        # everything the substeps reuse, fetched once (MjData's arrays never move); the arithmetic is unchanged
+        model, qpos, ctrl, step = self.model, self.data.qpos, self.data.ctrl, mujoco.mj_step
+        i_th, base, pos, vel = int(self._qadr[2]), self._base_act, self._pos_act, self._vel_act
+        q_fn, dq_fn = callable(q_arm), callable(dq_arm)
         for i in range(k):
-            s = (i + 1) * self.timestep
-            th = d.qpos[self._qadr[2]]
+            s = (i + 1) * h
+            th = qpos[i_th]
             c, sn = math.cos(th), math.sin(th)
-            d.ctrl[self._base_act] = (c * twist[0] - sn * twist[1], sn * twist[0] + c * twist[1], twist[2])
-            d.ctrl[self._pos_act] = q_arm(s) if callable(q_arm) else q_arm
-            d.ctrl[self._vel_act] = dq_arm(s) if callable(dq_arm) else dq_arm
-            mujoco.mj_step(self.model, d)
+            ctrl[base] = (c * v0 - sn * v1, sn * v0 + c * v1, w)
+            ctrl[pos] = q_arm(s) if q_fn else q_arm
+            ctrl[vel] = dq_arm(s) if dq_fn else dq_arm
+            step(model, self.data)
 
     def wheel_speeds(self, dq_b, theta_b: float) -> np.ndarray:
         """Wheel speeds (4,) [rad/s] realising the generalized base velocity dq_b = [ẋ_b, ẏ_b, θ̇_b] at heading θ_b (no slip)."""
