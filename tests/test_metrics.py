@@ -241,6 +241,7 @@ def test_two_row_closed_form_svd_matches_lapack(rng, n):
     np.testing.assert_allclose(np.abs(np.einsum("kij,kij->kj", U, U0))[gap], 1.0, atol=1e-9)
     np.testing.assert_array_equal(U[800:850], np.broadcast_to(np.eye(2), (50, 2, 2)))
     assert rm.manipulability(B[:1, :, :1]).shape == (1,)  # one column: LAPACK path, padded
+    np.testing.assert_allclose(principal_axes_of_map(B[2000:2005])[0], s[2000:2005], rtol=1e-14)  # few: LAPACK
 
 
 def test_velocity_transmission_and_reflected_friction(rng):

@@ -142,9 +142,19 @@ def _pad_axes(s: FloatArray, m: int) -> FloatArray:
     return s if k >= m else np.concatenate([s, np.zeros(s.shape[:-1] + (m - k,))], axis=-1)
 
 
+#: Two-row maps in batches of at least this many take the closed-form SVD (`rhi.metrics._svd2`): its few dozen
+#: array operations cost more than LAPACK for a handful of matrices and less from about 50 on.
+SVD2_MIN_BATCH = 64
+
+
+def _closed_form(B: FloatArray) -> bool:
+    """Whether B (..., m, n) is a batch of two-row maps large enough for the closed-form SVD."""
+    return B.shape[-2] == 2 and B.shape[-1] >= 2 and B.size >= SVD2_MIN_BATCH * 2 * B.shape[-1]
+
+
 def singular_values(B: FloatArray) -> FloatArray:
     """Descending semi-axis lengths (..., m) of the ellipsoid ``B B^T``, as in `principal_axes_of_map`."""
-    if B.shape[-2] == 2 and B.shape[-1] >= 2:
+    if _closed_form(B):
         return singular_values2(B)
     return _pad_axes(np.linalg.svd(B, compute_uv=False), B.shape[-2])
 
@@ -155,10 +165,10 @@ def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
     Returns:
         ``(s, U)``: ``s`` (..., m) descending semi-axis lengths (zero-padded when the map
         has fewer columns than rows) and ``U`` (..., m, m) orthonormal directions as columns.
-        Two-row maps (planar tasks) take the closed form of `rhi.metrics._svd2` (LAPACK's values
-        to round-off; each direction up to its sign, as LAPACK's own).
+        Batches of two-row maps (planar tasks) take the closed form of `rhi.metrics._svd2` (LAPACK's
+        values to round-off; each direction up to its sign, as LAPACK's own).
     """
-    if B.shape[-2] == 2 and B.shape[-1] >= 2:
+    if _closed_form(B):
         return svd2(B)
     U, s, _ = np.linalg.svd(B, full_matrices=True)
     return _pad_axes(s, B.shape[-2]), U
