@@ -9,7 +9,7 @@ import pytest
 from conftest import fd_jacobian, random_q
 
 from rhi.control import VMEMatching
-from rhi.errors import Unreachable
+from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments import ch3
 from rhi.report.reproduce import reproduce
 
@@ -83,3 +83,19 @@ def test_reproduce_writes_report(tmp_path):
     assert any(p.suffix == ".png" for p in (tmp_path / "figures").iterdir())
     with pytest.raises(Exception, match="only"):
         reproduce(tmp_path, only="ch99")
+    with pytest.raises(InvalidInput, match="jobs"):
+        reproduce(tmp_path, only="ch3", jobs=0)
+
+
+def test_reproduce_in_parallel_equals_one_after_the_other(tmp_path, monkeypatch):
+    """Experiments in worker processes (jobs=2) give the report one process gives (jobs=1), in the same order."""
+    from rhi.report import reproduce as rep
+
+    monkeypatch.setattr(rep, "STEPS", [s for s in rep.STEPS if s.name in ("ch3.table_3_1", "ch3.sysid_table_3_2")])
+    out = {}
+    for jobs in (1, 2):
+        reproduce(tmp_path / str(jobs), only="ch3", quick=True, jobs=jobs)
+        out[jobs] = json.loads((tmp_path / str(jobs) / "results.json").read_text())
+        assert out[jobs]["meta"]["jobs"] == jobs
+    assert [r["name"] for r in out[2]["results"]] == ["ch3.table_3_1", "ch3.sysid_table_3_2"]
+    assert out[1]["results"] == out[2]["results"]

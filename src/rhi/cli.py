@@ -73,7 +73,8 @@ def _reproduce(args: argparse.Namespace) -> int:
     out = args.out or (str(Path("out") / name) if name else "out")
     configure(executor=args.executor, address=args.address, workers=args.workers,
               checkpoint_dir=str(Path(out) / "checkpoints"))
-    path, results = reproduce(out, only=getattr(args, "only", None), quick=args.quick, experiment=name)
+    path, results = reproduce(out, only=getattr(args, "only", None), quick=args.quick, experiment=name,
+                              jobs=getattr(args, "jobs", None))
     for res in results:
         for table in res.tables:
             print(f"\n{res.name}: {table.title}")
@@ -300,6 +301,8 @@ def main(argv: list[str] | None = None) -> int:
     m.set_defaults(func=_measure)
     r = sub.add_parser("reproduce", help="reproduce the thesis's computational tables and figures into a report")
     r.add_argument("--only", help="one chapter, e.g. ch3")
+    r.add_argument("--jobs", type=int, help="experiments run at once, each in its own process (default: CPU count; "
+                   "1: one after the other, with per-experiment progress bars)")
     e = sub.add_parser("experiment", help="run one experiment: PNG figures, CSV/JSON numbers, thesis beside ours")
     e.add_argument("name", nargs="?", help="experiment id (its result's name), e.g. ch7.example_3dof (none: list them)")
     e.add_argument("--list", action="store_true", help="list the experiments")

@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
+import multiprocessing
+import os
 import platform
 import sys
 import time
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from rhi.design.executors import shared
+from rhi.design.executors import DEFAULTS, configure, shared
 from rhi.errors import InvalidInput, RhiError
 from rhi.experiments import appa as exa, appb as exb, ch3 as ex3, ch4 as ex4, ch5 as ex5, ch6 as ex6, ch7 as ex7
 from rhi.experiments.beyond import (
@@ -167,8 +171,26 @@ def _report_progress(i: int, total: int, name: str, t_step: float, t0: float) ->
     print(f"[{i}/{total}] {name} done in {t_step:.1f} s; elapsed {elapsed:.0f} s, ETA {eta:.0f} s", flush=True)
 
 
+def _run_step(name: str, quick: bool) -> tuple[Result, float]:
+    """Run the step `name` (in a worker process of a parallel reproduction): (result, wall time [s])."""
+    s = next(s for s in STEPS if s.name == name)
+    t = time.perf_counter()
+    with shared():  # closed before the worker exits (an open pool's processes would keep it alive)
+        res = s.run(**(s.quick if quick else s.full))
+    return res, time.perf_counter() - t
+
+
+def _longest_first(steps: list[Step], out: Path) -> list[Step]:
+    """Steps by the wall time a previous run in `out` recorded (results.json), longest first; else as listed."""
+    try:
+        seconds = json.loads((out / "results.json").read_text())["meta"]["seconds_per_experiment"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return steps
+    return sorted(steps, key=lambda s: -float(seconds.get(s.name, 0.0)))
+
+
 def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool = False,
-              experiment: str | None = None) -> tuple[Path, list[Result]]:
+              experiment: str | None = None, jobs: int | None = None) -> tuple[Path, list[Result]]:
     """Run the experiments (all, one chapter or one experiment) and write out/report.html + out/results.json.
 
     Args:
@@ -176,7 +198,15 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         only: chapter id such as "ch3".
         quick: reduced resolution (seconds instead of minutes).
         experiment: one experiment id such as "ch7.example_3dof" (or its function name).
+        jobs: experiments run at once, each in its own process (None: one per CPU; 1: in this process).
+            The results do not depend on it; a previous run's times in `out` order the queue longest first.
+            With the Ray executor (`rhi.design.executors.configure`) the experiments run one at a time.
+
+    Raises:
+        InvalidInput: an unknown chapter or experiment, or `jobs` not a positive integer.
     """
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise InvalidInput(f"jobs: must be a positive integer or None, got {jobs!r}")
     steps = [s for s in STEPS if only is None or s.chapter == only]
     if not steps:
         raise InvalidInput(f"only: unknown chapter {only!r}; available: {', '.join(chapters())}")
@@ -184,33 +214,47 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         steps = [s for s in steps if experiment in step_names(s)]
         if not steps:
             raise InvalidInput(f"experiment: unknown experiment {experiment!r}; available: {', '.join(experiments())}")
-    done: list[tuple[str, Result, dict]] = []
+    if DEFAULTS["executor"] == "ray":  # the cluster parallelises the maps; one driver runs the experiments
+        jobs = 1
+    jobs = min(jobs or os.cpu_count() or 1, len(steps))
+    results: dict[str, Result] = {}
     seconds: dict[str, float] = {}  # wall time of each experiment (without its figures), for results.json
     t0 = time.perf_counter()
     cols = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
             TimeElapsedColumn())
-    with Progress(*cols) as bar, shared():
+
+    def finished(s: Step, res: Result, t_step: float) -> None:
+        if res.name != s.name:  # the registry's invariant: an experiment's id is its result's name
+            raise RhiError(f"experiment: {s.name} returned a result named {res.name!r}")
+        results[s.name], seconds[s.name] = res, round(t_step, 2)
+        bar.advance(overall)
+        if not sys.stdout.isatty():
+            _report_progress(len(results), len(steps), s.name, t_step, t0)
+
+    with Progress(*cols) as bar:
         overall = bar.add_task("reproduction", total=len(steps))
-        for i, s in enumerate(steps, 1):
-            t_step = time.perf_counter()
-            kwargs = dict(s.quick if quick else s.full)
-            if s.progress:
-                sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
-                kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
-            res = s.run(**kwargs)
-            if res.name != s.name:  # the registry's invariant: an experiment's id is its result's name
-                raise RhiError(f"experiment: {s.name} returned a result named {res.name!r}")
-            seconds[s.name] = round(time.perf_counter() - t_step, 2)
-            figs = {name: functools.partial(draw, res) for name, draw in s.figures.items()}
-            done.append((s.chapter, res, figs))
-            bar.advance(overall)
-            if not sys.stdout.isatty():
-                _report_progress(i, len(steps), s.name, time.perf_counter() - t_step, t0)
+        if jobs == 1:
+            with shared():
+                for s in steps:
+                    t_step = time.perf_counter()
+                    kwargs = dict(s.quick if quick else s.full)
+                    if s.progress:
+                        sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
+                        kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
+                    finished(s, s.run(**kwargs), time.perf_counter() - t_step)
+        else:
+            ctx = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=functools.partial(configure, **DEFAULTS)) as pool:
+                running = {pool.submit(_run_step, s.name, quick): s for s in _longest_first(steps, Path(out))}
+                for fut in as_completed(running):
+                    finished(running[fut], *fut.result())
+    done: list[tuple[str, Result, dict]] = [
+        (s.chapter, results[s.name], {name: functools.partial(draw, results[s.name]) for name, draw in s.figures.items()})
+        for s in steps]
     meta = {"mode": "quick" if quick else "full", "chapters": only or ", ".join(chapters()),
-            "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version(),
+            "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version(), "jobs": jobs,
             "seconds_per_experiment": seconds}
     path = write_report(done, out, meta=meta)
-    results = [r for _, r, _ in done]
     print("\nHeadline claims of the thesis (details in report.html):")
-    print(headline.to_text(headline.evaluate(CLAIMS, results)))
-    return path, results
+    print(headline.to_text(headline.evaluate(CLAIMS, [r for _, r, _ in done])))
+    return path, [r for _, r, _ in done]
