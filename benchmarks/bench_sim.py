@@ -32,7 +32,12 @@ import mujoco
 import numpy as np
 
 import rhi
-from rhi.sim import Hand, HandPath, Plant, Wall, simulate
+from rhi.sim import Hand, Plant, Wall, simulate
+
+try:
+    from rhi.sim import HandPath
+except ImportError:  # the previous implementation (--previous) predates the name HandPath
+    from rhi.sim import Path as HandPath  # type: ignore[attr-defined,no-redef]
 
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 TARGET = 25.0
