@@ -72,7 +72,7 @@ def _reproduce(args: argparse.Namespace) -> int:
     name = getattr(args, "name", None)
     out = args.out or (str(Path("out") / name) if name else "out")
     configure(executor=args.executor, address=args.address, workers=args.workers,
-              checkpoint_dir=str(Path(out) / "checkpoints"))
+              checkpoint_dir=str(Path(out) / "checkpoints" / ("quick" if args.quick else "full")))  # one problem per file
     path, results = reproduce(out, only=getattr(args, "only", None), quick=args.quick, experiment=name,
                               jobs=getattr(args, "jobs", None))
     for res in results:

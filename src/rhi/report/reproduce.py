@@ -246,8 +246,12 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
             ctx = multiprocessing.get_context("spawn")
             with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=functools.partial(configure, **DEFAULTS)) as pool:
                 running = {pool.submit(_run_step, s.name, quick): s for s in _longest_first(steps, Path(out))}
-                for fut in as_completed(running):
-                    finished(running[fut], *fut.result())
+                try:
+                    for fut in as_completed(running):
+                        finished(running[fut], *fut.result())
+                except BaseException:  # an experiment failed (or Ctrl-C): the queued ones do not run
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    raise
     done: list[tuple[str, Result, dict]] = [
         (s.chapter, results[s.name], {name: functools.partial(draw, results[s.name]) for name, draw in s.figures.items()})
         for s in steps]
