@@ -121,7 +121,7 @@ def _matvec(F, x):
 
 
 # --------------------------------------------------------------- the model
-def _joint_axis(jm) -> tuple[bool, np.ndarray] | None:
+def joint_axis(jm) -> tuple[bool, np.ndarray] | None:
     """(revolute?, unit axis in the joint frame) of a one-DoF joint model, None if not supported."""
     name = jm.shortname()
     if jm.nq != 1 or jm.nv != 1:
@@ -140,7 +140,7 @@ def supported(model: pin.Model) -> bool:
     """Whether `BatchChain` handles `model`: every joint revolute or prismatic with one DoF."""
     if model.njoints - 1 != model.nv:
         return False
-    return all(_joint_axis(model.joints[j]) is not None and model.joints[j].idx_v == j - 1
+    return all(joint_axis(model.joints[j]) is not None and model.joints[j].idx_v == j - 1
                for j in range(1, model.njoints))
 
 
@@ -179,7 +179,7 @@ class BatchChain:
         self.parent = [model.parents[j] - 1 for j in range(1, nt + 1)]
         self.revolute, U = [], []
         for j in range(nt):
-            axis = _joint_axis(model.joints[j + 1])
+            axis = joint_axis(model.joints[j + 1])
             if axis is None:  # supported() checked every joint
                 raise ModelError(f"model: joint {j + 1} is not a one-DoF revolute/prismatic joint")
             rev, a = axis

@@ -29,9 +29,9 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from rhi.batch import _joint_axis
+from rhi.batch import joint_axis
 from rhi.errors import ModelError
-from rhi.terms_kernel import _jit, task_terms
+from rhi.terms_kernel import _jit, dot, task_terms
 
 #: per-joint constant columns of `pack`'s float array: placement rotation (9), translation (3),
 #: joint axis (3), body mass (1), centre of mass (3), rotational inertia about it (9), armature (1)
@@ -54,7 +54,7 @@ def pack(model: pin.Model, frame_id: int) -> tuple[np.ndarray, np.ndarray, np.nd
     ints = np.empty(2 * nt + 1, dtype=np.int64)
     joints = np.empty((nt, _WIDTH))
     for j in range(nt):
-        joint = _joint_axis(model.joints[j + 1])
+        joint = joint_axis(model.joints[j + 1])
         if joint is None:
             raise ModelError(f"model: joint {j + 1} is not a one-DoF revolute/prismatic joint")
         revolute, axis = joint
@@ -96,14 +96,6 @@ def _mv(A, v, out):
         for j in range(A.shape[1]):
             s += A[i, j] * v[j]
         out[i] = s
-
-
-@_jit
-def _dot(a, b):
-    s = 0.0
-    for i in range(a.shape[0]):
-        s += a[i] * b[i]
-    return s
 
 
 @_jit
@@ -241,7 +233,7 @@ def chain_dynamics(ints, joints, consts, th, dth):
         g[k] = -s
         for j in range(k + 1):
             if sup[j, k]:
-                M[j, k] = M[k, j] = _dot(S[j], F[k])
+                M[j, k] = M[k, j] = dot(S[j], F[k])
         M[k, k] += joints[k, _ARM]
     # ∂M_jk/∂θ_i (D[i, j, k]) for j supporting k, mirrored
     X = np.empty((nt, nt, 6))  # X[i, j] = S_i × S_j
@@ -262,9 +254,9 @@ def chain_dynamics(ints, joints, consts, th, dth):
                 if sup[i, j]:
                     continue
                 if sup[i, k]:
-                    d = -_dot(X[i, j], F[k])
+                    d = -dot(X[i, j], F[k])
                 elif sup[k, i]:
-                    d = -_dot(X[i, j], Y[i, k]) - _dot(S[j], Z[i, k])
+                    d = -dot(X[i, j], Y[i, k]) - dot(S[j], Z[i, k])
                 else:
                     continue
                 D[i, j, k] = D[i, k, j] = d
