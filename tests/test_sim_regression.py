@@ -12,6 +12,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
 import rhi
 from rhi.control import (
@@ -72,11 +73,28 @@ def test_path_segment_lookup_matches_linear_scan():
         np.testing.assert_allclose(v, 0.05 * u, atol=1e-15)
 
 
+def _screw_device() -> rhi.Device:
+    """A chain with a helical joint: not a tree of revolute/prismatic joints (Pinocchio paths)."""
+    model = pin.Model()
+    jid = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "hinge")
+    offset = pin.SE3(np.eye(3), np.array([0.3, 0.0, 0.0]))
+    jid = model.addJoint(jid, pin.JointModelHZ(0.05), offset, "screw")
+    model.appendBodyToJoint(jid, pin.Inertia.FromBox(1.0, 0.1, 0.2, 0.3), pin.SE3.Identity())
+    model.addFrame(pin.Frame("tip", jid, 0, offset, pin.FrameType.OP_FRAME))
+    return rhi.Device(model, name="screw", ee_frame="tip", torque_max=[1.0, 1.0])
+
+
 def test_loop_kinematics_equal_device_terms():
-    """The loop's FK with velocities (virtual environment, teleoperation) against Device.terms on every device."""
+    """The loop's FK with velocities (virtual environment, teleoperation) against Device.terms on every device.
+
+    Bundled devices take the compiled kernel, the helical chain Pinocchio's forward kinematics.
+    """
     rng = np.random.default_rng(7)
-    for name in rhi.available_devices():
-        dev = rhi.device(name)
+    devices = [rhi.device(name) for name in rhi.available_devices()] + [_screw_device()]
+    assert all(Kinematics(dev)._compiled is not None for dev in devices[:-1])
+    assert Kinematics(devices[-1])._compiled is None
+    for dev in devices:
+        name = dev.name
         kin = Kinematics(dev)
         for _ in range(3):
             q, dq = rng.uniform(-0.5, 0.5, dev.n), rng.normal(size=dev.n)

@@ -17,6 +17,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from rhi import batch
 from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.sim.log import Log, LogWriter, layout
@@ -275,9 +276,11 @@ def _record(recorded: dict[str, list], values: dict, columns: dict, k: int) -> N
 class Kinematics:
     """The handle position and velocity on the controller's model, from the encoders.
 
-    What a haptic rendering loop computes before its controller runs: one Pinocchio forward-kinematics
-    pass with velocities, on a `pin.Data` of its own (the device's and its `terms` snapshot stay
-    untouched). Equal to `Device.fk(q)` and `Device.terms(q, dq).xdot` (to rounding).
+    What a haptic rendering loop computes before its controller runs, leaving the device's
+    `terms` snapshot untouched: for trees of one-DoF revolute/prismatic joints one compiled call
+    (`rhi.sim.handle_kernel`, on the constants of `rhi.chain_kernel.pack`), otherwise one
+    Pinocchio forward-kinematics pass with velocities on a `pin.Data` of its own. Equal to
+    `Device.fk(q)` and `Device.terms(q, dq).xdot` (to rounding).
 
     Args:
         device: the controller's device.
@@ -285,18 +288,30 @@ class Kinematics:
 
     def __init__(self, device) -> None:
         self.model = device.model
-        self.data = device.model.createData()
         self.frame = device.model.getFrameId(device.ee_frame)
         self.rows = np.array(device.task_rows)
-        self.A = device.A
-        self.b = device.b if np.any(device.b != 0) else None
+        self.A = np.ascontiguousarray(device.A, dtype=float)
+        self.b = np.ascontiguousarray(device.b, dtype=float)
+        self.m = len(self.rows)
+        self._compiled = None
+        if batch.supported(self.model):
+            from rhi.chain_kernel import pack
+            from rhi.sim.handle_kernel import handle_state
+
+            ints, joints, consts = pack(self.model, self.frame)
+            self._compiled = (handle_state, np.concatenate([ints, self.rows]).astype(np.int64), joints,
+                              np.concatenate([consts[:12], self.b, self.A.ravel()]))
+        else:
+            self.data = device.model.createData()
 
     def __call__(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """x: (m,) [m] and ẋ: (m,) [m/s] at motor angles q: (n,) [rad] and velocities dq: (n,) [rad/s]."""
+        if self._compiled is not None:
+            kernel, ints, joints, fc = self._compiled
+            out = np.empty((2, self.m))
+            kernel(ints, joints, fc, q, dq, out)
+            return out[0], out[1]
         model, data, f, A, rows = self.model, self.data, self.frame, self.A, self.rows
-        th = A.dot(q)
-        if self.b is not None:
-            th += self.b
-        pin.forwardKinematics(model, data, th, A.dot(dq))
+        pin.forwardKinematics(model, data, A.dot(q) + self.b, A.dot(dq))
         x = pin.updateFramePlacement(model, data, f).translation[rows]
         return x, pin.getFrameVelocity(model, data, f, pin.LOCAL_WORLD_ALIGNED).linear[rows]
