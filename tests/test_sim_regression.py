@@ -24,8 +24,8 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
-from rhi.sim import Hand, HandPath, Plant, Wall, simulate
-from rhi.sim.loop import Kinematics
+from rhi.sim import Hand, HandPath, Plant, Wall, simulate, stop
+from rhi.sim.loop import Kinematics, Session
 
 REFERENCE = Path(__file__).parent / "data" / "sim_palpation_rhi4.npz"
 FIELDS = ["t", "q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "ft", "work", "V", "omega", "alpha", "beta"]
@@ -141,3 +141,47 @@ def test_contact_stage_skipped_only_when_nothing_collides(rhi4):
             rows.append(np.r_[plant.q, plant.dq, plant.ft()])
         traj.append(np.array(rows))
     np.testing.assert_array_equal(traj[0], traj[1])
+
+
+class _PythonHand(Hand):
+    """A `Hand` the session does not recognise: its physical steps call `Hand.force` (the reference)."""
+
+
+def test_compiled_hand_steps_equal_hand_force():
+    """The session's compiled hand/wall step against `Hand.force` + `Wall.force` called at every step.
+
+    A saturating hand that waits, moves along three segments and holds, pushing the handle into a
+    physical stop: every branch of the kernel (hold, segment, saturation, wall contact).
+    """
+    dev = rhi.device("rhi4")
+    x0 = dev.fk(Q0)
+    P = [x0, x0 + [0.0, 0.004], x0 + [0.004, 0.004], x0 + [0.004, 0.012]]
+    wall = stop(x0 + [0.0, 0.006], [0, 1], stiffness=5000.0, damping=20.0)
+    runs = []
+    for cls in (Hand, _PythonHand):
+        hand = cls(HandPath(P, speed=0.05, start=0.05), stiffness=400.0, damping=8.0, max_force=1.0)
+        plant = Plant(dev)
+        plant.reset(Q0)
+        sess = Session(plant, hand=hand, physical=wall)
+        rows, saturated = [], 0
+        for _ in range(600):
+            assert sess.advance(np.zeros(4)) is None
+            saturated += bool(np.linalg.norm(sess.F_hand) > 1.0 - 1e-9)
+            rows.append(np.r_[sess.t, sess.work, sess.F_hand, plant.x, plant.xdot, plant.ft()])
+        assert (sess._fused_for[0] is hand) == (cls is Hand)
+        runs.append(np.array(rows))
+        assert 0 < saturated < 600
+    assert np.max(runs[0][:, 5]) > wall.point[1]  # the handle went into the stop
+    np.testing.assert_allclose(runs[0], runs[1], rtol=0, atol=1e-12)
+
+
+def test_compiled_hand_reports_non_finite_force():
+    dev = rhi.device("rhi4")
+    plant = Plant(dev)
+    plant.reset(Q0)
+    hand = Hand(HandPath([dev.fk(Q0)]), stiffness=1e308, max_force=None)
+    sess = Session(plant, hand=hand)
+    sess.plant.data.qvel[:] = 1.0
+    mujoco.mj_forward(plant.model, plant.data)
+    fault = sess.advance(np.zeros(4))
+    assert fault is not None and "non-finite force" in fault and sess.fault == fault

@@ -1,16 +1,19 @@
-"""Compiled handle kinematics for the simulation loop: x and ẋ of the end-effector from the encoders.
+"""Compiled kernels of the simulation loop: the handle's kinematics and the hand's force per physics step.
 
-What a haptic rendering loop computes before its controller runs (the virtual environment's
-input): forward kinematics of a tree of one-DoF revolute/prismatic joints packed by
+`handle_state` is what a haptic rendering loop computes before its controller runs (the virtual
+environment's input): forward kinematics of a tree of one-DoF revolute/prismatic joints packed by
 `rhi.chain_kernel.pack`, the end-effector point p and its velocity ṗ = Σ_j J_j θ̇_j over the
 joints j supporting the frame, with the linear Jacobian column J_j = ω_j × (p − o_j) for a
 revolute joint and ω_j for a prismatic one (ω_j = R_j a_j the joint's world axis, o_j its
-origin). The same recursion as `rhi.chain_kernel` (Pinocchio's conventions), without the
-inertias, the Jacobian's angular rows or the dynamics. Imported by `rhi.sim.loop.Kinematics`,
-not with ``import rhi`` (Numba).
+origin); the same recursion as `rhi.chain_kernel` (Pinocchio's conventions) without the
+inertias, the Jacobian's angular rows or the dynamics. `hand_step` is `rhi.sim.Hand.force` plus
+a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
+handle's applied force in the same call. Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -104,3 +107,91 @@ def handle_state(ints, joints, fc, q, dq, out):
         r = ints[2 * nt + 1 + i]
         out[0, i] = pt[r]
         out[1, i] = v[r]
+
+
+def hand_constants(hand, wall) -> np.ndarray:
+    """The flat constants of `hand_step` for a `rhi.sim.Hand` and a physical `rhi.sim.Wall` (or None).
+
+    Layout: k, m, start [s], speed [m/s], K_h [N/m], B_h [N s/m], max |F_h| [N] (inf: none), then the
+    wall flag (1/0), its point (m,) [m], normal (m,), K_e [N/m] and B_e [N s/m] (zeros without a wall),
+    then the path's arc lengths (k,) [m], its points (k, m) [m] and segment directions (k − 1, m).
+    """
+    path = hand.path
+    P = np.asarray(path.points, dtype=float)
+    k, m = P.shape
+    head = [k, m, path.start, path.speed, hand.stiffness, hand.damping,
+            np.inf if hand.max_force is None else hand.max_force]
+    w = ([1.0, *wall.point.tolist(), *wall.normal.tolist(), wall.stiffness, wall.damping] if wall is not None
+         else [0.0] * (2 * m + 3))
+    return np.concatenate([head, w, path._s, P.ravel(), np.ravel(path._u)]).astype(float)
+
+
+@_jit
+def hand_step(t, sd, idx, c, F, xfrc, acc):
+    """The hand's force (and a physical wall's) on the handle for one physics step, from MuJoCo's sensors.
+
+    First adds the user's work of the previous step, acc[1] · F_h·ẋ (F the previous step's hand
+    force, ẋ the handle velocity now, acc[1] the timestep) to acc[0] when acc[2] is nonzero; then
+    F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) at the reference x_r, ẋ_r of the path at time t (saturated
+    at max |F_h|), as `rhi.sim.Hand.force`, plus the wall's −max(K_e d + B_e ḋ, 0) n while
+    d = nᵀ(x − point) > 0, as `rhi.sim.Wall.force`.
+
+    Args:
+        t: time [s].
+        sd: MuJoCo's sensordata.
+        idx: (3 m,) int64: the handle position's and velocity's sensordata indices, then the task rows
+            of the applied force.
+        c: `hand_constants`.
+        F: (m,) in: the previous hand force [N]; out: the hand force F_h [N].
+        xfrc: (6,) the handle body's applied force and torque: the total force written on the task rows [N].
+        acc: (3,) work so far [J], timestep [s], whether to add the previous step's work.
+
+    Returns:
+        |F_total|² [N²] (not finite: a non-finite force, written to xfrc all the same).
+    """
+    k, m = int(c[0]), int(c[1])
+    if acc[2] != 0.0:
+        wd = 0.0
+        for j in range(m):
+            wd += F[j] * sd[idx[m + j]]
+        acc[0] += wd * acc[1]
+    start, speed, K, B, fmax = c[2], c[3], c[4], c[5], c[6]
+    o = 7 + 2 * m + 3  # the path's arc lengths
+    s, P, U = c[o:o + k], c[o + k:o + k + k * m], c[o + k + k * m:]
+    i, dd, moving = 0, 0.0, False
+    if k > 1 and t > start:
+        d = (t - start) * speed
+        if d >= s[k - 1]:
+            i = k - 1
+        else:
+            i = np.searchsorted(s, d, side="right") - 1  # the segment holding d (zero-length ones skipped)
+            dd, moving = d - s[i], True
+    for j in range(m):
+        u = U[i * m + j] if moving else 0.0
+        v = speed * u if moving else 0.0
+        F[j] = K * ((P[i * m + j] + dd * u) - sd[idx[j]]) + B * (v - sd[idx[m + j]])
+    if fmax < np.inf:
+        ss = 0.0
+        for j in range(m):
+            ss += F[j] * F[j]
+        nf = math.hypot(F[0], F[1]) if m == 2 else math.sqrt(ss)
+        if nf > fmax:
+            r = fmax / nf
+            for j in range(m):
+                F[j] = F[j] * r
+    push = 0.0
+    if c[7] != 0.0:
+        depth = 0.0
+        for j in range(m):
+            depth += (sd[idx[j]] - c[8 + j]) * c[8 + m + j]
+        if depth > 0:
+            rate = 0.0
+            for j in range(m):
+                rate += sd[idx[m + j]] * c[8 + m + j]
+            push = max(c[8 + 2 * m] * depth + c[9 + 2 * m] * rate, 0.0)
+    n2 = 0.0
+    for j in range(m):
+        f = F[j] - push * c[8 + m + j] if push != 0.0 else F[j]
+        xfrc[idx[2 * m + j]] = f
+        n2 += f * f
+    return n2

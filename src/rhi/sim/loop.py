@@ -20,6 +20,8 @@ import pinocchio as pin
 from rhi import batch
 from rhi._validate import scalar
 from rhi.errors import InvalidInput
+from rhi.sim.environment import Wall
+from rhi.sim.hand import Hand
 from rhi.sim.log import Log, LogWriter, layout
 from rhi.sim.plant import Plant, unstable
 from rhi.sim.telemetry import Telemetry
@@ -85,6 +87,12 @@ class Session:
         # the plant's persistent MjData views and indices (see `Plant.step`), fetched once
         p = plant
         self._mj = (p.model, p.data, p._sd, p._pos, p._vel, p._xfrc, p._task, p._wnum, *p._bad)
+        # the compiled hand's buffers (`_steps_compiled`): its force, (work, timestep, add flag), sensor indices
+        self._F = np.zeros(plant.m)
+        self._acc = np.array([0.0, plant.timestep, 0.0])
+        self._idx = np.concatenate([p._pos, p._vel, p._task]).astype(np.int64)
+        self._fused: tuple = ()
+        self._fused_for: tuple = (None, None)
 
     def advance(self, tau: np.ndarray, x_master: np.ndarray | None = None) -> str | None:
         """Apply τ: (n,) [N m] for one control period; returns the fault that stopped it, if any.
@@ -93,13 +101,27 @@ class Session:
         """
         if self.fault is not None:
             return self.fault
-        hand, phys, h = self.hand, self.physical, self.plant.timestep
         # The torque is set once for the period, the handle force on the task axes at every physics step
         # (or zero), then mj_step2 + mj_step1 with the divergence check.
+        self.plant.apply(tau)
+        hand, phys = self.hand, self.physical
+        if type(hand) is Hand and (phys is None or type(phys) is Wall) and self._fusable(hand, phys):
+            fault = self._steps_compiled(hand, phys)
+        else:
+            fault = self._steps(hand, phys)
+        if fault is not None:
+            return self._stop(fault)
+        self.t += self.dt
+        if self.teleop is not None and x_master is not None:
+            self.slave_x = self.teleop.follow(x_master, self.dt)
+        return None
+
+    def _steps(self, hand, phys) -> str | None:
+        """The period's physics steps with any hand and physical environment (their `force` methods)."""
+        h = self.plant.timestep
         model, data, sd, pos, vel, xfrc, task, wn, i, j, k = self._mj
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2
         forces = hand is not None or phys is not None
-        self.plant.apply(tau)
         F_h = self._zero
         t0 = self.t
         work = self.work
@@ -114,23 +136,62 @@ class Session:
                     F = phys.force(x, xdot)
                 if not math.isfinite(F.dot(F)):
                     self.work = work
-                    return self._stop(f"hand/environment: non-finite force {np.asarray(F).tolist()} on the "
-                                      f"handle at t={t0 + s * h:.4f} s")
+                    return (f"hand/environment: non-finite force {np.asarray(F).tolist()} on the "
+                            f"handle at t={t0 + s * h:.4f} s")
                 xfrc[task] = F
             step2(model, data)
             step1(model, data)
             if wn[i] or wn[j] or wn[k]:
                 self.work = work
-                return self._stop(str(unstable(t0 + s * h)))
+                return str(unstable(t0 + s * h))
             if forces:
                 xdot = sd[vel]  # the velocity after the step: the user's work, the next step's hand
                 if hand is not None:
                     work += float(F_h.dot(xdot)) * h
         self.work = work
-        self.t = t0 + self.dt
         self.F_hand = F_h
-        if self.teleop is not None and x_master is not None:
-            self.slave_x = self.teleop.follow(x_master, self.dt)
+        return None
+
+    def _fusable(self, hand: Hand, phys: Wall | None) -> bool:
+        """Whether `_steps_compiled` serves this hand and wall (their dimension is the plant's)."""
+        if self._fused_for[0] is hand and self._fused_for[1] is phys:
+            return True
+        m = self.plant.m
+        if hand.path.points.shape[1] != m or (phys is not None and phys.point.shape != (m,)):
+            return False  # `_steps` raises the hand's or the wall's error
+        from rhi.sim.handle_kernel import hand_constants, hand_step
+
+        self._fused = (hand_step, hand_constants(hand, phys))
+        self._fused_for = (hand, phys)
+        return True
+
+    def _steps_compiled(self, hand: Hand, phys: Wall | None) -> str | None:
+        """`_steps` for a `Hand` and a physical `Wall` (or none): one compiled call per physics step.
+
+        The same arithmetic as `Hand.force` and `Wall.force` (`rhi.sim.handle_kernel.hand_step`), with the
+        handle's state read from MuJoCo's sensors and the force written to its applied force in that call.
+        """
+        kernel, c = self._fused
+        h = self.plant.timestep
+        model, data, sd, pos, vel, xfrc, task, wn, i, j, k = self._mj
+        step1, step2 = mujoco.mj_step1, mujoco.mj_step2
+        F, acc, idx = self._F, self._acc, self._idx
+        acc[0], acc[2] = self.work, 0.0
+        t0 = self.t
+        for s in range(self.sub):
+            n2 = kernel(t0 + s * h, sd, idx, c, F, xfrc, acc)  # adds the previous step's work (acc[2] = 1)
+            if not math.isfinite(n2):
+                self.work = float(acc[0])
+                return (f"hand/environment: non-finite force {xfrc[task].tolist()} on the "
+                        f"handle at t={t0 + s * h:.4f} s")
+            acc[2] = 1.0
+            step2(model, data)
+            step1(model, data)
+            if wn[i] or wn[j] or wn[k]:
+                self.work = float(acc[0])
+                return str(unstable(t0 + s * h))
+        self.work = float(acc[0]) + float(F.dot(sd[vel])) * h
+        self.F_hand = F.copy()
         return None
 
     def _stop(self, why: str) -> str:
