@@ -81,16 +81,61 @@ def test_batch_terms_equal_pinocchio(name):
     _assert_equal_to_pinocchio(dev, Q, got)
 
 
-def test_batch_leading_axes_and_chunks(monkeypatch):
+def test_batch_leading_axes_blocks_and_subsets():
+    """Leading batch axes, a last block of the compiled loop that is partial, and any subset of terms."""
+    from rhi.batch_kernel import BLOCK
+
     dev = device("rhi4")
-    Q = _configurations(dev, 30, seed=3).reshape(3, 10, dev.n)
+    Q = _configurations(dev, 3 * (2 * BLOCK + 5), seed=3).reshape(3, 2 * BLOCK + 5, dev.n)
     whole = dev._batch.evaluate(dev.theta(Q), TERMS)
-    monkeypatch.setattr(batch, "CHUNK", 7)  # several passes, the last one partial
-    parts = dev._batch.evaluate(dev.theta(Q), TERMS)
     for term in TERMS:
-        assert whole[term].shape[:2] == (3, 10)
-        np.testing.assert_array_equal(parts[term], whole[term])
-    _assert_equal_to_pinocchio(dev, Q.reshape(-1, dev.n), {k: v.reshape((30,) + v.shape[2:]) for k, v in whole.items()})
+        assert whole[term].shape[:2] == Q.shape[:2] and whole[term].flags.c_contiguous
+        alone = dev._batch.evaluate(dev.theta(Q), (term,))
+        assert set(alone) == {term}
+        np.testing.assert_array_equal(alone[term], whole[term])
+    flat = {k: v.reshape((-1,) + v.shape[2:]) for k, v in whole.items()}
+    _assert_equal_to_pinocchio(dev, Q.reshape(-1, dev.n), flat)
+    strided = dev._batch.evaluate(dev.theta(Q)[:, ::2], ("J", "M"))  # a non-contiguous θ
+    np.testing.assert_array_equal(strided["J"], whole["J"][:, ::2])
+    np.testing.assert_array_equal(strided["M"], whole["M"][:, ::2])
+
+
+def _random_tree(seed: int) -> pin.Model:
+    """A tree of revolute/prismatic joints with unaligned axes, generic placements and inertias.
+
+    Joints are added depth first (each one's parent on the path to the previous joint), as Pinocchio requires.
+    """
+    rng = np.random.default_rng(seed)
+    model = pin.Model()
+    joints = [0]  # the world, then the path from it to the joint added last
+    for k in range(7):
+        joints = joints[: int(rng.integers(1, len(joints) + 1))] if k > 2 else joints
+        parent = joints[-1]
+        axis = rng.normal(size=3)
+        jm = pin.JointModelPrismaticUnaligned(axis / np.linalg.norm(axis)) if k == 4 else \
+            pin.JointModelRevoluteUnaligned(axis / np.linalg.norm(axis))
+        place = pin.SE3(pin.exp3(rng.normal(size=3)), rng.uniform(-0.3, 0.3, 3))
+        jid = model.addJoint(parent, jm, place, f"j{k}")
+        L = rng.normal(size=(3, 3))
+        model.appendBodyToJoint(jid, pin.Inertia(float(rng.uniform(0.2, 2.0)), rng.uniform(-0.1, 0.1, 3),
+                                                 L @ L.T * 0.01 + np.eye(3) * 1e-3), pin.SE3.Identity())
+        joints.append(jid)
+    model.armature = rng.uniform(0.0, 0.01, model.nv)
+    tip = pin.SE3(pin.exp3(rng.normal(size=3)), rng.uniform(-0.2, 0.2, 3))
+    deepest = max(range(1, model.njoints), key=lambda j: len(model.supports[j]))
+    model.addFrame(pin.Frame("tip", deepest, 0, tip, pin.FrameType.OP_FRAME))
+    return model
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_batch_generic_tree_equals_pinocchio(seed):
+    """No axis-aligned constant for the compiled loop to skip: every product is taken."""
+    model = _random_tree(seed)
+    dev = Device(model, name=f"tree{seed}", ee_frame="tip", q_min=-np.pi * np.ones(7), q_max=np.pi * np.ones(7),
+                 torque_max=np.ones(7))
+    assert dev._batch is not None
+    Q = _configurations(dev, 45, seed=seed)
+    _assert_equal_to_pinocchio(dev, Q, dev._batch.evaluate(dev.theta(Q), TERMS))
 
 
 def test_batch_mimic_and_locked_joints():
