@@ -15,17 +15,26 @@ Baselines, all measured in this run and printed as ratios:
   with the same actuation map, timed on --rtb-n configurations and scaled.
 
 Timings are the best of several runs (wall clock) on a shared machine: compare the ratios.
+BLAS runs on one thread unless OPENBLAS_NUM_THREADS / OMP_NUM_THREADS say otherwise: on 2 cores
+shared with other jobs, OpenBLAS's thread hand-off makes one medium-size call (the finite check
+of `Device.theta` on 10⁴ configurations is an `np.vdot`) take up to ~15 ms instead of ~0.02 ms,
+whatever code is being measured.
 Run: python benchmarks/bench_kinematics.py [--n 10000]
 """
 
 from __future__ import annotations
 
-import argparse
-import time
-import warnings
+import os
 
-import numpy as np
-import pinocchio as pin
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # before NumPy loads its BLAS
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
 
 
 def best_of(fn, repeat: int = 5) -> float:
@@ -103,7 +112,8 @@ def main() -> None:
     from rhi.device import MODELS
 
     scale = args.n / args.loop_n
-    print(f"J, dJ/dq, M and g for {args.n} configurations (loops timed on {args.loop_n} and scaled)")
+    print(f"J, dJ/dq, M and g for {args.n} configurations (loops timed on {args.loop_n} and scaled; "
+          f"BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']})")
     print("batch: rhi.batch.terms, the four terms from one vectorized pass; ratios are baseline / batch")
     print(f"{'device':<9}{'batch':>9}{'4 batch calls':>21}{'Pinocchio loop':>22}{'Pinocchio J,M,g':>22}"
           f"{'previous batch API':>25}{'Device.terms loop':>24}")
