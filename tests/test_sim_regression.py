@@ -24,7 +24,7 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
-from rhi.sim import Hand, HandPath, Plant, Wall, simulate, stop
+from rhi.sim import Hand, HandPath, Plant, Spring, Wall, simulate, stop
 from rhi.sim.loop import Kinematics, Session
 
 REFERENCE = Path(__file__).parent / "data" / "sim_palpation_rhi4.npz"
@@ -102,6 +102,33 @@ def test_loop_kinematics_equal_device_terms():
             ref = dev.terms(q, dq)
             np.testing.assert_allclose(x, ref.x, rtol=0, atol=1e-12, err_msg=name)
             np.testing.assert_allclose(xdot, ref.xdot, rtol=0, atol=1e-12, err_msg=name)
+
+
+def test_loop_rendering_equals_environment_force():
+    """`Kinematics.render`: a virtual wall in the compiled call, other environments through `force`.
+
+    On every device a wall through a point near the handle (in contact or not, pushed back or not by
+    the velocity) and a spring: x, ẋ as `Kinematics`, the force as the environment's own `force`.
+    """
+    rng = np.random.default_rng(11)
+    contact = 0
+    for dev in [rhi.device(name) for name in rhi.available_devices()] + [_screw_device()]:
+        for _ in range(6):
+            q, dq = rng.uniform(-0.5, 0.5, dev.n), rng.normal(size=dev.n)
+            x, xdot = Kinematics(dev)(q, dq)
+            normal = rng.normal(size=dev.m)
+            envs = [Wall(x + rng.normal(scale=0.01, size=dev.m), normal, 800.0, damping=30.0),
+                    Spring(x + 0.01, 500.0, damping=2.0), None]
+            for env in envs:
+                kin = Kinematics(dev, env)
+                assert kin._fused == (type(env) is Wall and dev.name != "screw")
+                xr, xdr, F = kin.render(q, dq)
+                np.testing.assert_allclose(xr, x, rtol=0, atol=1e-15, err_msg=dev.name)
+                np.testing.assert_allclose(xdr, xdot, rtol=0, atol=1e-15, err_msg=dev.name)
+                ref = np.zeros(dev.m) if env is None else env.force(x, xdot)
+                np.testing.assert_allclose(F, ref, rtol=0, atol=1e-12, err_msg=dev.name)
+                contact += type(env) is Wall and bool(np.any(F != 0))
+    assert 10 < contact < 60
 
 
 def test_hand_and_wall_floats_equal_array_formulas():

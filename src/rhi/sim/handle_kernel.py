@@ -34,7 +34,9 @@ def handle_state(ints, joints, fc, q, dq, out):
             (nθ,) [rad or m] and the actuation map A (nθ, n) row-major: θ = A q + b.
         q: (n,) motor positions [rad].
         dq: (n,) motor velocities [rad/s].
-        out: (2, m) output: the end-effector position [m], then its velocity [m/s].
+        out: (2, m) output: the end-effector position [m], then its velocity [m/s]; or (3, m): then also the
+            force of a wall on the handle [N] (`rhi.sim.Wall.force`), its constants at the end of `fc`
+            (`wall_constants`).
     """
     nt, n, m = joints.shape[0], q.shape[0], out.shape[1]
     oR = np.empty((nt, 3, 3))
@@ -107,6 +109,35 @@ def handle_state(ints, joints, fc, q, dq, out):
         r = ints[2 * nt + 1 + i]
         out[0, i] = pt[r]
         out[1, i] = v[r]
+    if out.shape[0] == 3:
+        o = 12 + nt + nt * n
+        push = _wall_push(out[0], out[1], fc, o)
+        for i in range(m):
+            out[2, i] = -push * fc[o + m + i]
+
+
+def wall_constants(wall) -> list[float]:
+    """A `rhi.sim.Wall`'s constants for the kernels: its point (m,) [m], normal (m,), K_e [N/m], B_e [N s/m]."""
+    return [*wall.point.tolist(), *wall.normal.tolist(), wall.stiffness, wall.damping]
+
+
+@_jit
+def _wall_push(x, v, c, o):
+    """How hard a wall pushes the handle at x (m,) [m] moving at v (m,) [m/s]: max(K_e d + B_e ḋ, 0) [N].
+
+    d = nᵀ(x − point) while positive, else 0 (`rhi.sim.Wall.force`: the force is −push n); the wall's
+    `wall_constants` start at c[o].
+    """
+    m = x.shape[0]
+    depth = 0.0
+    for j in range(m):
+        depth += (x[j] - c[o + j]) * c[o + m + j]
+    if depth <= 0:
+        return 0.0
+    rate = 0.0
+    for j in range(m):
+        rate += v[j] * c[o + m + j]
+    return max(c[o + 2 * m] * depth + c[o + 2 * m + 1] * rate, 0.0)
 
 
 def hand_constants(hand, wall) -> np.ndarray:
@@ -121,8 +152,7 @@ def hand_constants(hand, wall) -> np.ndarray:
     k, m = P.shape
     head = [k, m, path.start, path.speed, hand.stiffness, hand.damping,
             np.inf if hand.max_force is None else hand.max_force]
-    w = ([1.0, *wall.point.tolist(), *wall.normal.tolist(), wall.stiffness, wall.damping] if wall is not None
-         else [0.0] * (2 * m + 3))
+    w = [1.0, *wall_constants(wall)] if wall is not None else [0.0] * (2 * m + 3)
     return np.concatenate([head, w, path._s, P.ravel(), np.ravel(path._u)]).astype(float)
 
 
@@ -181,14 +211,10 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
                 F[j] = F[j] * r
     push = 0.0
     if c[7] != 0.0:
-        depth = 0.0
+        x, v = np.empty(m), np.empty(m)
         for j in range(m):
-            depth += (sd[idx[j]] - c[8 + j]) * c[8 + m + j]
-        if depth > 0:
-            rate = 0.0
-            for j in range(m):
-                rate += sd[idx[m + j]] * c[8 + m + j]
-            push = max(c[8 + 2 * m] * depth + c[9 + 2 * m] * rate, 0.0)
+            x[j], v[j] = sd[idx[j]], sd[idx[m + j]]
+        push = _wall_push(x, v, c, 8)
     n2 = 0.0
     for j in range(m):
         f = F[j] - push * c[8 + m + j] if push != 0.0 else F[j]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Protocol
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -91,8 +91,13 @@ class Session:
         self._F = np.zeros(plant.m)
         self._acc = np.array([0.0, plant.timestep, 0.0])
         self._idx = np.concatenate([p._pos, p._vel, p._task]).astype(np.int64)
-        self._fused: tuple = ()
+        self._fused: tuple[Any, np.ndarray] | None = None  # (rhi.sim.handle_kernel.hand_step, its constants)
         self._fused_for: tuple = (None, None)
+        fused = self._compiled(hand, physical)
+        if fused is not None:
+            # load (or compile) the kernel now, not in the first period of a real-time run: one call on copies
+            kernel, c = fused
+            kernel(self.t, p._sd.copy(), self._idx, c, self._F.copy(), p._xfrc.copy(), self._acc.copy())
 
     def advance(self, tau: np.ndarray, x_master: np.ndarray | None = None) -> str | None:
         """Apply τ: (n,) [N m] for one control period; returns the fault that stopped it, if any.
@@ -105,8 +110,9 @@ class Session:
         # (or zero), then mj_step2 + mj_step1 with the divergence check.
         self.plant.apply(tau)
         hand, phys = self.hand, self.physical
-        if type(hand) is Hand and (phys is None or type(phys) is Wall) and self._fusable(hand, phys):
-            fault = self._steps_compiled(hand, phys)
+        fused = self._compiled(hand, phys)
+        if fused is not None:
+            fault = self._steps_compiled(*fused)
         else:
             fault = self._steps(hand, phys)
         if fault is not None:
@@ -152,26 +158,31 @@ class Session:
         self.F_hand = F_h
         return None
 
-    def _fusable(self, hand: Hand, phys: Wall | None) -> bool:
-        """Whether `_steps_compiled` serves this hand and wall (their dimension is the plant's)."""
+    def _compiled(self, hand, phys) -> tuple[Any, np.ndarray] | None:
+        """The kernel of `_steps_compiled` and its constants for a `Hand` and a physical `Wall` (or none).
+
+        None for other hands and environments, or a hand or wall of another dimension than the plant's
+        (`_steps` raises their error).
+        """
         if self._fused_for[0] is hand and self._fused_for[1] is phys:
-            return True
+            return self._fused
+        if type(hand) is not Hand or (phys is not None and type(phys) is not Wall):
+            return None
         m = self.plant.m
         if hand.path.points.shape[1] != m or (phys is not None and phys.point.shape != (m,)):
-            return False  # `_steps` raises the hand's or the wall's error
+            return None
         from rhi.sim.handle_kernel import hand_constants, hand_step
 
         self._fused = (hand_step, hand_constants(hand, phys))
         self._fused_for = (hand, phys)
-        return True
+        return self._fused
 
-    def _steps_compiled(self, hand: Hand, phys: Wall | None) -> str | None:
+    def _steps_compiled(self, kernel, c: np.ndarray) -> str | None:
         """`_steps` for a `Hand` and a physical `Wall` (or none): one compiled call per physics step.
 
         The same arithmetic as `Hand.force` and `Wall.force` (`rhi.sim.handle_kernel.hand_step`), with the
         handle's state read from MuJoCo's sensors and the force written to its applied force in that call.
         """
-        kernel, c = self._fused
         h = self.plant.timestep
         model, data, sd, pos, vel, xfrc, task, wn, i, j, k = self._mj
         step1, step2 = mujoco.mj_step1, mujoco.mj_step2
@@ -263,7 +274,7 @@ def simulate(
         raise AssertionError(f"log layout changed: {w.columns}")  # pragma: no cover - a bug, not an input
     arrays, scalars, tail = slice(at["q"], i_sc), slice(i_sc, i_sc + 7), slice(i_seq, i_seq + 8)
     slave = c.get("slave_x")
-    kin = Kinematics(dev) if (virtual is not None or teleop is not None) else None
+    kin = Kinematics(dev, virtual) if (virtual is not None or teleop is not None) else None
     zero_m = np.zeros(m)
     nan = math.nan
     every = max(1, N // 100)
@@ -281,8 +292,7 @@ def simulate(
             ft = plant.ft()
             x_m = None
             if kin is not None:
-                x_m, xdot_m = kin(q, dq)
-                F_env = virtual.force(x_m, xdot_m) if virtual is not None else zero_m
+                x_m, xdot_m, F_env = kin.render(q, dq)
             else:
                 F_env = zero_m
             t1 = perf()
@@ -335,33 +345,40 @@ def _record(recorded: dict[str, list], values: dict, columns: dict, k: int) -> N
 
 
 class Kinematics:
-    """The handle position and velocity on the controller's model, from the encoders.
+    """The handle position and velocity on the controller's model, from the encoders, and the virtual force.
 
     What a haptic rendering loop computes before its controller runs, leaving the device's
     `terms` snapshot untouched: for trees of one-DoF revolute/prismatic joints one compiled call
-    (`rhi.sim.handle_kernel`, on the constants of `rhi.chain_kernel.pack`), otherwise one
-    Pinocchio forward-kinematics pass with velocities on a `pin.Data` of its own. Equal to
-    `Device.fk(q)` and `Device.terms(q, dq).xdot` (to rounding).
+    (`rhi.sim.handle_kernel`, on the constants of `rhi.chain_kernel.pack`), which also evaluates a
+    virtual `Wall`; otherwise one Pinocchio forward-kinematics pass with velocities on a `pin.Data`
+    of its own. Equal to `Device.fk(q)`, `Device.terms(q, dq).xdot` and `virtual.force` (to rounding).
 
     Args:
         device: the controller's device.
+        virtual: the virtual environment `render` evaluates, `force(x, ẋ)`; None: free space.
     """
 
-    def __init__(self, device) -> None:
+    def __init__(self, device, virtual=None) -> None:
         self.model = device.model
         self.frame = device.model.getFrameId(device.ee_frame)
         self.rows = np.array(device.task_rows)
         self.A = np.ascontiguousarray(device.A, dtype=float)
         self.b = np.ascontiguousarray(device.b, dtype=float)
         self.m = len(self.rows)
+        self.virtual = virtual
         self._compiled = None
+        self._fused = False  # the compiled call evaluates the virtual wall too
         if batch.supported(self.model):
             from rhi.chain_kernel import pack
-            from rhi.sim.handle_kernel import handle_state
+            from rhi.sim.handle_kernel import handle_state, wall_constants
 
             ints, joints, consts = pack(self.model, self.frame)
+            fc = [consts[:12], self.b, self.A.ravel()]
+            self._fused = type(virtual) is Wall and virtual.point.shape == (self.m,)
+            if self._fused:
+                fc.append(np.array(wall_constants(virtual)))
             self._compiled = (handle_state, np.concatenate([ints, self.rows]).astype(np.int64), joints,
-                              np.concatenate([consts[:12], self.b, self.A.ravel()]))
+                              np.concatenate(fc))
         else:
             self.data = device.model.createData()
 
@@ -376,3 +393,13 @@ class Kinematics:
         pin.forwardKinematics(model, data, A.dot(q) + self.b, A.dot(dq))
         x = pin.updateFramePlacement(model, data, f).translation[rows]
         return x, pin.getFrameVelocity(model, data, f, pin.LOCAL_WORLD_ALIGNED).linear[rows]
+
+    def render(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """x: (m,) [m], ẋ: (m,) [m/s] and the virtual environment's force on the handle: (m,) [N] (zero without one)."""
+        if self._fused and self._compiled is not None:
+            kernel, ints, joints, fc = self._compiled
+            out = np.empty((3, self.m))
+            kernel(ints, joints, fc, q, dq, out)
+            return out[0], out[1], out[2]
+        x, xdot = self(q, dq)
+        return x, xdot, np.zeros(self.m) if self.virtual is None else self.virtual.force(x, xdot)
