@@ -39,30 +39,31 @@ BLOCK = 32
 @_jit
 def _forward(parent, revolute, G, psi, t, th, nb, F, o, v, cs, sn):
     """Internal frames F (nθ, 3 columns, 3, K), origins o (nθ, 3, K) [m], linear axes v (nθ, 3, K)."""
+    d3 = t.shape[1]  # 3, a run-time trip count: no full unrolling of the loops around the SIMD loops
     for j in range(parent.shape[0]):
         par = parent[j]
         if par < 0:
-            for col in range(3):
-                for r in range(3):
+            for col in range(d3):
+                for r in range(d3):
                     for b in range(nb):
                         F[j, col, r, b] = G[j, r, col]
-            for r in range(3):
+            for r in range(d3):
                 for b in range(nb):
                     o[j, r, b] = t[j, r]
         else:
-            for col in range(3):
-                for r in range(3):
+            for col in range(d3):
+                for r in range(d3):
                     for b in range(nb):
                         F[j, col, r, b] = 0.0
-                    for k in range(3):
+                    for k in range(d3):
                         gk = G[j, k, col]
                         if gk != 0.0:
                             for b in range(nb):
                                 F[j, col, r, b] += gk * F[par, k, r, b]
-            for r in range(3):
+            for r in range(d3):
                 for b in range(nb):
                     o[j, r, b] = o[par, r, b]
-                for k in range(3):
+                for k in range(d3):
                     tk = t[j, k]
                     if tk != 0.0:
                         for b in range(nb):
@@ -71,17 +72,17 @@ def _forward(parent, revolute, G, psi, t, th, nb, F, o, v, cs, sn):
             for b in range(nb):
                 cs[b] = np.cos(th[j, b] + psi[j])
                 sn[b] = np.sin(th[j, b] + psi[j])
-            for r in range(3):
+            for r in range(d3):
                 for b in range(nb):
                     a0, a1 = F[j, 0, r, b], F[j, 1, r, b]
                     F[j, 0, r, b] = cs[b] * a0 + sn[b] * a1
                     F[j, 1, r, b] = cs[b] * a1 - sn[b] * a0
-            for r in range(3):
+            for r in range(d3):
                 y, z = (r + 1) % 3, (r + 2) % 3
                 for b in range(nb):
                     v[j, r, b] = o[j, y, b] * F[j, 2, z, b] - o[j, z, b] * F[j, 2, y, b]
         else:
-            for r in range(3):
+            for r in range(d3):
                 for b in range(nb):
                     o[j, r, b] += th[j, b] * F[j, 2, r, b]
                     v[j, r, b] = F[j, 2, r, b]
@@ -93,13 +94,14 @@ def _composite(parent, mass, lever, inertia, F, o, nb, with_inertia, h, Ic, c, F
 
     Ic holds the upper triangle xx, xy, xz, yy, yz, zz [kg m²]; c (3, K) and FI (3, 3, K) are work arrays.
     """
+    d3 = lever.shape[1]
     nt = parent.shape[0]
     for j in range(nt):
         m = mass[j]
-        for r in range(3):
+        for r in range(d3):
             for b in range(nb):
                 c[r, b] = o[j, r, b]
-            for col in range(3):
+            for col in range(d3):
                 lc = lever[j, col]
                 if lc != 0.0:
                     for b in range(nb):
@@ -108,18 +110,18 @@ def _composite(parent, mass, lever, inertia, F, o, nb, with_inertia, h, Ic, c, F
                 h[j, r, b] = m * c[r, b]
         if not with_inertia:
             continue
-        for col in range(3):  # columns of F I (I in the internal frame)
-            for r in range(3):
+        for col in range(d3):  # columns of F I (I in the internal frame)
+            for r in range(d3):
                 for b in range(nb):
                     FI[col, r, b] = 0.0
-                for k in range(3):
+                for k in range(d3):
                     ik = inertia[j, k, col]
                     if ik != 0.0:
                         for b in range(nb):
                             FI[col, r, b] += ik * F[j, k, r, b]
         e = 0
-        for x in range(3):  # F I Fᵀ + m (|c|² E − c cᵀ)
-            for y in range(x, 3):
+        for x in range(d3):  # F I Fᵀ + m (|c|² E − c cᵀ)
+            for y in range(x, d3):
                 for b in range(nb):
                     Ic[j, e, b] = (FI[0, x, b] * F[j, 0, y, b] + FI[1, x, b] * F[j, 1, y, b]
                                    + FI[2, x, b] * F[j, 2, y, b] - m * c[x, b] * c[y, b])
@@ -130,7 +132,7 @@ def _composite(parent, mass, lever, inertia, F, o, nb, with_inertia, h, Ic, c, F
     for j in range(nt - 1, 0, -1):  # children come after their parent
         par = parent[j]
         if par >= 0:
-            for r in range(3):
+            for r in range(d3):
                 for b in range(nb):
                     h[par, r, b] += h[j, r, b]
             if with_inertia:
@@ -142,10 +144,11 @@ def _composite(parent, mass, lever, inertia, F, o, nb, with_inertia, h, Ic, c, F
 @_jit
 def _mass(revolute, mass_c, arm_t, sup, F, v, h, Ic, nb, Mt, Hk, Lk):
     """M_θ (nθ, nθ, K) [kg m²] by the composite-rigid-body algorithm; Hk, Lk (3, K) work arrays."""
+    d3 = v.shape[1]
     nt = revolute.shape[0]
     for k in range(nt):
         mk = mass_c[k]
-        for r in range(3):  # H = I^c ω + h × v (angular), L = m^c v + ω × h (linear), per unit θ̇_k
+        for r in range(d3):  # H = I^c ω + h × v (angular), L = m^c v + ω × h (linear), per unit θ̇_k
             y, z = (r + 1) % 3, (r + 2) % 3
             for b in range(nb):
                 Hk[r, b] = h[k, y, b] * v[k, z, b] - h[k, z, b] * v[k, y, b]
@@ -174,16 +177,17 @@ def _mass(revolute, mass_c, arm_t, sup, F, v, h, Ic, nb, Mt, Hk, Lk):
 @_jit
 def _gravity(revolute, mass_c, g0, F, v, h, nb, gt):
     """g_θ (nθ, K) [N m]."""
+    d3 = g0.shape[0]
     for j in range(revolute.shape[0]):
         for b in range(nb):
             gt[j, b] = 0.0
-        for r in range(3):
+        for r in range(d3):
             if g0[r] != 0.0:
                 c = -mass_c[j] * g0[r]
                 for b in range(nb):
                     gt[j, b] += c * v[j, r, b]
         if revolute[j]:
-            for r in range(3):  # −ω · (h × g₀) = −Σ_r (g₀ × ω)_r h_r
+            for r in range(d3):  # −ω · (h × g₀) = −Σ_r (g₀ × ω)_r h_r
                 y, z = (r + 1) % 3, (r + 2) % 3
                 if g0[y] != 0.0:
                     for b in range(nb):
@@ -274,6 +278,7 @@ def evaluate(parent, revolute, G, psi, t, mass, lever, inertia, mass_c, arm_t, f
         M: (B, 1, n, n) output, joint-space inertia [kg m²].
         g: (B, 1, n) output, gravity torque [N m].
     """
+    d3 = ft.shape[0]
     B, nt = th.shape
     n, m, K = A.shape[1], rows.shape[0], BLOCK
     want_x, want_J, want_dJ, want_M, want_g = want
@@ -297,6 +302,7 @@ def evaluate(parent, revolute, G, psi, t, mass, lever, inertia, mass_c, arm_t, f
     L3 = np.empty((3, K))
     FI = np.empty((3, 3, K))
     no_diag = np.zeros(n)
+    first = rows.shape[0] - m  # 0 as a run-time integer: one compiled version of the _put functions
     for b0 in range(0, B, K):
         nb = min(K, B - b0)
         for b in range(nb):
@@ -304,18 +310,18 @@ def evaluate(parent, revolute, G, psi, t, mass, lever, inertia, mass_c, arm_t, f
                 tb[j, b] = th[b0 + b, j]
         _forward(parent, revolute, G, psi, t, tb, nb, F, o, v, cs, sn)
         if kin:
-            for r in range(3):
+            for r in range(d3):
                 for b in range(nb):
                     p[r, b] = ft[r] if fj < 0 else o[fj, r, b]
                 if fj >= 0:
-                    for col in range(3):
+                    for col in range(d3):
                         if ft[col] != 0.0:
                             for b in range(nb):
                                 p[r, b] += ft[col] * F[fj, col, r, b]
             for j in range(nt):
                 if not path[j]:
                     continue
-                for r in range(3):
+                for r in range(d3):
                     for b in range(nb):
                         Jp[j, r, b] = v[j, r, b]
                     if revolute[j]:
@@ -347,7 +353,7 @@ def evaluate(parent, revolute, G, psi, t, mass, lever, inertia, mass_c, arm_t, f
             _composite(parent, mass, lever, inertia, F, o, nb, want_M, h, Ic, c3, FI)
             if want_g:
                 _gravity(revolute, mass_c, g0, F, v, h, nb, gt)
-                _put_vector(gt, A, identity, b0, nb, g, 0)
+                _put_vector(gt, A, identity, b0, nb, g, first)
             if want_M:
                 _mass(revolute, mass_c, arm_t, sup, F, v, h, Ic, nb, Mt, c3, L3)
-                _put_congruence(Mt, A, identity, arm_q, b0, nb, W, M, 0)
+                _put_congruence(Mt, A, identity, arm_q, b0, nb, W, M, first)
