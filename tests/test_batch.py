@@ -190,3 +190,18 @@ def test_unsupported_joint_falls_back_to_pinocchio():
     assert not batch.supported(model) and dev._batch is None
     Q = np.random.default_rng(5).uniform(-1.0, 1.0, (BATCH_MIN + 1, 2))
     np.testing.assert_array_equal(dev.jacobian(Q), np.array([dev.jacobian(q) for q in Q]))
+
+
+def test_evaluate_refuses_bad_input():
+    from rhi.errors import InvalidInput
+
+    chain = device("gen3")._batch
+    good = np.zeros((BATCH_MIN, 7))
+    for bad in (np.zeros((BATCH_MIN, 6)), np.zeros(()), np.where(np.eye(BATCH_MIN, 7) > 0, np.nan, 0.0),
+                np.full((2, 7), np.inf), "theta"):
+        with pytest.raises(InvalidInput, match="theta"):
+            chain.evaluate(bad, ("J",))
+    for what in ((), ("J", "Lambda")):
+        with pytest.raises(InvalidInput, match="what"):
+            chain.evaluate(good, what)
+    assert chain.evaluate(good.astype(int), ("g",))["g"].shape == (BATCH_MIN, 7)  # integers are read as floats

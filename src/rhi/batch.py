@@ -27,6 +27,7 @@ import math
 import numpy as np
 import pinocchio as pin
 
+from rhi._validate import float_array
 from rhi.errors import InvalidInput, ModelError
 
 _AXIS = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
@@ -140,11 +141,21 @@ class BatchChain:
 
         Returns:
             {name: array} in motor coordinates q, batch axes first, C-contiguous.
+
+        Raises:
+            InvalidInput: theta is not a finite (..., nθ) array, or a name in `what` is unknown.
         """
         from rhi.batch_kernel import evaluate  # Numba: imported on the first batched call, not with `import rhi`
 
+        if not what or any(k not in TERMS for k in what):
+            raise InvalidInput(f"what: expected names among {list(TERMS)}, got {list(what)!r}")
+        theta = float_array("theta", theta)
+        if theta.ndim == 0 or theta.shape[-1] != self.nt:
+            raise InvalidInput(f"theta: expected shape (..., {self.nt}), got {theta.shape}")
+        if not np.isfinite(theta).all():  # not rhi._validate.all_finite: its BLAS dot, threaded, stalls on busy cores
+            raise InvalidInput("theta: contains NaN or inf")
         lead = theta.shape[:-1]
-        th = np.ascontiguousarray(theta, dtype=float).reshape(-1, self.nt)
+        th = np.ascontiguousarray(theta).reshape(-1, self.nt)
         B, m, n = th.shape[0], len(self.rows), self.n
         shapes = {"x": (m,), "J": (m, n), "dJ": (m, n, n), "M": (1, n, n), "g": (1, n)}
         out = {k: np.empty((B,) + shape) if k in what else np.empty((0,) * (1 + len(shape)))
@@ -153,12 +164,13 @@ class BatchChain:
         shapes["M"], shapes["g"] = (n, n), (n,)
         return {k: out[k].reshape(lead + shapes[k]) for k in what}
 
+
 #: The terms `terms` returns, and the `Device` method that computes each one configuration at a time.
 TERMS = {"x": "fk", "J": "jacobian", "dJ": "jacobian_derivative", "M": "mass_matrix", "g": "gravity"}
 
 
 def terms(device, q, what: tuple[str, ...] = ("J", "dJ", "M", "g")) -> dict[str, np.ndarray]:
-    """Several terms of a batch of configurations of a `Device` from one vectorized pass.
+    """Several terms of a batch of configurations of a `Device` from one compiled pass.
 
     `Device.jacobian(Q)`, `jacobian_derivative(Q)`, `mass_matrix(Q)` and `gravity(Q)` each run
     `BatchChain.evaluate` on their own, so asking for all four repeats the forward kinematics four
@@ -177,8 +189,7 @@ def terms(device, q, what: tuple[str, ...] = ("J", "dJ", "M", "g")) -> dict[str,
     Raises:
         InvalidInput: an unknown term name, or a bad q (named as `Device` does).
     """
-    unknown = [k for k in what if k not in TERMS]
-    if unknown or not what:
+    if not what or any(k not in TERMS for k in what):
         raise InvalidInput(f"what: expected names among {list(TERMS)}, got {list(what)!r}")
     th = device.theta(q)
     chain = device._batch
