@@ -377,20 +377,28 @@ class NullSpaceController:
     def _tick(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: Mapping[str, np.ndarray]) -> np.ndarray:
         s = self.state
         kernel = self._kernel
+        pc = self._pc
         if kernel is None:
             kin = reference_terms(self, q, dq) if self.config.implementation == "reference" else self.device.terms(
                 q, dq, check=False)
             tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors)
             tau = np.minimum(np.maximum(tau, self.lo), self.hi)
         else:
-            kin = self.device.terms(q, dq, check=False)
-            out = kernel(t, kin, sensors)
+            if kernel.whole_ok:  # one compiled call, the passivity layer included
+                out = kernel.whole(t, q, dq, sensors)
+                if len(out) == 2:
+                    kin, forces = out
+                else:
+                    pc = None
+            else:
+                kin = self.device.terms(q, dq, check=False)
+                out = kernel(t, kin, sensors)
+                forces = out
             if len(out) == 2:  # the kernel cannot decide this held set accurately: the basis form
-                tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, out)
+                tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, forces)
                 tau = np.minimum(np.maximum(tau, self.lo), self.hi)
             else:
                 tau, alpha, beta, sat, clipped = out
-        pc = self._pc
         if pc is not None and _finite(tau):  # time-domain passivity around the whole torque (rhi.control.passivity)
             tau = pc.apply(t, kin, tau, self.lo, self.hi)
             s.E_obs, s.alpha_pc = pc.state.energy, pc.state.alpha

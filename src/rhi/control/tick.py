@@ -1,10 +1,15 @@
-"""The controller's fast tick: the primary law in Python, everything after it in one compiled kernel.
+"""The controller's fast tick: one compiled call, or the primary law in Python and the rest compiled.
 
 `KernelTick` holds what does not change between ticks (limits, parameters, the desired VMEs
-and FMEs, output buffers) and calls `rhi.control.kernels.tick` once per tick with the device
-terms of one Pinocchio pass. Objectives the kernel knows (VME matching, the FME schedule)
-run inside it; any other objective and the joint-limit barriers run their own
+and FMEs, output buffers). Objectives the kernels know (VME matching, the FME schedule)
+run inside them; any other objective and the joint-limit barriers run their own
 `gradient_at` in Python and enter as two torque vectors.
+
+`KernelTick.whole` is the whole tick in one call of `rhi.control.kernels.whole` (device terms,
+primary law, steps 2–6, the passivity layer) for a device whose chain the compiled kinematics
+handle, a built-in primary law and no objective computed in Python (`KernelTick.whole_ok`);
+`KernelTick.__call__` runs steps 2–6 of `rhi.control.kernels.tick` after `Device.terms` and the
+primary law's `forces`.
 """
 
 from __future__ import annotations
@@ -15,20 +20,53 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rhi.control import kernels
+from rhi.control.kernels import whole as _whole
 from rhi.control.objectives import EllipsoidMatching, VMEMatching, gradient_function
+from rhi.control.primary import ForceRendering, ImpedanceControl, SpringPalpation
 from rhi.control.transition import TransitionState
 from rhi.device import DeviceTerms
-from rhi.errors import Singular
+from rhi.errors import InvalidInput, Singular
 from rhi.terms_kernel import TERMS, layout
 
 if TYPE_CHECKING:
     from rhi.control.controller import NullSpaceController
+    from rhi.control.passivity import PassivityState
 
 def _f64(v) -> np.ndarray:
     """V as a C-contiguous float64 array (one compiled specialisation of the kernel)."""
     if type(v) is np.ndarray and v.dtype == np.float64 and v.flags.c_contiguous:
         return v
     return np.ascontiguousarray(v, dtype=np.float64)
+
+
+def _law_vector(law, n: int, m: int) -> np.ndarray | None:
+    """The settings of a built-in primary law as `rhi.control.kernels.whole` reads them (LAW_* slots), else None."""
+    if isinstance(law, ForceRendering):
+        kind = _whole.FORCE
+    elif isinstance(law, SpringPalpation):
+        kind = _whole.SPRING
+    elif isinstance(law, ImpedanceControl) and law.inertia is None:
+        kind = _whole.FREE
+    else:
+        return None
+    head = np.zeros(_whole.N_LAW)
+    head[_whole.LAW_KIND] = kind
+    head[_whole.LAW_GAIN] = getattr(law, "gain", 1.0)
+    head[_whole.LAW_CORIOLIS], head[_whole.LAW_GRAVITY] = float(law.coriolis), float(law.gravity)
+    x0, normal = np.zeros(m), np.zeros(m)
+    if kind == _whole.SPRING:
+        head[_whole.LAW_STIFFNESS] = law.stiffness
+        x0 = np.asarray(law.x0, dtype=float)
+        if law.normal is not None:
+            head[_whole.LAW_NORMAL], normal = 1.0, np.asarray(law.normal, dtype=float)
+    f = law.friction
+    viscous, coulomb = np.zeros(n), np.zeros(n)
+    if f is not None:
+        head[_whole.LAW_FRICTION], head[_whole.LAW_VS] = 1.0, f.velocity_scale
+        viscous, coulomb = np.broadcast_to(f.viscous, (n,)), np.broadcast_to(f.coulomb, (n,))
+    B = np.asarray(law.damping, dtype=float)
+    B = B * np.eye(m) if B.ndim == 0 else B
+    return np.concatenate([head, B.ravel(), x0, normal, viscous, coulomb])
 
 
 def _kernel_vme(objective) -> np.ndarray | None:
@@ -88,6 +126,27 @@ class KernelTick:
         self._sat = np.zeros(n, bool)
         self._tr = np.zeros(4)
         self._tr_of: TransitionState | None = None  # the state object self._tr mirrors
+        fast = dev._fast_maps
+        law = _law_vector(cfg.primary, n, m)
+        #: the whole tick runs in `rhi.control.kernels.whole` (see `whole`)
+        self.whole_ok = fast.chain is not None and law is not None and not self._grads and not self._barriers
+        if self.whole_ok:
+            self._law = law
+            self._force = isinstance(cfg.primary, ForceRendering)
+            self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
+            self._no_force = np.zeros(m)
+            self._x, self._buf = np.empty(m), np.empty(fast.size)
+            self._F = np.empty((2, m))
+            self._res = np.zeros(6)
+            pas = getattr(cfg.primary, "passivity", None)
+            k = n if pas is None or pas.port == "motors" else m
+            self._pc = np.zeros(_whole.N_PC)
+            if pas is not None:
+                self._pc[_whole.PC_ON], self._pc[_whole.PC_MOTORS] = 1.0, float(pas.port == "motors")
+                self._pc[_whole.PC_CONTROL] = float(pas.control)
+                self._pc[_whole.PC_ALPHA_MAX] = -1.0 if pas.alpha_max is None else pas.alpha_max
+            self._pc_pos, self._pc_eff = np.zeros(k), np.zeros(k)
+            self._ps_of: PassivityState | None = None  # the PassivityState the passivity slots mirror
 
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):
         """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or (F_render, F_extra).
@@ -132,6 +191,78 @@ class KernelTick:
             self._tr_of = s.transition
         s.V, s.omega = V, omega
         return self._tau.copy(), alpha, beta, self._sat.copy(), clipped
+
+    def whole(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: Mapping[str, np.ndarray]):
+        """One whole tick (`whole_ok`): (τ (n,) [N m] to send, passivity included, α, β, saturated, clipped).
+
+        Where the kernel cannot decide, ``(kin, (F_render, F_extra))`` instead: the reference then runs
+        steps 2–6 on those terms and forces, and the passivity layer after it.
+
+        Args:
+            t: time [s].
+            q: (n,) joint positions [rad], finite float64.
+            dq: (n,) joint velocities [rad/s], finite float64.
+            sensors: the law's readings, checked finite by the controller.
+
+        Raises:
+            InvalidInput: a force reading of the wrong length.
+            Singular: a rank-deficient Jacobian.
+        """
+        ctrl = self.ctrl
+        s = ctrl.state
+        F = self._no_force
+        if self._force:
+            F = sensors["force"]
+            if F.shape != self._no_force.shape:
+                raise InvalidInput(f"sensors['force']: expected shape {self._no_force.shape}, got {F.shape}")
+        tr = self._tr
+        fme = self._fme
+        if fme:
+            if s.transition is not self._tr_of:
+                T = s.transition
+                tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
+            before = tr.tolist()
+        pc, pcv = ctrl._pc, self._pc
+        ps = None if pc is None else pc.state
+        if ps is not None and ps is not self._ps_of:  # a fresh, reset or Python-advanced observer
+            pcv[_whole.PC_E], pcv[_whole.PC_T] = ps.energy, ps.t
+            pcv[_whole.PC_PREV] = float(ps.position is not None)
+            if ps.position is not None:
+                self._pc_pos[:], self._pc_eff[:] = ps.position, ps.effort
+        F_r, F_x = self._F
+        q, dq = _f64(q), _f64(dq)
+        dev = ctrl.device
+        last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already
+        if last is not None and last[1]._buf is not None and last[0] == (q.tobytes(), dq.tobytes()):
+            ready, x, buf = True, last[1].x, last[1]._buf
+        else:
+            ready, x, buf = False, self._x, self._buf
+        # (mypy reads numba's Dispatcher.__call__ as taking a bounded number of arguments)
+        status = _whole.whole(t, q, dq, _f64(F), *self._chain, ready, self._at, self._law, ctrl.lo, ctrl.hi,  # type: ignore[call-arg]
+                              self._prm, tr, self._free, self._stiff, self._w2, self._vme, self._vme_gain, pcv,
+                              self._pc_pos, self._pc_eff, x, buf, F_r, F_x, self._tau, self._sat, self._res)
+        alpha, beta, V, omega, clipped, pc_ran = self._res.tolist()
+        if status != kernels.OK:
+            self._tr_of = self._ps_of = None  # the kernel may have advanced tr; the states did not
+            if status == kernels.SINGULAR:
+                raise Singular("J: rank-deficient Jacobian")
+            kin = DeviceTerms.from_buffer(dev, q, dq, x.copy(), dev.A.dot(q) + dev.b, buf.copy(),
+                                          dev._fast_maps.layout)
+            return kin, (F_r.copy(), F_x.copy())
+        if fme:
+            after = tr.tolist()
+            if after != before:
+                s.transition = TransitionState(after[0] != 0.0, after[1], after[2], after[3])
+            self._tr_of = s.transition
+        s.V, s.omega = V, omega
+        if pc_ran and ps is not None:
+            v = pcv.tolist()
+            ps.energy, ps.alpha, ps.scale = v[_whole.PC_E], v[_whole.PC_ALPHA], v[_whole.PC_SCALE]
+            ps.dissipated += v[_whole.PC_DISSIPATED]
+            ps.t, ps.position, ps.effort = t, self._pc_pos.copy(), self._pc_eff.copy()
+            s.E_obs, s.alpha_pc = ps.energy, ps.alpha
+            self._ps_of = ps
+        return self._tau.copy(), alpha, beta, self._sat.copy(), clipped != 0.0
 
 
 __all__ = ["KernelTick"]

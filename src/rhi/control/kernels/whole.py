@@ -1,0 +1,154 @@
+"""A whole controller tick in one compiled call: device terms, primary law, steps 2–6 and the passivity layer.
+
+`whole` runs, without returning to Python, what a `NullSpaceController` tick otherwise
+composes from four calls: `rhi.chain_kernel.chain_terms` (every device term at (q, q̇)),
+the primary law's (F_render, F_extra) for the built-in laws (`ForceRendering`,
+`SpringPalpation`, `ImpedanceControl` without a desired inertia: eqs. 5.6, 6.21, 7.2, 7.20),
+`rhi.control.kernels.step.tick` and `rhi.control.kernels.passivity.apply`. The laws'
+Python `forces` and the controller's composition are the references it is tested against
+(`tests/test_whole_tick.py`). The law's settings travel in one float vector (`LAW_*`
+indices), the passivity layer's settings and state in another (`PC_*`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rhi.chain_kernel import chain_terms
+from rhi.control.kernels import passivity
+from rhi.control.kernels.jit import jit
+from rhi.control.kernels.step import FALLBACK, OK, SINGULAR, tick
+from rhi.terms_kernel import dot, mm, mtv, mv
+
+__all__ = ["FALLBACK", "OK", "SINGULAR", "whole"]
+
+#: Primary laws `whole` computes (code in law[LAW_KIND]).
+FORCE, SPRING, FREE = 1, 2, 3
+#: Scalar slots of the law vector; then B^d (m × m), X₀ (m), normal (m), viscous (n), Coulomb (n).
+LAW_KIND, LAW_GAIN, LAW_CORIOLIS, LAW_GRAVITY, LAW_STIFFNESS, LAW_NORMAL, LAW_FRICTION, LAW_VS = range(8)
+N_LAW = 8
+#: Slots of the passivity vector: settings (on, motor port, control, α bound), then state (E_obs, a
+#: previous tick, its time, α, λ and the energy the damping took out this tick).
+PC_ON, PC_MOTORS, PC_CONTROL, PC_ALPHA_MAX, PC_E, PC_PREV, PC_T, PC_ALPHA, PC_SCALE, PC_DISSIPATED = range(10)
+N_PC = 10
+#: Slots of the result vector: α, β, V, Ω, clipped, the passivity layer ran.
+R_ALPHA, R_BETA, R_V, R_OMEGA, R_CLIPPED, R_PC = range(6)
+
+
+@jit
+def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
+    """The built-in primary laws: F_r (rendered, α-scaled) and F_x (never scaled), written [N]."""
+    kind = law[LAW_KIND]
+    B = law[N_LAW:N_LAW + m * m].reshape((m, m))
+    if kind == FORCE:
+        gain = law[LAW_GAIN]
+        for i in range(m):
+            F_r[i] = force[i] if gain == 1.0 else gain * force[i]
+    elif kind == SPRING:
+        o = N_LAW + m * m
+        x0, normal = law[o:o + m], law[o + m:o + 2 * m]
+        k = law[LAW_STIFFNESS]
+        if law[LAW_NORMAL] != 0.0:
+            depth = max(dot(normal, x - x0), 0.0)
+            for i in range(m):
+                F_r[i] = -k * depth * normal[i]
+        else:
+            for i in range(m):
+                F_r[i] = -k * (x[i] - x0[i])
+    else:
+        F_r[:] = 0.0
+    # task_compensation: C_x ẋ + G_x + J#ᵀ F_q(q̇), then − B^d ẋ (rhi.control.primary)
+    c = np.zeros(m)
+    if law[LAW_CORIOLIS] != 0.0:
+        c = mv(Cx, xdot)
+    if law[LAW_GRAVITY] != 0.0 and dot(g, g) != 0.0:
+        c = c + Gx
+    if law[LAW_FRICTION] != 0.0:
+        o = N_LAW + m * m + 2 * m
+        Fq = law[o:o + n] * dq + law[o + n:o + 2 * n] * np.tanh(dq / law[LAW_VS])
+        c = c + mtv(Jsharp, Fq)
+    F_x[:] = c - mv(B, xdot)
+
+
+@jit
+def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
+          lo, hi, prm, tr, fme_free, fme_stiff, w2, vme_D, vme_gain, pc, pc_pos, pc_eff,
+          x, buf, F_r, F_x, tau_out, sat, res):
+    """One whole tick; the status of `rhi.control.kernels.step.tick` (OK, FALLBACK, SINGULAR).
+
+    Args:
+        t: time [s].
+        q: (n,) joint positions [rad].
+        dq: (n,) joint velocities [rad/s].
+        force: (m,) ``sensors["force"]`` [N] (read by `ForceRendering`).
+        ints: the device's chain constants (`rhi.chain_kernel.pack`).
+        joints: its per-joint constants.
+        consts: its frame and gravity constants.
+        A: (nθ, n) actuation map.
+        b: (nθ,) its offset.
+        rows: (m,) int64 task rows.
+        armature: (n,) rotor inertia [kg m²].
+        supports: (nθ, nθ) bool, chain joint k supports joint j.
+        identity: A is the identity.
+        ready: x and buf already hold this state's terms (a `Device.terms` snapshot): not recomputed.
+        at: (≥ 13,) int64 term offsets in buf (`rhi.terms_kernel.layout`).
+        law: the primary law's code and settings (LAW_* slots).
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
+        prm: parameters of `rhi.control.kernels.step.tick` (P_* slots).
+        tr: (4,) FME transition state, advanced in place.
+        fme_free: (m, m) desired free-motion FME.
+        fme_stiff: (m, m) desired contact FME.
+        w2: (n,) 1/T_max² [1/(N m)²].
+        vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
+        vme_gain: (k,) their gradient steps.
+        pc: (N_PC,) the passivity layer's settings and state, advanced in place.
+        pc_pos: (k,) its port position at the previous tick, written.
+        pc_eff: (k,) its port effort at the previous tick, written.
+        x: (m,) handle position [m], written unless ready.
+        buf: the device terms (`rhi.terms_kernel.layout`), written unless ready.
+        F_r: (m,) the law's rendered force, written [N].
+        F_x: (m,) the law's extra force, written [N].
+        tau_out: (n,) the torque to send, written [N m].
+        sat: (n,) bool, the held joints, written.
+        res: (6,) α, β, V, Ω, clipped, whether the passivity layer ran (R_* slots), written.
+    """
+    n, m = q.shape[0], rows.shape[0]
+    if not ready:
+        chain_terms(ints, joints, consts, mv(A, q) + b, A, rows, armature, supports, identity, dq, x, buf)
+    J = buf[at[0]:at[0] + m * n].reshape((m, n))
+    M = buf[at[2]:at[2] + n * n].reshape((n, n))
+    g = buf[at[3]:at[3] + n]
+    Minv = buf[at[4]:at[4] + n * n].reshape((n, n))
+    JMinv = buf[at[5]:at[5] + m * n].reshape((m, n))
+    Lam = buf[at[6]:at[6] + m * m].reshape((m, m))
+    Jsharp = buf[at[7]:at[7] + n * m].reshape((n, m))
+    Gx = buf[at[8]:at[8] + m]
+    xdot = buf[at[9]:at[9] + m]
+    Cx = buf[at[12]:at[12] + m * m].reshape((m, m))
+    _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x)
+    zero = np.zeros(n)
+    status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff,
+                                                  w2, vme_D, vme_gain, zero, zero, tau_out, sat)
+    res[R_ALPHA], res[R_BETA], res[R_V], res[R_OMEGA], res[R_CLIPPED] = alpha, beta, V, omega, 1.0 if clipped else 0.0
+    res[R_PC] = 0.0
+    if status != OK or pc[PC_ON] == 0.0 or not math.isfinite(dot(tau_out, tau_out)):
+        return status
+    motors = pc[PC_MOTORS] != 0.0
+    if motors:
+        pos, v, Mp, Mi = q, dq, M, Minv
+    else:
+        pos, v, Mp, Mi = x, xdot, Lam, mm(JMinv, J.T)
+    tau0 = tau_out.copy()
+    prev = pc[PC_PREV] != 0.0
+    E, a_pc, scale, dissipated, eff = passivity.apply(
+        pc[PC_E], prev, pc_pos if prev else pos, pc_eff if prev else pos, t - pc[PC_T], pos, v, Mp, Mi, J, Jsharp,
+        tau0, lo, hi, motors, pc[PC_CONTROL] != 0.0, pc[PC_ALPHA_MAX], tau_out)
+    pc[PC_E], pc[PC_ALPHA], pc[PC_SCALE], pc[PC_DISSIPATED] = E, a_pc, scale, dissipated
+    pc[PC_PREV], pc[PC_T] = 1.0, t
+    pc_pos[:] = pos
+    pc_eff[:] = eff
+    res[R_PC] = 1.0
+    return status

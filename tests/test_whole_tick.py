@@ -1,0 +1,192 @@
+"""The whole tick in one compiled call (`rhi.control.kernels.whole`) equals the reference composition."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_control import _tick_cases
+
+import rhi
+import rhi.control.controller as controller_module
+from rhi.control import (
+    ControllerConfig,
+    FMESchedule,
+    ForceRendering,
+    ImpedanceControl,
+    JointFriction,
+    Manipulability,
+    NullSpaceController,
+    ObjectiveTerm,
+    Passivity,
+    SpringPalpation,
+    VMEMatching,
+    desired_fme_free,
+    desired_fme_stiff,
+    fme_shape,
+)
+from rhi.errors import InvalidInput
+
+FRICTION = JointFriction(viscous=0.01, coulomb=0.005)
+
+
+def _law(kind: str, m: int):
+    u = np.zeros(m)
+    u[1] = 1.0
+    return {
+        "render": ForceRendering(damping=0.01, friction=FRICTION),
+        "render_handle": ForceRendering(damping=0.02 * np.eye(m), gain=0.7, passivity=Passivity(port="handle")),
+        "render_plain": ForceRendering(damping=0.01, passivity=None, gravity=False),
+        "spring": SpringPalpation(1000.0, tuple(0.01 * np.ones(m)), normal=tuple(u), damping=0.01),
+        "spring_all": SpringPalpation(300.0, tuple(np.zeros(m)), coriolis=False, friction=FRICTION),
+        "free": ImpedanceControl(damping=0.5, friction=FRICTION),
+    }[kind]
+
+
+def _config(dev, kind: str, saturation: str = "ascm", projector: str = "dynamic", **kw) -> dict:
+    u = np.zeros(dev.m)
+    u[1] = 1.0
+    K, z = fme_shape(dev.jacobian(np.full(dev.n, 0.3)), dev.torque_max)
+    return dict(primary=_law(kind, dev.m), objectives=(ObjectiveTerm(VMEMatching(tuple(u)), 0.5),),
+                fme=FMESchedule(desired_fme_free(u, K, z), desired_fme_stiff(u, K, z), gain=20.0),
+                saturation=saturation, projector=projector, **kw)
+
+
+def _pair(dev, **kw) -> tuple[NullSpaceController, NullSpaceController]:
+    fast = NullSpaceController(dev, ControllerConfig(**kw))
+    assert fast._kernel is not None and fast._kernel.whole_ok  # the whole tick runs
+    return fast, NullSpaceController(dev, ControllerConfig(**kw, implementation="reference"))
+
+
+def _compare(fast, ref, dev, cases, t0: float = 0.0, atol: float = 1e-10) -> int:
+    """Step both through the cases; equal torques, states and passivity states. Returns how many held a joint."""
+    held, scale = 0, 1.0
+    for k, (q, dq, F) in enumerate(cases):
+        t = t0 + k * 1e-3
+        a = fast.step(t, q, dq, {"force": F})
+        b = ref.step(t, q, dq, {"force": F})
+        np.testing.assert_allclose(a, b, rtol=0, atol=atol, err_msg=f"tick {k}")
+        sf, sr = fast.state, ref.state
+        for attr in ("V", "omega", "alpha", "beta", "clipped"):
+            assert getattr(sf, attr) == pytest.approx(getattr(sr, attr), abs=atol), (k, attr)
+        # α_pc = (w₀ − E_obs) / (ΔT q̇ᵀMq̇) [1/s]: an energy difference over a small kinetic energy
+        assert sf.alpha_pc == pytest.approx(sr.alpha_pc, rel=1e-9, abs=1e-10, nan_ok=True), k
+        # the observed energy is a running sum: its rounding is relative to the largest it has been
+        # (random jumps between configurations give hundreds of J)
+        scale = max(scale, abs(sr.E_obs) if np.isfinite(sr.E_obs) else 0.0)
+        assert sf.E_obs == pytest.approx(sr.E_obs, abs=1e-12 * scale, nan_ok=True), k
+        np.testing.assert_array_equal(sf.saturated, sr.saturated)
+        tf, tr = sf.transition, sr.transition
+        assert (tf.stiff, tf.omega_start, tf.t0, tf.tf) == pytest.approx((tr.stiff, tr.omega_start, tr.t0, tr.tf)), k
+        if fast.passivity is not None:
+            pf, pr = fast.passivity, ref.passivity
+            assert (pf.energy, pf.dissipated) == pytest.approx((pr.energy, pr.dissipated), rel=1e-12, abs=1e-12 * scale)
+            assert (pf.scale, pf.t) == pytest.approx((pr.scale, pr.t), abs=atol)
+            np.testing.assert_allclose(pf.effort, pr.effort, rtol=0, atol=atol)
+        held += bool(sf.saturated.any())
+    assert not fast.state.stopped and not ref.state.stopped
+    return held
+
+
+@pytest.mark.parametrize(
+    "name,kind,saturation,projector",
+    [("rhi4", "render", "ascm", "dynamic"), ("rhi4", "render_handle", "ascm", "pseudoinverse"),
+     ("rhi4", "render_plain", "scaling", "dynamic"), ("rhi4", "render", "none", "dynamic"),
+     ("rhi4", "render", "active_set", "dynamic"), ("rhi4", "spring", "ascm", "dynamic"),
+     ("planar3r", "spring_all", "ascm", "dynamic"), ("rhi4", "free", "ascm", "dynamic"),
+     ("gen3", "render", "ascm", "dynamic")],
+)
+def test_whole_tick_equals_reference(name, kind, saturation, projector, rng):
+    """Terms, primary law, allocation, objectives and the passivity layer in one call = the reference, to 1e-10."""
+    dev = rhi.device(name)
+    fast, ref = _pair(dev, **_config(dev, kind, saturation, projector))
+    cases = [(q, dq, F * (10.0 if dev.m == 3 else 1.0)) for q, dq, F in _tick_cases(dev, rng, 150)]
+    held = _compare(fast, ref, dev, cases)
+    if saturation in ("ascm", "scaling") and name == "rhi4" and kind.startswith("render"):
+        assert held > len(cases) // 5  # saturation exercised
+
+
+def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
+    """A continuous path (the passivity layer damping), a reset halfway, and the reference fallback all agree.
+
+    Against the same kernels composed in Python (`KernelTick.__call__`, then the passivity layer's own call)
+    to 1e-12; against the reference to 1e-9 (the observed energy carries rounding along a path).
+    """
+    fallbacks = []
+    reference_tick = controller_module.reference_tick
+
+    def counting(ctrl, t, kin, sensors, forces=None):
+        if forces is not None and ctrl._kernel.whole_ok:
+            fallbacks.append(t)
+        return reference_tick(ctrl, t, kin, sensors, forces)
+
+    monkeypatch.setattr(controller_module, "reference_tick", counting)
+    cfg = _config(rhi4, "render")
+    fast, ref = _pair(rhi4, **cfg)
+    composed = NullSpaceController(rhi4, ControllerConfig(**cfg))
+    composed._kernel.whole_ok = False
+    q0 = np.array([0.3, 0.5, 0.2, 0.4])
+    cases = [(q0 + 0.05 * np.sin(0.01 * k + np.arange(4)), 0.3 * np.cos(0.02 * k + np.arange(4)),
+              np.array([0.0, -14.0 * np.sin(0.005 * k) ** 2])) for k in range(600)]
+
+    def both(part, t0):
+        _compare(fast, composed, rhi4, part, t0, atol=1e-12)
+        for c in (fast, composed):  # replay for the reference, whose comparison is looser
+            c.reset()
+        _compare(fast, ref, rhi4, part, t0, atol=1e-9)
+
+    both(cases[:300], 0.0)
+    assert fast.passivity.dissipated > 0.0  # the PC acted
+    for c in (fast, ref, composed):
+        c.reset()
+    both(cases[300:], 0.3)
+    # the kernel's FALLBACK hands the tick to the reference on the terms it computed
+    from rhi.control.kernels import whole
+
+    kernel = whole.whole
+
+    def undecided(*args):  # the kernel's work done, then FALLBACK, as for an undecidable held set
+        kernel(*args)
+        return whole.FALLBACK
+
+    monkeypatch.setattr(whole, "whole", undecided)
+    for c in (fast, ref):
+        c.reset()
+    _compare(fast, ref, rhi4, cases[:20], atol=1e-9)
+    assert len(fallbacks) == 20
+
+
+def test_whole_tick_only_where_it_applies(rhi4):
+    """Objectives computed in Python, or a law with a desired inertia, keep the composed tick."""
+    cfg = _config(rhi4, "render")
+    cfg["objectives"] = (ObjectiveTerm(Manipulability(log=True), 0.05),)
+    assert not NullSpaceController(rhi4, ControllerConfig(**cfg))._kernel.whole_ok
+    cfg = _config(rhi4, "render")
+    cfg["primary"] = ImpedanceControl(damping=0.5, inertia=np.diag([0.2, 0.3]))
+    assert not NullSpaceController(rhi4, ControllerConfig(**cfg))._kernel.whole_ok
+
+
+def test_whole_tick_bad_force(rhi4):
+    fast = NullSpaceController(rhi4, ControllerConfig(**_config(rhi4, "render")))
+    with pytest.raises(InvalidInput, match=r"sensors\['force'\]"):
+        fast.step(0.0, np.array([0.3, 0.5, 0.2, 0.4]), np.zeros(4), {"force": np.zeros(3)})
+
+
+def test_whole_tick_reuses_the_loops_terms(monkeypatch):
+    """A loop that read `Device.terms(q, dq)` first (the runtime's handle speed, a virtual wall) is not computed twice."""
+    from rhi.control.kernels import whole
+
+    kernel, ready = whole.whole, []
+
+    def recording(*args):
+        ready.append(args[13])
+        return kernel(*args)
+
+    monkeypatch.setattr(whole, "whole", recording)
+    devs = rhi.device("rhi4"), rhi.device("rhi4")
+    a, b = (NullSpaceController(d, ControllerConfig(**_config(d, "render"))) for d in devs)
+    q0 = np.array([0.3, 0.5, 0.2, 0.4])
+    for k in range(50):
+        q, dq, F = q0 + 0.01 * np.sin(0.1 * k + np.arange(4)), 0.2 * np.cos(0.1 * k + np.arange(4)), np.array([0, -3.0])
+        devs[0].terms(q, dq)
+        np.testing.assert_array_equal(a.step(k * 1e-3, q, dq, {"force": F}), b.step(k * 1e-3, q, dq, {"force": F}))
+    assert ready[0::2] == [True] * 50 and ready[1::2] == [False] * 50
