@@ -13,6 +13,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pinocchio as pin
+import pytest
 
 import rhi
 from rhi.control import (
@@ -24,6 +25,7 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
+from rhi.errors import InvalidInput
 from rhi.sim import Hand, HandPath, Plant, Spring, Wall, simulate, stop
 from rhi.sim.loop import Kinematics, Session
 
@@ -212,3 +214,29 @@ def test_compiled_hand_reports_non_finite_force():
     mujoco.mj_forward(plant.model, plant.data)
     fault = sess.advance(np.zeros(4))
     assert fault is not None and "non-finite force" in fault and sess.fault == fault
+
+
+def test_plant_sensors_equal_encoders_and_ft(rhi4):
+    """`Plant.sensors` (one compiled call) against `q`, `dq` and `ft()` along a pushed, driven motion."""
+    plant = Plant(rhi4)
+    plant.reset(Q0, np.full(4, 0.3))
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        plant.apply(rng.normal(scale=0.05, size=4), rng.normal(scale=2.0, size=2))
+        plant.step(2)
+        r = plant.sensors()
+        assert r.shape == (14,)
+        np.testing.assert_array_equal(r, np.r_[plant.q, plant.dq, plant.ft()])
+    assert np.abs(plant.ft()[:2]).max() > 0.1  # the F/T sensor reads the pushed handle
+
+
+class _BadTorque:
+    def step(self, t, q, dq, sensors):
+        return np.zeros(3)
+
+
+def test_simulate_refuses_torques_of_the_wrong_shape(rhi4):
+    plant = Plant(rhi4)
+    plant.reset(Q0)
+    with pytest.raises(InvalidInput, match="controller"):
+        simulate(plant, _BadTorque(), duration=0.01)

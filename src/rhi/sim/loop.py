@@ -41,6 +41,10 @@ class ForceField(Protocol):
         """The force on the handle: (m,) [N]."""
 
 
+#: the log row's columns that `rhi.sim.io_kernel.log_row` writes, in its order, then the first scalar
+_ROW_ARRAYS = ["q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "ft", "work"]
+
+
 def substeps(rate: float, timestep: float) -> int:
     """Physics steps per control period; the rate must be exact.
 
@@ -257,6 +261,8 @@ def simulate(
         InvalidInput: a bad duration or rate (named), a record name that is a log column or
             changes between ticks, or the controller's bad-input errors.
     """
+    from rhi.sim.io_kernel import log_row
+
     sess = Session(plant, rate=rate, hand=hand, physical=physical, teleop=teleop)
     if scalar("duration", duration) < sess.dt * (1 - 1e-9):
         raise InvalidInput(f"duration: must be at least one control period ({sess.dt} s), got {duration!r}")
@@ -266,13 +272,14 @@ def simulate(
     ms = teleop.slave.m if teleop is not None else 0
     w = LogWriter(layout(n, m, ms), log, meta={"device": dev.name, "rate": float(rate), "source": "simulate"})
     c = w.cols
-    # Row blocks (see `layout`): the arrays from q to ft, the scalars from work to alpha_pc, then seq,
-    # the timing columns and safety: one write each.
-    at = dict(zip([name for name, _ in w.columns], np.cumsum([0] + [width for _, width in w.columns]).tolist()))
-    i_sc, i_seq = at["work"], at["seq"]
-    if (at["ft"] + 6, at["alpha_pc"] - i_sc, at["safety"] - i_seq) != (i_sc, 6, 7):
+    # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `io_kernel.log_row`), the scalars
+    # from work to alpha_pc, then seq, the timing columns and safety: one write each.
+    names = [name for name, _ in w.columns]
+    at = dict(zip(names, np.cumsum([0] + [width for _, width in w.columns]).tolist()))
+    i_q, i_sc, i_seq = at["q"], at["work"], at["seq"]
+    if (names[1:10], at["alpha_pc"] - i_sc, at["safety"] - i_seq) != (_ROW_ARRAYS, 6, 7):
         raise AssertionError(f"log layout changed: {w.columns}")  # pragma: no cover - a bug, not an input
-    arrays, scalars, tail = slice(at["q"], i_sc), slice(i_sc, i_sc + 7), slice(i_seq, i_seq + 8)
+    scalars, tail = slice(i_sc, i_sc + 7), slice(i_seq, i_seq + 8)
     slave = c.get("slave_x")
     kin = Kinematics(dev, virtual) if (virtual is not None or teleop is not None) else None
     zero_m = np.zeros(m)
@@ -281,15 +288,15 @@ def simulate(
     state = getattr(controller, "state", None)
     recorded: dict[str, list] = {}
     step = controller.step
-    pos, vel, sd = plant._pos, plant._vel, plant._sd
-    concat, perf = np.concatenate, time.perf_counter
+    sd, xv = plant._sd, np.concatenate([plant._pos, plant._vel]).astype(np.int64)
+    perf = time.perf_counter
     t_start = perf()
     try:
         for k in range(N):
             t0 = perf()
             t = sess.t
-            q, dq = plant.q, plant.dq
-            ft = plant.ft()
+            read = plant.sensors()
+            q, dq, ft = read[:n], read[n:2 * n], read[2 * n:]
             x_m = None
             if kin is not None:
                 x_m, xdot_m, F_env = kin.render(q, dq)
@@ -298,10 +305,12 @@ def simulate(
             t1 = perf()
             tau = np.asarray(step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
             t2 = perf()
+            if tau.shape != (n,):
+                raise InvalidInput(f"controller: step returned torques of shape {tau.shape}, expected ({n},)")
             fault = sess.advance(tau, x_m)
             row = w.row()
             row[0] = t
-            concat((q, dq, tau, sd[pos], sd[vel], sess.F_hand, F_env, ft), out=row[arrays])
+            log_row(row, i_q, read, tau, sd, xv, sess.F_hand, F_env)
             if ms:
                 row[slave] = sess.slave_x
             if state is not None:

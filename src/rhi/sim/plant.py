@@ -115,6 +115,8 @@ class Plant:
         self._R = d.site_xmat[self._site]
         self._ff = d.sensordata[adr["ft_force"]: adr["ft_force"] + 3]
         self._ft = d.sensordata[adr["ft_torque"]: adr["ft_torque"] + 3]
+        self._read: tuple | None = None  # `sensors`: its kernel and arguments, on first use
+        self._ft_adr = np.array([adr["ft_force"], adr["ft_torque"]], dtype=np.int64)
         self._ctrl = d.ctrl
         self._xfrc = d.xfrc_applied[self._body]
         # live view of MjData's warning counters; BADQACC, BADQVEL, BADQPOS flag diverged physics
@@ -163,6 +165,23 @@ class Plant:
         return np.array([-(r0 * fx + r1 * fy + r2 * fz) - w0, -(r3 * fx + r4 * fy + r5 * fz) - w1,
                          -(r6 * fx + r7 * fy + r8 * fz) - w2,
                          -(r0 * tx + r1 * ty + r2 * tz), -(r3 * tx + r4 * ty + r5 * tz), -(r6 * tx + r7 * ty + r8 * tz)])
+
+    def sensors(self) -> np.ndarray:
+        """The encoders and the F/T sensor in one compiled call: (2 n + 6,) fresh array.
+
+        [:n] `q` [rad], [n:2n] `dq` [rad/s], [2n:] `ft()` [N, N m]: the same values, for the simulation
+        loop's tick (`rhi.sim.io_kernel.sensors`; Numba is imported on the first call).
+        """
+        if self._read is None:
+            from rhi.sim.io_kernel import sensors
+
+            d = self.data
+            self._read = (sensors, self._ten, self._tenv, d.sensordata, self._R,
+                          np.concatenate([self._const, self._weight]), self._ft_adr)
+        kernel, *args = self._read
+        out = np.empty(2 * self.n + 6)
+        kernel(*args, out)
+        return out
 
     # ----------------------------------------------------------- ground truth
     @property
