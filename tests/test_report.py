@@ -122,3 +122,40 @@ def test_report_has_headline_contents_and_npz(tmp_path):
     assert data["results"][0]["tables"][0]["rows"][0]["tolerance"] == pytest.approx(5e-4)
     npz = np.load(tmp_path / "results.npz")
     assert set(npz.files) == {f"{res.name}/{k}" for k in res.arrays}
+
+
+def test_split_experiment_in_parallel_equals_one_after_the_other(tmp_path, monkeypatch):
+    """An experiment with parts (beyond.passivity's cases) reports the same run in two workers as in this process.
+
+    The parts' times are recorded, and order the next run's queue.
+    """
+    import dataclasses
+
+    from rhi.experiments.beyond.passivity import passivity, passivity_plan
+    from rhi.experiments.parts import Plan, run_plan
+    from rhi.report import reproduce as rep
+
+    kw = {"duration": 0.3, "stiff_duration": 0.2, "speed": 0.03, "cases": ("objectives", "objectives_pc")}
+    step = next(s for s in rep.STEPS if s.name == "beyond.passivity")
+    monkeypatch.setattr(rep, "STEPS", [dataclasses.replace(step, quick=kw)])
+    plan = passivity_plan(**kw)
+    assert [p.label for p in plan.parts] == ["objectives", "objectives_pc", "stiff_objectives", "stiff_objectives_pc"]
+    seen = []
+    assert run_plan(plan, lambda k, n: seen.append((k, n))).arrays.keys() == passivity(**kw).arrays.keys()
+    assert seen[-1] == (1000, 1000) and all(a <= b for (a, _), (b, _) in zip(seen, seen[1:]))
+    out = {}
+    for jobs in (1, 2):
+        rep.reproduce(tmp_path / str(jobs), quick=True, jobs=jobs)
+        out[jobs] = json.loads((tmp_path / str(jobs) / "results.json").read_text())
+    assert out[1]["results"] == out[2]["results"]
+    assert np.array_equal(np.load(tmp_path / "1" / "results.npz")["beyond.passivity/objectives_pc_W"],
+                          np.load(tmp_path / "2" / "results.npz")["beyond.passivity/objectives_pc_W"])
+    tasks = out[2]["meta"]["seconds_per_task"]
+    assert set(tasks) == {f"beyond.passivity[{k}]" for k in ("objectives", "objectives_pc", "stiff_objectives",
+                                                             "stiff_objectives_pc", "merge")}
+    assert sorted(p.name for p in (tmp_path / "2" / "figures").iterdir()) == \
+        sorted(p.name for p in (tmp_path / "1" / "figures").iterdir())
+    assert rep._previous_times(tmp_path / "2", "quick")["beyond.passivity[objectives]"] == tasks[
+        "beyond.passivity[objectives]"]
+    with pytest.raises(InvalidInput, match="parts"):
+        Plan([], lambda outputs: None)

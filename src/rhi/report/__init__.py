@@ -35,7 +35,7 @@ img{max-width:100%;border:1px solid #eee;margin:.5em 0}.note{color:#555;font-siz
 
 
 def write_report(
-    results: list[tuple[str, Result, dict[str, Figure | Callable[[], Figure]]]],
+    results: list[tuple[str, Result, dict[str, Figure | Callable[[], Figure] | Path]]],
     out: str | Path,
     *,
     title: str = "rhi reproduction of Torabiparizi (2020)",
@@ -44,7 +44,8 @@ def write_report(
     """Write `out/report.html`, `out/results.json` (numbers), `out/results.npz` (arrays), a CSV per table, a PNG per figure.
 
     Args:
-        results: (chapter, result, {figure name: figure or a zero-argument function drawing it}) triples.
+        results: (chapter, result, {figure name: figure, a zero-argument function drawing it, or the path of its
+            PNG already drawn into out/figures}) triples.
         out: output directory (created).
         title: the report's title.
         meta: run information printed at the top and stored in the JSON.
@@ -74,9 +75,12 @@ def write_report(
                                 r.difference, r.within, r.unit, r.source, r.note])
         for name, fig in figs.items():
             path = out / "figures" / f"{res.name}.{name}.png"
-            fig = fig() if callable(fig) else fig  # drawn here, so one figure is open at a time
-            fig.savefig(path, dpi=110, bbox_inches="tight")
-            plt.close(fig)
+            if isinstance(fig, Path):
+                path = fig
+            else:
+                fig = fig() if callable(fig) else fig  # drawn here, so one figure is open at a time
+                fig.savefig(path, dpi=110, bbox_inches="tight")
+                plt.close(fig)
             parts.append(f"<img src='figures/{path.name}' alt='{html.escape(name)}'>")
         parts += [f"<p class='note'>{html.escape(n)}</p>" for n in res.notes]
         sections.append("\n".join(parts))

@@ -1,167 +1,42 @@
-"""`rhi reproduce`: run every thesis experiment that exists and write the report."""
+"""`rhi reproduce`: run every thesis experiment that exists and write the report.
+
+With ``jobs`` > 1 the work runs in worker processes as tasks: a whole experiment with its figures,
+or one part of an experiment that splits into independent parts (`Step.plan`), then the merge of
+its parts with the figures. The longest tasks start first (by the times of the previous run in
+`out`, else by the packaged ones, `timings.json`), so the workers stay busy until the end.
+"""
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import json
 import multiprocessing
 import os
 import platform
+import resource
 import sys
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
+from typing import Any
 
+import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from rhi.design.executors import DEFAULTS, configure, shared
 from rhi.errors import InvalidInput, RhiError
-from rhi.experiments import appa as exa, appb as exb, ch3 as ex3, ch4 as ex4, ch5 as ex5, ch6 as ex6, ch7 as ex7
-from rhi.experiments.beyond import (
-    bilateral as exbi,
-    intent as exin,
-    passivity as expas,
-    spatial as exsp,
-    spatial_palpation as exspp,
-)
+from rhi.experiments.parts import Part
 from rhi.experiments.result import Result
-from rhi.plots import (
-    appa as pla,
-    appb as plb,
-    bilateral as plbi,
-    ch3 as pl3,
-    ch3_control as pl3c,
-    ch4 as pl4,
-    ch5 as pl5,
-    ch6 as pl6,
-    ch7 as pl7,
-    ch7_palpation as pl7p,
-    intent as plin,
-    passivity as plpas,
-    perception as plp,
-    renders as plr,
-    spatial as plsp,
-)
 from rhi.report import headline, write_report
 from rhi.report.claims import CLAIMS
+from rhi.report.steps import STEPS, Step, chapters, experiments, step_names
 
+__all__ = ["STEPS", "TIMINGS", "Step", "chapters", "experiments", "reproduce", "step_names"]
 
-@dataclasses.dataclass(frozen=True)
-class Step:
-    """One experiment of the reproduction: how to run it (full and --quick) and draw it.
-
-    The experiment's id is its chapter and function, the chapter being the module (or package) under
-    `rhi.experiments` that defines the function: `rhi.experiments.ch3.discrimination.psychophysics` is
-    "ch3.psychophysics", `rhi.experiments.beyond.passivity.passivity` is "beyond.passivity".
-    """
-
-    run: Callable[..., Result]
-    full: dict
-    quick: dict
-    figures: dict[str, Callable[[Result], object]]
-    progress: bool = False
-
-    @property
-    def chapter(self) -> str:
-        """Chapter id: the module or package directly under `rhi.experiments` that defines the experiment."""
-        return self.run.__module__.split(".")[2]
-
-    @property
-    def name(self) -> str:
-        """Experiment id, e.g. "ch7.example_3dof" (also the name of the `Result` it returns)."""
-        return f"{self.chapter}.{self.run.__name__}"
-
-
-STEPS: list[Step] = [
-    Step(ex3.table_3_1, {}, {}, {"configurations": pl3.configurations,
-                                        "configurations_rendered": plr.ch3_configurations}),
-    Step(ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
-         {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
-    Step(ex3.nullspace_configurations, {}, {"duration": 4.0, "starts": ("rehab",), "hard_stops": False},
-         {"fig_ch3_control": pl3c.convergence, "ch3_control_configurations": pl3c.configurations,
-          "ch3_control_drift": pl3c.drift_hist}, progress=True),
-    Step(ex3.sysid_table_3_2, {}, {"trials": 4}, {"table3_2": plp.sysid_fit}, progress=True),
-    Step(ex3.psychophysics, {},
-         {"subjects": 4, "repetitions": 6, "comparison_percent": (-35.0, -15.0, 0.0, 15.0, 35.0), "durations": (0.7, 1.4),
-          "overdispersion": False},
-         {"fig3_9": plp.psychometric_curves, "fig3_10": plp.wf_jnd_boxes, "perceived_stiffness": plp.perceived_stiffness},
-         progress=True),
-    Step(ex4.theta_z_design, {"density": 100.0}, {"density": 40.0, "step_deg": 5.0, "maxiter": 20},
-         {"fig4_4": pl4.fig4_4, "theta_sweep": pl4.theta_sweep}, progress=True),
-    Step(ex4.full_design, {"density": 100.0}, {"density": 40.0, "maxiter": 15, "popsize": 8},
-         {"fig4_5": pl4.fig4_5, "fig4_6": pl4.fig4_6, "fig4_7": pl4.fig4_7, "l2_scan": pl4.l2_scan}, progress=True),
-    Step(ex4.sensitivity, {"density": 100.0},
-         {"density": 40.0, "densities": (20.0, 40.0, 80.0), "maxiter": 10, "k2_values": (10.0, 20.0)},
-         {"convergence": pl4.convergence, "k2_scan": pl4.k2_scan}, progress=True),
-    Step(ex5.fixed_point, {}, {"duration": 6.0, "variants": False},
-         {"fig5_3": pl5.fig5_3, "fig5_3_convergence": pl5.fixed_point_convergence}, progress=True),
-    Step(ex5.workspaces, {}, {"samples": 8000, "area_samples": 50000}, {"fig5_4": pl5.fig5_4}),
-    Step(ex5.w_trajectory, {}, {"scale": 0.15},
-         {"fig5_5": pl5.fig5_5, "fig5_6": pl5.fig5_6, "tme_along_w": pl5.tme_along_w}, progress=True),
-    Step(ex6.example_3dof, {"steps": 201}, {"steps": 101},
-         {"fig6_3": pl6.example_3dof, "fig6_4": pl6.configurations_3dof}),
-    Step(ex6.palpation, {}, {"settle": 0.2, "depth": 0.012, "speed": 0.02, "hold": 0.1}, {"fig6_9": pl6.palpation},
-         progress=True),
-    Step(ex6.sysid_table_6_1, {}, {"trials": 4}, {"table6_1": plp.sysid_fit}, progress=True),
-    Step(ex6.transition, {},
-         {"settle": 0.2, "depth": 0.015, "speed": 0.03, "hold": 0.3, "release": 0.7, "compare_beta": None},
-         {"fig6_11": pl6.transition}, progress=True),
-    Step(ex6.fmax_ratio_map, {"resolution": 25}, {"resolution": 7, "starts": 1}, {"fig6_10": pl6.fmax_ratio_map},
-         progress=True),
-    Step(ex7.example_3dof, {"steps": 401}, {"steps": 101}, {"fig7_1": pl7.example_3dof}),
-    Step(ex7.deficiency_map, {"resolution": 31}, {"resolution": 9}, {"fig7_5": pl7.deficiency_map},
-         progress=True),
-    Step(ex7.palpation, {},
-         {"start": "optimum", "settle": 0.5, "depth": 0.03, "speed": 0.03,
-          "cases": (("none", "dynamic"), ("ascm", "dynamic"), ("lp", "dynamic"))},
-         {"fig7_6": pl7p.fig7_6, "fig7_6_force_penetration": pl7p.force_penetration,
-          "ch7_palpation_settling": pl7p.settling}, progress=True),
-    Step(expas.passivity, {},
-         {"duration": 1.5, "stiff_duration": 2.0, "speed": 0.03, "cases": ("objectives", "objectives_pc")},
-         {"passivity_energy": plpas.energy, "passivity_force": plpas.force, "passivity_chatter": plpas.chatter},
-         progress=True),
-    Step(exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
-         progress=True),
-    Step(exa.dm_enhancement, {}, {"t_long": 20.0},
-         {"fig_a9": pla.dm_enhancement, "fig_a7_rendered": plr.wmm_configurations}, progress=True),
-    Step(exb.singularity, {}, {"duration": 16.0, "dt": 0.01}, {"fig_b7": plb.singularity}, progress=True),
-    Step(exb.tracking, {}, {"duration": 24.0, "dt": 0.01},
-         {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True),
-    Step(exbi.teleoperation_delay, {}, {"duration": 2.0, "delays": (0.05,), "extra_stiffness": ()},
-         {"bilateral_energy": plbi.energy, "bilateral_forces": plbi.forces}, progress=True),
-    Step(exsp.spatial_remarks, {"resolution": 7}, {"resolution": 2, "workers": 1}, {"spatial_remarks": plsp.remark_maps},
-         progress=True),
-    Step(exsp.spatial_force_capability, {}, {"configurations": 2, "directions": 5},
-         {"spatial_force_capability": plsp.force_capability}, progress=True),
-    Step(exsp.spatial_ellipsoids, {}, {}, {"spatial_ellipsoids": plsp.ellipsoids}),
-    Step(exspp.spatial_vme, {}, {"duration": 0.5}, {"spatial_vme": plsp.vme_convergence}, progress=True),
-    Step(exspp.spatial_palpation, {},
-         {"settle": 0.1, "depth": 0.008, "speed": 0.02, "hold": 0.05, "starts": 1, "cases": ("free", "stiff")},
-         {"spatial_palpation": plsp.palpation}, progress=True),
-    Step(exin.intent_strokes, {}, {"train": 10, "test": 3}, {"intent_strokes": plin.strokes},
-         progress=True),
-    Step(exin.intent_w_trajectory, {}, {"scale": 0.06, "speed": 0.05, "settle": 0.1},
-         {"intent_w_trajectory": plin.w_trajectory}, progress=True),
-    Step(exin.intent_palpation, {}, {"settle": 0.1, "depth": 0.01, "speed": 0.02, "hold": 0.05, "starts": 1},
-         {"intent_palpation": plin.palpation}, progress=True),
-]
-
-
-def chapters() -> list[str]:
-    """Chapters the reproduction covers."""
-    return sorted({s.chapter for s in STEPS})
-
-
-def experiments() -> list[str]:
-    """Ids of the experiments, e.g. "ch7.example_3dof"."""
-    return [s.name for s in STEPS]
-
-
-def step_names(s: Step) -> set[str]:
-    """Every name `rhi experiment` accepts for a step: its id (its result's name) and its function's name."""
-    return {s.name, s.run.__name__}
+#: Wall times [s] of a reference run's tasks, by mode (the queue's order when `out` has no previous run).
+TIMINGS = Path(__file__).with_name("timings.json")
 
 
 def _report_progress(i: int, total: int, name: str, t_step: float, t0: float) -> None:
@@ -171,22 +46,65 @@ def _report_progress(i: int, total: int, name: str, t_step: float, t0: float) ->
     print(f"[{i}/{total}] {name} done in {t_step:.1f} s; elapsed {elapsed:.0f} s, ETA {eta:.0f} s", flush=True)
 
 
-def _run_step(name: str, quick: bool) -> tuple[Result, float]:
-    """Run the step `name` (in a worker process of a parallel reproduction): (result, wall time [s])."""
-    s = next(s for s in STEPS if s.name == name)
-    t = time.perf_counter()
+def _cpu() -> float:
+    """CPU time of this process and its finished children [s]."""
+    c = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + c.ru_utime + c.ru_stime
+
+
+def _draw(s: Step, res: Result, out: Path) -> dict[str, Path]:
+    """Draw the step's figures into out/figures (one open at a time): {figure name: PNG path}."""
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    paths = {}
+    for name, draw in s.figures.items():
+        path = out / "figures" / f"{res.name}.{name}.png"
+        fig = draw(res)
+        if not isinstance(fig, Figure):
+            raise RhiError(f"figures: {s.name}'s {name!r} drew {type(fig).__name__}, not a matplotlib Figure")
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        paths[name] = path
+    return paths
+
+
+def _step(name: str) -> Step:
+    return next(s for s in STEPS if s.name == name)
+
+
+def _task(kind: str, name: str, quick: bool, out: str, payload: Any = None) -> tuple[Any, float, float]:
+    """One task of a parallel reproduction, in a worker process: (output, wall time [s], CPU time [s]).
+
+    kind "step": run the experiment `name` and draw its figures, output (result, figure paths);
+    "part": run `payload` (a `Part`), output its output; "merge": ``payload = (merge, outputs)``,
+    output (the merged result, figure paths).
+    """
+    t, c = time.perf_counter(), _cpu()
     with shared():  # closed before the worker exits (an open pool's processes would keep it alive)
-        res = s.run(**(s.quick if quick else s.full))
-    return res, time.perf_counter() - t
+        if kind == "part":
+            output = payload.run(progress=None)
+        else:
+            s = _step(name)
+            res = s.run(**(s.quick if quick else s.full)) if kind == "step" else payload[0](payload[1])
+            output = (res, _draw(s, res, Path(out)))
+    return output, time.perf_counter() - t, _cpu() - c
 
 
-def _longest_first(steps: list[Step], out: Path) -> list[Step]:
-    """Steps by the wall time a previous run in `out` recorded (results.json), longest first; else as listed."""
+def _previous_times(out: Path, mode: str) -> dict[str, float]:
+    """Wall time per task of the previous run in `out` in the same mode, else of the packaged reference run."""
     try:
-        seconds = json.loads((out / "results.json").read_text())["meta"]["seconds_per_experiment"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return steps
-    return sorted(steps, key=lambda s: -float(seconds.get(s.name, 0.0)))
+        meta = json.loads((out / "results.json").read_text())["meta"]
+        if meta.get("mode") == mode:
+            return {k: float(v) for k, v in {**meta["seconds_per_experiment"], **meta.get("seconds_per_task", {})}.items()}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        pass
+    try:
+        return {k: float(v) for k, v in json.loads(TIMINGS.read_text())[mode].items()}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return {}
+
+
+def _part_key(name: str, label: str) -> str:
+    return f"{name}[{label}]"
 
 
 def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool = False,
@@ -198,9 +116,10 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         only: chapter id such as "ch3".
         quick: reduced resolution (seconds instead of minutes).
         experiment: one experiment id such as "ch7.example_3dof" (or its function name).
-        jobs: experiments run at once, each in its own process (None: one per CPU; 1: in this process).
-            The results do not depend on it; a previous run's times in `out` order the queue longest first.
-            With the Ray executor (`rhi.design.executors.configure`) the experiments run one at a time.
+        jobs: tasks run at once, each in its own process (None: one per CPU; 1: in this process, one experiment
+            after the other). A task is an experiment, or one part of an experiment that splits into parts
+            (`Step.plan`). The results do not depend on it; the previous run's times in `out` order the queue
+            longest first. With the Ray executor (`rhi.design.executors.configure`) the experiments run one at a time.
 
     Raises:
         InvalidInput: an unknown chapter or experiment, or `jobs` not a positive integer.
@@ -214,19 +133,27 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         steps = [s for s in steps if experiment in step_names(s)]
         if not steps:
             raise InvalidInput(f"experiment: unknown experiment {experiment!r}; available: {', '.join(experiments())}")
+    out = Path(out)
     if DEFAULTS["executor"] == "ray":  # the cluster parallelises the maps; one driver runs the experiments
         jobs = 1
-    jobs = min(jobs or os.cpu_count() or 1, len(steps))
+    mode = "quick" if quick else "full"
+    jobs = jobs or os.cpu_count() or 1
+    plans = {s.name: s.plan(**(s.quick if quick else s.full)) for s in steps if s.plan is not None and jobs > 1}
+    jobs = min(jobs, sum(len(plans[s.name].parts) if s.name in plans else 1 for s in steps))
     results: dict[str, Result] = {}
-    seconds: dict[str, float] = {}  # wall time of each experiment (without its figures), for results.json
+    figures: dict[str, dict[str, Path]] = {}
+    seconds: dict[str, float] = {}  # wall time of each experiment (its tasks' sum), for results.json
+    cpu: dict[str, float] = {}  # its CPU time (with its pools' processes)
+    task_seconds: dict[str, float] = {}  # wall time of each part and merge of a split experiment
     t0 = time.perf_counter()
     cols = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
             TimeElapsedColumn())
 
-    def finished(s: Step, res: Result, t_step: float) -> None:
+    def finished(s: Step, res: Result, figs: dict[str, Path], t_step: float, c_step: float) -> None:
         if res.name != s.name:  # the registry's invariant: an experiment's id is its result's name
             raise RhiError(f"experiment: {s.name} returned a result named {res.name!r}")
-        results[s.name], seconds[s.name] = res, round(t_step, 2)
+        results[s.name], figures[s.name] = res, figs
+        seconds[s.name], cpu[s.name] = round(t_step, 2), round(c_step, 2)
         bar.advance(overall)
         if not sys.stdout.isatty():
             _report_progress(len(results), len(steps), s.name, t_step, t0)
@@ -236,29 +163,72 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         if jobs == 1:
             with shared():
                 for s in steps:
-                    t_step = time.perf_counter()
+                    t_step, c_step = time.perf_counter(), _cpu()
                     kwargs = dict(s.quick if quick else s.full)
                     if s.progress:
                         sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
                         kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
-                    finished(s, s.run(**kwargs), time.perf_counter() - t_step)
+                    res = s.run(**kwargs)
+                    finished(s, res, _draw(s, res, out), time.perf_counter() - t_step, _cpu() - c_step)
         else:
-            ctx = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=functools.partial(configure, **DEFAULTS)) as pool:
-                running = {pool.submit(_run_step, s.name, quick): s for s in _longest_first(steps, Path(out))}
-                try:
-                    for fut in as_completed(running):
-                        finished(running[fut], *fut.result())
-                except BaseException:  # an experiment failed (or Ctrl-C): the queued ones do not run
-                    pool.shutdown(wait=False, cancel_futures=True)
-                    raise
-    done: list[tuple[str, Result, dict]] = [
-        (s.chapter, results[s.name], {name: functools.partial(draw, results[s.name]) for name, draw in s.figures.items()})
-        for s in steps]
-    meta = {"mode": "quick" if quick else "full", "chapters": only or ", ".join(chapters()),
+            _parallel(steps, plans, quick, out, jobs, _previous_times(out, mode), finished, task_seconds)
+    done: list[tuple[str, Result, dict]] = [(s.chapter, results[s.name], dict(figures[s.name])) for s in steps]
+    meta = {"mode": mode, "chapters": only or ", ".join(chapters()),
             "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version(), "jobs": jobs,
-            "seconds_per_experiment": seconds}
+            "seconds_per_experiment": seconds, "cpu_seconds_per_experiment": cpu, "seconds_per_task": task_seconds}
     path = write_report(done, out, meta=meta)
     print("\nHeadline claims of the thesis (details in report.html):")
     print(headline.to_text(headline.evaluate(CLAIMS, [r for _, r, _ in done])))
     return path, [r for _, r, _ in done]
+
+
+def _parallel(steps: list[Step], plans: dict, quick: bool, out: Path, jobs: int, previous: dict[str, float],
+              finished: Callable[..., None], task_seconds: dict[str, float]) -> None:
+    """Run the steps' tasks in `jobs` worker processes, longest first, keeping every worker busy."""
+    # queue of (estimated seconds, kind, step, part index); a merge goes first once its parts are done
+    queue: list[tuple[float, str, Step, int]] = []
+    for s in steps:
+        if s.name in plans:  # a part's own time, else its share (by work) of its experiment's
+            parts = plans[s.name].parts
+            share = previous.get(s.name, 0.0) / sum(p.work for p in parts)
+            queue += [(previous.get(_part_key(s.name, p.label), share * p.work), "part", s, i)
+                      for i, p in enumerate(parts)]
+        else:
+            queue.append((previous.get(s.name, 0.0), "step", s, -1))
+    queue.sort(key=lambda e: -e[0])  # stable: the listed order among equal (unknown) times
+    outputs: dict[str, dict[int, Any]] = {name: {} for name in plans}
+    spent: dict[str, list[float]] = {name: [0.0, 0.0] for name in plans}  # wall and CPU of the parts so far
+    running: dict[Future, tuple[str, Step, int]] = {}
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=functools.partial(configure, **DEFAULTS)) as pool:
+        try:
+            while queue or running:
+                while queue and len(running) < jobs:  # one task per free worker: the order decides late
+                    _, kind, s, i = queue.pop(0)
+                    payload: Any = None
+                    if kind == "part":
+                        payload = plans[s.name].parts[i]
+                    elif kind == "merge":
+                        payload = (plans[s.name].merge, [outputs[s.name][k] for k in range(len(plans[s.name].parts))])
+                    running[pool.submit(_task, kind, s.name, quick, str(out), payload)] = (kind, s, i)
+                done_now, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in done_now:
+                    kind, s, i = running.pop(fut)
+                    output, t_task, c_task = fut.result()
+                    if kind == "step":
+                        finished(s, *output, t_task, c_task)
+                        continue
+                    part: Part | None = plans[s.name].parts[i] if kind == "part" else None
+                    task_seconds[_part_key(s.name, part.label if part else "merge")] = round(t_task, 2)
+                    spent[s.name][0] += t_task
+                    spent[s.name][1] += c_task
+                    if kind == "part":
+                        outputs[s.name][i] = output
+                        if len(outputs[s.name]) == len(plans[s.name].parts):
+                            queue.insert(0, (0.0, "merge", s, -1))
+                    else:
+                        finished(s, *output, *spent[s.name])
+        except BaseException:  # a task failed (or Ctrl-C): the queued ones do not run
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+

@@ -26,6 +26,7 @@ notes state which of them makes the device active.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 
@@ -43,6 +44,7 @@ from rhi.control.passivity import Port
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch6 import setup as ch6
+from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 
@@ -118,7 +120,7 @@ def _energies(dev: Device, log, friction, stiffness: float) -> dict[str, float]:
 
 
 def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: float, depth: float, speed: float,
-         progress, offset: int, total: int) -> tuple[dict, dict]:
+         progress) -> tuple[dict, dict]:
     u, x0 = np.array(ch6.U), np.array(ch6.X0)
     strokes = int(math.ceil(duration * speed / (OUT + depth))) + 1
     pts = [x0] + [x0 - OUT * u, x0 + depth * u] * strokes
@@ -127,8 +129,7 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     plant.reset(q0)
     objectives, port, saturation = CASES[case]
     ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation)
-    cb = None if progress is None else (lambda k, n: progress(offset + k, total))
-    log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=cb,
+    log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=progress,
                    record=lambda: _passivity_state(ctrl))
     en = _energies(dev, log, plant.friction, stiffness)
     pen = (log.x - x0) @ u
@@ -168,6 +169,80 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     return m, out
 
 
+def case(*, q0: tuple[float, ...], name: str, stiffness: float, duration: float, depth: float, speed: float,
+         progress: Callable[[int, int], None] | None = None) -> tuple[dict, dict]:
+    """One case of `passivity` (a `Part` of its plan): (numbers, decimated series) of the case `name` at `stiffness`."""
+    return _run(device("rhi4"), np.array(q0), name, stiffness=stiffness, duration=duration, depth=depth,
+                speed=speed, progress=progress)
+
+
+def passivity_plan(
+    *,
+    duration: float = 60.0,
+    stiff_duration: float = 20.0,
+    stiffness: float = K_E,
+    stiff: float | None = K_STIFF,
+    depth: float = DEPTH,
+    speed: float = SPEED,
+    cases: Sequence[str] = tuple(CASES),
+) -> Plan:
+    """`passivity` as independent parts (one per case and wall), for running them side by side.
+
+    Arguments as `passivity`; the parts are the cases at `stiffness`, then the `STIFF_CASES` at `stiff`.
+
+    Raises:
+        InvalidInput: non-positive durations or stiffnesses, unknown cases.
+    """
+    for name, v in (("duration", duration), ("stiff_duration", stiff_duration), ("stiffness", stiffness),
+                    ("depth", depth), ("speed", speed)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
+    if stiff is not None and not (isinstance(stiff, (int, float)) and math.isfinite(stiff) and stiff > 0):
+        raise InvalidInput(f"stiff: must be finite and > 0 [N/m] or None, got {stiff!r}")
+    cases = tuple(cases)
+    for c in cases:
+        if c not in CASES:
+            raise InvalidInput(f"cases: unknown case {c!r}; available: {', '.join(CASES)}")
+    if not cases:
+        raise InvalidInput("cases: give at least one case")
+    dev = device("rhi4")
+    x0, u = np.array(ch6.X0), np.array(ch6.U)
+    _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
+    q0 = ch6.best_match(dev, x0, WeightedSum(ch6.controller_terms(Ms, dev.torque_max)), starts=1)
+    stiff_cases = STIFF_CASES if stiff is not None else ()
+    n1, n2 = int(round(duration * 1000)), int(round(stiff_duration * 1000))
+    q0t = tuple(q0.tolist())
+    parts = [Part(c, functools.partial(case, q0=q0t, name=c, stiffness=stiffness, duration=duration, depth=depth,
+                                       speed=speed), n1)
+             for c in cases]
+    parts += [Part(f"stiff_{c}", functools.partial(case, q0=q0t, name=c, stiffness=stiff, duration=stiff_duration,
+                                                   depth=depth, speed=speed), n2)
+              for c in stiff_cases if stiff is not None]
+    return Plan(parts, functools.partial(_merge, q0=q0t, cases=cases, stiff_cases=stiff_cases, duration=duration,
+                                         stiff_duration=stiff_duration, stiffness=stiffness, stiff=stiff, depth=depth,
+                                         speed=speed))
+
+
+def _merge(outputs: list[tuple[dict, dict]], *, q0, cases, stiff_cases, duration, stiff_duration, stiffness, stiff,
+           depth, speed) -> Result:
+    arrays: dict[str, np.ndarray] = {"q0": np.array(q0), "x0": np.array(ch6.X0), "u": np.array(ch6.U),
+                                     "stiffness": np.array(stiffness)}
+    res: dict[str, dict] = {}
+    for c, (m, series) in zip(cases, outputs):
+        res[c] = m
+        arrays.update({f"{c}_{k}": v for k, v in series.items()})
+    stiff_res: dict[str, dict] = {}
+    for c, (m, series) in zip(stiff_cases, outputs[len(cases):]):
+        stiff_res[c] = m
+        arrays.update({f"stiff_{c}_{k}": v for k, v in series.items()})
+    if stiff is not None:
+        arrays["stiff"] = np.array(stiff)
+    return Result("beyond.passivity", f"Beyond the thesis: energy at the hand palpating {stiffness:g} N/m on the "
+                  "simulated rhi4, without and with time-domain passivity control",
+                  _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff), arrays,
+                  _notes(res, stiff_res, duration, stiffness, depth, speed))
+
+
 def passivity(
     *,
     duration: float = 60.0,
@@ -180,6 +255,8 @@ def passivity(
     progress: Callable[[int, int], None] | None = None,
 ) -> Result:
     """The energy the device gives the hand in the §6.4 palpation set-up, without and with passivity control.
+
+    The cases are independent (`passivity_plan`: `rhi reproduce` runs them side by side).
 
     Args:
         duration: palpation time per case at `stiffness` [s] (issue 10: 60 s).
@@ -199,45 +276,8 @@ def passivity(
     Raises:
         InvalidInput: non-positive durations or stiffnesses, unknown cases.
     """
-    for name, v in (("duration", duration), ("stiff_duration", stiff_duration), ("stiffness", stiffness),
-                    ("depth", depth), ("speed", speed)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
-    if stiff is not None and not (isinstance(stiff, (int, float)) and math.isfinite(stiff) and stiff > 0):
-        raise InvalidInput(f"stiff: must be finite and > 0 [N/m] or None, got {stiff!r}")
-    cases = list(cases)
-    for c in cases:
-        if c not in CASES:
-            raise InvalidInput(f"cases: unknown case {c!r}; available: {', '.join(CASES)}")
-    if not cases:
-        raise InvalidInput("cases: give at least one case")
-    dev = device("rhi4")
-    x0, u = np.array(ch6.X0), np.array(ch6.U)
-    _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
-    q0 = ch6.best_match(dev, x0, WeightedSum(ch6.controller_terms(Ms, dev.torque_max)), starts=1)
-    stiff_cases = STIFF_CASES if stiff is not None else ()
-    n1, n2 = int(round(duration * 1000)), int(round(stiff_duration * 1000))
-    total = n1 * len(cases) + n2 * len(stiff_cases)
-    res: dict[str, dict] = {}
-    arrays: dict[str, np.ndarray] = {"q0": q0, "x0": x0, "u": u, "stiffness": np.array(stiffness)}
-    off = 0
-    for c in cases:
-        res[c], series = _run(dev, q0, c, stiffness=stiffness, duration=duration, depth=depth, speed=speed,
-                              progress=progress, offset=off, total=total)
-        arrays.update({f"{c}_{k}": v for k, v in series.items()})
-        off += n1
-    stiff_res: dict[str, dict] = {}
-    if stiff is not None:
-        for c in stiff_cases:
-            stiff_res[c], series = _run(dev, q0, c, stiffness=stiff, duration=stiff_duration, depth=depth,
-                                        speed=speed, progress=progress, offset=off, total=total)
-            arrays.update({f"stiff_{c}_{k}": v for k, v in series.items()})
-            off += n2
-        arrays["stiff"] = np.array(stiff)
-    return Result("beyond.passivity", f"Beyond the thesis: energy at the hand palpating {stiffness:g} N/m on the "
-                  "simulated rhi4, without and with time-domain passivity control",
-                  _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff), arrays,
-                  _notes(res, stiff_res, duration, stiffness, depth, speed))
+    return run_plan(passivity_plan(duration=duration, stiff_duration=stiff_duration, stiffness=stiffness, stiff=stiff,
+                                   depth=depth, speed=speed, cases=cases), progress)
 
 
 _LABEL = {
