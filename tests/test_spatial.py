@@ -206,6 +206,29 @@ def test_spatial_force_capability_orders_methods():
         spatial_force_capability(directions=0)
 
 
+def test_capabilities_equal_the_reference_force_capability():
+    """The experiment's compiled ASCM ramp (LP solved once) gives force_capability's numbers to 1e-10."""
+    from rhi.control.allocation import force_capability
+    from rhi.experiments.beyond.spatial import _pair_cached, capabilities
+
+    rng = np.random.default_rng(3)
+    for d in ("srhi5", "gen3"):
+        dev = _pair_cached(d)[0]
+        lo, hi = dev.torque_limits
+        qlo, qhi = np.where(np.isfinite(dev.q_min), dev.q_min, -3), np.where(np.isfinite(dev.q_max), dev.q_max, 3)
+        Q = rng.uniform(qlo, qhi, size=(40, dev.n))
+        saturated = 0
+        for q in Q[dev.within_limits(Q)][:6]:
+            J, M = dev.jacobian(q), dev.mass_matrix(q)
+            for u in rng.normal(size=(8, 3)):
+                ours = capabilities(J, u, M, lo, hi)
+                ref = [force_capability(J, u, torque_min=lo, torque_max=hi, method=m, M=M) for m in ("scaling", "ascm",
+                                                                                                    "lp")]
+                np.testing.assert_allclose(ours, ref, rtol=1e-10, atol=1e-10)
+                saturated += ours[1] > ours[0] * (1 + 1e-6)  # ASCM above scaling: joints were held
+        assert saturated > 0
+
+
 def test_spatial_palpation_reduced():
     from rhi.experiments.beyond.spatial_palpation import spatial_palpation
 
