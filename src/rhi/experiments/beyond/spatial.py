@@ -32,8 +32,8 @@ import numpy as np
 
 from rhi.control import VMEMatching
 from rhi.control.allocation import ascm_projector
-from rhi.control.saturation import null_basis
 from rhi.control.configuration import optimal_configuration
+from rhi.control.saturation import null_basis
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
