@@ -186,7 +186,8 @@ def run(
     state = getattr(controller, "state", None)
     zero = np.zeros(n)
     zero_m = np.zeros(m)
-    span = np.maximum(-guard.lo, guard.hi)
+    span = np.maximum(-guard.lo, guard.hi).tolist()
+    top = 0.0  # the largest |τ_i| / limit_i so far
     stats = {"ticks": 0, "missed": 0, "skipped_slots": 0, "max_torque_ratio": 0.0}
     prev_sigint = None
     if threading.current_thread() is threading.main_thread():
@@ -265,7 +266,9 @@ def run(
                 row[c["t_write"]], row[c["t_tick"]] = te - tc, te - ts
                 row[c["late"]] = ts - deadline if realtime else 0.0
                 row[c["safety"]] = 0.0 if ok else 1.0
-                stats["max_torque_ratio"] = max(stats["max_torque_ratio"], float(np.max(np.abs(tau) / span)))
+                for v, lim in zip(tau.tolist(), span):
+                    if abs(v) > lim * top:
+                        top = stats["max_torque_ratio"] = abs(v) / lim
                 for kind, detail in guard.drain():
                     w.event(t_dev, kind, detail, k)
                 if not ok and w.fault is None:

@@ -108,6 +108,9 @@ class Safety:
         m = self.config.range_margin
         self.q_lo = np.asarray(device.q_min, float) - m
         self.q_hi = np.asarray(device.q_max, float) + m
+        # the per-tick checks run on Python floats: a handful of comparisons, cheaper than NumPy's ufuncs
+        self._bounds = list(zip(self.q_lo.tolist(), self.q_hi.tolist(), self.max_dq.tolist()))
+        self._box = list(zip(lo.tolist(), hi.tolist()))
         self.fault: str | None = None
         self.fault_kind: str | None = None
         self.clamped = 0
@@ -174,7 +177,7 @@ class Safety:
         for name, v in r.sensors.items():
             if not math.isfinite(v.dot(v)) and not np.isfinite(v).all():
                 self.trip("nan", f"non-finite sensor {name!r} at t={r.t:.4f} s: {np.asarray(v).tolist()}")
-        if ((q < self.q_lo) | (q > self.q_hi) | (np.abs(dq) > self.max_dq)).any():
+        if not _inside(q.tolist(), dq.tolist(), self._bounds):
             if (np.abs(dq) > self.max_dq).any():
                 j = int(np.argmax(np.abs(dq) - self.max_dq))
                 self.trip("speed", f"joint {j + 1} speed {dq[j]:.3g} rad/s above {self.max_dq[j]:g} at t={r.t:.4f} s")
@@ -200,10 +203,27 @@ class Safety:
         if not math.isfinite(float(tau @ tau)):
             self.trip("torque", f"non-finite torque {tau.tolist()} at t={t:.4f} s")
             return np.zeros(self.n)
-        if (tau < self.lo).any() or (tau > self.hi).any():
+        if not _within(tau.tolist(), self._box):
             if self.clamped == 0:
                 self.events.append(("clamp", f"torque {tau.tolist()} clamped into the limits at t={t:.4f} s "
                                     "(first of the run; the summary counts them)"))
             self.clamped += 1
             tau = np.minimum(np.maximum(tau, self.lo), self.hi)
         return tau
+
+
+def _inside(q: list[float], dq: list[float], bounds: list[tuple[float, float, float]]) -> bool:
+    """Every joint within its range (with the margin) and its speed limit (NaN fails)."""
+    for x, v, (lo, hi, vmax) in zip(q, dq, bounds):
+        if not (lo <= x <= hi and -vmax <= v <= vmax):
+            return False
+    return True
+
+
+def _within(tau: list[float], box: list[tuple[float, float]]) -> bool:
+    """Every torque within [lo, hi] (NaN fails)."""
+    for t, (lo, hi) in zip(tau, box):
+        if not lo <= t <= hi:
+            return False
+    return True
+

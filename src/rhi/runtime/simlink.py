@@ -8,6 +8,9 @@ from rhi.runtime.link import Reading, Status
 from rhi.sim.loop import Session
 from rhi.sim.plant import Plant
 
+#: the status flags as ints (an IntFlag's `|` costs microseconds per tick)
+_SIMULATED, _ENABLED, _FAULT = int(Status.SIMULATED), int(Status.ENABLED), int(Status.FAULT)
+
 
 class SimLink:
     """A simulated device: each `write` applies the torque for one control period and advances the plant.
@@ -57,12 +60,12 @@ class SimLink:
     def read(self) -> Reading:
         """The plant's encoders, F/T sensor and ground truth (flagged `Status.SIMULATED`)."""
         p, s = self.plant, self.session
-        status = Status.SIMULATED | (Status.ENABLED if self.enabled else 0) | (Status.FAULT if s.fault else 0)
-        sensors = {"ft": p.ft(), "x": p.x.copy(), "xdot": p.xdot.copy(), "F_hand": s.F_hand,
-                   "work": np.array([s.work])}
+        status = _SIMULATED | (_ENABLED if self.enabled else 0) | (_FAULT if s.fault else 0)
+        io, n = p.sensors(), p.n  # q, q̇ and the F/T reading in one call
+        sensors = {"ft": io[2 * n:], "x": p.x, "xdot": p.xdot, "F_hand": s.F_hand, "work": np.array([s.work])}
         if s.teleop is not None:
             sensors["slave_x"] = s.slave_x
-        return Reading(s.t, self.seq, p.q, p.dq, sensors, int(status), self.cmd_seq, s.fault or "")
+        return Reading(s.t, self.seq, io[:n], io[n:2 * n], sensors, status, self.cmd_seq, s.fault or "")
 
     def write(self, tau, *, enable: bool) -> None:
         """Apply τ for one control period (zero when disabled or faulted) and advance the plant."""
