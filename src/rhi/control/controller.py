@@ -30,9 +30,11 @@ Torques never leave the torque box. Non-finite readings stop the controller (zer
 torque, latched) and record why in the state; on the very first tick after
 construction or `reset` they are bad input instead and raise InvalidInput.
 
-Two implementations compute the same tick: ``implementation="fast"`` (the default: one
-Pinocchio pass, `Device.terms`, then steps 2–6 in one compiled kernel,
-`rhi.control.tick` and `rhi.control.kernels`) and ``"reference"`` (`rhi.control.reference`:
+Two implementations compute the same tick: ``implementation="fast"`` (the default: for a
+device whose chain the compiled kinematics handle, a built-in primary law and the objectives
+the kernel knows, the whole tick, passivity layer included, in one compiled call,
+`rhi.control.kernels.whole`; otherwise `Device.terms`, the law's `forces`, then steps 2–6 in
+one compiled kernel; `rhi.control.tick` and `rhi.control.kernels`) and ``"reference"`` (`rhi.control.reference`:
 per-call Device methods, `null_basis` SVD, `ascm`/`tertiary` on the orthonormal basis,
 `rhi.metrics` projectors) — the readable composition of the equations, kept as the oracle
 the kernel is tested against. A strategy without a compiled branch (``kernel=None``: the LP,
