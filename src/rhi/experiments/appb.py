@@ -13,6 +13,7 @@ bounds of Table B.1, the circle x_d(t) = x0 + [−R(cos(πt/20) − 1), −R sin
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -23,6 +24,7 @@ from rhi import thesis as T
 from rhi.control.mobile import AMDConfig, AMDController, PinvAccelConfig, PinvAccelController
 from rhi.device import device
 from rhi.experiments.appa import CM, DEG, Q0, slip_note
+from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain
 from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, simulate_mobile
@@ -164,24 +166,52 @@ def tracking(
         Table B.2 beside ours, maximum tracking errors, base activation times, base tracking errors;
         arrays for Figs. B.8–B.11.
     """
+    return run_plan(tracking_plan(duration, dt, radii, slip, sigma_min), progress)
+
+
+def tracking_plan(duration: float = 80.0, dt: float = 0.005, radii: tuple[float, float] = (0.1, 0.25),
+                  slip: SlipModel | None = None, sigma_min: float = 0.15) -> Plan:
+    """`tracking` as independent parts, one per run (arguments as `tracking`)."""
     slip = slip if slip is not None else SlipModel()
     dev = device("wmm")
     K = int(round(duration / dt)) + 1
-    prog = ProgressChain(progress, 5 * K)
     far = dev.fk(Q0) + np.array([2 * radii[0], 0.0, 0.0])
     sig_far = best_sigma(far)
     sigma_adapted = 0.9 * sig_far if math.isfinite(sig_far) else sigma_min
-    logs: dict[tuple[str, str], MobileLog] = {}
-    runs = [("within", radii[0], "proposed", sigma_min), ("within", radii[0], "traditional", sigma_min),
+    runs = (("within", radii[0], "proposed", sigma_min), ("within", radii[0], "traditional", sigma_min),
             ("beyond", radii[1], "proposed", sigma_min), ("beyond", radii[1], "traditional", sigma_min),
-            ("within", radii[0], "proposed_adapted", sigma_adapted)]  # σ_min: AMD only
-    for where, R, method, sig in runs:
-        ctl: PinvAccelController | AMDController
-        if method == "traditional":
-            ctl = PinvAccelController(dev, PinvAccelConfig(dt=dt))
-        else:
-            ctl = AMDController(dev, AMDConfig(dt=dt, sigma_min=sig))
-        logs[where, method] = _run(ctl, R, duration, dt, slip, prog.run(K))
+            ("within", radii[0], "proposed_adapted", sigma_adapted))  # σ_min: AMD only
+    parts = [Part(f"{where}_{method}", functools.partial(tracking_run, method, R, sig, duration=duration, dt=dt,
+                                                         slip=slip), K)
+             for where, R, method, sig in runs]
+    return Plan(parts, functools.partial(_tracking_merge, runs=runs, dt=dt, radii=radii, slip=slip,
+                                         sigma_min=sigma_min, sig_far=sig_far, sigma_adapted=sigma_adapted))
+
+
+def tracking_run(method: str, radius: float, sigma_min: float, *, duration: float, dt: float, slip: SlipModel,
+                 progress: Callable[[int, int], None] | None = None) -> MobileLog:
+    """One run of `tracking` (a `Part` of its plan): "proposed…" (AMD) or "traditional" on the circle of `radius` [m].
+
+    Args:
+        method: "proposed", "proposed_adapted" or "traditional".
+        radius: R [m].
+        sigma_min: σ_m,min of the AMD [m/rad].
+        duration: run length [s].
+        dt: control period T [s].
+        slip: base ground model.
+        progress: callback(done, total) in control steps.
+    """
+    dev = device("wmm")
+    ctl: PinvAccelController | AMDController
+    if method == "traditional":
+        ctl = PinvAccelController(dev, PinvAccelConfig(dt=dt))
+    else:
+        ctl = AMDController(dev, AMDConfig(dt=dt, sigma_min=sigma_min))
+    return _run(ctl, radius, duration, dt, slip, progress)
+
+
+def _tracking_merge(outputs: list[MobileLog], *, runs, dt, radii, slip, sigma_min, sig_far, sigma_adapted) -> Result:
+    logs = {(where, method): log for (where, _, method, _), log in zip(runs, outputs)}
     thesis_b2 = dict(T.TABLE_B_2)
     thesis_b2["within", "proposed_adapted"] = thesis_b2["within", "proposed"]
     thesis_err = T.ERROR_B

@@ -21,6 +21,8 @@ peak rendered force along the true u, estimator error and lag.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from rhi.control import (
@@ -33,8 +35,9 @@ from rhi.device import device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch5 import setup as ch5
 from rhi.experiments.ch6 import setup as ch6
+from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import Progress, ProgressChain, check_motion, path_hand, positive, run, smooth, ticks
+from rhi.experiments.setups import Progress, check_motion, path_hand, positive, run, smooth, ticks
 from rhi.metrics import tmi
 from rhi.sim import Hand, Plant, Teleoperation, simulate
 from rhi.sim.strokes import synthetic_strokes
@@ -130,9 +133,15 @@ def _true_w(path, t: np.ndarray, u0: np.ndarray) -> np.ndarray:
     return np.array([est.update_at(tk).copy() for tk in t])
 
 
+#: The sources of u in `intent_w_trajectory`, in order.
+W_SOURCES = ("known", "filtered", "hmm", "fixed")
+
+
 def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: float = 2.0,
                         progress: Progress | None = None) -> Result:
     """The ch. 5 W trajectory with VME matching along u known / estimated (filtered, HMM) / fixed.
+
+    The sources are independent (`intent_w_trajectory_plan`: `rhi reproduce` runs them side by side).
 
     Args:
         scale: scales the W (quick runs < 1).
@@ -140,8 +149,31 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
         settle: hold before moving [s].
         progress: callback(done, total) in ticks.
     """
+    return run_plan(intent_w_trajectory_plan(scale, speed, settle), progress)
+
+
+def intent_w_trajectory_plan(scale: float = 1.0, speed: float = ch5.SPEED, settle: float = 2.0) -> Plan:
+    """`intent_w_trajectory` as independent parts, one per source of u (arguments as `intent_w_trajectory`)."""
     scale = positive("scale", scale)
     settle = positive("settle", settle, allow_zero=True)
+    path = ch5.w_reference(ch5.W_CENTER, ch5.W_WIDTH * scale, ch5.W_HEIGHT * scale, speed, settle)
+    N = ticks(settle + path.duration + 0.5)
+    return Plan([Part(key, functools.partial(intent_w_source, key, scale=scale, speed=speed, settle=settle), N)
+                 for key in W_SOURCES],
+                functools.partial(_intent_w_merge, scale=scale, speed=speed, settle=settle))
+
+
+def intent_w_source(key: str, *, scale: float, speed: float, settle: float,
+                    progress: Progress | None = None) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """One source of u in `intent_w_trajectory` (a `Part` of its plan): (its numbers, its arrays).
+
+    Args:
+        key: one of `W_SOURCES`.
+        scale: as `intent_w_trajectory`.
+        speed: as `intent_w_trajectory` [m/s].
+        settle: as `intent_w_trajectory` [s].
+        progress: callback(done, total) in ticks.
+    """
     path = ch5.w_reference(ch5.W_CENTER, ch5.W_WIDTH * scale, ch5.W_HEIGHT * scale, speed, settle)
     devs = ch5.devices()
     dev, slave = devs["RHI"], devs["slave"]
@@ -150,33 +182,48 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
     u_fixed = np.array([0.0, 1.0])
     first = path.points[1] - path.points[0]
     u_first = first / np.linalg.norm(first)
-    sources = {"known": PathIntent(path, u_first), **estimators(2, u_fixed), "fixed": KnownIntent(u_fixed)}
+    src: PathIntent | FilteredIntent | HMMIntent | KnownIntent
+    if key == "known":
+        src = PathIntent(path, u_first)
+    elif key == "filtered":
+        src = FilteredIntent(m=2, u0=u_fixed)
+    elif key == "hmm":
+        h = trained_hmm(2)
+        src = HMMIntent(m=2, u0=u_fixed, kappa=h.kappa, switch=h.switch)
+    else:
+        src = KnownIntent(u_fixed)
     duration = settle + path.duration + 0.5
-    N = ticks(duration)
-    chain = ProgressChain(progress, len(sources) * N)
+    sp = Plant(slave, friction=ch5.plant_friction("thesis", slave))
+    sp.reset(q_s)
+    inner = ch5.controller(dev, IntentVME(src, 0.01), VME_GAIN, ch5.NULL_DAMPING,
+                           extra=(ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN),))
+    ctrl = IntentController(inner, src)
+    plant = Plant(dev, friction=ch5.plant_friction("thesis", dev))
+    plant.reset(q_m)
+    log = simulate(plant, ctrl, duration=duration, hand=Hand(path, **ch5.TRACK), teleop=Teleoperation(sp),
+                   progress=progress, record=ch5.slave_q(sp))
+    if log.fault is not None:
+        raise InvalidInput(f"intent_w_trajectory: the controller stopped in scenario {key!r}: {log.fault}")
+    moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
+    U = np.array([h[1] for h in ctrl.history])
+    Ut = _true_w(path, log.t, u_first)
+    area = tmi(dev.jacobian(log.q), slave.jacobian(log.extra["slave_q"]))
+    W0 = log.work[np.argmax(moving)]
+    st = error_and_lag(log.t, U, Ut, moving)
+    stats = {"work": float(log.work[moving][-1] - W0), "area": float(np.mean(area[moving])),
+             "peak": float(np.max(np.linalg.norm(log.F_hand[moving], axis=1))), **st}
+    arrays = {f"{key}_t": log.t[::10] - settle, f"{key}_err": np.degrees(axial_error(U, Ut))[::10],
+              f"{key}_work": (log.work - W0)[::10], f"{key}_area": area[::10]}
+    return stats, arrays
+
+
+def _intent_w_merge(outputs: list[tuple[dict, dict]], *, scale: float, speed: float, settle: float) -> Result:
+    path = ch5.w_reference(ch5.W_CENTER, ch5.W_WIDTH * scale, ch5.W_HEIGHT * scale, speed, settle)
+    u_fixed = np.array([0.0, 1.0])
     rows, arrays, stats = [], {"path": path.points}, {}
-    for key, src in sources.items():
-        sp = Plant(slave, friction=ch5.plant_friction("thesis", slave))
-        sp.reset(q_s)
-        inner = ch5.controller(dev, IntentVME(src, 0.01), VME_GAIN, ch5.NULL_DAMPING,
-                               extra=(ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN),))
-        ctrl = IntentController(inner, src)
-        plant = Plant(dev, friction=ch5.plant_friction("thesis", dev))
-        plant.reset(q_m)
-        log = simulate(plant, ctrl, duration=duration, hand=Hand(path, **ch5.TRACK), teleop=Teleoperation(sp),
-                       progress=chain.run(N), record=ch5.slave_q(sp))
-        if log.fault is not None:
-            raise InvalidInput(f"intent_w_trajectory: the controller stopped in scenario {key!r}: {log.fault}")
-        moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
-        U = np.array([h[1] for h in ctrl.history])
-        Ut = _true_w(path, log.t, u_first)
-        area = tmi(dev.jacobian(log.q), slave.jacobian(log.extra["slave_q"]))
-        W0 = log.work[np.argmax(moving)]
-        st = error_and_lag(log.t, U, Ut, moving)
-        stats[key] = {"work": float(log.work[moving][-1] - W0), "area": float(np.mean(area[moving])),
-                      "peak": float(np.max(np.linalg.norm(log.F_hand[moving], axis=1))), **st}
-        arrays.update({f"{key}_t": log.t[::10] - settle, f"{key}_err": np.degrees(axial_error(U, Ut))[::10],
-                       f"{key}_work": (log.work - W0)[::10], f"{key}_area": area[::10]})
+    for key, (st, arr) in zip(W_SOURCES, outputs):
+        stats[key] = st
+        arrays.update(arr)
     names = {"known": "u known", "filtered": "u estimated (filtered)", "hmm": "u estimated (HMM)",
              "fixed": "u fixed [0, 1]"}
     for key, s in stats.items():

@@ -64,7 +64,7 @@ Choices the thesis leaves open (each is ours, fixed before comparing with the th
 
 
 from rhi.experiments.ch5.fixed import fixed_point
-from rhi.experiments.ch5.tracking import w_trajectory
+from rhi.experiments.ch5.tracking import w_trajectory, w_trajectory_plan
 from rhi.experiments.ch5.workspace import workspaces
 
-__all__ = ["fixed_point", "w_trajectory", "workspaces"]
+__all__ = ["fixed_point", "w_trajectory", "w_trajectory_plan", "workspaces"]

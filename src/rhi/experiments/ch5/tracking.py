@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from rhi import thesis as T
@@ -32,8 +34,9 @@ from rhi.experiments.ch5.setup import (
     tme_area,
     w_reference,
 )
+from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import Progress, ProgressChain, positive, ticks
+from rhi.experiments.setups import Progress, positive, ticks
 from rhi.metrics import ellipsoid_axes, penalized_jacobian, teleoperation_ellipsoid, tmi, velocity_ellipsoid
 from rhi.sim import Hand, Plant, Teleoperation, check_path_in_workspace, simulate
 
@@ -79,6 +82,33 @@ def w_trajectory(
         ellipses: points along the W where Fig. 5.5's ellipses are kept.
         progress: optional callback(done, total).
 
+    The scenarios are independent (`w_trajectory_plan`: `rhi reproduce` runs them side by side).
+
+    Raises:
+        Unreachable: the W leaves the workspace of the RHI, the Rehab or the slave (IK along it).
+        InvalidInput: non-positive scale/speed/sizes, negative settle, unknown friction.
+    """
+    return run_plan(w_trajectory_plan(scale=scale, speed=speed, settle=settle, center=center, width=width,
+                                      height=height, k_q=k_q, gain=gain, damping=damping, friction=friction,
+                                      ellipses=ellipses), progress)
+
+
+def w_trajectory_plan(
+    *,
+    scale: float = 1.0,
+    speed: float = SPEED,
+    settle: float = 2.0,
+    center=W_CENTER,
+    width: float = W_WIDTH,
+    height: float = W_HEIGHT,
+    k_q: float | None = K_Q,
+    gain: float = GAIN,
+    damping: float = NULL_DAMPING,
+    friction: str = "thesis",
+    ellipses: int = 13,
+) -> Plan:
+    """`w_trajectory` as independent parts, one per scenario (arguments as `w_trajectory`).
+
     Raises:
         Unreachable: the W leaves the workspace of the RHI, the Rehab or the slave (IK along it).
         InvalidInput: non-positive scale/speed/sizes, negative settle, unknown friction.
@@ -91,7 +121,6 @@ def w_trajectory(
     devs = devices()
     for dev in devs.values():
         plant_friction(friction, dev)  # validate before the IK checks
-    rhi, reh, slave = devs["RHI"], devs["Rehab"], devs["slave"]
     p0 = path.points[0]
     seeds = {"RHI": Q_FIXED, "Rehab": REHAB_SEED, "slave": SLAVE_SEED}
     start = {}
@@ -103,79 +132,112 @@ def w_trajectory(
                               f"{name} ({dev.name})") from None
         check_path_in_workspace(dev, path, q0=start[name])
     duration = settle + path.duration + 0.5
+    common = {"scale": scale, "speed": speed, "settle": settle, "center": center, "width": width, "height": height,
+              "k_q": k_q, "gain": gain, "damping": damping, "friction": friction, "ellipses": ellipses,
+              "start": {k: tuple(v.tolist()) for k, v in start.items()}}
+    parts = [Part(key, functools.partial(w_scenario, key, **common), ticks(duration)) for key in SCENARIOS]
+    return Plan(parts, functools.partial(_w_merge, **common))
+
+
+def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progress | None = None,
+               **setting) -> tuple[dict, dict]:
+    """One scenario of `w_trajectory` (a `Part` of its plan): (its numbers, its arrays) from the start configurations.
+
+    Args:
+        key: "s1", "s2" or "s3" (`SCENARIOS`).
+        start: {"RHI", "Rehab", "slave": start configuration (n,) [rad]} at the W's first point.
+        progress: callback(done, total) in ticks.
+        **setting: scale, speed, settle, center, width, height, k_q, gain, damping, friction, ellipses as
+            `w_trajectory` takes them.
+    """
+    scale, speed, settle, friction = setting["scale"], setting["speed"], setting["settle"], setting["friction"]
+    k_q, gain, damping, ellipses = setting["k_q"], setting["gain"], setting["damping"], setting["ellipses"]
+    path = w_reference(setting["center"], setting["width"] * scale, setting["height"] * scale, speed, settle)
+    devs = devices()
+    rhi, reh, slave = devs["RHI"], devs["Rehab"], devs["slave"]
+    duration = settle + path.duration + 0.5
     N = ticks(duration)
-    chain = ProgressChain(progress, 3 * N)
+    arrays: dict[str, np.ndarray] = {}
+    dev = reh if key == "s3" else rhi
+    sp = Plant(slave, friction=plant_friction(friction, slave))
+    sp.reset(np.array(start["slave"]))
+    tele = Teleoperation(sp)
+    obj: TMIMatching | Manipulability | None
+    if key == "s1":
+        obj = TMIMatching(slave, lambda tele=tele: tele.slave.q, k_q=k_q)
+    elif key == "s2":
+        obj = Manipulability(log=True, k_q=k_q)
+    else:
+        obj = None
+    plant = Plant(dev, friction=plant_friction(friction, dev))
+    plant.reset(np.array(start["Rehab" if key == "s3" else "RHI"]))
+    log = simulate(plant, controller(dev, obj, gain, damping), duration=duration, hand=Hand(path, **TRACK),
+                   teleop=tele, progress=progress, record=slave_q(sp))
+    qs = log.extra["slave_q"]
+    moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
+    Jm, Js = dev.jacobian(log.q), slave.jacobian(qs)
+    area = tme_area(Jm, Js)
+    ref = np.array([path(t)[0] for t in log.t])
+    err_ref = np.linalg.norm(log.slave_x - ref, axis=1)[moving]
+    err_path = distance_to_polyline(log.slave_x[moving], path.points)
+    W0 = log.work[np.argmax(moving)]
+    work = log.work - W0
+    Jsp = penalized_jacobian(Js, qs, q_min=slave.q_min, q_max=slave.q_max, k_q=K_Q)
+    Jmp = penalized_jacobian(Jm, log.q, q_min=dev.q_min, q_max=dev.q_max, k_q=K_Q)
+    lim = np.min(np.minimum(log.q - dev.q_min, dev.q_max - log.q), axis=1)
+    dt = np.diff(log.t, append=log.t[-1] + (log.t[1] - log.t[0]))[moving]
+    dq = log.dq[moving]
+    fr = plant.friction
+    iw = np.flatnonzero(moving)[[0, -1]]
+    ke = [0.5 * log.dq[i] @ dev.mass_matrix(log.q[i]) @ log.dq[i] for i in iw]
+    stats = {
+        "d_kinetic": float(ke[1] - ke[0]),
+        "e_friction": float(np.sum((np.einsum("kj,kj->k", dq * fr.damping, dq)
+                                    + np.abs(dq) @ fr.frictionloss) * dt)),
+        "e_damping": float(np.sum(B_D * np.einsum("kj,kj->k", log.xdot[moving], log.xdot[moving]) * dt)),
+        "e_actuator": float(np.sum(np.einsum("kj,kj->k", log.tau[moving], dq) * dt)),
+        "area": float(np.mean(area[moving])),
+        "area_pen": float(np.mean(tmi(Jmp, Jsp)[moving])),
+        "bound": float(np.mean(np.abs(np.linalg.det(Js))[moving])),
+        "mu": float(np.mean(np.sqrt(np.linalg.det(Jm @ np.swapaxes(Jm, -1, -2)))[moving])),
+        "work": float(work[moving][-1]),
+        "work_settle": float(W0),
+        "err_rms": float(np.sqrt(np.mean(err_ref**2))),
+        "err_max": float(np.max(err_ref)),
+        "path_rms": float(np.sqrt(np.mean(err_path**2))),
+        "master_rms": float(np.sqrt(np.mean(np.linalg.norm(log.x - ref, axis=1)[moving] ** 2))),
+        "limit": float(np.degrees(np.min(lim[moving]))),
+        "fault": 0.0 if log.fault is None else 1.0,
+    }
+    sel = slice(None, None, max(10, N // 1000))  # about 1000 samples per scenario for the figures
+    arrays[f"{key}_t"] = log.t[sel] - settle
+    arrays[f"{key}_work"] = work[sel]
+    arrays[f"{key}_area"] = area[sel]
+    arrays[f"{key}_x"] = log.x[sel]
+    arrays[f"{key}_slave_x"] = log.slave_x[sel]
+    arrays[f"{key}_q"] = log.q[sel]
+    k = np.flatnonzero(moving)[np.linspace(0, int(moving.sum()) - 1, int(ellipses)).astype(int)]
+    arrays[f"{key}_ell_points"] = log.slave_x[k]
+    arrays[f"{key}_ell_master"] = velocity_ellipsoid(Jm[k])
+    arrays[f"{key}_ell_slave"] = velocity_ellipsoid(Js[k])
+    arrays[f"{key}_ell_tme"] = teleoperation_ellipsoid(Jm[k], Js[k])
+    return stats, arrays
+
+
+def _w_merge(outputs: list[tuple[dict, dict]], *, scale, speed, settle, center, width, height, k_q, gain, damping,
+             friction, ellipses, start) -> Result:
+    path = w_reference(center, width * scale, height * scale, speed, settle)
+    slave = devices()["slave"]
     arrays: dict[str, np.ndarray] = {"path": path.points, "settle": np.array(settle)}
     stats: dict[str, dict[str, float]] = {}
-    for key in SCENARIOS:
-        dev = reh if key == "s3" else rhi
-        sp = Plant(slave, friction=plant_friction(friction, slave))
-        sp.reset(start["slave"])
-        tele = Teleoperation(sp)
-        obj: TMIMatching | Manipulability | None
-        if key == "s1":
-            obj = TMIMatching(slave, lambda tele=tele: tele.slave.q, k_q=k_q)
-        elif key == "s2":
-            obj = Manipulability(log=True, k_q=k_q)
-        else:
-            obj = None
-        plant = Plant(dev, friction=plant_friction(friction, dev))
-        plant.reset(start["Rehab" if key == "s3" else "RHI"])
-        log = simulate(plant, controller(dev, obj, gain, damping), duration=duration, hand=Hand(path, **TRACK),
-                       teleop=tele, progress=chain.run(N), record=slave_q(sp))
-        qs = log.extra["slave_q"]
-        moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
-        Jm, Js = dev.jacobian(log.q), slave.jacobian(qs)
-        area = tme_area(Jm, Js)
-        ref = np.array([path(t)[0] for t in log.t])
-        err_ref = np.linalg.norm(log.slave_x - ref, axis=1)[moving]
-        err_path = distance_to_polyline(log.slave_x[moving], path.points)
-        W0 = log.work[np.argmax(moving)]
-        work = log.work - W0
-        Jsp = penalized_jacobian(Js, qs, q_min=slave.q_min, q_max=slave.q_max, k_q=K_Q)
-        Jmp = penalized_jacobian(Jm, log.q, q_min=dev.q_min, q_max=dev.q_max, k_q=K_Q)
-        lim = np.min(np.minimum(log.q - dev.q_min, dev.q_max - log.q), axis=1)
-        dt = np.diff(log.t, append=log.t[-1] + (log.t[1] - log.t[0]))[moving]
-        dq = log.dq[moving]
-        fr = plant.friction
-        iw = np.flatnonzero(moving)[[0, -1]]
-        ke = [0.5 * log.dq[i] @ dev.mass_matrix(log.q[i]) @ log.dq[i] for i in iw]
-        stats[key] = {
-            "d_kinetic": float(ke[1] - ke[0]),
-            "e_friction": float(np.sum((np.einsum("kj,kj->k", dq * fr.damping, dq)
-                                        + np.abs(dq) @ fr.frictionloss) * dt)),
-            "e_damping": float(np.sum(B_D * np.einsum("kj,kj->k", log.xdot[moving], log.xdot[moving]) * dt)),
-            "e_actuator": float(np.sum(np.einsum("kj,kj->k", log.tau[moving], dq) * dt)),
-            "area": float(np.mean(area[moving])),
-            "area_pen": float(np.mean(tmi(Jmp, Jsp)[moving])),
-            "bound": float(np.mean(np.abs(np.linalg.det(Js))[moving])),
-            "mu": float(np.mean(np.sqrt(np.linalg.det(Jm @ np.swapaxes(Jm, -1, -2)))[moving])),
-            "work": float(work[moving][-1]),
-            "work_settle": float(W0),
-            "err_rms": float(np.sqrt(np.mean(err_ref**2))),
-            "err_max": float(np.max(err_ref)),
-            "path_rms": float(np.sqrt(np.mean(err_path**2))),
-            "master_rms": float(np.sqrt(np.mean(np.linalg.norm(log.x - ref, axis=1)[moving] ** 2))),
-            "limit": float(np.degrees(np.min(lim[moving]))),
-            "fault": 0.0 if log.fault is None else 1.0,
-        }
-        sel = slice(None, None, max(10, N // 1000))  # about 1000 samples per scenario for the figures
-        arrays[f"{key}_t"] = log.t[sel] - settle
-        arrays[f"{key}_work"] = work[sel]
-        arrays[f"{key}_area"] = area[sel]
-        arrays[f"{key}_x"] = log.x[sel]
-        arrays[f"{key}_slave_x"] = log.slave_x[sel]
-        arrays[f"{key}_q"] = log.q[sel]
-        k = np.flatnonzero(moving)[np.linspace(0, int(moving.sum()) - 1, int(ellipses)).astype(int)]
-        arrays[f"{key}_ell_points"] = log.slave_x[k]
-        arrays[f"{key}_ell_master"] = velocity_ellipsoid(Jm[k])
-        arrays[f"{key}_ell_slave"] = velocity_ellipsoid(Js[k])
-        arrays[f"{key}_ell_tme"] = teleoperation_ellipsoid(Jm[k], Js[k])
+    for key, (st, arr) in zip(SCENARIOS, outputs):
+        stats[key] = st
+        arrays.update(arr)
     s1, s2, s3 = (stats[k] for k in SCENARIOS)
     below = 100.0 * (1.0 - s2["area"] / s1["area"])
     order = float(s1["work"] < s2["work"] < s3["work"])
     # alignment of the W's strokes with the slave ME's major axis, weighted by its anisotropy
-    qs_path = check_path_in_workspace(slave, path, q0=start["slave"], step=0.01)
+    qs_path = check_path_in_workspace(slave, path, q0=np.array(start["slave"]), step=0.01)
     tangent = np.diff(path.sample(0.01), axis=0)
     tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
     s_ax, U_ax = ellipsoid_axes(velocity_ellipsoid(slave.jacobian(qs_path[:-1])))
@@ -287,4 +349,5 @@ def w_trajectory(
                    Table("Fig. 5.6 and Table 5.1: user effort (eq. 5.15)", effort),
                    Table("Tracking (Table 5.1's error and time are experimental)", track)],
                   arrays, notes)
+
 
