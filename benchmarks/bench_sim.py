@@ -5,7 +5,9 @@ The hand pushes into a rendered 1000 N/m wall (§6.4 set-up) while the full cont
 the same run: bare MuJoCo stepping of the same plant at rest, MuJoCo alone through the loop's
 motion (the hand force of every physics step replayed: the floor of any loop; a moving plant
 costs MuJoCo more than one at rest), the same loop with a zero-torque controller (plant + hand +
-environment + log: the loop's own cost), and that zero-controller loop as the previous
+environment + log: the loop's own cost; its hand, wall, handle kinematics, sensor reads and log
+rows run in compiled calls, `rhi.sim.handle_kernel` and `rhi.sim.io_kernel`, between MuJoCo's steps
+and the controller), and that zero-controller loop as the previous
 implementation ran it (the package at git revision PREVIOUS, extracted with `git archive`
 and run in a subprocess; skipped outside a git checkout). Target (issue 14): the full loop
 ≥ 25× faster than real time.
