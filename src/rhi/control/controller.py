@@ -352,10 +352,11 @@ class NullSpaceController:
             dq = _reading("dq", dq)
         if q.shape != (n,) or dq.shape != (n,):
             raise InvalidInput(f"q/dq: expected shape ({n},), got {q.shape} and {dq.shape}")
-        if not _finite(q):
-            return self._bad_reading(f"q: non-finite joint position at t={t}: {q.tolist()}")
-        if not _finite(dq):
-            return self._bad_reading(f"dq: non-finite joint velocity at t={t}: {dq.tolist()}")
+        if not math.isfinite(q.dot(q) + dq.dot(dq)):  # one check for both (each checked exactly on overflow)
+            if not _finite(q):
+                return self._bad_reading(f"q: non-finite joint position at t={t}: {q.tolist()}")
+            if not _finite(dq):
+                return self._bad_reading(f"dq: non-finite joint velocity at t={t}: {dq.tolist()}")
         if not math.isfinite(t):
             return self._bad_reading(f"t: non-finite time {t}")
         if self._sensors:
