@@ -3,7 +3,7 @@
 Baselines, all measured in this run and printed as ratios:
 
 * 4 batch calls: `Device.jacobian(Q)`, `jacobian_derivative(Q)`, `mass_matrix(Q)`, `gravity(Q)`,
-  each its own vectorized pass (the batch column is `rhi.batch.terms`, one pass for the four);
+  each its own compiled pass (the batch column is `rhi.batch.terms`, one pass for the four);
 * Pinocchio loop: per configuration, θ = A q + b, `computeFrameJacobian`, `crba`,
   `computeGeneralizedGravity` and ∂J/∂θ from `computeJointJacobiansTimeVariation` along each
   θ̇ = e_k (Pinocchio's way to the same four terms), mapped to motor coordinates;
@@ -114,7 +114,7 @@ def main() -> None:
     scale = args.n / args.loop_n
     print(f"J, dJ/dq, M and g for {args.n} configurations (loops timed on {args.loop_n} and scaled; "
           f"BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']})")
-    print("batch: rhi.batch.terms, the four terms from one vectorized pass; ratios are baseline / batch")
+    print("batch: rhi.batch.terms, the four terms from one compiled pass; ratios are baseline / batch")
     print(f"{'device':<9}{'batch':>9}{'4 batch calls':>21}{'Pinocchio loop':>22}{'Pinocchio J,M,g':>22}"
           f"{'previous batch API':>25}{'Device.terms loop':>24}")
     for dev in [rhi.device("rhi4"), rhi.device("phantom3"), rhi.device("gen3"), *arms()]:
