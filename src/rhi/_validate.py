@@ -11,8 +11,10 @@ from rhi.errors import InfeasibleLimits, InvalidInput
 
 def all_finite(arr: np.ndarray) -> bool:
     """Whether every entry of the float array `arr` is finite."""
-    # The sum of squares is finite iff every entry is, unless huge entries overflow it: then check one by one.
-    return math.isfinite(np.vdot(arr, arr)) or bool(np.isfinite(arr).all())
+    # The sum of squares (or, for large arrays, the sum: no BLAS call, whose threads stall on a shared machine)
+    # is finite iff every entry is, unless huge entries overflow it: then check one by one.
+    total = arr.sum() if arr.size > 1024 else np.vdot(arr, arr)
+    return math.isfinite(total) or bool(np.isfinite(arr).all())
 
 
 def float_array(name: str, value) -> np.ndarray:
