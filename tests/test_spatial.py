@@ -207,9 +207,10 @@ def test_spatial_force_capability_orders_methods():
 
 
 def test_capabilities_equal_the_reference_force_capability():
-    """The experiment's compiled ASCM ramp (LP solved once) gives force_capability's numbers to 1e-10."""
+    """The experiments' compiled ASCM ramp (LP solved once) gives force_capability's numbers to 1e-10, both J#."""
     from rhi.control.allocation import force_capability
-    from rhi.experiments.beyond.spatial import _pair_cached, capabilities
+    from rhi.experiments.beyond.spatial import _pair_cached
+    from rhi.experiments.setups import capabilities
 
     rng = np.random.default_rng(3)
     for d in ("srhi5", "gen3"):
@@ -220,10 +221,11 @@ def test_capabilities_equal_the_reference_force_capability():
         saturated = 0
         for q in Q[dev.within_limits(Q)][:6]:
             J, M = dev.jacobian(q), dev.mass_matrix(q)
-            for u in rng.normal(size=(8, 3)):
-                ours = capabilities(J, u, M, lo, hi)
-                ref = [force_capability(J, u, torque_min=lo, torque_max=hi, method=m, M=M) for m in ("scaling", "ascm",
-                                                                                                    "lp")]
+            for u, proj in zip(rng.normal(size=(8, 3)), ["dynamic", "pseudoinverse"] * 4):
+                M_p = M if proj == "dynamic" else None
+                ours = capabilities(J, u, torque_min=lo, torque_max=hi, projector=proj, M=M_p)
+                ref = [force_capability(J, u, torque_min=lo, torque_max=hi, method=m, projector=proj, M=M_p)
+                       for m in ("scaling", "ascm", "lp")]
                 np.testing.assert_allclose(ours, ref, rtol=1e-10, atol=1e-10)
                 saturated += ours[1] > ours[0] * (1 + 1e-6)  # ASCM above scaling: joints were held
         assert saturated > 0

@@ -13,9 +13,12 @@ from typing import TypeGuard, get_args
 
 import numpy as np
 
+from rhi.control.allocation import ascm_projector
 from rhi.control.controller import Saturation
+from rhi.control.saturation import null_basis
 from rhi.device import Device
 from rhi.errors import InvalidInput
+from rhi.metrics import max_force, max_force_scaling
 from rhi.metrics.force import ProjectorKind
 from rhi.sim import Hand, HandPath, Log, Plant, simulate
 
@@ -150,3 +153,36 @@ def smooth(a: np.ndarray, window: int) -> np.ndarray:
     num = np.apply_along_axis(lambda v: np.convolve(v, k, mode="same"), 0, a)
     den = np.convolve(np.ones(len(a)), k, mode="same")
     return num / (den[:, None] if a.ndim > 1 else den)
+
+
+def capabilities(J: np.ndarray, u: np.ndarray, *, torque_min: np.ndarray, torque_max: np.ndarray,
+                 projector: ProjectorKind = "dynamic", M: np.ndarray | None = None,
+                 samples: int = 41) -> tuple[float, float, float]:
+    """F_max along u by simple scaling, ASCM (Algorithm 1) and the LP optimum [N].
+
+    The numbers of `rhi.control.allocation.force_capability` with method "scaling", "ascm" and "lp",
+    computed together for the sweeps of chapter 7 and beyond: the LP once, and ASCM's ramp of requests
+    (simple-scaling capability to 1.5× the LP optimum, then the optimum itself) through the compiled
+    projector form `rhi.control.allocation.ascm_projector` (the same allocation as the reference).
+
+    Args:
+        J: (m, n) Jacobian [m/rad].
+        u: (m,) direction (normalised here).
+        torque_min: (n,) lower torque limits [N m].
+        torque_max: (n,) upper torque limits [N m].
+        projector: "dynamic" (J#, needs M) or "pseudoinverse" (J⁺, no M).
+        M: (n, n) inertia [kg m²] for the dynamic projector.
+        samples: requests in ASCM's ramp.
+    """
+    J = np.asarray(J, dtype=float)
+    u = np.asarray(u, dtype=float) / np.linalg.norm(u)
+    lo, hi = torque_min, torque_max
+    f_s = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
+    f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector=projector, M=M))
+    Z = null_basis(J, M if projector == "dynamic" else None)
+    P, t = Z @ Z.T, J.T @ u
+    b = np.zeros_like(t)
+    best = f_s
+    for f in np.concatenate([np.linspace(f_s, 1.5 * f_lp, samples), [f_lp]]):
+        best = max(best, ascm_projector(f * t, b, P, torque_min=lo, torque_max=hi, rank=Z.shape[1]).alpha * f)
+    return f_s, (min(best, f_lp) if best <= f_lp * (1 + 1e-9) else best), f_lp

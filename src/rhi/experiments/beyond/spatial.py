@@ -31,22 +31,13 @@ from collections.abc import Callable
 import numpy as np
 
 from rhi.control import VMEMatching
-from rhi.control.allocation import ascm_projector
 from rhi.control.configuration import optimal_configuration
-from rhi.control.saturation import null_basis
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import Progress
-from rhi.metrics import (
-    effective_inertia,
-    effective_manipulability,
-    force_ellipsoid,
-    max_force,
-    max_force_scaling,
-    velocity_ellipsoid,
-)
+from rhi.experiments.setups import Progress, capabilities
+from rhi.metrics import effective_inertia, effective_manipulability, force_ellipsoid, velocity_ellipsoid
 
 BETA = 0.01
 U = (0.0, 1.0, 0.0)
@@ -189,34 +180,6 @@ def _remark_item(item: tuple[str, tuple[float, ...], tuple[float, ...]]) -> tupl
     return _remark_point(np.array(q_sub), name=name, u=u)
 
 
-def capabilities(J: np.ndarray, u: np.ndarray, M: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                 samples: int = 41) -> tuple[float, float, float]:
-    """F_max along u by simple scaling, ASCM (Algorithm 1) and the LP optimum (dynamic J#) [N].
-
-    The numbers of `rhi.control.allocation.force_capability` with method "scaling", "ascm" and "lp",
-    computed together: the LP once, and ASCM's ramp of requests (simple-scaling capability to 1.5×
-    the LP optimum, then the optimum itself) through the compiled projector form `ascm_projector`.
-
-    Args:
-        J: (m, n) Jacobian [m/rad].
-        u: (m,) direction (normalised here).
-        M: (n, n) inertia [kg m²].
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
-        samples: requests in ASCM's ramp.
-    """
-    u = np.asarray(u, dtype=float) / np.linalg.norm(u)
-    f_s = float(max_force_scaling(J, u, torque_min=lo, torque_max=hi))
-    f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector="dynamic", M=M))
-    Z = null_basis(np.asarray(J, dtype=float), M)
-    P, t = Z @ Z.T, np.asarray(J, dtype=float).T @ u
-    b = np.zeros_like(t)
-    best = f_s
-    for f in np.concatenate([np.linspace(f_s, 1.5 * f_lp, samples), [f_lp]]):
-        best = max(best, ascm_projector(f * t, b, P, torque_min=lo, torque_max=hi, rank=Z.shape[1]).alpha * f)
-    return f_s, (min(best, f_lp) if best <= f_lp * (1 + 1e-9) else best), f_lp
-
-
 def spatial_force_capability(
     configurations: int = 20,
     directions: int = 50,
@@ -256,7 +219,7 @@ def spatial_force_capability(
         for i, q in enumerate(Q):
             J, M = dev.jacobian(q), dev.mass_matrix(q)
             for k, u in enumerate(Us[i]):
-                F[i, k] = capabilities(J, u, M, lo, hi)
+                F[i, k] = capabilities(J, u, torque_min=lo, torque_max=hi, M=M)
             done += 1
             if progress is not None:
                 progress(done, total)

@@ -24,7 +24,7 @@ from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import projector_names
+from rhi.experiments.setups import capabilities, projector_names
 from rhi.metrics import max_force
 from rhi.metrics.force import ProjectorKind
 
@@ -156,9 +156,8 @@ def _deficiency_row(y: float, xs: np.ndarray, projectors: tuple[ProjectorKind, .
         for p, projector in enumerate(projectors):
             M = dev.mass_matrix(q) if projector == "dynamic" else None
             out[3 * p, i] = f_wo
-            out[3 * p + 1, i] = force_capability(J, U, torque_min=lo, torque_max=hi, method="ascm", projector=projector,
-                                                M=M, samples=21)
-            out[3 * p + 2, i] = force_capability(J, U, torque_min=lo, torque_max=hi, method="lp", projector=projector, M=M)
+            out[3 * p + 1:3 * p + 3, i] = capabilities(J, U, torque_min=lo, torque_max=hi, projector=projector, M=M,
+                                                       samples=21)[1:]
     return out
 
 
