@@ -144,8 +144,9 @@ def _forward(ints, joints, th, oR, o, S, Ic):
                 for c in range(3):
                     oR[j, r, c] = RP[r, 0] * T[0, c] + RP[r, 1] * T[1, c] + RP[r, 2] * T[2, c]
         else:
-            oR[j] = RP
             for r in range(3):
+                for c in range(3):
+                    oR[j, r, c] = RP[r, c]
                 o[j, r] += th[j] * (RP[r, 0] * a0 + RP[r, 1] * a1 + RP[r, 2] * a2)
         R = oR[j]
         w = S[j, 3:]
@@ -154,8 +155,8 @@ def _forward(ints, joints, th, oR, o, S, Ic):
         if ints[nt + j]:
             _cross(o[j], w, S[j, :3])
         else:
-            S[j, :3] = w
-            S[j, 3:] = 0.0
+            for r in range(3):
+                S[j, r], S[j, 3 + r] = w[r], 0.0
         # body inertia about the origin: mass m at c, rotational inertia R I Rᵀ about c
         m = row[_MASS]
         for r in range(3):
@@ -174,8 +175,11 @@ def _forward(ints, joints, th, oR, o, S, Ic):
         I[4, 0], I[5, 0], I[3, 1], I[5, 1], I[3, 2], I[4, 2] = mc2, -mc1, -mc2, mc0, mc1, -mc0
         I[0, 4], I[0, 5], I[1, 3], I[1, 5], I[2, 3], I[2, 4] = mc2, -mc1, -mc2, mc0, mc1, -mc0
     for j in range(nt - 1, 0, -1):  # composite inertias (parents precede their children)
-        if ints[j] >= 0:
-            Ic[ints[j]] += Ic[j]
+        p = ints[j]
+        if p >= 0:
+            for r in range(6):
+                for k in range(6):
+                    Ic[p, r, k] += Ic[j, r, k]
 
 
 @_jit

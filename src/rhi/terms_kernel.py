@@ -168,7 +168,9 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
     At = A.T.copy()
     J = np.empty((m, n))
     for i in range(m):
-        J[i] = mv(At, J6[rows[i]].copy())
+        Ji = mv(At, J6[rows[i]].copy())
+        for a in range(n):
+            J[i, a] = Ji[a]
     M = mm(mm(At, Mt), A)
     for i in range(n):
         M[i, i] += armature[i]
@@ -188,7 +190,7 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
         dJ = np.zeros(m * n * n)
         for i in range(m):
             E = mm(At, D[i].copy())
-            dJ[i * n * n:(i + 1) * n * n] = mm(E, A).ravel()
+            put(dJ, i * n * n, mm(E, A).ravel())
     Minv = inv(M)
     JMinv = mm(J, Minv)
     Lam = inv(mm(JMinv, J.T.copy()))
@@ -198,22 +200,37 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
     Jdot = mv(dJ.reshape(m * n, n), dq).reshape(m, n)
     Cq = mm(mm(At, Ct), A)
     Cx = mm(mm(Lam, mm(JMinv, Cq) - Jdot), Jsharp)
-    pos = _put(out, 0, J.ravel())
-    pos = _put(out, pos, dJ)
-    pos = _put(out, pos, M.ravel())
-    pos = _put(out, pos, g)
-    pos = _put(out, pos, Minv.ravel())
-    pos = _put(out, pos, JMinv.ravel())
-    pos = _put(out, pos, Lam.ravel())
-    pos = _put(out, pos, Jsharp.ravel())
-    pos = _put(out, pos, Gx)
-    pos = _put(out, pos, xdot)
-    pos = _put(out, pos, Jdot.ravel())
-    pos = _put(out, pos, Cq.ravel())
-    _put(out, pos, Cx.ravel())
+    pos = 0  # typed int64 (not the literal 0): one compiled version of `put`
+    pos = put(out, pos, J.ravel())
+    pos = put(out, pos, dJ)
+    pos = put(out, pos, M.ravel())
+    pos = put(out, pos, g)
+    pos = put(out, pos, Minv.ravel())
+    pos = put(out, pos, JMinv.ravel())
+    pos = put(out, pos, Lam.ravel())
+    pos = put(out, pos, Jsharp.ravel())
+    pos = put(out, pos, Gx)
+    pos = put(out, pos, xdot)
+    pos = put(out, pos, Jdot.ravel())
+    pos = put(out, pos, Cq.ravel())
+    put(out, pos, Cx.ravel())
 
 
 @_jit
-def _put(out, pos, part):
-    out[pos:pos + part.shape[0]] = part
-    return pos + part.shape[0]
+def assign(dst, src):
+    """dst[:] = src for 1-D arrays of one length, as a loop.
+
+    Numba's slice assignment from an array compiles its shape-mismatch error message (string
+    formatting): seconds of first-use compilation per kernel tree that this loop avoids.
+    """
+    for i in range(src.shape[0]):
+        dst[i] = src[i]
+
+
+@_jit
+def put(out, pos, part):
+    """Write part (k,) into out[pos:pos + k]; returns pos + k (a loop: no slice assignment to compile)."""
+    k = part.shape[0]
+    for i in range(k):
+        out[pos + i] = part[i]
+    return pos + k

@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import dot, inv as _inv, mm, mv
+from rhi.terms_kernel import assign, dot, inv as _inv, mm, mv
 
 _TOL = 1e-12  # ASCM: relative overload below this is no overload
 _FAST_TOL = 1e-4  # smallest eigenvalue of P[S, S] the projector form trusts (σ_min(Z_S) >= 0.01)
@@ -37,7 +37,7 @@ def null_projector(A):
         nv = math.sqrt(dot(v, v))
         if not nv > 1e-12 * scale:
             return np.eye(n), False
-        Q[i] = v / nv
+        assign(Q[i], v / nv)
     return np.eye(n) - mm(Q.T, Q), True
 
 
@@ -181,7 +181,7 @@ def ascm(a, b, P, lo, hi, r, sat):
             if o > worst:
                 j, worst = i, o
         if j < 0:
-            sat[:] = held
+            assign(sat, held)
             return tl, 1.0, False, True
         if k + 1 > r:
             break
@@ -206,7 +206,7 @@ def ascm(a, b, P, lo, hi, r, sat):
         c = b + d + ha
         alpha = scaling_alpha(p, c, lo, hi, ~held)
         if alpha >= 0.0:
-            sat[:] = held
+            assign(sat, held)
             return clip(alpha * p + c, lo, hi), alpha, False, True
     tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
     return tau, alpha, clipped, True
@@ -250,7 +250,7 @@ def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
     e0[0] = 1.0
     x = np.empty(k)
     x[0] = alpha0 * sa
-    x[1:] = np.ascontiguousarray(Z.T) @ (tau0 - alpha0 * a - b)
+    assign(x[1:], np.ascontiguousarray(Z.T) @ (tau0 - alpha0 * a - b))
     W = np.empty(k, np.int64)
     nw = 0
     for j in range(n):
@@ -324,9 +324,9 @@ def basis(P, r):
         for _ in range(2):
             for i in range(c):
                 v = v - (Zt[i] @ v) * Zt[i]
-        Zt[c] = v / math.sqrt(v @ v)
+        assign(Zt[c], v / math.sqrt(v @ v))
         for j in range(n):
-            R[j] = R[j] - (Zt[c] @ R[j]) * Zt[c]
+            assign(R[j], R[j] - (Zt[c] @ R[j]) * Zt[c])
     return np.ascontiguousarray(Zt.T)
 
 

@@ -38,7 +38,7 @@ from rhi.control.kernels.allocation import (
     well_conditioned,
 )
 from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import dot, inv as _inv, mm, mtv, mv
+from rhi.terms_kernel import assign, dot, inv as _inv, mm, mtv, mv
 
 #: Status of `tick`.
 OK, FALLBACK, SINGULAR = 0, 1, 2
@@ -244,5 +244,5 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
     delta, beta, ok = tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
-    tau_out[:] = clip(tau + delta if beta != 0.0 else tau, lo, hi)
+    assign(tau_out, clip(tau + delta if beta != 0.0 else tau, lo, hi))
     return OK, gamma * alpha, beta, V, omega, clipped

@@ -20,7 +20,7 @@ from rhi.chain_kernel import chain_terms
 from rhi.control.kernels import passivity
 from rhi.control.kernels.jit import jit
 from rhi.control.kernels.step import FALLBACK, OK, SINGULAR, tick
-from rhi.terms_kernel import dot, mm, mtv, mv
+from rhi.terms_kernel import assign, dot, mm, mtv, mv
 
 __all__ = ["FALLBACK", "OK", "SINGULAR", "whole"]
 
@@ -69,7 +69,7 @@ def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
         o = N_LAW + m * m + 2 * m
         Fq = law[o:o + n] * dq + law[o + n:o + 2 * n] * np.tanh(dq / law[LAW_VS])
         c = c + mtv(Jsharp, Fq)
-    F_x[:] = c - mv(B, xdot)
+    assign(F_x, c - mv(B, xdot))
 
 
 @jit
@@ -148,7 +148,7 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         tau0, lo, hi, motors, pc[PC_CONTROL] != 0.0, pc[PC_ALPHA_MAX], tau_out)
     pc[PC_E], pc[PC_ALPHA], pc[PC_SCALE], pc[PC_DISSIPATED] = E, a_pc, scale, dissipated
     pc[PC_PREV], pc[PC_T] = 1.0, t
-    pc_pos[:] = pos
-    pc_eff[:] = eff
+    assign(pc_pos, pos)
+    assign(pc_eff, eff)
     res[R_PC] = 1.0
     return status
