@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from typing import Literal
@@ -21,6 +22,7 @@ import numpy as np
 from rhi import thesis as T
 from rhi.control.mobile import W_TAU_LIMITS, DMConfig, WeightedConfig, WeightedDistributionController
 from rhi.device import device
+from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain
 from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, hold, simulate_mobile
@@ -167,25 +169,53 @@ def dm_enhancement(
     Returns:
         DM values and weighted joint-torque norms beside the thesis's; DM histories for Fig. A.9.
     """
-    dev = device("wmm")
-    w_tau = np.diag(1.0 / np.asarray(W_TAU_LIMITS))
+    return run_plan(dm_enhancement_plan(dt, t_cartesian, t_null, t_long), progress)
+
+
+def dm_enhancement_plan(dt: float = 0.01, t_cartesian: float = 5.0, t_null: float = 15.0,
+                        t_long: float = 60.0) -> Plan:
+    """`dm_enhancement` as independent parts, one per run (arguments as `dm_enhancement`)."""
     runs: list[tuple[str, tuple[float, float, float], Literal["generalized", "weighted"], float]] = [
         ("z", (0.0, 0.0, 1.0), "generalized", t_null), ("x", (1.0, 0.0, 0.0), "generalized", t_null),
         ("x_weighted", (1.0, 0.0, 0.0), "weighted", t_null)]
     if t_long > 0:
         runs.append(("z_long", (0.0, 0.0, 1.0), "generalized", t_long))
+    return Plan([Part(name, functools.partial(dm_run, u, ns, tn, dt=dt, t_cartesian=t_cartesian), 2)
+                 for name, u, ns, tn in runs],
+                functools.partial(_dm_merge, names=tuple(r[0] for r in runs), dt=dt, t_cartesian=t_cartesian,
+                                  t_null=t_null, t_long=t_long))
+
+
+def dm_run(u: tuple[float, float, float], null_space: Literal["generalized", "weighted"], t_null: float, *,
+           dt: float, t_cartesian: float, progress: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
+    """One run of `dm_enhancement` (a `Part` of its plan): DM enhancement along u, Cartesian then null-space phase.
+
+    Args:
+        u: (3,) DM direction.
+        null_space: the controller's null-space projector.
+        t_null: null-space phase [s].
+        dt: control period [s].
+        t_cartesian: Cartesian phase [s].
+        progress: callback(done, 2) after each phase.
+    """
+    dev = device("wmm")
     done = [0]
 
     def tick() -> None:
         done[0] += 1
         if progress is not None:
-            progress(done[0], 2 * len(runs))
+            progress(done[0], 2)
 
-    out = {}
-    for name, u, ns, tn in runs:
-        ctl = WeightedDistributionController(
-            dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, null_space=ns, dm=DMConfig(u=u, k_c=0.01, k_n=0.2)))
-        out[name] = _dm_phase(ctl, Q0, t_cartesian, tn, dt, tick)
+    ctl = WeightedDistributionController(
+        dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, null_space=null_space, dm=DMConfig(u=u, k_c=0.01, k_n=0.2)))
+    return _dm_phase(ctl, Q0, t_cartesian, t_null, dt, tick)
+
+
+def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], dt: float, t_cartesian: float,
+              t_null: float, t_long: float) -> Result:
+    dev = device("wmm")
+    w_tau = np.diag(1.0 / np.asarray(W_TAU_LIMITS))
+    out = dict(zip(names, outputs))
 
     def tau_norm(q, u, F=10.0):
         return float(np.linalg.norm(w_tau @ dev.jacobian(q)[:, 3:].T @ (F * np.asarray(u))))

@@ -52,8 +52,9 @@ def _cpu() -> float:
     return time.process_time() + c.ru_utime + c.ru_stime
 
 
-def _draw(s: Step, res: Result, out: Path) -> dict[str, Path]:
-    """Draw the step's figures into out/figures (one open at a time): {figure name: PNG path}."""
+def _draw(s: Step, res: Result, out: Path) -> tuple[dict[str, Path], float]:
+    """Draw the step's figures into out/figures (one open at a time): ({figure name: PNG path}, wall time [s])."""
+    t = time.perf_counter()
     (out / "figures").mkdir(parents=True, exist_ok=True)
     paths = {}
     for name, draw in s.figures.items():
@@ -64,7 +65,7 @@ def _draw(s: Step, res: Result, out: Path) -> dict[str, Path]:
         fig.savefig(path, dpi=110, bbox_inches="tight")
         plt.close(fig)
         paths[name] = path
-    return paths
+    return paths, time.perf_counter() - t
 
 
 def _step(name: str) -> Step:
@@ -74,9 +75,9 @@ def _step(name: str) -> Step:
 def _task(kind: str, name: str, quick: bool, out: str, payload: Any = None) -> tuple[Any, float, float]:
     """One task of a parallel reproduction, in a worker process: (output, wall time [s], CPU time [s]).
 
-    kind "step": run the experiment `name` and draw its figures, output (result, figure paths);
+    kind "step": run the experiment `name` and draw its figures, output (result, `_draw`'s output);
     "part": run `payload` (a `Part`), output its output; "merge": ``payload = (merge, outputs)``,
-    output (the merged result, figure paths).
+    output (the merged result, `_draw`'s output).
     """
     t, c = time.perf_counter(), _cpu()
     with shared():  # closed before the worker exits (an open pool's processes would keep it alive)
@@ -143,17 +144,18 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
     results: dict[str, Result] = {}
     figures: dict[str, dict[str, Path]] = {}
     seconds: dict[str, float] = {}  # wall time of each experiment (its tasks' sum), for results.json
-    cpu: dict[str, float] = {}  # its CPU time (with its pools' processes)
+    cpu: dict[str, float] = {}  # its CPU time (without its pools' processes)
+    drawing: dict[str, float] = {}  # the part of its wall time spent drawing its figures
     task_seconds: dict[str, float] = {}  # wall time of each part and merge of a split experiment
     t0 = time.perf_counter()
     cols = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
             TimeElapsedColumn())
 
-    def finished(s: Step, res: Result, figs: dict[str, Path], t_step: float, c_step: float) -> None:
+    def finished(s: Step, res: Result, drawn: tuple[dict[str, Path], float], t_step: float, c_step: float) -> None:
         if res.name != s.name:  # the registry's invariant: an experiment's id is its result's name
             raise RhiError(f"experiment: {s.name} returned a result named {res.name!r}")
-        results[s.name], figures[s.name] = res, figs
-        seconds[s.name], cpu[s.name] = round(t_step, 2), round(c_step, 2)
+        results[s.name], figures[s.name] = res, drawn[0]
+        seconds[s.name], cpu[s.name], drawing[s.name] = round(t_step, 2), round(c_step, 2), round(drawn[1], 2)
         bar.advance(overall)
         if not sys.stdout.isatty():
             _report_progress(len(results), len(steps), s.name, t_step, t0)
@@ -175,7 +177,8 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
     done: list[tuple[str, Result, dict]] = [(s.chapter, results[s.name], dict(figures[s.name])) for s in steps]
     meta = {"mode": mode, "chapters": only or ", ".join(chapters()),
             "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version(), "jobs": jobs,
-            "seconds_per_experiment": seconds, "cpu_seconds_per_experiment": cpu, "seconds_per_task": task_seconds}
+            "seconds_per_experiment": seconds, "cpu_seconds_per_experiment": cpu,
+            "figure_seconds_per_experiment": drawing, "seconds_per_task": task_seconds}
     path = write_report(done, out, meta=meta)
     print("\nHeadline claims of the thesis (details in report.html):")
     print(headline.to_text(headline.evaluate(CLAIMS, [r for _, r, _ in done])))
