@@ -159,3 +159,13 @@ def test_split_experiment_in_parallel_equals_one_after_the_other(tmp_path, monke
         "beyond.passivity[objectives]"]
     with pytest.raises(InvalidInput, match="parts"):
         Plan([], lambda outputs: None)
+
+
+def test_packaged_timings_order_a_first_run():
+    """A first run (no results.json in out/) orders its queue by the packaged reference times of its mode."""
+    from rhi.report import reproduce as rep
+
+    for mode in ("quick", "full"):
+        times = rep._previous_times(rep.TIMINGS.parent / "no such folder", mode)
+        assert {s.name for s in rep.STEPS} <= set(times) and all(v >= 0 for v in times.values())
+    assert rep._previous_times(rep.TIMINGS.parent / "no such folder", "full")["beyond.passivity"] > 100
