@@ -217,6 +217,33 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
 
 
 @_jit
+def add(x, y):
+    """X + y for 1-D arrays (loops: a fraction of the code Numba's array expressions compile to)."""
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = x[i] + y[i]
+    return out
+
+
+@_jit
+def sub(x, y):
+    """X − y for 1-D arrays."""
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = x[i] - y[i]
+    return out
+
+
+@_jit
+def axpy(s, x, y):
+    """The 1-D array s x + y for a scalar s (y − c x is this with s = −c: the same floats)."""
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = s * x[i] + y[i]
+    return out
+
+
+@_jit
 def assign(dst, src):
     """dst[:] = src for 1-D arrays of one length, as a loop.
 

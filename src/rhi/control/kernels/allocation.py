@@ -17,10 +17,39 @@ import math
 import numpy as np
 
 from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import assign, dot, inv as _inv, mm, mv
+from rhi.terms_kernel import add, assign, axpy, dot, inv as _inv, mm, mv, sub
 
 _TOL = 1e-12  # ASCM: relative overload below this is no overload
 _FAST_TOL = 1e-4  # smallest eigenvalue of P[S, S] the projector form trusts (σ_min(Z_S) >= 0.01)
+
+
+@jit
+def any_true(mask):
+    """Whether any entry of the 1-D bool array mask is True (a loop: less code to compile than np.any)."""
+    for i in range(mask.shape[0]):
+        if mask[i]:
+            return True
+    return False
+
+
+@jit
+def any_nonzero(x):
+    """Whether any entry of the 1-D array x is not 0 (NaN counts)."""
+    for i in range(x.shape[0]):
+        if x[i] != 0.0:
+            return True
+    return False
+
+
+@jit
+def max_abs(x):
+    """The largest |x_i| of a non-empty 1-D array (NaN if any entry is NaN, as np.max)."""
+    m = abs(x[0])
+    for i in range(1, x.shape[0]):
+        v = abs(x[i])
+        if v > m or v != v:
+            m = v
+    return m
 
 
 @jit
@@ -33,12 +62,19 @@ def null_projector(A):
         scale = math.sqrt(dot(v, v))
         for _ in range(2):
             for j in range(i):
-                v = v - dot(Q[j], v) * Q[j]
+                s = dot(Q[j], v)
+                for c in range(n):
+                    v[c] = v[c] - s * Q[j, c]
         nv = math.sqrt(dot(v, v))
         if not nv > 1e-12 * scale:
             return np.eye(n), False
-        assign(Q[i], v / nv)
-    return np.eye(n) - mm(Q.T, Q), True
+        for c in range(n):
+            Q[i, c] = v[c] / nv
+    P = mm(Q.T, Q)
+    for r in range(n):  # I − P, in place (loops: less code to compile than array expressions)
+        for c in range(n):
+            P[r, c] = (1.0 if r == c else 0.0) - P[r, c]
+    return P, True
 
 
 @jit
@@ -136,8 +172,16 @@ def held_torque(P, S, k, r):
 
 @jit
 def clip(x, lo, hi):
-    """X clipped to the box [lo, hi]."""
-    return np.minimum(np.maximum(x, lo), hi)
+    """X clipped to the box [lo, hi] (NaN stays NaN); a loop, a tenth of the code NumPy's broadcasting compiles to."""
+    out = np.empty(x.shape[0])
+    for i in range(x.shape[0]):
+        v = x[i]
+        if v < lo[i]:
+            v = lo[i]
+        if v > hi[i]:
+            v = hi[i]
+        out[i] = v
+    return out
 
 
 @jit
@@ -148,7 +192,7 @@ def allocate_scaling(a, b, lo, hi, sat):
     sat[:] = False
     if alpha < 0.0:
         return clip(b, lo, hi), 0.0, True
-    tau = clip(alpha * a + b, lo, hi)
+    tau = clip(axpy(alpha, a, b), lo, hi)
     if alpha < 1.0:
         for i in range(n):
             sat[i] = abs(tau[i] - hi[i]) <= 1e-12 * (1.0 + abs(hi[i])) or abs(tau[i] - lo[i]) <= 1e-12 * (1.0 + abs(lo[i]))
@@ -159,7 +203,7 @@ def allocate_scaling(a, b, lo, hi, sat):
 def ascm(a, b, P, lo, hi, r, sat):
     """ASCM (Algorithm 1) in projector form into sat; returns (τ, α, clipped, ok); ok False: use the basis form."""
     n = a.shape[0]
-    base = a + b
+    base = add(a, b)
     S = np.empty(n, np.int64)  # held joints, sorted
     k = 0
     held = np.zeros(n, np.bool_)
@@ -172,7 +216,7 @@ def ascm(a, b, P, lo, hi, r, sat):
             for i in range(k):
                 rr[i] = ts[S[i]] - base[S[i]]
             d = held_torque(P, S, k, rr)
-            tl = base + d
+            tl = add(base, d)
         j, worst = -1, _TOL
         for i in range(n):
             if held[i]:
@@ -202,12 +246,15 @@ def ascm(a, b, P, lo, hi, r, sat):
         for i in range(k):
             ra[i] = a[S[i]]
         ha = held_torque(P, S, k, ra)
-        p = a - ha
-        c = b + d + ha
-        alpha = scaling_alpha(p, c, lo, hi, ~held)
+        p = sub(a, ha)
+        c = add(add(b, d), ha)
+        free = np.empty(n, np.bool_)
+        for i in range(n):
+            free[i] = not held[i]
+        alpha = scaling_alpha(p, c, lo, hi, free)
         if alpha >= 0.0:
             assign(sat, held)
-            return clip(alpha * p + c, lo, hi), alpha, False, True
+            return clip(axpy(alpha, p, c), lo, hi), alpha, False, True
     tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
     return tau, alpha, clipped, True
 
@@ -301,7 +348,7 @@ def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
 def active_set_result(alpha, y, a, b, Z, lo, hi, sat):
     """τ = clip(α a + b + Z y) into the box with the joints at a limit in sat: (τ, α)."""
     alpha = min(max(alpha, 0.0), 1.0)
-    tau = clip(alpha * a + b + Z @ y, lo, hi)
+    tau = clip(add(axpy(alpha, a, b), Z @ y), lo, hi)
     for i in range(tau.shape[0]):
         tol = 1e-9 * (1.0 + abs(hi[i] - lo[i]))
         sat[i] = abs(tau[i] - hi[i]) <= tol or abs(tau[i] - lo[i]) <= tol
@@ -333,7 +380,7 @@ def basis(P, r):
 @jit
 def negligible(x):
     """Null-space torques below this [N m] are rounding noise of the projections."""
-    return 1e-12 * (1.0 + np.max(np.abs(x)))
+    return 1e-12 * (1.0 + max_abs(x))
 
 
 @jit
@@ -352,16 +399,16 @@ def held_set(sat):
 @jit
 def safety_room(tau, b, delta, lo, hi):
     """`rhi.control.safety.safety_room` (not skipped): (τ', γ)."""
-    if not np.any(np.abs(delta) > negligible(delta)):
+    if not max_abs(delta) > negligible(delta):
         return tau, 1.0
     n = tau.shape[0]
     every = np.ones(n, np.bool_)
-    c = b + delta
-    gamma = scaling_alpha(tau - b, c, lo, hi, every)
+    c = add(b, delta)
+    gamma = scaling_alpha(sub(tau, b), c, lo, hi, every)
     if gamma < 0.0:
         sigma = scaling_alpha(delta, clip(tau, lo, hi), lo, hi, every)
-        return tau + max(sigma, 0.0) * delta, 1.0
-    return clip(c + gamma * (tau - b), lo, hi), gamma
+        return axpy(max(sigma, 0.0), delta, tau), 1.0
+    return clip(axpy(gamma, sub(tau, b), c), lo, hi), gamma
 
 
 @jit
@@ -378,10 +425,12 @@ def tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r):
         rr = np.empty(k)
         for i in range(k):
             rr[i] = dl[S[i]]
-        dl = dl - held_torque(P, S, k, rr)
-    if np.max(np.abs(dl)) <= negligible(tau_to):
+        dl = sub(dl, held_torque(P, S, k, rr))
+    if max_abs(dl) <= negligible(tau_to):
         return np.zeros(n), 0.0, True
     beta = scaling_alpha(dl, clip(tau, lo, hi), lo, hi, np.ones(n, np.bool_))
     if beta < 0.0:
         return np.zeros(n), 0.0, True
-    return beta * dl, beta, True
+    for i in range(n):
+        dl[i] *= beta
+    return dl, beta, True

@@ -26,6 +26,8 @@ from rhi.control.kernels.allocation import (
     active_set_result,
     active_set_start,
     allocate_scaling,
+    any_nonzero,
+    any_true,
     ascm,
     basis,
     blocks_all,
@@ -38,7 +40,7 @@ from rhi.control.kernels.allocation import (
     well_conditioned,
 )
 from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import assign, dot, inv as _inv, mm, mtv, mv
+from rhi.terms_kernel import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
 
 #: Status of `tick`.
 OK, FALLBACK, SINGULAR = 0, 1, 2
@@ -66,20 +68,43 @@ def _contract(Y, dJ):
 @jit
 def vme_gradient(D, J, dJ):
     """∂/∂q of JBLD(D, JJᵀ) (eq. 3.22): 2 Σ (G J)_ij ∂J_ij/∂q_k, G = ½((D + JJᵀ)/2)⁻¹ − ½(JJᵀ)⁻¹. (n,)."""
+    m = J.shape[0]
     M = mm(J, J.T)
-    G = _inv(0.5 * (D + M)) - _inv(M)
+    H = np.empty((m, m))
+    for i in range(m):  # loops, not array expressions: less code to compile
+        for j in range(m):
+            H[i, j] = 0.5 * (D[i, j] + M[i, j])
+    G = _inv(H)
+    Minv = _inv(M)
+    for i in range(m):
+        for j in range(m):
+            G[i, j] = G[i, j] - Minv[i, j]
     return _contract(mm(G, J), dJ)
 
 
 @jit
 def fme_gradient(D, J, dJ, w2):
     """∂/∂q of JBLD(M̂, D), M̂ = (J W² Jᵀ)⁻¹ (eqs. 6.9–6.10): −2 Σ (Hᵀ J W²)_ij ∂J_ij/∂q_k. (n,)."""
-    Jw = J * w2
+    m, n = J.shape
+    Jw = np.empty((m, n))
+    for i in range(m):  # loops, not array expressions: less code to compile
+        for j in range(n):
+            Jw[i, j] = J[i, j] * w2[j]
     A = mm(Jw, J.T)
     Mh = _inv(A)
-    G = 0.5 * (_inv(0.5 * (Mh + D)) - A)
+    T = np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            T[i, j] = 0.5 * (Mh[i, j] + D[i, j])
+    G = _inv(T)
+    for i in range(m):
+        for j in range(m):
+            G[i, j] = 0.5 * (G[i, j] - A[i, j])
     H = mm(mm(Mh, G), Mh)
-    return -2.0 * _contract(mm(H.T, Jw), dJ)
+    out = _contract(mm(H.T, Jw), dJ)
+    for k in range(n):
+        out[k] = -2.0 * out[k]
+    return out
 
 
 @jit
@@ -157,26 +182,33 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
     a = mtv(J, F_r)
     b = mtv(J, F_x)
     if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
-        b = b + (g - mtv(J, Gx))
-    tau_m = a + b
+        b = add(b, sub(g, mtv(J, Gx)))
+    tau_m = add(a, b)
     V = aso_volume(tau_m, lo, hi, prm[P_ASO_S])
     omega = 1.0
-    tau_s = -prm[P_DAMPING] * dq + tau_s_extra
+    tau_s = axpy(-prm[P_DAMPING], dq, tau_s_extra)
     tau_to = tau_s
     if prm[P_FME] != 0.0:
         omega = transition(tr, t, V, prm[P_FME_DIST], prm[P_EPS1], prm[P_EPS2], prm[P_RHO])
         if prm[P_FME_GAIN] > 0.0:
-            D = fme_free if omega == 1.0 else (fme_stiff if omega == 0.0 else omega * fme_free + (1.0 - omega) * fme_stiff)
-            tau_to = tau_to - prm[P_FME_GAIN] * fme_gradient(D, J, dJ, w2)
+            D = fme_free
+            if omega == 0.0:
+                D = fme_stiff
+            elif omega != 1.0:
+                D = np.empty((m, m))
+                for i in range(m):
+                    for j in range(m):
+                        D[i, j] = omega * fme_free[i, j] + (1.0 - omega) * fme_stiff[i, j]
+            tau_to = axpy(-prm[P_FME_GAIN], fme_gradient(D, J, dJ, w2), tau_to)
     for i in range(vme_gain.shape[0]):
-        tau_to = tau_to - vme_gain[i] * vme_gradient(vme_D[i], J, dJ)
-    tau_to = tau_to + tau_to_extra
+        tau_to = axpy(-vme_gain[i], vme_gradient(vme_D[i], J, dJ), tau_to)
+    tau_to = add(tau_to, tau_to_extra)
     r = n - m
     dynamic = prm[P_DYNAMIC] != 0.0
     have_P = False
     P = np.eye(n)
     if dynamic:
-        Ntau = tau_to - mtv(J, mtv(Jsharp, tau_to))
+        Ntau = sub(tau_to, mtv(J, mtv(Jsharp, tau_to)))
     else:
         P, ok = null_projector(J)
         if not ok:
@@ -202,7 +234,7 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
                 return FALLBACK, 1.0, 0.0, V, omega, False
         else:
             tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
-            if clipped or not np.any(a != 0.0):
+            if clipped or not any_nonzero(a):
                 return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
             Z = basis(P, r)
             ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
@@ -216,13 +248,13 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
         for i in range(n):
             sat[i] = tau_m[i] > hi[i] or tau_m[i] < lo[i]
     gamma = 1.0
-    if safe and np.any(sat):  # the safety torque the held joints would block
+    if safe and any_true(sat):  # the safety torque the held joints would block
         if not have_P:
             P, ok = null_projector(JMinv)
             if not ok:
                 return SINGULAR, 1.0, 0.0, V, omega, False
             have_P = True
-        Nsafe = tau_s - mtv(J, mtv(Jsharp, tau_s)) if dynamic else mv(P, tau_s)
+        Nsafe = sub(tau_s, mtv(J, mtv(Jsharp, tau_s))) if dynamic else mv(P, tau_s)
         S, k = held_set(sat)
         if k >= r:  # no redundancy left (e.g. an LP vertex with more than r joints at a limit): all of it is held
             if not blocks_all(P, S, k, r):
@@ -237,12 +269,12 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
             held = held_torque(P, S, k, rr)
         if not clipped:
             tau, gamma = safety_room(tau, b, held, lo, hi)
-    if not have_P and np.any(sat):
+    if not have_P and any_true(sat):
         P, ok = null_projector(JMinv)
         if not ok:
             return SINGULAR, 1.0, 0.0, V, omega, False
     delta, beta, ok = tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
-    assign(tau_out, clip(tau + delta if beta != 0.0 else tau, lo, hi))
+    assign(tau_out, clip(add(tau, delta) if beta != 0.0 else tau, lo, hi))
     return OK, gamma * alpha, beta, V, omega, clipped
