@@ -205,7 +205,7 @@ def ascm(a, b, P, lo, hi, r, sat):
     n = a.shape[0]
     base = add(a, b)
     S = np.empty(n, np.int64)  # held joints, sorted
-    k = 0
+    k = np.int64(0)  # not the literal 0: one compiled version of held_torque
     held = np.zeros(n, np.bool_)
     ts = np.zeros(n)
     tl = base.copy()

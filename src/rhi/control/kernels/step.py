@@ -237,7 +237,7 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
             if clipped or not any_nonzero(a):
                 return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
             Z = basis(P, r)
-            ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
+            ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, np.int64(50))  # int64, as from Python: one compile
             if not ok:
                 return FALLBACK, 1.0, 0.0, V, omega, False
             tau, alpha = active_set_result(alpha, y, a, b, Z, lo, hi, sat)
