@@ -114,7 +114,7 @@ class Device:
         self.task_axes = task_axes
         self._rows = [_AXES[a] for a in task_axes]
         ntheta = model.nv
-        self.A = np.eye(ntheta) if actuation is None else np.asarray(actuation, dtype=float)
+        self.A = np.eye(ntheta) if actuation is None else np.ascontiguousarray(actuation, dtype=float)  # C order: 1 kernel build
         if self.A.shape[0] != ntheta:
             raise ModelError(f"actuation: expected {ntheta} rows (chain joints), got shape {self.A.shape}")
         self.b = np.zeros(ntheta) if offset is None else np.asarray(offset, dtype=float)
