@@ -29,7 +29,7 @@ from rhi.errors import InvalidInput, Singular
 from rhi.terms_kernel import TERMS, layout
 
 if TYPE_CHECKING:
-    from rhi.control.controller import NullSpaceController
+    from rhi.control.controller import ControllerState, NullSpaceController
     from rhi.control.passivity import PassivityState
 
 def _f64(v) -> np.ndarray:
@@ -148,6 +148,25 @@ class KernelTick:
             self._pc_pos, self._pc_eff = np.zeros(k), np.zeros(k)
             self._ps_of: PassivityState | None = None  # the PassivityState the passivity slots mirror
 
+    def _load_transition(self, s: ControllerState) -> list[float] | None:
+        """Mirror the state's FME transition into the kernel's tr (if it changed); tr's values before the tick."""
+        if not self._fme:
+            return None
+        tr = self._tr
+        if s.transition is not self._tr_of:
+            T = s.transition
+            tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
+        return tr.tolist()
+
+    def _store_transition(self, s: ControllerState, before: list[float] | None) -> None:
+        """A new `TransitionState` in the state where the kernel advanced tr."""
+        if before is None:
+            return
+        after = self._tr.tolist()
+        if after != before:
+            s.transition = TransitionState(after[0] != 0.0, after[1], after[2], after[3])
+        self._tr_of = s.transition
+
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):
         """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or (F_render, F_extra).
 
@@ -166,12 +185,7 @@ class KernelTick:
         for gain, fn in self._grads:
             tau_to = tau_to - gain * fn(kin)
         tr = self._tr
-        fme = self._fme
-        if fme:
-            if s.transition is not self._tr_of:
-                T = s.transition
-                tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
-            before = tr.tolist()
+        before = self._load_transition(s)
         buf = kin._buf
         if buf is None:  # terms not from the compiled `Device.terms` (a joint that is not one-DoF)
             buf = np.concatenate([getattr(kin, name).ravel() for name, _ in TERMS[:9]])
@@ -184,11 +198,7 @@ class KernelTick:
             if status == kernels.SINGULAR:
                 raise Singular("J: rank-deficient Jacobian")
             return F_r, F_x
-        if fme:
-            after = tr.tolist()
-            if after != before:
-                s.transition = TransitionState(after[0] != 0.0, after[1], after[2], after[3])
-            self._tr_of = s.transition
+        self._store_transition(s, before)
         s.V, s.omega = V, omega
         return self._tau.copy(), alpha, beta, self._sat.copy(), clipped
 
@@ -216,12 +226,7 @@ class KernelTick:
             if F.shape != self._no_force.shape:
                 raise InvalidInput(f"sensors['force']: expected shape {self._no_force.shape}, got {F.shape}")
         tr = self._tr
-        fme = self._fme
-        if fme:
-            if s.transition is not self._tr_of:
-                T = s.transition
-                tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
-            before = tr.tolist()
+        before = self._load_transition(s)
         pc, pcv = ctrl._pc, self._pc
         ps = None if pc is None else pc.state
         if ps is not None and ps is not self._ps_of:  # a fresh, reset or Python-advanced observer
@@ -249,11 +254,7 @@ class KernelTick:
             kin = DeviceTerms.from_buffer(dev, q, dq, x.copy(), dev.A.dot(q) + dev.b, buf.copy(),
                                           dev._fast_maps.layout)
             return kin, (F_r.copy(), F_x.copy())
-        if fme:
-            after = tr.tolist()
-            if after != before:
-                s.transition = TransitionState(after[0] != 0.0, after[1], after[2], after[3])
-            self._tr_of = s.transition
+        self._store_transition(s, before)
         s.V, s.omega = V, omega
         if pc_ran and ps is not None:
             v = pcv.tolist()
