@@ -99,6 +99,47 @@ def _mv(A, v, out):
 
 
 @_jit
+def joint_frame(ints, joints, j, th, oR, o, RP, T):
+    """Orientation oR[j] and origin o[j] of chain joint j's frame at its coordinate th [rad or m], in place.
+
+    Its parent's (ints[j], −1: the world) must be written already. RP and T: (3, 3) scratch.
+    """
+    nt = joints.shape[0]
+    p = ints[j]
+    row = joints[j]
+    for r in range(3):  # R_p P_j and o_p + R_p t_j
+        for c in range(3):
+            if p >= 0:
+                RP[r, c] = oR[p, r, 0] * row[_P + c] + oR[p, r, 1] * row[_P + 3 + c] + oR[p, r, 2] * row[_P + 6 + c]
+            else:
+                RP[r, c] = row[_P + 3 * r + c]
+        if p >= 0:
+            o[j, r] = o[p, r] + oR[p, r, 0] * row[_T] + oR[p, r, 1] * row[_T + 1] + oR[p, r, 2] * row[_T + 2]
+        else:
+            o[j, r] = row[_T + r]
+    a0, a1, a2 = row[_AX], row[_AX + 1], row[_AX + 2]
+    if ints[nt + j]:  # revolute: Rodrigues' rotation about the axis
+        cq, sq = np.cos(th), np.sin(th)
+        for r in range(3):
+            for c in range(3):
+                T[r, c] = (1.0 - cq) * row[_AX + r] * row[_AX + c] + (cq if r == c else 0.0)
+        T[0, 1] -= sq * a2
+        T[1, 0] += sq * a2
+        T[0, 2] += sq * a1
+        T[2, 0] -= sq * a1
+        T[1, 2] -= sq * a0
+        T[2, 1] += sq * a0
+        for r in range(3):
+            for c in range(3):
+                oR[j, r, c] = RP[r, 0] * T[0, c] + RP[r, 1] * T[1, c] + RP[r, 2] * T[2, c]
+    else:
+        for r in range(3):
+            for c in range(3):
+                oR[j, r, c] = RP[r, c]
+            o[j, r] += th * (RP[r, 0] * a0 + RP[r, 1] * a1 + RP[r, 2] * a2)
+
+
+@_jit
 def _forward(ints, joints, th, oR, o, S, Ic):
     """Forward kinematics and composite inertias of one configuration, written in place.
 
@@ -116,38 +157,9 @@ def _forward(ints, joints, th, oR, o, S, Ic):
     T = np.empty((3, 3))
     com = np.empty(3)
     for j in range(nt):
-        p = ints[j]
+        joint_frame(ints, joints, j, th[j], oR, o, RP, T)
         row = joints[j]
-        for r in range(3):  # R_p P_j and o_p + R_p t_j
-            for c in range(3):
-                if p >= 0:
-                    RP[r, c] = oR[p, r, 0] * row[_P + c] + oR[p, r, 1] * row[_P + 3 + c] + oR[p, r, 2] * row[_P + 6 + c]
-                else:
-                    RP[r, c] = row[_P + 3 * r + c]
-            if p >= 0:
-                o[j, r] = o[p, r] + oR[p, r, 0] * row[_T] + oR[p, r, 1] * row[_T + 1] + oR[p, r, 2] * row[_T + 2]
-            else:
-                o[j, r] = row[_T + r]
         a0, a1, a2 = row[_AX], row[_AX + 1], row[_AX + 2]
-        if ints[nt + j]:  # revolute: Rodrigues' rotation about the axis
-            cq, sq = np.cos(th[j]), np.sin(th[j])
-            for r in range(3):
-                for c in range(3):
-                    T[r, c] = (1.0 - cq) * row[_AX + r] * row[_AX + c] + (cq if r == c else 0.0)
-            T[0, 1] -= sq * a2
-            T[1, 0] += sq * a2
-            T[0, 2] += sq * a1
-            T[2, 0] -= sq * a1
-            T[1, 2] -= sq * a0
-            T[2, 1] += sq * a0
-            for r in range(3):
-                for c in range(3):
-                    oR[j, r, c] = RP[r, 0] * T[0, c] + RP[r, 1] * T[1, c] + RP[r, 2] * T[2, c]
-        else:
-            for r in range(3):
-                for c in range(3):
-                    oR[j, r, c] = RP[r, c]
-                o[j, r] += th[j] * (RP[r, 0] * a0 + RP[r, 1] * a1 + RP[r, 2] * a2)
         R = oR[j]
         w = S[j, 3:]
         for r in range(3):

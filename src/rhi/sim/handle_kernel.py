@@ -5,7 +5,7 @@ environment's input): forward kinematics of a tree of one-DoF revolute/prismatic
 `rhi.chain_kernel.pack`, the end-effector point p and its velocity ṗ = Σ_j J_j θ̇_j over the
 joints j supporting the frame, with the linear Jacobian column J_j = ω_j × (p − o_j) for a
 revolute joint and ω_j for a prismatic one (ω_j = R_j a_j the joint's world axis, o_j its
-origin); the same recursion as `rhi.chain_kernel` (Pinocchio's conventions) without the
+origin); each joint's frame by `rhi.chain_kernel.joint_frame` (Pinocchio's conventions), without the
 inertias, the Jacobian's angular rows or the dynamics. `hand_step` is `rhi.sim.Hand.force` plus
 a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
 handle's applied force in the same call. Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
@@ -17,10 +17,11 @@ import math
 
 import numpy as np
 
+from rhi.chain_kernel import joint_frame
 from rhi.terms_kernel import _jit
 
-#: columns of `pack`'s per-joint constants used here: placement rotation (9), translation (3), axis (3)
-_P, _T, _AX = 0, 9, 12
+#: column of the joint axis (3) in `pack`'s per-joint constants
+_AX = 12
 
 
 @_jit
@@ -47,37 +48,7 @@ def handle_state(ints, joints, fc, q, dq, out):
         th = fc[12 + j]
         for k in range(n):
             th += fc[12 + nt + j * n + k] * q[k]
-        p = ints[j]
-        row = joints[j]
-        for r in range(3):  # R_p P_j and o_p + R_p t_j
-            for c in range(3):
-                if p >= 0:
-                    RP[r, c] = oR[p, r, 0] * row[_P + c] + oR[p, r, 1] * row[_P + 3 + c] + oR[p, r, 2] * row[_P + 6 + c]
-                else:
-                    RP[r, c] = row[_P + 3 * r + c]
-            if p >= 0:
-                o[j, r] = o[p, r] + oR[p, r, 0] * row[_T] + oR[p, r, 1] * row[_T + 1] + oR[p, r, 2] * row[_T + 2]
-            else:
-                o[j, r] = row[_T + r]
-        a0, a1, a2 = row[_AX], row[_AX + 1], row[_AX + 2]
-        if ints[nt + j]:  # revolute: Rodrigues' rotation about the axis
-            cq, sq = np.cos(th), np.sin(th)
-            for r in range(3):
-                for c in range(3):
-                    T[r, c] = (1.0 - cq) * row[_AX + r] * row[_AX + c] + (cq if r == c else 0.0)
-            T[0, 1] -= sq * a2
-            T[1, 0] += sq * a2
-            T[0, 2] += sq * a1
-            T[2, 0] -= sq * a1
-            T[1, 2] -= sq * a0
-            T[2, 1] += sq * a0
-            for r in range(3):
-                for c in range(3):
-                    oR[j, r, c] = RP[r, 0] * T[0, c] + RP[r, 1] * T[1, c] + RP[r, 2] * T[2, c]
-        else:
-            oR[j] = RP
-            for r in range(3):
-                o[j, r] += th * (RP[r, 0] * a0 + RP[r, 1] * a1 + RP[r, 2] * a2)
+        joint_frame(ints, joints, j, th, oR, o, RP, T)
     f = ints[2 * nt]
     pt = np.empty(3)
     for r in range(3):
