@@ -20,18 +20,17 @@ own helpers compiled by an earlier stage are not paid again by a later one.
 from __future__ import annotations
 
 import argparse
-import io
 import os
 import subprocess
 import sys
-import tarfile
 import tempfile
 import time
 from pathlib import Path
 
+from revision import source_at
+
 #: main before the compile-time work of issue 14
 PREVIOUS = "e9a3029"
-ROOT = Path(__file__).resolve().parents[1]
 STAGES = ("Device.terms (chain_terms)", "composed tick (step.tick)", "whole tick (whole.whole)")
 
 
@@ -73,12 +72,10 @@ def measure(src: Path) -> list[float] | str:
 def previous(rev: str) -> list[float] | str:
     """The stages' CPU seconds for the package at git revision `rev`, or why it could not run."""
     try:
-        tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "src"], capture_output=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError) as exc:
-        return f"skipped (no git revision {rev}: {exc})"
-    with tempfile.TemporaryDirectory() as tmp:
-        tarfile.open(fileobj=io.BytesIO(tar)).extractall(tmp, filter="data")
-        return measure(Path(tmp) / "src")
+        with source_at(rev) as src:
+            return measure(src)
+    except LookupError as exc:
+        return f"skipped ({exc})"
 
 
 def main() -> None:
@@ -96,7 +93,7 @@ def main() -> None:
     why = ""
     for i in range(a.repeat):
         print(f"run {i + 1}/{a.repeat}: this tree ...", file=sys.stderr, flush=True)
-        m = measure(ROOT / "src")
+        m = measure(Path(__file__).resolve().parents[1] / "src")
         if isinstance(m, str):
             sys.exit(f"this tree {m}")
         now.append(m)

@@ -23,17 +23,14 @@ is not the loop's).
 from __future__ import annotations
 
 import argparse
-import io
 import os
 import subprocess
 import sys
-import tarfile
-import tempfile
 import time
-from pathlib import Path
 
 import mujoco
 import numpy as np
+from revision import source_at
 
 import rhi
 from rhi.sim import Hand, Plant, Wall, simulate
@@ -47,7 +44,6 @@ Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 TARGET = 25.0
 #: main before the loop's speed work of issue 14
 PREVIOUS = "2e43554"
-ROOT = Path(__file__).resolve().parents[1]
 
 
 class Zero:
@@ -136,14 +132,12 @@ def replay(forces: list[np.ndarray]) -> tuple[float, float]:
 def previous(rev: str, seconds: float, repeat: int) -> tuple[float, float] | str:
     """Best (wall, CPU) of the zero-controller loop in the package at `rev`, or why it could not run."""
     try:
-        tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "src"], capture_output=True, check=True).stdout
-    except (OSError, subprocess.CalledProcessError) as exc:
-        return f"skipped (no git revision {rev}: {exc})"
-    with tempfile.TemporaryDirectory() as tmp:
-        tarfile.open(fileobj=io.BytesIO(tar)).extractall(tmp, filter="data")
-        env = {**os.environ, "PYTHONPATH": os.path.join(tmp, "src")}
-        out = subprocess.run([sys.executable, __file__, str(seconds), "--zero-only", "--repeat", str(repeat)],
-                             capture_output=True, text=True, env=env, cwd=tmp)
+        with source_at(rev) as src:
+            env = {**os.environ, "PYTHONPATH": str(src)}
+            out = subprocess.run([sys.executable, __file__, str(seconds), "--zero-only", "--repeat", str(repeat)],
+                                 capture_output=True, text=True, env=env, cwd=src.parent)
+    except LookupError as exc:
+        return f"skipped ({exc})"
     if out.returncode != 0:
         return f"failed: {out.stderr.strip().splitlines()[-1] if out.stderr.strip() else out.returncode}"
     wall, cpu = map(float, out.stdout.split())
