@@ -20,6 +20,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable, Iterator
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,9 +29,10 @@ from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
 from rhi.runtime.safety import Safety, SafetyConfig
 from rhi.sim.log import TIMING, Log, LogWriter, layout, nan_stats
+from rhi.sim.loop import Kinematics
 from rhi.sim.telemetry import TelemetrySink
 
-_TRUTH = ("x", "xdot", "F_hand")
+nan = math.nan
 
 
 @dataclasses.dataclass
@@ -183,9 +185,12 @@ def run(
     w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"), "rate": float(rate),
                                                 "source": type(link).__name__, "realtime": bool(realtime)})
     c = w.cols
+    at = _offsets(w, n, m)
     state = getattr(controller, "state", None)
     zero = np.zeros(n)
     zero_m = np.zeros(m)
+    # the handle's x and ẋ on the controller's model and the virtual force: one compiled call where it can
+    kin = None if dev is None else Kinematics(dev, virtual)
     span = np.maximum(-guard.lo, guard.hi).tolist()
     top = 0.0  # the largest |τ_i| / limit_i so far
     stats = {"ticks": 0, "missed": 0, "skipped_slots": 0, "max_torque_ratio": 0.0}
@@ -209,7 +214,7 @@ def run(
                 if realtime:
                     _sleep_until(deadline)
                 ts = time.monotonic()
-                tau, kin_xdot, F_env, r = zero, None, zero_m, None
+                tau, xdot, F_env, r = zero, None, zero_m, None
                 try:
                     r = link.read()
                 except LinkError as exc:
@@ -218,12 +223,9 @@ def run(
                 if r is not None:
                     t_dev = r.t
                     q, dq = r.q, r.dq
-                    if dev is not None and math.isfinite(float(q @ q + dq @ dq)):
-                        kin = dev.terms(q, dq, check=False)
-                        kin_xdot = kin.xdot
-                        if virtual is not None:
-                            F_env = virtual.force(kin.x, kin_xdot)
-                    if guard.check(r, ts if realtime else None, kin_xdot):
+                    if kin is not None and math.isfinite(float(q @ q + dq @ dq)):
+                        _, xdot, F_env = kin.render(q, dq)
+                    if guard.check(r, ts if realtime else None, xdot):
                         sensors = dict(r.sensors)
                         sensors["force"] = F_env
                         try:
@@ -235,42 +237,30 @@ def run(
                     tau = guard.filter(tau, r.t)
                 tc = time.monotonic()
                 ok = guard.fault is None
+                if not ok:
+                    tau = zero
                 try:
-                    link.write(tau if ok else zero, enable=ok)
+                    link.write(tau, enable=ok)
                 except LinkError as exc:
                     guard.trip("link", f"link: {exc}")
                 te = time.monotonic()
                 row = w.row()
-                row[c["t"]], row[c["tau"]] = t_dev, tau if ok else zero
+                row[0] = t_dev
+                row[at.tau:at.tau + n] = tau
                 if r is not None:
-                    row[c["q"]], row[c["dq"]], row[c["seq"]] = r.q, r.dq, r.seq
-                    s = r.sensors
-                    if "ft" in s:
-                        row[c["ft"]] = s["ft"]
-                    for name in _TRUTH:
-                        if name in s:
-                            row[c[name]] = s[name]
-                    if "x" not in s and kin_xdot is not None:
-                        row[c["xdot"]] = kin_xdot
-                    if "work" in s:
-                        row[c["work"]] = s["work"][0]
-                    if ms and "slave_x" in s:
-                        row[c["slave_x"]] = s["slave_x"]
-                row[c["F_env"]] = F_env
+                    _reading_row(row, at, r, xdot, n, m)
+                row[at.F_env:at.F_env + m] = F_env
                 if state is not None:
-                    row[c["V"]], row[c["omega"]], row[c["alpha"]], row[c["beta"]] = \
-                        state.V, state.omega, state.alpha, state.beta
-                    row[c["E_obs"]] = getattr(state, "E_obs", np.nan)
-                    row[c["alpha_pc"]] = getattr(state, "alpha_pc", np.nan)
-                row[c["wall"]], row[c["t_read"]], row[c["t_step"]] = ts - t0, tr - ts, tc - tr
-                row[c["t_write"]], row[c["t_tick"]] = te - tc, te - ts
-                row[c["late"]] = ts - deadline if realtime else 0.0
-                row[c["safety"]] = 0.0 if ok else 1.0
+                    row[at.V:at.V + 6] = (state.V, state.omega, state.alpha, state.beta,
+                                          getattr(state, "E_obs", nan), getattr(state, "alpha_pc", nan))
+                row[at.seq:at.seq + 8] = (nan if r is None else r.seq, ts - t0, tr - ts, tc - tr, te - tc, te - ts,
+                                          ts - deadline if realtime else 0.0, 0.0 if ok else 1.0)
                 for v, lim in zip(tau.tolist(), span):
                     if abs(v) > lim * top:
                         top = stats["max_torque_ratio"] = abs(v) / lim
-                for kind, detail in guard.drain():
-                    w.event(t_dev, kind, detail, k)
+                if guard.events:
+                    for kind, detail in guard.drain():
+                        w.event(t_dev, kind, detail, k)
                 if not ok and w.fault is None:
                     w.fault = guard.fault
                 if telemetry is not None:
@@ -307,6 +297,52 @@ def run(
     stats["ticks"] = k
     result_log = w.to_log()
     return RunResult(result_log, _summary(result_log, stats, rate, guard, realtime))
+
+
+class _Offsets(NamedTuple):
+    """Where a log row's columns start (`rhi.sim.log.layout`): the loop writes contiguous blocks at once."""
+
+    q: int
+    tau: int
+    x: int
+    F_hand: int
+    F_env: int
+    ft: int
+    work: int
+    V: int
+    slave_x: int
+    seq: int
+
+
+def _offsets(w: LogWriter, n: int, m: int) -> _Offsets:
+    names = [name for name, _ in w.columns]
+    start = dict(zip(names, np.cumsum([0] + [width for _, width in w.columns]).tolist()))
+    at = _Offsets(*(start.get(f, -1) for f in _Offsets._fields))
+    # the blocks written at once: q|q̇, x|ẋ, V..α_pc, seq..safety
+    if (at.tau - at.q, at.F_hand - at.x, start["alpha_pc"] - at.V, start["safety"] - at.seq) != (2 * n, 2 * m, 5, 7):
+        raise AssertionError(f"log layout changed: {w.columns}")  # pragma: no cover - a bug, not an input
+    return at
+
+
+def _reading_row(row: np.ndarray, at: _Offsets, r, xdot: np.ndarray | None, n: int, m: int) -> None:
+    """Write what the reading carries into the log row: q, q̇, F/T, the simulation's ground truth, the slave."""
+    row[at.q:at.q + n] = r.q
+    row[at.q + n:at.q + 2 * n] = r.dq
+    s = r.sensors
+    if "ft" in s:
+        row[at.ft:at.ft + 6] = s["ft"]
+    if "x" in s:  # ground truth (docs/protocol.md: a simulated device), else ẋ from the encoders
+        row[at.x:at.x + m] = s["x"]
+    if "xdot" in s:
+        row[at.x + m:at.x + 2 * m] = s["xdot"]
+    elif "x" not in s and xdot is not None:
+        row[at.x + m:at.x + 2 * m] = xdot
+    if "F_hand" in s:
+        row[at.F_hand:at.F_hand + m] = s["F_hand"]
+    if "work" in s:
+        row[at.work] = s["work"][0]
+    if at.slave_x >= 0 and "slave_x" in s:
+        row[at.slave_x:at.slave_x + len(s["slave_x"])] = s["slave_x"]
 
 
 def _status(k: int, slot: int, stats: dict, state, guard: Safety, t: float) -> dict:
