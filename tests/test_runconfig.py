@@ -138,7 +138,7 @@ def _doc(name: str = "ch7_ascm_tertiary") -> dict:
      "controller.objectives[0].desired: expected a matrix"),
     (lambda d: d["controller"]["primary"].pop("law"), "controller.primary.law: missing"),
     (lambda d: d["controller"]["primary"].update(damping=-1.0), "controller.primary: damping: must be >= 0"),
-    (lambda d: d["controller"].update(saturation="clip"), "controller.saturation: expected one of 'none'"),
+    (lambda d: d["controller"].update(saturation="clip"), "controller.saturation: expected one of 'active_set', 'ascm'"),
     (lambda d: d["controller"].update(torque_max=[3.0, 3.0]), "controller.torque_max: expected shape (4,)"),
     (lambda d: d["controller"].update(damping=True), "controller.damping: expected a number"),
     (lambda d: d["virtual"][0].update(normal=[0.0, 1.0, 0.0]), "virtual[0].normal: expected shape (2,)"),
@@ -168,6 +168,25 @@ def test_every_saturation_method_of_the_controller_is_accepted():
         d = _doc()
         d["controller"]["saturation"] = method
         assert parse_config(d).controller().config.saturation == method
+
+
+def test_a_strategy_registered_by_the_user_is_accepted(monkeypatch):
+    """A run configuration names any registered strategy, not only the bundled ones (read when the file is)."""
+    import dataclasses
+
+    from rhi.control.allocation import Allocator, allocate_scaling, base
+
+    def half(a, b, Z, *, torque_min, torque_max):
+        return dataclasses.replace(allocate_scaling(0.5 * a, b, torque_min=torque_min, torque_max=torque_max),
+                                   method="half")
+
+    d = _doc()
+    d["controller"]["saturation"] = "half"
+    known = "'active_set', 'ascm', 'lp', 'none', 'scaling'"
+    with pytest.raises(InvalidInput, match=f"controller.saturation: expected one of {known}, got 'half'"):
+        parse_config(d)
+    monkeypatch.setitem(base._METHODS, "half", Allocator("half", half, safe=False))
+    assert parse_config(d).controller().config.saturation == "half"
 
 
 def test_device_mismatch_and_unknown_file():

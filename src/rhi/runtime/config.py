@@ -7,7 +7,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
 - ``[run]``: ``rate`` [Hz] (1000), ``duration`` [s] (none: until a fault or Ctrl-C).
 - ``[device]``: ``name`` of a bundled device, ``params`` (its design parameters, e.g. ``{ d2 = 0.1405 }``).
 - ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp",
-  "active_set"), ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
+  "active_set", or a strategy registered with `rhi.control.allocation.register`),
+  ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
   ``gravity_compensation``, ``aso_shape``, ``implementation`` — the fields of `rhi.control.ControllerConfig`;
   ``[controller.primary]`` (required) with ``law`` = "impedance" | "force_rendering" | "spring" and that law's
   parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...; the rendering
@@ -57,7 +58,7 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
-from rhi.control.controller import Saturation
+from rhi.control.allocation import method_names
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.runtime import schema as S
@@ -101,7 +102,7 @@ _CONTROLLER = {
     "objectives": (S.tables(S.tagged("type", _OBJECTIVES)), []),
     "fme": (S.table(_FME), None),
     "damping": (_nonneg, 0.1),
-    "saturation": (S.choice(*typing.get_args(Saturation)), "ascm"),  # the controller's own lists of names
+    "saturation": (S.one_of(lambda: tuple(sorted(method_names()))), "ascm"),  # every registered strategy
     "projector": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["projector"])), "dynamic"),
     "torque_min": (_vec, None),
     "torque_max": (_vec, None),

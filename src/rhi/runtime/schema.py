@@ -64,8 +64,14 @@ def boolean(path: str, v) -> bool:
 
 def choice(*options: str) -> Check:
     """One of the given strings."""
+    return one_of(lambda: options)
+
+
+def one_of(names: Callable[[], tuple[str, ...]]) -> Check:
+    """One of the strings `names()` gives when a file is read (e.g. a registry that grows after import)."""
 
     def check(path: str, v) -> str:
+        options = names()
         if not isinstance(v, str) or v not in options:
             raise _fail(path, "one of " + ", ".join(repr(o) for o in options), v)
         return v
