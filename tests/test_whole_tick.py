@@ -10,10 +10,12 @@ import rhi
 import rhi.control.controller as controller_module
 from rhi.control import (
     ControllerConfig,
+    FMEMatching,
     FMESchedule,
     ForceRendering,
     ImpedanceControl,
     JointFriction,
+    JointLimitBarrier,
     Manipulability,
     NullSpaceController,
     ObjectiveTerm,
@@ -42,12 +44,31 @@ def _law(kind: str, m: int):
     }[kind]
 
 
-def _config(dev, kind: str, saturation: str = "ascm", projector: str = "dynamic", **kw) -> dict:
+def _objectives(dev, kind: str, free: np.ndarray, stiff: np.ndarray) -> tuple[ObjectiveTerm, ...]:
+    """The null-space terms of a set-up: VME matching, plus static FME matching and joint-limit barriers."""
+    u = np.zeros(dev.m)
+    u[1] = 1.0
+    vme = ObjectiveTerm(VMEMatching(tuple(u)), 0.5)
+    return {
+        "vme": (vme,),
+        # beyond.passivity and the ch6 palpation controller: FME matching to M_Stiff, the quadratic barrier
+        "static": (ObjectiveTerm(FMEMatching(stiff, dev.torque_max), 20.0), ObjectiveTerm(JointLimitBarrier(0.1), 100.0)),
+        # the ch3/ch7 null-space runs: the inverse barrier; two FME terms, one with a scalar torque limit
+        "inverse": (vme, ObjectiveTerm(JointLimitBarrier(0.087, 2.0, kind="inverse"), 0.5),
+                    ObjectiveTerm(FMEMatching(free, float(dev.torque_max.min())), 5.0),
+                    ObjectiveTerm(FMEMatching(stiff, dev.torque_max), 3.0),
+                    ObjectiveTerm(JointLimitBarrier(0.2, 0.5), 10.0)),
+    }[kind]
+
+
+def _config(dev, kind: str, saturation: str = "ascm", projector: str = "dynamic", objectives: str = "vme",
+            **kw) -> dict:
     u = np.zeros(dev.m)
     u[1] = 1.0
     K, z = fme_shape(dev.jacobian(np.full(dev.n, 0.3)), dev.torque_max)
-    return dict(primary=_law(kind, dev.m), objectives=(ObjectiveTerm(VMEMatching(tuple(u)), 0.5),),
-                fme=FMESchedule(desired_fme_free(u, K, z), desired_fme_stiff(u, K, z), gain=20.0),
+    free, stiff = desired_fme_free(u, K, z), desired_fme_stiff(u, K, z)
+    return dict(primary=_law(kind, dev.m), objectives=_objectives(dev, objectives, free, stiff),
+                fme=None if objectives == "static" else FMESchedule(free, stiff, gain=20.0),
                 saturation=saturation, projector=projector, **kw)
 
 
@@ -88,18 +109,32 @@ def _compare(fast, ref, dev, cases, t0: float = 0.0, atol: float = 1e-10) -> int
 
 
 @pytest.mark.parametrize(
-    "name,kind,saturation,projector",
-    [("rhi4", "render", "ascm", "dynamic"), ("rhi4", "render_handle", "ascm", "pseudoinverse"),
-     ("rhi4", "render_plain", "scaling", "dynamic"), ("rhi4", "render", "none", "dynamic"),
-     ("rhi4", "render", "active_set", "dynamic"), ("rhi4", "spring", "ascm", "dynamic"),
-     ("planar3r", "spring_all", "ascm", "dynamic"), ("rhi4", "free", "ascm", "dynamic"),
-     ("gen3", "render", "ascm", "dynamic")],
+    "name,kind,saturation,projector,objectives",
+    [("rhi4", "render", "ascm", "dynamic", "vme"), ("rhi4", "render_handle", "ascm", "pseudoinverse", "vme"),
+     ("rhi4", "render_plain", "scaling", "dynamic", "vme"), ("rhi4", "render", "none", "dynamic", "vme"),
+     ("rhi4", "render", "active_set", "dynamic", "vme"), ("rhi4", "spring", "ascm", "dynamic", "vme"),
+     ("planar3r", "spring_all", "ascm", "dynamic", "vme"), ("rhi4", "free", "ascm", "dynamic", "vme"),
+     ("gen3", "render", "ascm", "dynamic", "vme"), ("rhi4", "render", "ascm", "dynamic", "static"),
+     ("rhi4", "spring", "scaling", "dynamic", "static"), ("rhi4", "free", "ascm", "pseudoinverse", "inverse"),
+     ("planar3r", "render", "ascm", "dynamic", "inverse"), ("gen3", "render", "ascm", "dynamic", "inverse")],
 )
-def test_whole_tick_equals_reference(name, kind, saturation, projector, rng):
+def test_whole_tick_equals_reference(name, kind, saturation, projector, objectives, rng):
     """Terms, primary law, allocation, objectives and the passivity layer in one call = the reference, to 1e-10."""
     dev = rhi.device(name)
-    fast, ref = _pair(dev, **_config(dev, kind, saturation, projector))
+    fast, ref = _pair(dev, **_config(dev, kind, saturation, projector, objectives))
     cases = [(q, dq, F * (10.0 if dev.m == 3 else 1.0)) for q, dq, F in _tick_cases(dev, rng, 150)]
+    if objectives != "vme":  # half of the ticks near the joint limits, where the barriers act
+        span = dev.q_max - dev.q_min
+        edge = np.where(np.isfinite(span), np.where(np.arange(dev.n) % 2, dev.q_max, dev.q_min), 0.3)
+        cases = [(np.where(k % 2, q, edge + 0.02 * rng.normal(size=dev.n)), dq, F) for k, (q, dq, F) in enumerate(cases)]
+    if objectives == "inverse":  # inside the limits: past one, the inverse barrier's ~1e10 gradient makes β ill-posed
+        inside = JointLimitBarrier(1.0)
+        cases = [(np.clip(q, dev.q_min + 0.01, dev.q_max - 0.01), dq, F) for q, dq, F in cases]
+        cases = [c for c in cases if inside.distances(dev, c[0]).min() > 0.005]
+        assert len(cases) > 50
+    if objectives != "vme":  # the barriers act on a good share of the ticks
+        bar = fast.barriers[0][1]
+        assert sum(bool(bar.gradient(dev, q).any()) for q, _, _ in cases) > len(cases) // 5
     held = _compare(fast, ref, dev, cases)
     if saturation in ("ascm", "scaling") and name == "rhi4" and kind.startswith("render"):
         assert held > len(cases) // 5  # saturation exercised
@@ -190,3 +225,26 @@ def test_whole_tick_reuses_the_loops_terms(monkeypatch):
         devs[0].terms(q, dq)
         np.testing.assert_array_equal(a.step(k * 1e-3, q, dq, {"force": F}), b.step(k * 1e-3, q, dq, {"force": F}))
     assert ready[0::2] == [True] * 50 and ready[1::2] == [False] * 50
+
+
+def test_whole_tick_runs_the_experiments_controllers(rhi4, monkeypatch):
+    """The §6.4 palpation controllers (static FME matching + the limit barrier) and beyond.passivity's run in one call."""
+    from rhi.control.kernels import whole
+    from rhi.experiments.beyond import passivity
+    from rhi.experiments.ch6 import setup as ch6
+
+    kernel, calls = whole.whole, []
+
+    def counting(*args):
+        calls.append(args[0])
+        return kernel(*args)
+
+    monkeypatch.setattr(whole, "whole", counting)
+    _, _, Mf, Ms = ch6.desired_fmes(rhi4, np.array(ch6.U), ch6.Q_HOME)
+    schedule = FMESchedule(Mf, Ms, gain=ch6.BETA)
+    q = np.array([0.3, 0.5, 0.2, 0.4])
+    for k, ctrl in enumerate((ch6.palpation_controller(rhi4, Ms), ch6.palpation_controller(rhi4, None, schedule),
+                              passivity.controller(rhi4, objectives=True, port="motors"))):
+        assert ctrl.barriers and ctrl._kernel.whole_ok
+        ctrl.step(float(k), q, np.zeros(4), {"force": np.zeros(2)})
+    assert calls == [0.0, 1.0, 2.0]

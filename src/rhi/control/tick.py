@@ -2,12 +2,13 @@
 
 `KernelTick` holds what does not change between ticks (limits, parameters, the desired VMEs
 and FMEs, output buffers). Objectives the kernels know (VME matching, the FME schedule)
-run inside them; any other objective and the joint-limit barriers run their own
-`gradient_at` in Python and enter as two torque vectors.
+run inside them; in the composed tick any other objective and the joint-limit barriers run their
+own `gradient_at` in Python and enter as two torque vectors.
 
 `KernelTick.whole` is the whole tick in one call of `rhi.control.kernels.whole` (device terms,
 primary law, steps 2–6, the passivity layer) for a device whose chain the compiled kinematics
-handle, a built-in primary law and no objective computed in Python (`KernelTick.whole_ok`);
+handle, a built-in primary law and only objectives the kernels know — VME matching, the FME schedule,
+static FME matching and joint-limit barriers (`rhi.control.kernels.objectives`) — (`KernelTick.whole_ok`);
 `KernelTick.__call__` runs steps 2–6 of `rhi.control.kernels.tick` after `Device.terms` and the
 primary law's `forces`.
 """
@@ -20,8 +21,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rhi.control import kernels
-from rhi.control.kernels import whole as _whole
-from rhi.control.objectives import EllipsoidMatching, VMEMatching, gradient_function
+from rhi.control.barrier import JointLimitBarrier, limit_rows
+from rhi.control.kernels import objectives as _objectives, whole as _whole
+from rhi.control.objectives import EllipsoidMatching, FMEMatching, VMEMatching, gradient_function
 from rhi.control.primary import ForceRendering, ImpedanceControl, SpringPalpation
 from rhi.control.transition import TransitionState
 from rhi.device import DeviceTerms
@@ -78,6 +80,22 @@ def _kernel_vme(objective) -> np.ndarray | None:
     return None
 
 
+def _kernel_fme(objective, n: int, m: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(w2 (n,), M_des (m, m)) of a static FME-matching objective the whole tick computes, else None."""
+    if type(objective) is not FMEMatching or objective.desired.shape != (m, m):
+        return None
+    w2 = objective._w2
+    return (np.broadcast_to(w2, (n,)), objective.desired) if w2.shape in ((1,), (n,)) else None
+
+
+def _kernel_barrier(objective) -> tuple[int, float, float] | None:
+    """(kind, margin δ [rad], weight) of a joint-limit barrier the whole tick computes, else None."""
+    if type(objective) is not JointLimitBarrier:
+        return None
+    return (_objectives.INVERSE if objective.kind == "inverse" else _objectives.QUADRATIC, objective.margin,
+            objective.weight)
+
+
 class KernelTick:
     """Steps 2–6 of a `NullSpaceController` tick through `rhi.control.kernels.tick`.
 
@@ -110,13 +128,21 @@ class KernelTick:
         self._w2 = _f64(ctrl.hi**-2.0)
         vme, gains = [], []
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
+        static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
+        python_only = False  # an objective or barrier only Python computes (the whole tick does not apply)
         for gain, obj in ctrl.objectives:
             D = _kernel_vme(obj)
             if D is None:
                 self._grads.append((gain, gradient_function(obj, dev)))
+                fme_term = _kernel_fme(obj, n, m)
+                python_only = python_only or fme_term is None
+                if fme_term is not None:
+                    static.append((gain, *fme_term))
             else:
                 vme.append(D)
                 gains.append(gain)
+        bars = [(gain, _kernel_barrier(obj)) for gain, obj in ctrl.barriers]
+        python_only = python_only or any(b is None for _, b in bars)
         self._vme = _f64(np.array(vme).reshape(len(vme), m, m))
         self._vme_gain = _f64(np.array(gains, dtype=float))
         self._barriers = [(gain, gradient_function(obj, dev)) for gain, obj in ctrl.barriers]
@@ -129,9 +155,11 @@ class KernelTick:
         fast = dev._fast_maps
         law = _law_vector(cfg.primary, n, m)
         #: the whole tick runs in `rhi.control.kernels.whole` (see `whole`)
-        self.whole_ok = fast.chain is not None and law is not None and not self._grads and not self._barriers
+        self.whole_ok = fast.chain is not None and law is not None and not python_only
         if self.whole_ok:
             self._law = law
+            rows = limit_rows(dev) if bars else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
+            self._obj = _objectives.pack(n, m, static, [(gain, *b) for gain, b in bars], rows)  # type: ignore[misc]
             self._force = isinstance(cfg.primary, ForceRendering)
             self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
             self._no_force = np.zeros(m)
@@ -244,7 +272,7 @@ class KernelTick:
             ready, x, buf = False, self._x, self._buf
         # (mypy reads numba's Dispatcher.__call__ as taking a bounded number of arguments)
         status = _whole.whole(t, q, dq, _f64(F), *self._chain, ready, self._at, self._law, ctrl.lo, ctrl.hi,  # type: ignore[call-arg]
-                              self._prm, tr, self._free, self._stiff, self._w2, self._vme, self._vme_gain, pcv,
+                              self._prm, tr, self._free, self._stiff, self._w2, self._vme, self._vme_gain, self._obj, pcv,
                               self._pc_pos, self._pc_eff, x, buf, F_r, F_x, self._tau, self._sat, self._res)
         alpha, beta, V, omega, clipped, pc_ran = self._res.tolist()
         if status != kernels.OK:

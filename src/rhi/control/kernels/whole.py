@@ -4,7 +4,8 @@
 composes from four calls: `rhi.chain_kernel.chain_terms` (every device term at (q, q̇)),
 the primary law's (F_render, F_extra) for the built-in laws (`ForceRendering`,
 `SpringPalpation`, `ImpedanceControl` without a desired inertia: eqs. 5.6, 6.21, 7.2, 7.20),
-`rhi.control.kernels.step.tick` and `rhi.control.kernels.passivity.apply`. The laws'
+`rhi.control.kernels.step.tick` and `rhi.control.kernels.passivity.apply`, with the static FME-matching
+objectives and joint-limit barriers of `rhi.control.kernels.objectives`. The laws'
 Python `forces` and the controller's composition are the references it is tested against
 (`tests/test_whole_tick.py`). The law's settings travel in one float vector (`LAW_*`
 indices), the passivity layer's settings and state in another (`PC_*`).
@@ -19,6 +20,7 @@ import numpy as np
 from rhi.chain_kernel import chain_terms
 from rhi.control.kernels import passivity
 from rhi.control.kernels.jit import jit
+from rhi.control.kernels.objectives import OBJ_BARRIER, OBJ_FME, objectives
 from rhi.control.kernels.step import FALLBACK, OK, SINGULAR, tick
 from rhi.terms_kernel import assign, dot, mm, mtv, mv
 
@@ -74,7 +76,7 @@ def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
 
 @jit
 def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
-          lo, hi, prm, tr, fme_free, fme_stiff, w2, vme_D, vme_gain, pc, pc_pos, pc_eff,
+          lo, hi, prm, tr, fme_free, fme_stiff, w2, vme_D, vme_gain, obj, pc, pc_pos, pc_eff,
           x, buf, F_r, F_x, tau_out, sat, res):
     """One whole tick; the status of `rhi.control.kernels.step.tick` (OK, FALLBACK, SINGULAR).
 
@@ -104,6 +106,7 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         w2: (n,) 1/T_max² [1/(N m)²].
         vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
         vme_gain: (k,) their gradient steps.
+        obj: the static FME-matching objectives and joint-limit barriers (`rhi.control.kernels.objectives.pack`).
         pc: (N_PC,) the passivity layer's settings and state, advanced in place.
         pc_pos: (k,) its port position at the previous tick, written.
         pc_eff: (k,) its port effort at the previous tick, written.
@@ -129,9 +132,11 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
     xdot = buf[at[9]:at[9] + m]
     Cx = buf[at[12]:at[12] + m * m].reshape((m, m))
     _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x)
-    zero = np.zeros(n)
+    tau_s, tau_to = np.zeros(n), np.zeros(n)
+    if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
+        objectives(obj, q, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
     status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff,
-                                                  w2, vme_D, vme_gain, zero, zero, tau_out, sat)
+                                                  w2, vme_D, vme_gain, tau_s, tau_to, tau_out, sat)
     res[R_ALPHA], res[R_BETA], res[R_V], res[R_OMEGA], res[R_CLIPPED] = alpha, beta, V, omega, 1.0 if clipped else 0.0
     res[R_PC] = 0.0
     if status != OK or pc[PC_ON] == 0.0 or not math.isfinite(dot(tau_out, tau_out)):
