@@ -250,6 +250,22 @@ def test_no_torque_above_limit_over_1e5_ticks(dev):
     assert np.all(sent >= dev.torque_min - 1e-12) and np.all(sent <= dev.torque_max + 1e-12)
     assert res.summary["clamped"] > 0.4 * N
     assert {"torque", "speed"} <= kinds
+    # the summary's peak load is that of the torques sent (each on its own side's limit), and a clamp reaches 1
+    ratio = np.where(sent > 0, sent / dev.torque_max, sent / dev.torque_min).max()
+    assert res.summary["max_torque_ratio"] == pytest.approx(ratio, rel=1e-12) and ratio == pytest.approx(1.0)
+
+
+def test_torque_ratio_is_against_the_limit_on_its_side(dev):
+    """Asymmetric limits: τ / τ_max for a positive torque, τ / τ_min for a negative one; 0 after a fault."""
+    lopsided = dev.lock(name="rhi4_lopsided")
+    lopsided.torque_min, lopsided.torque_max = np.full(4, -1.0), np.full(4, 2.0)
+    guard = Safety(lopsided)
+    np.testing.assert_array_equal(guard.filter([1.5, -0.9, 0.0, 0.2], 0.0), [1.5, -0.9, 0.0, 0.2])
+    assert guard.ratio == pytest.approx(0.9) and guard.clamped == 0
+    np.testing.assert_array_equal(guard.filter([3.0, -0.5, 0.0, 0.0], 0.0), [2.0, -0.5, 0.0, 0.0])
+    assert guard.ratio == 1.0 and guard.clamped == 1
+    np.testing.assert_array_equal(guard.filter([np.nan, 0.0, 0.0, 0.0], 0.0), np.zeros(4))
+    assert guard.ratio == 0.0 and guard.fault_kind == "torque"
 
 
 @pytest.mark.parametrize("bad", [

@@ -191,8 +191,7 @@ def run(
     zero_m = np.zeros(m)
     # the handle's x and ẋ on the controller's model and the virtual force: one compiled call where it can
     kin = None if dev is None else Kinematics(dev, virtual)
-    span = np.maximum(-guard.lo, guard.hi).tolist()
-    top = 0.0  # the largest |τ_i| / limit_i so far
+    top = 0.0  # the largest τ_i / limit_i so far (`Safety.ratio`)
     stats = {"ticks": 0, "missed": 0, "skipped_slots": 0, "max_torque_ratio": 0.0}
     prev_sigint = None
     if threading.current_thread() is threading.main_thread():
@@ -255,9 +254,8 @@ def run(
                                           getattr(state, "E_obs", nan), getattr(state, "alpha_pc", nan))
                 row[at.seq:at.seq + 8] = (nan if r is None else r.seq, ts - t0, tr - ts, tc - tr, te - tc, te - ts,
                                           ts - deadline if realtime else 0.0, 0.0 if ok else 1.0)
-                for v, lim in zip(tau.tolist(), span):
-                    if abs(v) > lim * top:
-                        top = stats["max_torque_ratio"] = abs(v) / lim
+                if ok and r is not None and guard.ratio > top:
+                    top = stats["max_torque_ratio"] = guard.ratio
                 if guard.events:
                     for kind, detail in guard.drain():
                         w.event(t_dev, kind, detail, k)

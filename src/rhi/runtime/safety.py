@@ -84,6 +84,7 @@ class Safety:
         fault: the latched reason, or None.
         fault_kind: short name of the fault ("stale", "nan", "estop", ...).
         clamped: number of ticks whose torque was clamped into the limits.
+        ratio: the largest τ_i / limit_i of the last torque `filter` returned (≤ 1).
         events: [(kind, detail)] raised since the last `drain`.
 
     Raises:
@@ -114,6 +115,7 @@ class Safety:
         self.fault: str | None = None
         self.fault_kind: str | None = None
         self.clamped = 0
+        self.ratio = 0.0
         self.events: list[tuple[str, str]] = []
         self._last_seq: int | None = None
         self._same = 0
@@ -171,12 +173,16 @@ class Safety:
             self.trip("silence", f"link silent for {1e3 * (now - self._last_new):.1f} ms (limit "
                       f"{1e3 * self.config.silence:g} ms) at t={r.t:.4f} s")
         q, dq = r.q, r.dq
-        if not (math.isfinite(q.dot(q)) and math.isfinite(dq.dot(dq))):
+        if not math.isfinite(q.dot(q) + dq.dot(dq)) and not (np.isfinite(q).all() and np.isfinite(dq).all()):
             self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={q.tolist()}, dq={dq.tolist()}")
             return False
-        for name, v in r.sensors.items():
-            if not math.isfinite(v.dot(v)) and not np.isfinite(v).all():
-                self.trip("nan", f"non-finite sensor {name!r} at t={r.t:.4f} s: {np.asarray(v).tolist()}")
+        total = 0.0
+        for v in r.sensors.values():
+            total += v.dot(v)
+        if not math.isfinite(total):  # which one (an overflow of the sum alone is not a fault)
+            for name, v in r.sensors.items():
+                if not np.isfinite(v).all():
+                    self.trip("nan", f"non-finite sensor {name!r} at t={r.t:.4f} s: {np.asarray(v).tolist()}")
         if not _inside(q.tolist(), dq.tolist(), self._bounds):
             if (np.abs(dq) > self.max_dq).any():
                 j = int(np.argmax(np.abs(dq) - self.max_dq))
@@ -193,22 +199,29 @@ class Safety:
         return self.fault is None
 
     def filter(self, tau, t: float) -> np.ndarray:
-        """The torque to send: τ clamped into the limits (counted), or zeros on a fault or a non-finite τ."""
+        """The torque to send: τ clamped into the limits (counted), or zeros on a fault or a non-finite τ.
+
+        Sets `ratio`, the largest τ_i / limit_i of what it returns (the limit on τ_i's side; 0 for zeros).
+        """
+        self.ratio = 0.0
         if self.fault is not None:
             return np.zeros(self.n)
         tau = np.asarray(tau, dtype=float)
         if tau.shape != (self.n,):
             self.trip("torque", f"controller returned torque of shape {tau.shape}, expected ({self.n},) at t={t:.4f} s")
             return np.zeros(self.n)
-        if not math.isfinite(float(tau @ tau)):
-            self.trip("torque", f"non-finite torque {tau.tolist()} at t={t:.4f} s")
-            return np.zeros(self.n)
-        if not _within(tau.tolist(), self._box):
+        ratio = _ratio(tau.tolist(), self._box)
+        if ratio is None:  # outside the box, or not finite
+            if not math.isfinite(float(tau @ tau)):
+                self.trip("torque", f"non-finite torque {tau.tolist()} at t={t:.4f} s")
+                return np.zeros(self.n)
             if self.clamped == 0:
                 self.events.append(("clamp", f"torque {tau.tolist()} clamped into the limits at t={t:.4f} s "
                                     "(first of the run; the summary counts them)"))
             self.clamped += 1
             tau = np.minimum(np.maximum(tau, self.lo), self.hi)
+            ratio = _ratio(tau.tolist(), self._box)
+        self.ratio = ratio or 0.0
         return tau
 
 
@@ -220,10 +233,13 @@ def _inside(q: list[float], dq: list[float], bounds: list[tuple[float, float, fl
     return True
 
 
-def _within(tau: list[float], box: list[tuple[float, float]]) -> bool:
-    """Every torque within [lo, hi] (NaN fails)."""
+def _ratio(tau: list[float], box: list[tuple[float, float]]) -> float | None:
+    """The largest τ_i / limit_i (the limit on τ_i's side), or None when a torque is outside [lo, hi] (NaN too)."""
+    top = 0.0
     for t, (lo, hi) in zip(tau, box):
         if not lo <= t <= hi:
-            return False
-    return True
-
+            return None
+        r = t / hi if t > 0.0 else t / lo
+        if r > top:
+            top = r
+    return top
