@@ -789,9 +789,10 @@ def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
 def test_ascm_projector_equals_ascm(rng):
     """Projector-form ASCM = basis-form ASCM.
 
-    Both on its fast path and where it hands an ill-conditioned held set (σ_min(Z_S) < 0.01) to the basis form.
+    Both on its fast path, where it hands an ill-conditioned held set (σ_min(Z_S) < 0.01) to the basis form, and
+    where it decides such a set of n − m joints itself from a basis of P (Z_S square).
     """
-    handed_over = fast = 0
+    handed_over = fast = square = 0
     for name in ("rhi4", "planar3r"):
         dev = rhi.device(name)
         lo, hi = dev.torque_limits
@@ -806,7 +807,10 @@ def test_ascm_projector_equals_ascm(rng):
             if ref.saturated.any():
                 ok = kernels.ascm(J.T @ F, b, P, lo, hi, dev.n - dev.m, np.zeros(dev.n, bool))[3]
                 handed_over += not ok
-                fast += ok
+                S = ref.saturated
+                ill = S.sum() == dev.n - dev.m and np.linalg.svd(Z[S], compute_uv=False)[-1] < 0.01
+                square += ok and ill
+                fast += ok and not ill
             np.testing.assert_allclose(new.tau, ref.tau, atol=1e-10)
             np.testing.assert_allclose(new.tau_null, ref.tau_null, atol=1e-10)
             assert new.alpha == pytest.approx(ref.alpha, abs=1e-10)
@@ -814,7 +818,7 @@ def test_ascm_projector_equals_ascm(rng):
             assert np.all(new.tau <= hi + 1e-12) and np.all(new.tau >= lo - 1e-12)
             # the held torque lies in the null space: no task force
             assert np.abs(dynamic_pinv(J, M).T @ new.tau_null).max() < 1e-9
-    assert fast > 100 and handed_over > 5  # both paths exercised
+    assert fast > 100 and handed_over > 0 and square > 20, (fast, handed_over, square)  # every path exercised
 
 
 @pytest.mark.parametrize("name", ["rhi4", "gen3"])

@@ -248,3 +248,39 @@ def test_whole_tick_runs_the_experiments_controllers(rhi4, monkeypatch):
         assert ctrl.barriers and ctrl._kernel.whole_ok
         ctrl.step(float(k), q, np.zeros(4), {"force": np.zeros(2)})
     assert calls == [0.0, 1.0, 2.0]
+
+
+def test_whole_tick_decides_an_ill_conditioned_full_held_set(rhi4, rng, monkeypatch):
+    """beyond.passivity's palpation holds joints 1 and 3 (n − m of them) with σ_min(Z_S) < 0.01: decided in the kernel.
+
+    The projector form squares that condition number; the kernel decides the square Z_S from a basis of P
+    instead of handing the tick to the reference, and equals it to 1e-10.
+    """
+    from rhi.control import WeightedSum
+    from rhi.control.saturation import null_basis
+    from rhi.experiments.beyond import passivity
+    from rhi.experiments.ch6 import setup as ch6
+
+    fallbacks = []
+    reference_tick = controller_module.reference_tick
+
+    def counting(ctrl, t, kin, sensors, forces=None):
+        if forces is not None:
+            fallbacks.append(t)
+        return reference_tick(ctrl, t, kin, sensors, forces)
+
+    monkeypatch.setattr(controller_module, "reference_tick", counting)
+    _, _, _, Ms = ch6.desired_fmes(rhi4, np.array(ch6.U), ch6.Q_HOME)
+    q0 = ch6.best_match(rhi4, np.array(ch6.X0), WeightedSum(ch6.controller_terms(Ms, rhi4.torque_max)), starts=1)
+    fast = passivity.controller(rhi4, objectives=True, port=None)
+    ref = NullSpaceController(rhi4, ControllerConfig(**{**fast.config.__dict__, "implementation": "reference"}))
+    cases = [(q0 + 0.02 * rng.normal(size=4), 0.2 * rng.normal(size=4), np.array([rng.normal(), -rng.uniform(0, 60)]))
+             for _ in range(100)]
+    _compare(fast, ref, rhi4, cases)
+    ill = 0
+    for q, dq, F in cases:
+        fast.step(0.0, q, dq, {"force": F})
+        S = fast.state.saturated
+        kin = rhi4.terms(q, dq)
+        ill += S.sum() == 2 and np.linalg.svd(null_basis(kin.J, kin.M)[S], compute_uv=False)[-1] < 0.01
+    assert ill > 50 and not fallbacks

@@ -21,6 +21,7 @@ from rhi.terms_kernel import add, assign, axpy, dot, inv as _inv, mm, mv, sub
 
 _TOL = 1e-12  # ASCM: relative overload below this is no overload
 _FAST_TOL = 1e-4  # smallest eigenvalue of P[S, S] the projector form trusts (σ_min(Z_S) >= 0.01)
+_RANK_FULL, _RANK_LOW = 1e-8, 1e-10  # σ_min(Z_S) of a square Z_S: surely above / below the reference's 1e-9
 
 
 @jit
@@ -171,6 +172,42 @@ def held_torque(P, S, k, r):
 
 
 @jit
+def square_rank(Z, S, k):
+    """Whether Z_𝒮 (rows S[:k] of the basis Z (n, k)), square, has full rank: 1 yes, 0 no, −1 too close to call.
+
+    The reference's test is σ_min(Z_𝒮) > 1e-9 (`rhi.control.saturation.RANK_TOL`); from
+    1/‖Z_𝒮⁻¹‖_F <= σ_min <= √k/‖Z_𝒮⁻¹‖_F this says 1 above 1e-8 and 0 below 1e-10.
+    """
+    G = _inv(_rows(Z, S, k))
+    f = 0.0
+    for i in range(k):
+        for j in range(k):
+            f += G[i, j] * G[i, j]
+    f = math.sqrt(f)
+    if 1.0 / f > _RANK_FULL:
+        return 1
+    if math.sqrt(k) / f < _RANK_LOW:
+        return 0
+    return -1
+
+
+@jit
+def held_torque_square(Z, S, k, r):
+    """`held_torque` from the basis Z (n, k) when Z_𝒮 is square: Z Z_𝒮⁻¹ r, accurate to ε cond(Z_𝒮). (n,)."""
+    return mv(Z, mv(_inv(_rows(Z, S, k)), r))
+
+
+@jit
+def _rows(Z, S, k):
+    """Z_𝒮: the rows S[:k] of Z, (k, Z.shape[1])."""
+    out = np.empty((k, Z.shape[1]))
+    for i in range(k):
+        for j in range(Z.shape[1]):
+            out[i, j] = Z[S[i], j]
+    return out
+
+
+@jit
 def clip(x, lo, hi):
     """X clipped to the box [lo, hi] (NaN stays NaN); a loop, a tenth of the code NumPy's broadcasting compiles to."""
     out = np.empty(x.shape[0])
@@ -201,7 +238,11 @@ def allocate_scaling(a, b, lo, hi, sat):
 
 @jit
 def ascm(a, b, P, lo, hi, r, sat):
-    """ASCM (Algorithm 1) in projector form into sat; returns (τ, α, clipped, ok); ok False: use the basis form."""
+    """ASCM (Algorithm 1) in projector form into sat; returns (τ, α, clipped, ok); ok False: use the basis form.
+
+    A held set of r joints (no redundancy left) whose P[𝒮, 𝒮] is ill-conditioned is decided
+    with a basis Z of P instead (Z_𝒮 square: `square_rank`, `held_torque_square`).
+    """
     n = a.shape[0]
     base = add(a, b)
     S = np.empty(n, np.int64)  # held joints, sorted
@@ -210,12 +251,14 @@ def ascm(a, b, P, lo, hi, r, sat):
     ts = np.zeros(n)
     tl = base.copy()
     d = np.zeros(n)
+    Z = np.zeros((n, r))
+    square = False  # S holds r joints: held torques from the basis Z
     for _ in range(n + 1):
         if k:
             rr = np.empty(k)
             for i in range(k):
                 rr[i] = ts[S[i]] - base[S[i]]
-            d = held_torque(P, S, k, rr)
+            d = held_torque_square(Z, S, k, rr) if square else held_torque(P, S, k, rr)
             tl = add(base, d)
         j, worst = -1, _TOL
         for i in range(n):
@@ -236,7 +279,15 @@ def ascm(a, b, P, lo, hi, r, sat):
             pos -= 1
         S2[pos] = j
         if not well_conditioned(P, S2, k + 1):
-            return tl, 1.0, False, False
+            if k + 1 != r:
+                return tl, 1.0, False, False
+            Z = basis(P, r)
+            full = square_rank(Z, S2, r)
+            if full < 0:
+                return tl, 1.0, False, False
+            if full == 0:  # the reference's Z_𝒮 loses rank: scale with the joints held so far
+                break
+            square = True
         S, k = S2, k + 1
         held[j] = True
         ts[j] = hi[j] if tl[j] > hi[j] else lo[j]
@@ -245,7 +296,7 @@ def ascm(a, b, P, lo, hi, r, sat):
         ra = np.empty(k)
         for i in range(k):
             ra[i] = a[S[i]]
-        ha = held_torque(P, S, k, ra)
+        ha = held_torque_square(Z, S, k, ra) if square else held_torque(P, S, k, ra)
         p = sub(a, ha)
         c = add(add(b, d), ha)
         free = np.empty(n, np.bool_)

@@ -9,7 +9,8 @@ call in between. The readable composition of the same equations is
 `rhi.control.reference`, the oracle this kernel is tested against (same torques to
 1e-10 N m). Where the projector form cannot decide accurately (a held set with
 σ_min(Z_𝒮) < 0.01, whose P[𝒮, 𝒮] = Z_𝒮 Z_𝒮ᵀ squares the condition number) the kernel
-returns `FALLBACK` and the controller runs that tick through the reference.
+returns `FALLBACK` and the controller runs that tick through the reference; a held set of n − m
+joints (Z_𝒮 square, no redundancy left) is decided with a basis of P instead.
 
 Numba is imported by `rhi.control`, not by ``import rhi``; the compiled code is cached on
 disk (`cache=True`), so only the first use on a machine pays the compilation.
@@ -36,6 +37,7 @@ from rhi.control.kernels.allocation import (
     held_torque,
     null_projector,
     safety_room,
+    square_rank,
     tertiary,
     well_conditioned,
 )
@@ -257,7 +259,7 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
         Nsafe = sub(tau_s, mtv(J, mtv(Jsharp, tau_s))) if dynamic else mv(P, tau_s)
         S, k = held_set(sat)
         if k >= r:  # no redundancy left (e.g. an LP vertex with more than r joints at a limit): all of it is held
-            if not blocks_all(P, S, k, r):
+            if not blocks_all(P, S, k, r) and (k != r or square_rank(basis(P, r), S, k) != 1):
                 return FALLBACK, 1.0, 0.0, V, omega, False
             held = mv(P, Nsafe)
         else:

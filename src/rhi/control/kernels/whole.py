@@ -9,6 +9,9 @@ objectives and joint-limit barriers of `rhi.control.kernels.objectives`. The law
 Python `forces` and the controller's composition are the references it is tested against
 (`tests/test_whole_tick.py`). The law's settings travel in one float vector (`LAW_*`
 indices), the passivity layer's settings and state in another (`PC_*`).
+
+Where steps 2–6 cannot decide accurately (`FALLBACK`: a held set of fewer than n − m joints whose
+projector block is ill-conditioned) the controller finishes the tick in the reference.
 """
 
 from __future__ import annotations
