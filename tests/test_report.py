@@ -134,6 +134,7 @@ def test_split_experiment_in_parallel_equals_one_after_the_other(tmp_path, monke
     from rhi.experiments.beyond.passivity import passivity, passivity_plan
     from rhi.experiments.parts import Plan, run_plan
     from rhi.report import reproduce as rep
+    from rhi.report.warmup import GROUPS
 
     kw = {"duration": 0.3, "stiff_duration": 0.2, "speed": 0.03, "cases": ("objectives", "objectives_pc")}
     step = next(s for s in rep.STEPS if s.name == "beyond.passivity")
@@ -151,6 +152,8 @@ def test_split_experiment_in_parallel_equals_one_after_the_other(tmp_path, monke
     assert np.array_equal(np.load(tmp_path / "1" / "results.npz")["beyond.passivity/objectives_pc_W"],
                           np.load(tmp_path / "2" / "results.npz")["beyond.passivity/objectives_pc_W"])
     tasks = out[2]["meta"]["seconds_per_task"]
+    assert out[1]["meta"]["warmup_seconds"] == {}  # one process: nothing to share
+    assert set(out[2]["meta"]["warmup_seconds"]) == set(GROUPS)  # once, before the workers ran
     assert set(tasks) == {f"beyond.passivity[{k}]" for k in ("objectives", "objectives_pc", "stiff_objectives",
                                                              "stiff_objectives_pc", "merge")}
     assert sorted(p.name for p in (tmp_path / "2" / "figures").iterdir()) == \

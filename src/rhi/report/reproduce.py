@@ -27,11 +27,12 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from rhi.design.executors import DEFAULTS, configure, shared
 from rhi.errors import InvalidInput, RhiError
-from rhi.experiments.parts import Part
+from rhi.experiments.parts import Part, Plan
 from rhi.experiments.result import Result
 from rhi.report import headline, write_report
 from rhi.report.claims import CLAIMS
 from rhi.report.steps import STEPS, Step, chapters, experiments, step_names
+from rhi.report.warmup import GROUPS, warm
 
 __all__ = ["STEPS", "TIMINGS", "Step", "chapters", "experiments", "reproduce", "step_names"]
 
@@ -46,10 +47,38 @@ def _report_progress(i: int, total: int, name: str, t_step: float, t0: float) ->
     print(f"[{i}/{total}] {name} done in {t_step:.1f} s; elapsed {elapsed:.0f} s, ETA {eta:.0f} s", flush=True)
 
 
+def _descendants_cpu() -> float:
+    """CPU time [s] of this process's live descendants, with the children they reaped (Linux /proc; else 0).
+
+    The design pool's workers are forked by a fork server that lives as long as this process, so
+    their time reaches `RUSAGE_CHILDREN` only at the end: counted here through the fork server.
+    """
+    try:
+        stats = {}
+        for entry in os.scandir("/proc"):
+            if entry.name.isdigit():
+                try:
+                    with open(f"/proc/{entry.name}/stat", "rb") as f:
+                        fields = f.read().rsplit(b")", 1)[1].split()
+                except OSError:  # gone meanwhile
+                    continue
+                stats[int(entry.name)] = (int(fields[1]), sum(int(x) for x in fields[11:15]))
+    except OSError:
+        return 0.0
+    total, frontier = 0, [os.getpid()]
+    while frontier:
+        parent = frontier.pop()
+        for pid, (ppid, ticks) in stats.items():
+            if ppid == parent:
+                total += ticks
+                frontier.append(pid)
+    return total / os.sysconf("SC_CLK_TCK")
+
+
 def _cpu() -> float:
-    """CPU time of this process and its finished children [s]."""
+    """CPU time [s] of this process, its finished children and its live descendants (the design pool's workers)."""
     c = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return time.process_time() + c.ru_utime + c.ru_stime
+    return time.process_time() + c.ru_utime + c.ru_stime + _descendants_cpu()
 
 
 def _draw(s: Step, res: Result, out: Path) -> tuple[dict[str, Path], float]:
@@ -139,14 +168,17 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         jobs = 1
     mode = "quick" if quick else "full"
     jobs = jobs or os.cpu_count() or 1
-    plans = {s.name: s.plan(**(s.quick if quick else s.full)) for s in steps if s.plan is not None and jobs > 1}
-    jobs = min(jobs, sum(len(plans[s.name].parts) if s.name in plans else 1 for s in steps))
+    plans: dict[str, Plan] = {}  # the split experiments' plans: made here to size the pool when it has few tasks
+    if 1 < jobs and len(steps) < jobs:
+        plans = {s.name: s.plan(**(s.quick if quick else s.full)) for s in steps if s.plan is not None}
+        jobs = min(jobs, sum(len(plans[s.name].parts) if s.name in plans else 1 for s in steps))
     results: dict[str, Result] = {}
     figures: dict[str, dict[str, Path]] = {}
     seconds: dict[str, float] = {}  # wall time of each experiment (its tasks' sum), for results.json
-    cpu: dict[str, float] = {}  # its CPU time (without its pools' processes)
+    cpu: dict[str, float] = {}  # its CPU time (with its pools' processes)
     drawing: dict[str, float] = {}  # the part of its wall time spent drawing its figures
     task_seconds: dict[str, float] = {}  # wall time of each part and merge of a split experiment
+    warmup: dict[str, float] = {}  # wall time of the kernels' warm-up before the tasks, per group
     t0 = time.perf_counter()
     cols = (TextColumn("[bold]{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
             TimeElapsedColumn())
@@ -173,22 +205,21 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
                     res = s.run(**kwargs)
                     finished(s, res, _draw(s, res, out), time.perf_counter() - t_step, _cpu() - c_step)
         else:
-            _parallel(steps, plans, quick, out, jobs, _previous_times(out, mode), finished, task_seconds)
+            _parallel(steps, plans, quick, out, jobs, _previous_times(out, mode), finished, task_seconds, warmup)
     done: list[tuple[str, Result, dict]] = [(s.chapter, results[s.name], dict(figures[s.name])) for s in steps]
     meta = {"mode": mode, "chapters": only or ", ".join(chapters()),
             "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version(), "jobs": jobs,
             "seconds_per_experiment": seconds, "cpu_seconds_per_experiment": cpu,
-            "figure_seconds_per_experiment": drawing, "seconds_per_task": task_seconds}
+            "figure_seconds_per_experiment": drawing, "seconds_per_task": task_seconds,
+            "warmup_seconds": warmup}
     path = write_report(done, out, meta=meta)
     print("\nHeadline claims of the thesis (details in report.html):")
     print(headline.to_text(headline.evaluate(CLAIMS, [r for _, r, _ in done])))
     return path, [r for _, r, _ in done]
 
 
-def _parallel(steps: list[Step], plans: dict, quick: bool, out: Path, jobs: int, previous: dict[str, float],
-              finished: Callable[..., None], task_seconds: dict[str, float]) -> None:
-    """Run the steps' tasks in `jobs` worker processes, longest first, keeping every worker busy."""
-    # queue of (estimated seconds, kind, step, part index); a merge goes first once its parts are done
+def _queue(steps: list[Step], plans: dict[str, Plan], previous: dict[str, float]) -> list[tuple[float, str, Step, int]]:
+    """The tasks, longest first: (estimated seconds, kind "step" or "part", step, part index or -1)."""
     queue: list[tuple[float, str, Step, int]] = []
     for s in steps:
         if s.name in plans:  # a part's own time, else its share (by work) of its experiment's
@@ -199,12 +230,29 @@ def _parallel(steps: list[Step], plans: dict, quick: bool, out: Path, jobs: int,
         else:
             queue.append((previous.get(s.name, 0.0), "step", s, -1))
     queue.sort(key=lambda e: -e[0])  # stable: the listed order among equal (unknown) times
-    outputs: dict[str, dict[int, Any]] = {name: {} for name in plans}
-    spent: dict[str, list[float]] = {name: [0.0, 0.0] for name in plans}  # wall and CPU of the parts so far
+    return queue  # a merge goes first once its parts are done
+
+
+def _parallel(steps: list[Step], plans: dict[str, Plan], quick: bool, out: Path, jobs: int, previous: dict[str, float],
+              finished: Callable[..., None], task_seconds: dict[str, float], warmup: dict[str, float]) -> None:
+    """Run the steps' tasks in `jobs` worker processes, longest first, keeping every worker busy.
+
+    The workers first compile (or load) the kernels, one `rhi.report.warmup` group each, so that no two
+    processes compile the same kernel at once; `warmup` receives each group's wall time [s]. The split
+    experiments' plans missing from `plans` are made here meanwhile.
+    """
     running: dict[Future, tuple[str, Step, int]] = {}
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=functools.partial(configure, **DEFAULTS)) as pool:
         try:
+            warming = {pool.submit(warm, group): group for group in GROUPS}  # the kernels, once, before any task
+            plans = {s.name: plans.get(s.name) or s.plan(**(s.quick if quick else s.full))
+                     for s in steps if s.plan is not None}
+            queue = _queue(steps, plans, previous)
+            outputs: dict[str, dict[int, Any]] = {name: {} for name in plans}
+            spent: dict[str, list[float]] = {name: [0.0, 0.0] for name in plans}  # wall and CPU of the parts so far
+            for fut in wait(warming).done:
+                warmup[warming[fut]] = round(fut.result(), 2)
             while queue or running:
                 while queue and len(running) < jobs:  # one task per free worker: the order decides late
                     _, kind, s, i = queue.pop(0)
