@@ -85,3 +85,19 @@ def test_ch7_figures_draw(fig71):
     assert len(fig.axes) == 4
     res = ch7.deficiency_map(resolution=3)
     assert pl7.deficiency_map(res) is not None
+
+
+def test_vme_values_equal_the_objectives_one_configuration_at_a_time():
+    """The batched ν of a VME-matching objective along a log equals its `value` per configuration."""
+    from rhi.control import EllipsoidMatching, JointLimitBarrier, VMEMatching
+    from rhi.device import device
+    from rhi.experiments.setups import vme_values
+
+    dev = device("rhi4")
+    Q = np.random.default_rng(3).uniform(dev.q_min, dev.q_max, size=(40, dev.n))
+    M = np.array(ch7.contact.M_DES)
+    for objective in (VMEMatching((1.0, 0.0)), EllipsoidMatching(M), EllipsoidMatching(M, H=np.diag([1.0, 2.0]))):
+        one = np.array([objective.value(dev, q) for q in Q])
+        np.testing.assert_allclose(vme_values(dev, objective, Q), one, rtol=1e-12, atol=1e-12)
+    with pytest.raises(InvalidInput, match="objective"):
+        vme_values(dev, JointLimitBarrier(0.1, 0.01), Q)

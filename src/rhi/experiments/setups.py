@@ -15,10 +15,11 @@ import numpy as np
 
 from rhi.control.allocation import ascm_projector
 from rhi.control.controller import Saturation
+from rhi.control.objectives import EllipsoidMatching, VMEMatching
 from rhi.control.saturation import null_basis
 from rhi.device import Device
 from rhi.errors import InvalidInput
-from rhi.metrics import max_force, max_force_scaling
+from rhi.metrics import jbld, max_force, max_force_scaling
 from rhi.metrics.force import ProjectorKind
 from rhi.sim import Hand, HandPath, Log, Plant, simulate
 
@@ -47,6 +48,33 @@ class FreeSpace:
     def force(self, x, xdot) -> np.ndarray:
         """F: (2,) zeros [N]."""
         return np.zeros(2)
+
+
+def vme_values(dev: Device, objective: VMEMatching | EllipsoidMatching, q: np.ndarray) -> np.ndarray:
+    """ν = JBLD(M_des, H J Jᵀ Hᵀ) (thesis eqs. 3.22, 5.11) of a VME-matching objective at many configurations.
+
+    The values of ``objective.value(dev, q_i)``, from one batched Jacobian.
+
+    Args:
+        dev: the device.
+        objective: `VMEMatching` (H = I) or `EllipsoidMatching`.
+        q: (N, n) configurations [rad].
+
+    Returns:
+        (N,) ν.
+
+    Raises:
+        InvalidInput: another objective.
+    """
+    J = dev.jacobian(q)
+    if isinstance(objective, VMEMatching):
+        desired = objective.desired()
+    elif isinstance(objective, EllipsoidMatching):
+        desired = objective.desired
+        J = J if objective.H is None else objective.H @ J
+    else:
+        raise InvalidInput(f"objective: expected VMEMatching or EllipsoidMatching, got {type(objective).__name__}")
+    return jbld(desired, J @ np.swapaxes(J, -1, -2))
 
 
 def path_hand(points, speed: float, start: float, stiffness: float, damping: float,

@@ -71,7 +71,7 @@ from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch3.measures import BETA, POINTS, THESIS_LAMBDA, THESIS_Q, THESIS_RHO, U, measures
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import FreeSpace
+from rhi.experiments.setups import FreeSpace, vme_values
 from rhi.metrics import nullspace_projector
 from rhi.sim import Hand, HandPath, Log, Plant, simulate
 
@@ -165,7 +165,7 @@ def _run_summary(dev: Device, x, log: Log, vme: VMEMatching, objective, gain: fl
     x = np.asarray(x, dtype=float)
     q_end = log.q[-1]
     drift = np.linalg.norm(log.x - x, axis=1)
-    nu = np.array([vme.value(dev, q) for q in log.q[::DECIMATE]])
+    nu = vme_values(dev, vme, log.q[::DECIMATE])
     t = log.t[::DECIMATE]
     J, M = dev.jacobian(q_end), dev.mass_matrix(q_end)
     grad_torque = gain * nullspace_projector(J, M) @ objective.gradient(dev, q_end)

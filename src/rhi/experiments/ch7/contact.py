@@ -58,11 +58,11 @@ from rhi.control import (
     ControllerConfig,
     EllipsoidMatching,
     ForceRendering,
-    JointLimitBarrier,
     NullSpaceController,
     ObjectiveTerm,
 )
 from rhi.control.allocation import force_capability
+from rhi.control.barrier import limit_rows
 from rhi.control.configuration import optimal_configuration
 from rhi.control.controller import Saturation
 from rhi.device import Device, device
@@ -75,7 +75,7 @@ from rhi.experiments.ch3.nullspace import (
     with_barrier,
 )
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import ProgressChain, is_projector, is_saturation
+from rhi.experiments.setups import ProgressChain, is_projector, is_saturation, vme_values
 from rhi.metrics.force import ProjectorKind
 from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 
@@ -138,7 +138,7 @@ def _first(mask) -> int:
 
 
 def _case_metrics(dev: Device, log, saturated: np.ndarray, saturation: str, x0: np.ndarray, u: np.ndarray,
-                  lo: np.ndarray, hi: np.ndarray, barrier: JointLimitBarrier) -> dict:
+                  lo: np.ndarray, hi: np.ndarray) -> dict:
     F = log.ft[:, :2] @ u  # force the hand pushes into the wall = force rendered to it [N]
     perp = np.array([-u[1], u[0]])
     F_lat = log.ft[:, :2] @ perp
@@ -146,16 +146,16 @@ def _case_metrics(dev: Device, log, saturated: np.ndarray, saturation: str, x0: 
     pen = (log.x - x0) @ u
     k_sat = _first(saturated.any(axis=1))  # first joint at a torque limit
     k_full = k_sat if saturation == "none" else _first(log.alpha < 1.0 - 1e-9)  # first tick not rendering in full
-    at_lim = np.array([np.min(barrier.distances(dev, q)) < AT_LIMIT for q in log.q])
+    C, lower, upper = limit_rows(dev)  # every configuration's distances to the limits, as `barrier.distances`
+    c = log.q @ C.T
+    at_lim = np.minimum(np.min(c - lower, axis=1), np.min(upper - c, axis=1)) < AT_LIMIT
     k_lim = _first(at_lim)
     N = len(F)
     tail = log.t >= log.t[-1] - 0.2
     k_dep = _first(pen >= DEPTH_COMPARE)
     # self-motion joint speed: the part of q̇ the end-effector motion does not explain, (I − J⁺J) q̇
-    dq_self = np.empty_like(log.dq)
-    for k, (q, dq) in enumerate(zip(log.q, log.dq)):
-        J = dev.jacobian(q)
-        dq_self[k] = dq - np.linalg.pinv(J) @ (J @ dq)
+    J = dev.jacobian(log.q)
+    dq_self = log.dq - (np.linalg.pinv(J) @ (J @ log.dq[..., None]))[..., 0]
     v_self = np.abs(dq_self).max(axis=1)
 
     def peak(k: int) -> float:
@@ -293,7 +293,7 @@ def palpation(
                     progress=chain.run(settle_ticks))
     q_c = dev.ik(x0, log0.q[-1], k_null=0.0)  # remove the sub-0.1 mm drift so every case starts on X0
     arrays: dict[str, np.ndarray] = {
-        "settle_t": log0.t[::10], "settle_nu": np.array([vme.value(dev, q) for q in log0.q[::10]]),
+        "settle_t": log0.t[::10], "settle_nu": vme_values(dev, vme, log0.q[::10]),
         "settle_drift": np.linalg.norm(log0.x - x0, axis=1)[::10], "q_start": q_start, "q_contact": q_c,
         "torque_max": hi, "x0": x0, "u": u, "stiffness": np.array(stiffness),
     }
@@ -319,7 +319,7 @@ def palpation(
         log = simulate(plant, ctrl, duration=t_start + push + hold, hand=hand, virtual=wall,
                        progress=chain.run(case_ticks),
                        record=functools.partial(_held, ctrl))
-        m = _case_metrics(dev, log, log.extra["saturated"].astype(bool), sat, x0, u, lo, hi, BARRIER)
+        m = _case_metrics(dev, log, log.extra["saturated"].astype(bool), sat, x0, u, lo, hi)
         results[sat, proj] = m
         key = f"{sat}_{proj}"
         for k, v in m["series"].items():
