@@ -12,6 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rhi import kernel_cache
+
+kernel_cache.install()  # before the decorator: the cache refreshes when any kernel source changes
+
 #: Compiled once per machine (cached on disk); floating-point errors give inf/NaN, not exceptions.
 _jit = njit(cache=True, error_model="numpy")
 

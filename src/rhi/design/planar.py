@@ -25,10 +25,12 @@ import math
 import numpy as np
 from numba import njit
 
+from rhi import kernel_cache
 from rhi._validate import as_array
 from rhi.errors import InvalidInput, Unreachable
 from rhi.metrics import SINGULAR_RTOL
 
+kernel_cache.install()  # before the decorators: the cache refreshes when any kernel source changes
 _RTOL = SINGULAR_RTOL
 _DIR_ATOL = 1e-10  # rhi.metrics._common.DIRECTION_ATOL
 
