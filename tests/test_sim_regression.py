@@ -216,6 +216,28 @@ def test_compiled_hand_reports_non_finite_force():
     assert fault is not None and "non-finite force" in fault and sess.fault == fault
 
 
+def test_compiled_period_reports_divergence_as_the_reference_does():
+    """A stiff hand kicks the handle with a huge, finite force: the physics diverges.
+
+    The compiled period (MuJoCo's step called from compiled code, `rhi.sim.mjc`) reports it at the same
+    step, time and work as the Python steps.
+    """
+    dev = rhi.device("rhi4")
+    x0 = dev.fk(Q0)
+    out = []
+    for cls in (Hand, _PythonHand):
+        plant = Plant(dev)
+        plant.reset(Q0)
+        hand = cls(HandPath([x0, x0 + [0.0, 0.01]], speed=0.1, start=0.0101), stiffness=1e8, max_force=None)
+        sess = Session(plant, hand=hand)
+        faults = [sess.advance(np.full(4, 0.01)) for _ in range(30)]
+        k = next(i for i, f in enumerate(faults) if f is not None)
+        assert (sess._fused_for[0] is hand) == (cls is Hand)
+        out.append((k, faults[k], sess.work, sess.t))
+    assert out[0][0] > 0 and "unstable physics" in out[0][1], out[0]  # a period after the first
+    assert out[0] == out[1]
+
+
 def test_plant_sensors_equal_encoders_and_ft(rhi4):
     """`Plant.sensors` (one compiled call) against `q`, `dq` and `ft()` along a pushed, driven motion."""
     plant = Plant(rhi4)

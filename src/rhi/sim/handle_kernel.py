@@ -8,7 +8,8 @@ revolute joint and ω_j for a prismatic one (ω_j = R_j a_j the joint's world ax
 origin); each joint's frame by `rhi.chain_kernel.joint_frame` (Pinocchio's conventions), without the
 inertias, the Jacobian's angular rows or the dynamics. `hand_step` is `rhi.sim.Hand.force` plus
 a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
-handle's applied force in the same call. Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
+handle's applied force in the same call; `hand_period` runs a control period's physics steps with it,
+MuJoCo's step included (`rhi.sim.mjc`). Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
 """
 
 from __future__ import annotations
@@ -18,7 +19,11 @@ import math
 import numpy as np
 
 from rhi.chain_kernel import joint_frame
+from rhi.sim.mjc import step1, step2
 from rhi.terms_kernel import _jit
+
+#: `hand_period`'s outcomes: the period ran; a step's force was not finite; MuJoCo flagged a step as diverged.
+PERIOD_OK, PERIOD_NONFINITE, PERIOD_UNSTABLE = 0, 1, 2
 
 #: column of the joint axis (3) in `pack`'s per-joint constants
 _AX = 12
@@ -192,3 +197,48 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
         xfrc[idx[2 * m + j]] = f
         n2 += f * f
     return n2
+
+
+@_jit
+def hand_period(model, data, sub, t0, sd, idx, c, F, xfrc, acc, wn, bad, at):
+    """A control period of `sub` physics steps: `hand_step`, then mj_step2 + mj_step1, then the divergence check.
+
+    The loop of `rhi.sim.loop.Session._steps` for a `Hand` and a physical `Wall` (or none), with
+    MuJoCo's step called from here (`rhi.sim.mjc`); ends with the last step's work added to acc[0].
+
+    Args:
+        model: the mjModel's address (``MjModel._address``).
+        data: the mjData's address (``MjData._address``).
+        sub: physics steps per control period.
+        t0: time of the period's first step [s].
+        sd: MuJoCo's sensordata.
+        idx: `hand_step`'s indices.
+        c: `hand_constants`.
+        F: (m,) in: the previous hand force [N]; out: the period's last hand force F_h [N].
+        xfrc: (6,) the handle body's applied force and torque.
+        acc: (3,) work so far [J], timestep [s], 0 (the first step adds no previous work); advanced.
+        wn: MuJoCo's warning counters (``MjData.warning.number``).
+        bad: (3,) int64: the warnings that mean divergence (bad qacc, qvel, qpos).
+        at: (1,) int64, written: the step that failed, when one did.
+
+    Returns:
+        PERIOD_OK, PERIOD_NONFINITE (a non-finite force, written to xfrc and not stepped) or
+        PERIOD_UNSTABLE (MuJoCo flagged the step as diverged and reset its data).
+    """
+    m = F.shape[0]
+    for s in range(sub):
+        n2 = hand_step(t0 + s * acc[1], sd, idx, c, F, xfrc, acc)  # adds the previous step's work (acc[2] = 1)
+        if not math.isfinite(n2):
+            at[0] = s
+            return PERIOD_NONFINITE
+        acc[2] = 1.0
+        step2(model, data)
+        step1(model, data)
+        if wn[bad[0]] != 0 or wn[bad[1]] != 0 or wn[bad[2]] != 0:
+            at[0] = s
+            return PERIOD_UNSTABLE
+    wd = 0.0
+    for j in range(m):  # the last step's work, at the velocity after it
+        wd += F[j] * sd[idx[m + j]]
+    acc[0] += wd * acc[1]
+    return PERIOD_OK

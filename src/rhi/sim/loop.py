@@ -95,13 +95,18 @@ class Session:
         self._F = np.zeros(plant.m)
         self._acc = np.array([0.0, plant.timestep, 0.0])
         self._idx = np.concatenate([p._pos, p._vel, p._task]).astype(np.int64)
-        self._fused: tuple[Any, np.ndarray] | None = None  # (rhi.sim.handle_kernel.hand_step, its constants)
+        self._fused: tuple[Any, np.ndarray] | None = None  # (rhi.sim.handle_kernel.hand_period, its constants)
+        self._addr = (p.model._address, p.data._address)  # the C structs, for MuJoCo's step in compiled code
+        self._badv = np.array(p._bad, dtype=np.int64)
+        self._at = np.zeros(1, dtype=np.int64)
+        self._codes = (-1, -1)  # hand_period's outcome codes, with the kernel
         self._fused_for: tuple = (None, None)
         fused = self._compiled(hand, physical)
         if fused is not None:
-            # load (or compile) the kernel now, not in the first period of a real-time run: one call on copies
+            # load (or compile) the kernel now, not in the first period of a real-time run: zero physics steps
             kernel, c = fused
-            kernel(self.t, p._sd.copy(), self._idx, c, self._F.copy(), p._xfrc.copy(), self._acc.copy())
+            kernel(*self._addr, 0, self.t, p._sd, self._idx, c, self._F.copy(), p._xfrc.copy(), self._acc.copy(),
+                   p._wnum, self._badv, self._at)
 
     def advance(self, tau: np.ndarray, x_master: np.ndarray | None = None) -> str | None:
         """Apply τ: (n,) [N m] for one control period; returns the fault that stopped it, if any.
@@ -175,37 +180,33 @@ class Session:
         m = self.plant.m
         if hand.path.points.shape[1] != m or (phys is not None and phys.point.shape != (m,)):
             return None
-        from rhi.sim.handle_kernel import hand_constants, hand_step
+        from rhi.sim.handle_kernel import PERIOD_NONFINITE, PERIOD_UNSTABLE, hand_constants, hand_period
 
-        self._fused = (hand_step, hand_constants(hand, phys))
+        self._fused = (hand_period, hand_constants(hand, phys))
+        self._codes = (PERIOD_NONFINITE, PERIOD_UNSTABLE)
         self._fused_for = (hand, phys)
         return self._fused
 
     def _steps_compiled(self, kernel, c: np.ndarray) -> str | None:
-        """`_steps` for a `Hand` and a physical `Wall` (or none): one compiled call per physics step.
+        """`_steps` for a `Hand` and a physical `Wall` (or none): the period in one compiled call.
 
-        The same arithmetic as `Hand.force` and `Wall.force` (`rhi.sim.handle_kernel.hand_step`), with the
-        handle's state read from MuJoCo's sensors and the force written to its applied force in that call.
+        The same arithmetic as `Hand.force` and `Wall.force` (`rhi.sim.handle_kernel.hand_period`), with the
+        handle's state read from MuJoCo's sensors, the force written to its applied force and MuJoCo's step
+        called from there.
         """
         h = self.plant.timestep
         model, data, sd, pos, vel, xfrc, task, wn, i, j, k = self._mj
-        step1, step2 = mujoco.mj_step1, mujoco.mj_step2
-        F, acc, idx = self._F, self._acc, self._idx
+        F, acc, idx, at = self._F, self._acc, self._idx, self._at
         acc[0], acc[2] = self.work, 0.0
         t0 = self.t
-        for s in range(self.sub):
-            n2 = kernel(t0 + s * h, sd, idx, c, F, xfrc, acc)  # adds the previous step's work (acc[2] = 1)
-            if not math.isfinite(n2):
-                self.work = float(acc[0])
-                return (f"hand/environment: non-finite force {xfrc[task].tolist()} on the "
-                        f"handle at t={t0 + s * h:.4f} s")
-            acc[2] = 1.0
-            step2(model, data)
-            step1(model, data)
-            if wn[i] or wn[j] or wn[k]:
-                self.work = float(acc[0])
-                return str(unstable(t0 + s * h))
-        self.work = float(acc[0]) + float(F.dot(sd[vel])) * h
+        status = kernel(self._addr[0], self._addr[1], self.sub, t0, sd, idx, c, F, xfrc, acc, wn, self._badv, at)
+        self.work = float(acc[0])
+        nonfinite, diverged = self._codes
+        if status == nonfinite:
+            return (f"hand/environment: non-finite force {xfrc[task].tolist()} on the "
+                    f"handle at t={t0 + int(at[0]) * h:.4f} s")
+        if status == diverged:
+            return str(unstable(t0 + int(at[0]) * h))
         self.F_hand = F.copy()
         return None
 
