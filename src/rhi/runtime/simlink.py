@@ -55,7 +55,8 @@ class SimLink:
         self.session.hand = hand
 
     def open(self) -> None:
-        """Nothing to connect."""
+        """Nothing to connect; loads the compiled sensor read (`Plant.sensors`) before the first tick."""
+        self.plant.sensors()
 
     def read(self) -> Reading:
         """The plant's encoders, F/T sensor and ground truth (flagged `Status.SIMULATED`)."""

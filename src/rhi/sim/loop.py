@@ -389,6 +389,9 @@ class Kinematics:
                 fc.append(np.array(wall_constants(virtual)))
             self._compiled = (handle_state, np.concatenate([ints, self.rows]).astype(np.int64), joints,
                               np.concatenate(fc))
+            # load (or compile) the kernel now, not in a real-time loop's first tick: one call at q = 0
+            zero = np.zeros(device.n)
+            handle_state(*self._compiled[1:], zero, zero, np.empty((3 if self._fused else 2, self.m)))
         else:
             self.data = device.model.createData()
 
