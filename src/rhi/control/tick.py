@@ -195,6 +195,24 @@ class KernelTick:
             s.transition = TransitionState(after[0] != 0.0, after[1], after[2], after[3])
         self._tr_of = s.transition
 
+    def _load_passivity(self, ps: PassivityState | None) -> None:
+        """Mirror a fresh, reset or Python-advanced passivity state into the whole tick's slots."""
+        if ps is not None and ps is not self._ps_of:
+            pcv = self._pc
+            pcv[_whole.PC_E], pcv[_whole.PC_T] = ps.energy, ps.t
+            pcv[_whole.PC_PREV] = float(ps.position is not None)
+            if ps.position is not None:
+                self._pc_pos[:], self._pc_eff[:] = ps.position, ps.effort
+
+    def _store_passivity(self, s: ControllerState, ps: PassivityState, t: float, dissipated: float) -> None:
+        """The passivity state after a whole tick at t [s] that ran the layer (Σ dissipated [J] given)."""
+        v = self._pc.tolist()
+        ps.energy, ps.alpha, ps.scale = v[_whole.PC_E], v[_whole.PC_ALPHA], v[_whole.PC_SCALE]
+        ps.dissipated = dissipated
+        ps.t, ps.position, ps.effort = t, self._pc_pos.copy(), self._pc_eff.copy()
+        s.E_obs, s.alpha_pc = ps.energy, ps.alpha
+        self._ps_of = ps
+
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):
         """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or (F_render, F_extra).
 
@@ -257,11 +275,7 @@ class KernelTick:
         before = self._load_transition(s)
         pc, pcv = ctrl._pc, self._pc
         ps = None if pc is None else pc.state
-        if ps is not None and ps is not self._ps_of:  # a fresh, reset or Python-advanced observer
-            pcv[_whole.PC_E], pcv[_whole.PC_T] = ps.energy, ps.t
-            pcv[_whole.PC_PREV] = float(ps.position is not None)
-            if ps.position is not None:
-                self._pc_pos[:], self._pc_eff[:] = ps.position, ps.effort
+        self._load_passivity(ps)
         F_r, F_x = self._F
         q, dq = _f64(q), _f64(dq)
         dev = ctrl.device
@@ -285,12 +299,7 @@ class KernelTick:
         self._store_transition(s, before)
         s.V, s.omega = V, omega
         if pc_ran and ps is not None:
-            v = pcv.tolist()
-            ps.energy, ps.alpha, ps.scale = v[_whole.PC_E], v[_whole.PC_ALPHA], v[_whole.PC_SCALE]
-            ps.dissipated += v[_whole.PC_DISSIPATED]
-            ps.t, ps.position, ps.effort = t, self._pc_pos.copy(), self._pc_eff.copy()
-            s.E_obs, s.alpha_pc = ps.energy, ps.alpha
-            self._ps_of = ps
+            self._store_passivity(s, ps, t, ps.dissipated + float(pcv[_whole.PC_DISSIPATED]))
         return self._tau.copy(), alpha, beta, self._sat.copy(), clipped != 0.0
 
 

@@ -228,6 +228,20 @@ class LogWriter:
         self.rows += 1
         return r
 
+    def block(self, count: int) -> np.ndarray:
+        """Up to `count` next rows to fill at once: a (r, width) NaN-filled view, 1 <= r <= count (count >= 1).
+
+        The rows belong to the log once `commit` says how many were written (a compiled loop's block).
+        """
+        if self._k == len(self._buf):
+            self._flush()
+        return self._buf[self._k: self._k + count]
+
+    def commit(self, rows: int) -> None:
+        """The first `rows` rows of the last `block` are written."""
+        self._k += rows
+        self.rows += rows
+
     def event(self, t: float, kind: str, detail: str, tick: int = -1) -> Event:
         """Record an event now (written to the events file at once)."""
         e = Event(float(t), str(kind), str(detail), int(tick))

@@ -194,21 +194,25 @@ class Session:
         handle's state read from MuJoCo's sensors, the force written to its applied force and MuJoCo's step
         called from there.
         """
-        h = self.plant.timestep
         model, data, sd, pos, vel, xfrc, task, wn, i, j, k = self._mj
         F, acc, idx, at = self._F, self._acc, self._idx, self._at
         acc[0], acc[2] = self.work, 0.0
         t0 = self.t
         status = kernel(self._addr[0], self._addr[1], self.sub, t0, sd, idx, c, F, xfrc, acc, wn, self._badv, at)
         self.work = float(acc[0])
-        nonfinite, diverged = self._codes
-        if status == nonfinite:
-            return (f"hand/environment: non-finite force {xfrc[task].tolist()} on the "
-                    f"handle at t={t0 + int(at[0]) * h:.4f} s")
-        if status == diverged:
-            return str(unstable(t0 + int(at[0]) * h))
+        if status in self._codes:
+            return self._fault(status, t0)
         self.F_hand = F.copy()
         return None
+
+    def _fault(self, status: int, t0: float) -> str:
+        """Why `rhi.sim.handle_kernel.hand_period` stopped a period that started at t0 [s] (its failed step in `_at`)."""
+        from rhi.sim.handle_kernel import PERIOD_NONFINITE
+
+        t = t0 + int(self._at[0]) * self.plant.timestep
+        if status == PERIOD_NONFINITE:
+            return f"hand/environment: non-finite force {self._mj[5][self._mj[6]].tolist()} on the handle at t={t:.4f} s"
+        return str(unstable(t))
 
     def _stop(self, why: str) -> str:
         self.fault = why
@@ -292,53 +296,108 @@ def simulate(
     sd, xv = plant._sd, np.concatenate([plant._pos, plant._vel]).astype(np.int64)
     perf = time.perf_counter
     t_start = perf()
+
+    def tick(k: int) -> bool:
+        """Tick k in Python; whether the run ends there (a plant fault)."""
+        t0 = perf()
+        t = sess.t
+        read = plant.sensors()
+        q, dq, ft = read[:n], read[n:2 * n], read[2 * n:]
+        x_m = None
+        if kin is not None:
+            x_m, xdot_m, F_env = kin.render(q, dq)
+        else:
+            F_env = zero_m
+        t1 = perf()
+        tau = np.asarray(step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
+        t2 = perf()
+        if tau.shape != (n,):
+            raise InvalidInput(f"controller: step returned torques of shape {tau.shape}, expected ({n},)")
+        fault = sess.advance(tau, x_m)
+        row = w.row()
+        row[0] = t
+        log_row(row, i_q, read, tau, sd, xv, sess.F_hand, F_env)
+        if ms:
+            row[slave] = sess.slave_x
+        if state is not None:
+            row[scalars] = (sess.work, state.V, state.omega, state.alpha, state.beta,
+                            getattr(state, "E_obs", nan), getattr(state, "alpha_pc", nan))
+            if state.stopped and w.fault is None:
+                w.fault = state.fault
+                w.event(t, "controller", state.fault or "controller stopped", k)
+        else:
+            row[i_sc] = sess.work
+        t3 = perf()
+        row[tail] = (k, t0 - t_start, t1 - t0, t2 - t1, t3 - t2, t3 - t0, 0.0, 0.0 if fault is None else 1.0)
+        if record is not None:
+            _record(recorded, record(), c, k)
+        if telemetry is not None:
+            telemetry.publish(row, c, fault or w.fault)
+        if fault is not None:
+            w.fault = fault
+            w.event(t, "plant", fault, k)
+            return True
+        if progress is not None and (k % every == 0 or k == N - 1):
+            progress(k + 1, N)
+        return False
+
+    from rhi.sim import fast_loop
+
+    fast = fast_loop.FastLoop.build(sess, controller, kin, virtual=virtual, teleop=teleop, record=record, w=w)
+    fast_loop.last = fast
     try:
-        for k in range(N):
-            t0 = perf()
-            t = sess.t
-            read = plant.sensors()
-            q, dq, ft = read[:n], read[n:2 * n], read[2 * n:]
-            x_m = None
-            if kin is not None:
-                x_m, xdot_m, F_env = kin.render(q, dq)
-            else:
-                F_env = zero_m
-            t1 = perf()
-            tau = np.asarray(step(t, q, dq, {"ft": ft, "force": F_env}), dtype=float)
-            t2 = perf()
-            if tau.shape != (n,):
-                raise InvalidInput(f"controller: step returned torques of shape {tau.shape}, expected ({n},)")
-            fault = sess.advance(tau, x_m)
-            row = w.row()
-            row[0] = t
-            log_row(row, i_q, read, tau, sd, xv, sess.F_hand, F_env)
-            if ms:
-                row[slave] = sess.slave_x
-            if state is not None:
-                row[scalars] = (sess.work, state.V, state.omega, state.alpha, state.beta,
-                                getattr(state, "E_obs", nan), getattr(state, "alpha_pc", nan))
-                if state.stopped and w.fault is None:
-                    w.fault = state.fault
-                    w.event(t, "controller", state.fault or "controller stopped", k)
-            else:
-                row[i_sc] = sess.work
-            t3 = perf()
-            row[tail] = (k, t0 - t_start, t1 - t0, t2 - t1, t3 - t2, t3 - t0, 0.0, 0.0 if fault is None else 1.0)
-            if record is not None:
-                _record(recorded, record(), c, k)
-            if telemetry is not None:
-                telemetry.publish(row, c, fault or w.fault)
-            if fault is not None:
-                w.fault = fault
-                w.event(t, "plant", fault, k)
+        k = 0
+        while k < N:
+            if fast is not None and not (fast.ctrl.state.stopped and w.fault is None):
+                k, ended = _fast_block(fast, w, k, N, t_start, telemetry, progress, every)
+                if ended or k == N:
+                    break
+            if tick(k):
                 break
-            if progress is not None and (k % every == 0 or k == N - 1):
-                progress(k + 1, N)
+            k += 1
     finally:
         w.close()
     out = w.to_log()
     out.extra = {name: np.array(v) for name, v in recorded.items()}
     return out
+
+
+def _fast_block(fast, w: LogWriter, k: int, N: int, t_start: float, telemetry, progress, every: int) -> tuple[int, bool]:
+    """Ticks from k in compiled calls (`rhi.sim.fast_loop`) until the end, a fault or a tick for Python.
+
+    Returns (the next tick, whether the run ended at a fault). Timing columns: each call's average per tick.
+    """
+    c, perf = w.cols, time.perf_counter
+    i_wall, i_read, i_tick = int(c["wall"]), int(c["t_read"]), int(c["t_tick"])  # type: ignore[arg-type]
+    from rhi.sim.fast_loop import FAULT, PYTHON
+
+    while k < N:
+        rows = w.block(min(N - k, 1000))
+        t0 = perf()
+        done, out = fast.run(k, rows)
+        dt = (perf() - t0) / max(done, 1)
+        w.commit(done)
+        block = rows[:done]
+        block[:, i_wall] = (t0 - t_start) + dt * np.arange(done)
+        block[:, i_read:i_read + 3] = math.nan
+        block[:, i_tick] = dt
+        fault = fast.sess.fault
+        if out == FAULT:
+            w.fault = fault
+            w.event(block[-1, 0], "plant", fault, k + done - 1)
+        if telemetry is not None:
+            for r in range(done):
+                telemetry.publish(block[r], c, fault if r == done - 1 else w.fault)
+        if progress is not None:
+            for kk in range(k, k + done):
+                if kk % every == 0 or kk == N - 1:
+                    progress(kk + 1, N)
+        k += done
+        if out == FAULT:
+            return k, True
+        if out == PYTHON:
+            return k, False
+    return k, False
 
 
 def _record(recorded: dict[str, list], values: dict, columns: dict, k: int) -> None:

@@ -1,0 +1,246 @@
+"""Many ticks of `rhi.sim.simulate` in one compiled call, for the runs it computes exactly.
+
+`FastLoop.build` accepts a run whose every part the kernels know: a `NullSpaceController` whose
+whole tick runs compiled (`KernelTick.whole_ok`), a `Hand` or no hand, a physical `Wall` or none,
+a virtual `Wall` or none, no teleoperation and no ``record`` hook. `ticks` then runs up to a block
+of ticks per call: the plant's sensors (`rhi.sim.io_kernel.sensors`), the handle's kinematics and
+the virtual wall (`rhi.sim.handle_kernel.handle_state`), the controller's input checks and whole tick
+(`rhi.control.kernels.whole`), the torque and a control period of physics steps with the hand and the
+physical wall (`rhi.sim.handle_kernel.hand_period`, MuJoCo's step by `rhi.sim.mjc`), and the log row.
+
+The arithmetic is that of the Python loop, so the log and the controller's state equal it. A tick the
+compiled loop does not decide — a non-finite reading, a non-finite torque, the kernel's FALLBACK or
+SINGULAR, a stopped controller not logged yet — ends the call *before* that tick with the controller's
+state as it was; the caller runs that tick in Python and resumes. A plant fault (non-finite handle force,
+diverged physics) ends it *after* the tick's row, as the Python loop does.
+
+Timing columns of compiled rows: ``t_tick`` the call's average per tick, ``wall`` interpolated from
+the call's start, ``t_read``, ``t_step`` and ``t_write`` NaN (not measured per tick), ``late`` 0.
+Imported by `rhi.sim.loop.simulate`, not with ``import rhi`` (Numba).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rhi.control.controller import NullSpaceController
+from rhi.control.kernels import whole as _whole
+from rhi.sim.environment import Wall
+from rhi.sim.hand import Hand
+from rhi.sim.handle_kernel import PERIOD_OK, hand_constants, hand_period, handle_state, wall_constants
+from rhi.sim.io_kernel import log_row, sensors
+from rhi.terms_kernel import _jit
+
+#: How a call of `ticks` ended: every tick ran; the next tick is the Python loop's; a plant fault at the last tick.
+DONE, PYTHON, FAULT = 0, 1, 2
+
+#: Slots of the float state vector `st`: the session's time [s], work [J] and the last tick's logged
+#: controller values (V, Ω, α, β, E_obs, α_pc), the stopped flag, Σ dissipated [J], the last controller
+#: tick's time and clipped flag, the controller ticks and passivity ticks of the call.
+S_T, S_WORK, S_V, S_OMEGA, S_ALPHA, S_BETA, S_EOBS, S_APC, S_STOPPED, S_DISS, S_TLAST, S_CLIP, S_TICKS, S_PC = range(14)
+N_ST = 14
+#: Slots of the int vector `lay`: where q and work start in a row, where seq starts, the virtual wall flag,
+#: whether the law reads sensors["force"], sensors["ft"]; then (outputs) ticks run, outcome, plant status.
+L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS = range(9)
+
+#: The compiled loop of the last `simulate` run, None where it ran in Python (set by `rhi.sim.loop.simulate`).
+last: FastLoop | None = None
+
+
+@_jit
+def _finite(v):
+    """Whether every entry of the vector v is finite (its squares' sum is; overflow sends the tick to Python)."""
+    s = 0.0
+    for i in range(v.shape[0]):
+        s += v[i] * v[i]
+    return math.isfinite(s)
+
+
+@_jit
+def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows):
+    """Run up to `count` ticks of the simulation loop from tick k0, one log row each (see the module docstring).
+
+    Args:
+        count: ticks to run at most (<= len(rows)).
+        k0: the first tick's index (the seq column).
+        dt: control period [s].
+        sub: physics steps per period.
+        mj: (mjModel address, mjData address).
+        sens: `rhi.sim.io_kernel.sensors`' arguments but its output.
+        kin: (ints, joints, fc) of `handle_state` with the virtual wall's constants (`rhi.sim.loop.Kinematics`).
+        hand: `hand_period`'s (sd, idx, c, F, xfrc, acc, wn, bad, at).
+        ctrl: (n,) MuJoCo's ctrl.
+        F_hand: (m,) the hand's force of the last period [N], advanced.
+        wargs: `rhi.control.kernels.whole.whole`'s arguments after (t, q, dq, force).
+        cs: the controller's arrays among them: FME transition tr, passivity vector, port position and
+            effort, torque, held joints, result (`KernelTick`).
+        st: (N_ST,) float state (S_* slots), advanced.
+        lay: (9,) int64 layout and outcome (L_* slots).
+        xv: (2 m,) int64 sensordata indices of the handle's position and velocity.
+        rows: (>= count, width) the log rows to write.
+    """
+    n, m = ctrl.shape[0], F_hand.shape[0]
+    tr, pc, pc_pos, pc_eff, tau, sat, res = cs
+    sd, idx, c, F, xfrc, acc, wn, bad, at = hand
+    read = np.empty(2 * n + 6)
+    kout = np.empty((3, m))
+    F_env = np.zeros(m)
+    zero_n = np.zeros(n)
+    tr0, pc0, pos0, eff0, tau0, sat0 = tr.copy(), pc.copy(), pc_pos.copy(), pc_eff.copy(), tau.copy(), sat.copy()
+    lay[L_DONE], lay[L_OUT], lay[L_STATUS] = 0, DONE, PERIOD_OK
+    for j in range(count):
+        t = st[S_T]
+        sensors(sens[0], sens[1], sens[2], sens[3], sens[4], sens[5], read)
+        q, dq, ft = read[:n], read[n:2 * n], read[2 * n:]
+        if lay[L_VIRTUAL] != 0:
+            handle_state(kin[0], kin[1], kin[2], q, dq, kout)
+            F_env[:] = kout[2]
+        cmd = zero_n
+        if st[S_STOPPED] == 0.0:
+            # the controller's input checks: a tick that fails one is the Python loop's
+            if not (_finite(q) and _finite(dq)) or (lay[L_FORCE] != 0 and not _finite(F_env)) or (
+                    lay[L_FT] != 0 and not _finite(ft)):
+                lay[L_OUT] = PYTHON
+                return
+            tr0[:], pc0[:], pos0[:], eff0[:], tau0[:], sat0[:] = tr, pc, pc_pos, pc_eff, tau, sat
+            status = _whole.whole(t, q, dq, F_env, *wargs)
+            if status != _whole.OK or not _finite(tau):  # the controller's state as before the tick
+                tr[:], pc[:], pc_pos[:], pc_eff[:], tau[:], sat[:] = tr0, pc0, pos0, eff0, tau0, sat0
+                lay[L_OUT] = PYTHON
+                return
+            st[S_ALPHA], st[S_BETA] = res[_whole.R_ALPHA], res[_whole.R_BETA]
+            st[S_V], st[S_OMEGA] = res[_whole.R_V], res[_whole.R_OMEGA]
+            st[S_CLIP], st[S_TLAST] = res[_whole.R_CLIPPED], t
+            if res[_whole.R_PC] != 0.0:
+                st[S_DISS] += pc[_whole.PC_DISSIPATED]
+                st[S_EOBS], st[S_APC] = pc[_whole.PC_E], pc[_whole.PC_ALPHA]
+                st[S_PC] += 1.0
+            st[S_TICKS] += 1.0
+            cmd = tau
+        ctrl[:] = cmd
+        xfrc[:] = 0.0
+        acc[0], acc[2] = st[S_WORK], 0.0
+        status = hand_period(mj[0], mj[1], sub, t, sd, idx, c, F, xfrc, acc, wn, bad, at)
+        st[S_WORK] = acc[0]
+        if status == PERIOD_OK:
+            F_hand[:] = F
+        row = rows[j]
+        row[0] = t
+        log_row(row, lay[L_Q], read, cmd, sd, xv, F_hand, F_env)
+        o = lay[L_WORK]
+        row[o], row[o + 1], row[o + 2], row[o + 3] = st[S_WORK], st[S_V], st[S_OMEGA], st[S_ALPHA]
+        row[o + 4], row[o + 5], row[o + 6] = st[S_BETA], st[S_EOBS], st[S_APC]
+        o = lay[L_SEQ]
+        row[o] = k0 + j
+        row[o + 6] = 0.0  # late
+        row[o + 7] = 0.0 if status == PERIOD_OK else 1.0
+        lay[L_DONE] = j + 1
+        if status != PERIOD_OK:
+            lay[L_OUT], lay[L_STATUS] = FAULT, status
+            return
+        st[S_T] = t + dt
+
+
+def _no_hand(m: int, wall) -> np.ndarray:
+    """`hand_constants` of a hand that never pushes (stiffness and damping 0), with the physical wall (or none)."""
+    w = [1.0, *wall_constants(wall)] if wall is not None else [0.0] * (2 * m + 3)
+    return np.array([1, m, 0.0, 0.0, 0.0, 0.0, np.inf, *w, 0.0, *([0.0] * m)], dtype=float)
+
+
+class FastLoop:
+    """The compiled ticks of one `simulate` run (`build` decides whether they apply).
+
+    Attributes:
+        calls: compiled calls made; ticks: ticks they ran (the Python loop ran the others).
+    """
+
+    def __init__(self, sess, controller, kin, w) -> None:
+        plant, kt = sess.plant, controller._kernel
+        self.sess, self.ctrl, self.kt = sess, controller, kt
+        m = plant.m
+        if sess.hand is not None:
+            c = hand_constants(sess.hand, sess.physical)
+        else:
+            c = _no_hand(m, sess.physical)
+        self._mj = sess._addr
+        d = plant.data
+        self._sens = (plant._ten, plant._tenv, d.sensordata, plant._R,
+                      np.concatenate([plant._const, plant._weight]), plant._ft_adr)
+        if kin is not None:
+            _, ints, joints, fc = kin._compiled
+            self._kin = (ints, joints, fc)
+        else:
+            self._kin = (np.zeros(1, np.int64), np.zeros((1, 1)), np.zeros(1))
+        self._hand = (plant._sd, sess._idx, c, sess._F, plant._xfrc, sess._acc, plant._wnum, sess._badv, sess._at)
+        ctrl = controller
+        self._wargs = (*kt._chain, False, kt._at, kt._law, ctrl.lo, ctrl.hi, kt._prm, kt._tr, kt._free,
+                       kt._stiff, kt._w2, kt._vme, kt._vme_gain, kt._obj, kt._pc, kt._pc_pos, kt._pc_eff, kt._x,
+                       kt._buf, kt._F[0], kt._F[1], kt._tau, kt._sat, kt._res)
+        self._cs = (kt._tr, kt._pc, kt._pc_pos, kt._pc_eff, kt._tau, kt._sat, kt._res)
+        names = [name for name, _ in w.columns]
+        at = dict(zip(names, np.cumsum([0] + [width for _, width in w.columns]).tolist()))
+        need = set(controller._sensors)
+        self._lay = np.array([at["q"], at["work"], at["seq"], int(kin is not None), int("force" in need),
+                              int("ft" in need), 0, 0, 0], dtype=np.int64)
+        self._xv = np.concatenate([plant._pos, plant._vel]).astype(np.int64)
+        self._st = np.zeros(N_ST)
+        self._F_hand = np.zeros(m)
+        self.calls = self.ticks = 0
+
+    @staticmethod
+    def build(sess, controller, kin, *, virtual, teleop, record, w) -> FastLoop | None:
+        """The compiled loop for this run, or None where some part of it is only Python's (see the module)."""
+        if teleop is not None or record is not None or type(controller) is not NullSpaceController:
+            return None
+        kt = controller._kernel
+        plant, hand, phys = sess.plant, sess.hand, sess.physical
+        m = plant.m
+        if kt is None or not kt.whole_ok or "step" in controller.__dict__:
+            return None
+        dev = controller.device
+        if (dev.n, dev.m) != (plant.n, m) or not set(controller._sensors) <= {"force", "ft"}:
+            return None
+        if hand is not None and (type(hand) is not Hand or hand.path.points.shape[1] != m):
+            return None
+        if phys is not None and (type(phys) is not Wall or phys.point.shape != (m,)):
+            return None
+        if virtual is not None and (kin is None or kin._compiled is None or not kin._fused):
+            return None
+        return FastLoop(sess, controller, kin, w)
+
+    def run(self, k0: int, rows: np.ndarray) -> tuple[int, int]:
+        """Ticks k0, k0 + 1, ... into `rows` (at most all of them): (ticks run, outcome DONE / PYTHON / FAULT).
+
+        On FAULT the session holds its fault (`Session.fault`) and the last row is the tick's.
+        """
+        sess, ctrl, kt = self.sess, self.ctrl, self.kt
+        s, st = ctrl.state, self._st
+        ps = None if ctrl._pc is None else ctrl._pc.state
+        st[:] = (sess.t, sess.work, s.V, s.omega, s.alpha, s.beta, s.E_obs, s.alpha_pc, float(s.stopped),
+                 0.0 if ps is None else ps.dissipated, 0.0, 0.0, 0.0, 0.0)
+        before = None
+        if not s.stopped:
+            before = kt._load_transition(s)
+            kt._load_passivity(ps)
+        self._F_hand[:] = sess.F_hand
+        lay = self._lay
+        ticks(len(rows), k0, sess.dt, sess.sub, self._mj, self._sens, self._kin, self._hand, sess.plant._ctrl,
+              self._F_hand, self._wargs, self._cs, st, lay, self._xv, rows)
+        done, out = int(lay[L_DONE]), int(lay[L_OUT])
+        self.calls += 1
+        self.ticks += done
+        sess.t, sess.work, sess.F_hand = float(st[S_T]), float(st[S_WORK]), self._F_hand.copy()
+        if not s.stopped:
+            kt._store_transition(s, before)
+            if st[S_TICKS]:
+                s.t, s.alpha, s.beta, s.V, s.omega = (float(st[S_TLAST]), float(st[S_ALPHA]), float(st[S_BETA]),
+                                                      float(st[S_V]), float(st[S_OMEGA]))
+                s.saturated, s.clipped, s.tau = kt._sat.copy(), bool(st[S_CLIP]), kt._tau.copy()
+                s.ticks += int(st[S_TICKS])
+            if st[S_PC] and ps is not None:
+                kt._store_passivity(s, ps, float(st[S_TLAST]), float(st[S_DISS]))
+        if out == FAULT:
+            sess._stop(sess._fault(int(lay[L_STATUS]), float(st[S_T])))
+        return done, out

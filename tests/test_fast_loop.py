@@ -1,0 +1,191 @@
+"""The compiled simulation loop (`rhi.sim.fast_loop`) against the Python loop of `simulate`: same log, same state.
+
+Each scenario runs twice from the same start: once as `simulate` chooses (the compiled loop), once with
+`FastLoop.build` refusing (the Python loop, the reference). Logs equal to 1e-9 in every column but the
+timing ones, the same fault and events, and the controller's state (FME transition, passivity observer)
+equal afterwards.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+import rhi
+from rhi.control import (
+    ControllerConfig,
+    FMESchedule,
+    ForceRendering,
+    NullSpaceController,
+    SpringPalpation,
+    desired_fme_free,
+    desired_fme_stiff,
+    fme_shape,
+)
+from rhi.sim import Hand, HandPath, Plant, Wall, fast_loop, simulate, stop
+
+Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
+COLUMNS = ["t", "q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "ft", "work", "V", "omega", "alpha", "beta",
+           "E_obs", "alpha_pc", "seq", "safety"]
+
+
+@pytest.fixture(scope="module")
+def rhi4():
+    return rhi.device("rhi4")
+
+
+def palpation(dev, passivity=True):
+    """The ch7 controller of benchmarks/bench_sim.py (force rendering, FME schedule, ASO, ASCM)."""
+    K, z = fme_shape(dev.jacobian(np.zeros(4)), dev.torque_max, 5.0)
+    law = ForceRendering(damping=0.01) if passivity else ForceRendering(damping=0.01, passivity=None)
+    return NullSpaceController(dev, ControllerConfig(
+        law, fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)), saturation="ascm"))
+
+
+def run(dev, make_controller, *, python: bool, duration: float = 0.4, hand="push", physical=None, virtual=True,
+        monkeypatch=None):
+    """(log, controller, the compiled loop or None) of one scenario."""
+    if python:
+        monkeypatch.setattr(fast_loop.FastLoop, "build", staticmethod(lambda *a, **k: None))
+    plant = Plant(dev)
+    plant.reset(Q0)
+    x0 = dev.fk(Q0)
+    if hand == "push":
+        hand = Hand(HandPath([x0, x0 + [0.01, 0.0], x0 + [0.01, 0.03]], speed=0.05), stiffness=300.0)
+    ctrl = make_controller(dev)
+    log = simulate(plant, ctrl, duration=duration, hand=hand, physical=physical,
+                   virtual=Wall(x0 + [0.0, 0.005], [0, 1], 1000.0) if virtual else None)
+    if python:
+        monkeypatch.undo()
+    return log, ctrl, fast_loop.last
+
+
+def check_same(a, b) -> None:
+    """Two (log, controller) runs agree: every non-timing column to 1e-9, fault, events and controller state."""
+    (la, ca), (lb, cb) = a, b
+    assert len(la) == len(lb)
+    for name in COLUMNS:
+        x, y = np.asarray(getattr(la, name)), np.asarray(getattr(lb, name))
+        np.testing.assert_array_equal(np.isnan(x), np.isnan(y), err_msg=name)
+        np.testing.assert_allclose(np.nan_to_num(x), np.nan_to_num(y), rtol=0, atol=1e-9, err_msg=name)
+    assert la.fault == lb.fault
+    assert [(e.t, e.kind, e.detail, e.tick) for e in la.events] == [(e.t, e.kind, e.detail, e.tick) for e in lb.events]
+    sa, sb = ca.state, cb.state
+    for f in dataclasses.fields(sa):
+        va, vb = getattr(sa, f.name), getattr(sb, f.name)
+        if isinstance(va, np.ndarray) or isinstance(vb, np.ndarray):
+            np.testing.assert_allclose(va, vb, rtol=0, atol=1e-9, err_msg=f.name)
+        elif isinstance(va, float) and math.isnan(va):
+            assert math.isnan(vb), f.name
+        else:
+            assert va == vb, f.name
+    pa, pb = ca.passivity, cb.passivity
+    assert (pa is None) == (pb is None)
+    if pa is not None:
+        for f in ("energy", "alpha", "scale", "dissipated", "t"):
+            assert getattr(pa, f) == pytest.approx(getattr(pb, f), abs=1e-9), f
+        np.testing.assert_allclose(pa.position, pb.position, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(pa.effort, pb.effort, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("passivity", [True, False])
+def test_palpation_equals_python_loop(rhi4, monkeypatch, passivity):
+    make = lambda dev: palpation(dev, passivity)  # noqa: E731
+    log, ctrl, fast = run(rhi4, make, python=False, duration=0.6)
+    assert fast is not None and fast.ticks == len(log) == 600  # every tick compiled
+    assert float(np.max(np.abs(log.F_env))) > 0.1  # the wall is reached
+    assert ctrl.state.transition.stiff  # the FME schedule switched during the run
+    if passivity:
+        assert np.all(np.isfinite(log.E_obs))  # the passivity observer ran in every compiled tick
+    ref, cref, none = run(rhi4, make, python=True, duration=0.6, monkeypatch=monkeypatch)
+    assert none is None
+    check_same((log, ctrl), (ref, cref))
+    assert np.all(log.t_tick > 0) and np.all(np.isnan(log.t_step))  # timing: per-call averages, not per tick
+
+
+def test_physical_stop_no_virtual_and_no_hand(rhi4, monkeypatch):
+    """A spring law pushed into a physical stop by the hand; then the device left alone (no hand, no environment)."""
+    spring = lambda dev: NullSpaceController(dev, ControllerConfig(  # noqa: E731
+        SpringPalpation(800.0, x0=dev.fk(Q0) + [0.0, 0.004], normal=[0.0, 1.0], passivity=None)))
+    x0 = rhi4.fk(Q0)
+    wall = stop(x0 + [0.0, 0.008], [0.0, 1.0])
+    for hand, physical, virtual in (("push", wall, False), (None, None, False), (None, wall, True)):
+        make = spring if virtual is False else (lambda dev: palpation(dev))
+        a = run(rhi4, make, python=False, hand=hand, physical=physical, virtual=virtual)
+        assert a[2] is not None and a[2].ticks == 400
+        b = run(rhi4, make, python=True, hand=hand, physical=physical, virtual=virtual, monkeypatch=monkeypatch)
+        check_same(a[:2], b[:2])
+    assert float(np.max(np.abs(a[0].F_hand))) == 0.0
+
+
+def test_unstable_plant_fault_equals_python_loop(rhi4, monkeypatch):
+    """A physical wall far too stiff for the timestep: MuJoCo diverges; same tick, time, reason and rows."""
+    x0 = rhi4.fk(Q0)
+    wall = Wall(x0 + [0.0, 0.002], [0.0, 1.0], 5e9, damping=0.0)
+    a = run(rhi4, palpation, python=False, physical=wall)
+    b = run(rhi4, palpation, python=True, physical=wall, monkeypatch=monkeypatch)
+    assert a[0].fault is not None and "unstable" in a[0].fault and len(a[0]) < 400
+    assert a[0].safety[-1] == 1.0
+    check_same(a[:2], b[:2])
+
+
+def test_ticks_handed_to_python_resume(rhi4, monkeypatch):
+    """Compiled calls that end early and hand ticks to the Python loop (as for a FALLBACK tick), then resume.
+
+    The Python ticks in between advance the controller's FME transition and passivity state from the
+    mirrors the compiled calls left, and the compiled calls continue from what Python left.
+    """
+    kernel = fast_loop.ticks
+    rng = np.random.default_rng(5)
+    handed = []
+
+    def short(count, k0, *args):
+        lay = args[-3]
+        kernel(min(count, int(rng.integers(0, 40))), k0, *args)
+        if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
+            lay[fast_loop.L_OUT] = fast_loop.PYTHON
+            handed.append(k0 + int(lay[fast_loop.L_DONE]))
+
+    monkeypatch.setattr(fast_loop, "ticks", short)
+    a = run(rhi4, palpation, python=False, duration=0.6)
+    monkeypatch.undo()
+    assert a[2].ticks + len(handed) == 600 and len(handed) > 20
+    b = run(rhi4, palpation, python=True, duration=0.6, monkeypatch=monkeypatch)
+    check_same(a[:2], b[:2])
+
+
+def test_python_loop_where_the_compiled_one_does_not_apply(rhi4):
+    """A record hook, or a controller that is not a NullSpaceController: the Python loop."""
+    plant = Plant(rhi4)
+    plant.reset(Q0)
+    simulate(plant, palpation(rhi4), duration=0.01, record=lambda: {"k": 1.0})
+    assert fast_loop.last is None
+
+    class Zero:
+        def step(self, t, q, dq, sensors):
+            return np.zeros(4)
+
+    plant.reset(Q0)
+    log = simulate(plant, Zero(), duration=0.01)
+    assert fast_loop.last is None and len(log) == 10
+
+
+def test_streamed_log_and_progress(rhi4, tmp_path):
+    """Compiled rows stream to a .rhilog like Python rows; progress and telemetry see every tick."""
+    from rhi.sim import Telemetry
+    from rhi.sim.log import Log
+
+    plant = Plant(rhi4)
+    plant.reset(Q0)
+    seen, tel = [], Telemetry(every=50)
+    log = simulate(plant, palpation(rhi4), duration=0.45, log=tmp_path / "run.rhilog",
+                   progress=lambda k, n: seen.append(k), telemetry=tel)
+    assert fast_loop.last is not None and fast_loop.last.ticks == 450
+    assert seen == [k + 1 for k in range(450) if k % 4 == 0 or k == 449] and tel.count == 9
+    back = Log.load(tmp_path / "run.rhilog")
+    np.testing.assert_array_equal(back.q, log.q)
+    np.testing.assert_array_equal(back.seq, np.arange(450))
+    assert np.all(np.isnan(back.t_read)) and np.all(back.t_tick > 0)
