@@ -2,7 +2,7 @@
 
 The kernels are cached on disk (``cache=True``), but a process that needs a kernel before the
 cache holds it compiles it itself: on a fresh install every reproduction worker, and every
-design-pool worker under it, compiled the same controller tick (about 30 s of CPU each). The
+design-pool worker under it, compiled the same controller tick (half a minute of CPU or more each). The
 warm-up runs each kernel family once on a small input of the kind the experiments give it, in
 two groups that share no kernel, one per worker, before any experiment starts; on a warm cache
 it only loads them (a second or two per group), as the workers would anyway.
@@ -24,7 +24,11 @@ def _middle(dev) -> np.ndarray:
 
 
 def _terms_and_control() -> None:
-    """`Device.terms` (rhi.chain_kernel), the composed controller tick and the whole tick (rhi.control.kernels)."""
+    """`Device.terms` (rhi.chain_kernel), then the whole controller tick (rhi.control.kernels.whole).
+
+    The whole tick's compilation also caches the steps 2–6 tick it calls, which a controller with an
+    objective computed in Python runs after `Device.terms` (the same argument types: loaded, not compiled).
+    """
     from rhi.control import (
         ControllerConfig,
         ForceRendering,
@@ -36,13 +40,11 @@ def _terms_and_control() -> None:
     from rhi.device import device
 
     dev = device("rhi4")
-    dev.terms(_middle(dev), np.full(dev.n, 0.1))  # the chain kernel first: both ticks call it
-    law = ForceRendering(damping=0.0, passivity=None)
-    vme = ObjectiveTerm(VMEMatching((1.0, 0.0)), 1.0)
-    barrier = ObjectiveTerm(JointLimitBarrier(0.1, 0.01, kind="inverse"), 1.0)
-    for terms in ((vme, barrier), (vme,)):  # an objective computed in Python: the composed tick; none: whole
-        cfg = ControllerConfig(primary=law, objectives=terms, damping=1.0, saturation="none")
-        NullSpaceController(dev, cfg).warmup()
+    dev.terms(_middle(dev), np.full(dev.n, 0.1))
+    terms = (ObjectiveTerm(VMEMatching((1.0, 0.0)), 1.0), ObjectiveTerm(JointLimitBarrier(0.1, 0.01, kind="inverse"), 1.0))
+    cfg = ControllerConfig(primary=ForceRendering(damping=0.0, passivity=None), objectives=terms, damping=1.0,
+                           saturation="none")
+    NullSpaceController(dev, cfg).warmup()
 
 
 def _batch_design_and_simulation() -> None:
