@@ -23,11 +23,13 @@ def _middle(dev) -> np.ndarray:
     return 0.5 * (np.where(np.isfinite(dev.q_min), dev.q_min, -1.0) + np.where(np.isfinite(dev.q_max), dev.q_max, 1.0))
 
 
-def _terms_and_control() -> None:
-    """`Device.terms` (rhi.chain_kernel), then the whole controller tick (rhi.control.kernels.whole).
+def _terms_control_and_loop() -> None:
+    """`Device.terms`, the whole controller tick, then the compiled simulation loop around it.
 
+    The kernels: rhi.chain_kernel, rhi.control.kernels.whole, rhi.sim.fast_loop.
     The whole tick's compilation also caches the steps 2–6 tick it calls, which a controller with an
     objective computed in Python runs after `Device.terms` (the same argument types: loaded, not compiled).
+    The loop's comes last: by then the other group has cached the simulation kernels it calls.
     """
     from rhi.control import (
         ControllerConfig,
@@ -40,19 +42,31 @@ def _terms_and_control() -> None:
     from rhi.device import device
 
     dev = device("rhi4")
-    dev.terms(_middle(dev), np.full(dev.n, 0.1))
+    q0 = _middle(dev)
+    dev.terms(q0, np.full(dev.n, 0.1))
     terms = (ObjectiveTerm(VMEMatching((1.0, 0.0)), 1.0), ObjectiveTerm(JointLimitBarrier(0.1, 0.01, kind="inverse"), 1.0))
     cfg = ControllerConfig(primary=ForceRendering(damping=0.0, passivity=None), objectives=terms, damping=1.0,
                            saturation="none")
-    NullSpaceController(dev, cfg).warmup()
+    ctrl = NullSpaceController(dev, cfg)
+    ctrl.warmup()
+    _simulate(dev, q0, ctrl)
+
+
+def _simulate(dev, q0: np.ndarray, controller) -> None:
+    """Three ticks of `controller` with a hand holding the handle at q0 (the simulation's kernels)."""
+    from rhi.sim import Hand, HandPath, Plant, simulate
+
+    plant = Plant(dev)
+    plant.reset(q0)
+    hand = Hand(HandPath(dev.fk(q0)[None]), stiffness=3000.0, damping=40.0, max_force=None)
+    simulate(plant, controller, duration=0.003, hand=hand)
 
 
 def _batch_design_and_simulation() -> None:
     """The batch kernel (rhi.batch_kernel), the planar design indices and the simulation's kernels."""
     from rhi.design.planar import planar_indices
     from rhi.device import BATCH_MIN, device
-    from rhi.experiments.setups import FreeSpace, ZeroTorque
-    from rhi.sim import Hand, HandPath, Plant, simulate
+    from rhi.experiments.setups import ZeroTorque
 
     for name in ("rhi4", "gen3"):  # a planar RHI and a spatial one (3 task rows)
         dev = device(name)
@@ -60,15 +74,12 @@ def _batch_design_and_simulation() -> None:
     rng = np.random.default_rng(0)
     planar_indices(rng.normal(size=(4, 2, 3)), rng.normal(size=(4, 2, 3)), np.ones(4, dtype=bool), np.ones(4))
     dev = device("rhi4")
-    plant = Plant(dev)
-    q0 = _middle(dev)
-    plant.reset(q0)
-    hand = Hand(HandPath(dev.fk(q0)[None]), stiffness=3000.0, damping=40.0, max_force=None)
-    simulate(plant, ZeroTorque(dev.n), duration=0.003, hand=hand, virtual=FreeSpace())
+    _simulate(dev, _middle(dev), ZeroTorque(dev.n))  # the Python loop: its kernels, not the compiled loop's
 
 
 #: The warm-up's groups, each run by one process; no kernel is in two groups (no compile twice at once).
-GROUPS = {"terms_and_control": _terms_and_control, "batch_design_and_simulation": _batch_design_and_simulation}
+GROUPS = {"terms_control_and_loop": _terms_control_and_loop,
+          "batch_design_and_simulation": _batch_design_and_simulation}
 
 
 def warm(group: str) -> float:
