@@ -381,13 +381,13 @@ def _fast_block(fast, w: LogWriter, k: int, N: int, t_start: float, telemetry, p
         block[:, i_wall] = (t0 - t_start) + dt * np.arange(done)
         block[:, i_read:i_read + 3] = math.nan
         block[:, i_tick] = dt
-        fault = fast.sess.fault
+        fault, prior = fast.sess.fault, w.fault
         if out == FAULT:
             w.fault = fault
             w.event(block[-1, 0], "plant", fault, k + done - 1)
-        if telemetry is not None:
+        if telemetry is not None:  # as the Python loop: the plant's fault on its tick, else the run's (controller)
             for r in range(done):
-                telemetry.publish(block[r], c, fault if r == done - 1 else w.fault)
+                telemetry.publish(block[r], c, fault if out == FAULT and r == done - 1 else prior)
         if progress is not None:
             for kk in range(k, k + done):
                 if kk % every == 0 or kk == N - 1:
