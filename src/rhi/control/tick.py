@@ -175,6 +175,10 @@ class KernelTick:
                 self._pc[_whole.PC_ALPHA_MAX] = -1.0 if pas.alpha_max is None else pas.alpha_max
             self._pc_pos, self._pc_eff = np.zeros(k), np.zeros(k)
             self._ps_of: PassivityState | None = None  # the PassivityState the passivity slots mirror
+            # the kernel's arguments between `ready` and x, and after buf: the same arrays every tick
+            self._mid = (self._at, law, ctrl.lo, ctrl.hi, self._prm, self._tr, self._free, self._stiff, self._w2,
+                         self._vme, self._vme_gain, self._obj, self._pc, self._pc_pos, self._pc_eff)
+            self._out = (self._F[0], self._F[1], self._tau, self._sat, self._res)
 
     def _load_transition(self, s: ControllerState) -> list[float] | None:
         """Mirror the state's FME transition into the kernel's tr (if it changed); tr's values before the tick."""
@@ -271,12 +275,10 @@ class KernelTick:
             F = sensors["force"]
             if F.shape != self._no_force.shape:
                 raise InvalidInput(f"sensors['force']: expected shape {self._no_force.shape}, got {F.shape}")
-        tr = self._tr
         before = self._load_transition(s)
         pc, pcv = ctrl._pc, self._pc
         ps = None if pc is None else pc.state
         self._load_passivity(ps)
-        F_r, F_x = self._F
         q, dq = _f64(q), _f64(dq)
         dev = ctrl.device
         last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already
@@ -285,9 +287,7 @@ class KernelTick:
         else:
             ready, x, buf = False, self._x, self._buf
         # (mypy reads numba's Dispatcher.__call__ as taking a bounded number of arguments)
-        status = _whole.whole(t, q, dq, _f64(F), *self._chain, ready, self._at, self._law, ctrl.lo, ctrl.hi,  # type: ignore[call-arg]
-                              self._prm, tr, self._free, self._stiff, self._w2, self._vme, self._vme_gain, self._obj, pcv,
-                              self._pc_pos, self._pc_eff, x, buf, F_r, F_x, self._tau, self._sat, self._res)
+        status = _whole.whole(t, q, dq, _f64(F), *self._chain, ready, *self._mid, x, buf, *self._out)  # type: ignore[call-arg]
         alpha, beta, V, omega, clipped, pc_ran = self._res.tolist()
         if status != kernels.OK:
             self._tr_of = self._ps_of = None  # the kernel may have advanced tr; the states did not
@@ -295,7 +295,7 @@ class KernelTick:
                 raise Singular("J: rank-deficient Jacobian")
             kin = DeviceTerms.from_buffer(dev, q, dq, x.copy(), dev.A.dot(q) + dev.b, buf.copy(),
                                           dev._fast_maps.layout)
-            return kin, (F_r.copy(), F_x.copy())
+            return kin, (self._F[0].copy(), self._F[1].copy())
         self._store_transition(s, before)
         s.V, s.omega = V, omega
         if pc_ran and ps is not None:
