@@ -21,7 +21,6 @@ Imported by `rhi.sim.loop.simulate`, not with ``import rhi`` (Numba).
 
 from __future__ import annotations
 
-import inspect
 import math
 
 import numpy as np
@@ -150,22 +149,13 @@ def _no_hand(m: int, wall) -> np.ndarray:
     return np.array([1, m, 0.0, 0.0, 0.0, 0.0, np.inf, *w, 0.0, *([0.0] * m)], dtype=float)
 
 
-def whole_args(controller) -> tuple | None:
-    """`rhi.control.kernels.whole.whole`'s arguments after (t, q, dq, force), by name, from the controller's tick.
+def whole_args(controller) -> tuple:
+    """`rhi.control.kernels.whole.whole`'s arguments after (t, q, dq, force), as `KernelTick.whole` passes them.
 
-    The same arrays `KernelTick.whole` passes (state mirrors and buffers included), read off the kernel's
-    parameter names; None if the kernel takes a parameter this module does not know (the Python loop then runs).
+    The controller's own terms buffers (ready = False) and state mirrors: the same arrays every call.
     """
     kt = controller._kernel
-    known = dict(zip(("ints", "joints", "consts", "A", "b", "rows", "armature", "supports", "identity"), kt._chain))
-    known.update(ready=False, at=kt._at, law=kt._law, lo=controller.lo, hi=controller.hi, prm=kt._prm, tr=kt._tr,
-                 fme_free=kt._free, fme_stiff=kt._stiff, w2=kt._w2, vme_D=kt._vme, vme_gain=kt._vme_gain,
-                 obj=kt._obj, pc=kt._pc, pc_pos=kt._pc_pos, pc_eff=kt._pc_eff, x=kt._x, buf=kt._buf,
-                 F_r=kt._F[0], F_x=kt._F[1], tau_out=kt._tau, sat=kt._sat, res=kt._res)
-    names = list(inspect.signature(_whole.whole.py_func).parameters)
-    if names[:4] != ["t", "q", "dq", "force"] or not set(names[4:]) <= known.keys():
-        return None
-    return tuple(known[name] for name in names[4:])
+    return (*kt._chain, False, *kt._mid, kt._x, kt._buf, *kt._out)
 
 
 class FastLoop:
@@ -223,8 +213,6 @@ class FastLoop:
         if phys is not None and (type(phys) is not Wall or phys.point.shape != (m,)):
             return None
         if virtual is not None and (kin is None or kin._compiled is None or not kin._fused):
-            return None
-        if whole_args(controller) is None:
             return None
         return FastLoop(sess, controller, kin, w)
 
