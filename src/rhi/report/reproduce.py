@@ -251,8 +251,8 @@ def _parallel(steps: list[Step], plans: dict[str, Plan], quick: bool, out: Path,
             queue = _queue(steps, plans, previous)
             outputs: dict[str, dict[int, Any]] = {name: {} for name in plans}
             spent: dict[str, list[float]] = {name: [0.0, 0.0] for name in plans}  # wall and CPU of the parts so far
-            for fut in wait(warming).done:
-                warmup[warming[fut]] = round(fut.result(), 2)
+            for warmed in wait(warming).done:
+                warmup[warming[warmed]] = round(warmed.result(), 2)
             while queue or running:
                 while queue and len(running) < jobs:  # one task per free worker: the order decides late
                     _, kind, s, i = queue.pop(0)
