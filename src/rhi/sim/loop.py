@@ -99,7 +99,6 @@ class Session:
         self._addr = (p.model._address, p.data._address)  # the C structs, for MuJoCo's step in compiled code
         self._badv = np.array(p._bad, dtype=np.int64)
         self._at = np.zeros(1, dtype=np.int64)
-        self._codes = (-1, -1)  # hand_period's outcome codes, with the kernel
         self._fused_for: tuple = (None, None)
         fused = self._compiled(hand, physical)
         if fused is not None:
@@ -180,10 +179,9 @@ class Session:
         m = self.plant.m
         if hand.path.points.shape[1] != m or (phys is not None and phys.point.shape != (m,)):
             return None
-        from rhi.sim.handle_kernel import PERIOD_NONFINITE, PERIOD_UNSTABLE, hand_constants, hand_period
+        from rhi.sim.handle_kernel import hand_constants, hand_period
 
         self._fused = (hand_period, hand_constants(hand, phys))
-        self._codes = (PERIOD_NONFINITE, PERIOD_UNSTABLE)
         self._fused_for = (hand, phys)
         return self._fused
 
@@ -194,13 +192,12 @@ class Session:
         handle's state read from MuJoCo's sensors, the force written to its applied force and MuJoCo's step
         called from there.
         """
-        model, data, sd, pos, vel, xfrc, task, wn, i, j, k = self._mj
-        F, acc, idx, at = self._F, self._acc, self._idx, self._at
+        p, F, acc = self.plant, self._F, self._acc
         acc[0], acc[2] = self.work, 0.0
         t0 = self.t
-        status = kernel(self._addr[0], self._addr[1], self.sub, t0, sd, idx, c, F, xfrc, acc, wn, self._badv, at)
+        status = kernel(*self._addr, self.sub, t0, p._sd, self._idx, c, F, p._xfrc, acc, p._wnum, self._badv, self._at)
         self.work = float(acc[0])
-        if status in self._codes:
+        if status != 0:  # not PERIOD_OK
             return self._fault(status, t0)
         self.F_hand = F.copy()
         return None
@@ -211,7 +208,8 @@ class Session:
 
         t = t0 + int(self._at[0]) * self.plant.timestep
         if status == PERIOD_NONFINITE:
-            return f"hand/environment: non-finite force {self._mj[5][self._mj[6]].tolist()} on the handle at t={t:.4f} s"
+            force = self.plant._xfrc[self.plant._task].tolist()
+            return f"hand/environment: non-finite force {force} on the handle at t={t:.4f} s"
         return str(unstable(t))
 
     def _stop(self, why: str) -> str:
