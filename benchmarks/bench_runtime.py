@@ -15,10 +15,12 @@ streams to disk). Targets (issue 10, 2 cores): < 0.1 % missed, p99 tick ≤ 300 
 ≤ 50 MB per hour. The period (1000 µs) is the baseline the tick times are divided by.
 
     PYTHONPATH=src python benchmarks/bench_runtime.py [--duration 600] [--link udp|sim|both] [--config NAME]
-        [--pin] [--priority 50]
+        [--pin] [--priority 50] [--spin]
 
 `--pin` puts the control loop on CPU 0 and the device server on CPU 1 (`run(cpu=...)`,
-`DeviceServer(cpu=...)`); `--priority` runs both under SCHED_FIFO, as a lab's real-time host would.
+`DeviceServer(cpu=...)`); `--priority` runs both under SCHED_FIFO, as a lab's real-time host would;
+`--spin` has both wait for their deadlines on a busy core instead of asleep (`run(spin=True)`): a core
+that sleeps between ticks comes back with cold caches (on a virtual machine, through the hypervisor).
 
 `--config` runs a run configuration instead (a shipped name such as ch7_ascm_tertiary, or a TOML file, as
 `rhi run` takes): its controller, rendered environment, safety limits and simulated device. The shipped
@@ -84,7 +86,7 @@ def plant_and_hand(dev: rhi.Device, duration: float) -> tuple[Plant, Hand, Wall]
 
 
 def _device(port_q, duration: float, config: str | None = None, cpu: int | None = None,
-            priority: int | None = None) -> None:
+            priority: int | None = None, spin: bool = False) -> None:
     from rhi.runtime.server import DeviceServer
 
     if config is not None:
@@ -94,13 +96,13 @@ def _device(port_q, duration: float, config: str | None = None, cpu: int | None 
         dev = rhi.device("rhi4")
         plant, hand, _ = plant_and_hand(dev, duration + 5)
         link = SimLink(plant, hand=hand)
-    srv = DeviceServer(link, dev, exit_on_bye=True, cpu=cpu, priority=priority)
+    srv = DeviceServer(link, dev, exit_on_bye=True, cpu=cpu, priority=priority, spin=spin)
     port_q.put(srv.port)
     srv.serve(duration + 10)
 
 
 def bench(link_kind: str, duration: float, log_dir: str, config: str | None = None, pin: bool = False,
-          priority: int | None = None) -> dict:
+          priority: int | None = None, spin: bool = False) -> dict:
     cfg = None if config is None else load_config(config)
     dev = rhi.device("rhi4") if cfg is None else cfg.device
     ctrl = controller(dev) if cfg is None else cfg.controller()
@@ -112,7 +114,7 @@ def bench(link_kind: str, duration: float, log_dir: str, config: str | None = No
 
         ctx = mp.get_context("spawn")
         q = ctx.Queue()
-        proc = ctx.Process(target=_device, args=(q, duration, config, 1 if pin else None, priority), daemon=True)
+        proc = ctx.Process(target=_device, args=(q, duration, config, 1 if pin else None, priority, spin), daemon=True)
         proc.start()
         link = UDPLink("127.0.0.1", q.get(timeout=120), timeout=0.005)  # paced by the device's readings
         wall = plant_and_hand(dev, duration)[2] if cfg is None else cfg.virtual
@@ -135,7 +137,7 @@ def bench(link_kind: str, duration: float, log_dir: str, config: str | None = No
 
     res = run(link, ctrl, duration=duration, virtual=wall, log=Path(log_dir) / f"{link_kind}.rhilog",
               safety=safety, progress=progress, realtime=link_kind != "udp", cpu=0 if pin else None,
-              priority=priority)
+              priority=priority, spin=spin)
     if proc is not None:
         proc.join(15)
     s = res.summary
@@ -172,12 +174,13 @@ def main() -> None:
     ap.add_argument("--config", help="a run configuration (shipped name or TOML file) instead of the built-in set-up")
     ap.add_argument("--pin", action="store_true", help="control loop on CPU 0, device server on CPU 1")
     ap.add_argument("--priority", type=int, help="SCHED_FIFO priority of both loops (root or CAP_SYS_NICE)")
+    ap.add_argument("--spin", action="store_true", help="both loops wait for their deadlines on a busy core")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for kind in (("udp", "sim") if a.link == "both" else (a.link,)):
             label = kind + (f" ({a.config})" if a.config else "") + (" pinned" if a.pin else "") + \
-                (f" SCHED_FIFO {a.priority}" if a.priority else "")
-            report(label, bench(kind, a.duration, tmp, a.config, a.pin, a.priority))
+                (f" SCHED_FIFO {a.priority}" if a.priority else "") + (" spinning" if a.spin else "")
+            report(label, bench(kind, a.duration, tmp, a.config, a.pin, a.priority, a.spin))
 
 
 if __name__ == "__main__":

@@ -325,6 +325,35 @@ def test_affinity_refused_is_a_clear_warning(dev):
         run(SimLink(plant, hand=hand), ctrl, duration=0.02, priority=120)
 
 
+@pytest.mark.realtime
+def test_spin_waits_on_a_busy_core(dev):
+    """`wait_until(spin=True)` keeps its core busy to the deadline; the default sleeps; `run(spin=True)` is on time."""
+    from rhi.runtime.loop import wait_until
+
+    for spin in (False, True):
+        c0, w0 = time.thread_time(), time.monotonic()
+        wait_until(w0 + 0.1, spin)
+        cpu, wall = time.thread_time() - c0, time.monotonic() - w0
+        assert wall >= 0.1
+        assert (cpu > 0.3 * wall) if spin else (cpu < 0.1 * wall), (spin, cpu, wall)
+    plant, ctrl, hand, wall_, phys = _scenario(dev)
+    res = run(SimLink(plant, hand=hand), ctrl, duration=0.2, virtual=wall_, spin=True)
+    assert res.fault is None and res.summary["spin"] is True
+    assert res.summary["ticks"] <= 200 <= res.summary["ticks"] + res.summary["skipped_slots"]
+    assert res.log.wall[-1] >= 0.19  # paced on the clock, not run as fast as it can
+
+
+def test_spinning_under_sched_fifo_warns_of_real_time_throttling():
+    from rhi.runtime.loop import _realtime, _rt_throttled
+
+    with pytest.warns(RuntimeWarning) as caught, _realtime(None, 1, spin=True):
+        pass
+    said = [str(w.message) for w in caught]
+    if any("not applied" in m for m in said) or not _rt_throttled():
+        pytest.skip("SCHED_FIFO not granted here, or the kernel does not throttle real-time tasks")
+    assert any("sched_rt_runtime_us" in m for m in said), said
+
+
 def test_warmup_leaves_the_controller_untouched_and_bad_realtime_options(dev):
     """`run` warms the controller's kernels on a twin: the controller's own state stays fresh."""
     from rhi.runtime.server import DeviceServer

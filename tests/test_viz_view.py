@@ -188,12 +188,16 @@ def test_gizmo_moves_the_hand_and_the_handle_follows(live_view):
     x0 = plant.x.copy()
     goal = x0 + np.array([0.03, -0.02])  # away from the wall (it is 1 cm beyond x0 along +y)
     pos = (float(goal[0]), float(goal[1]), float(view.scene.handle_position()[2]))
-    msg = _messages.TransformControlsUpdateMessage(name="/hand", wxyz=(1.0, 0.0, 0.0, 0.0), position=pos)
+    drag = [_messages.TransformControlsDragStartMessage(name="/hand"),  # what the browser sends on a drag
+            _messages.TransformControlsUpdateMessage(name="/hand", wxyz=(1.0, 0.0, 0.0, 0.0), position=pos)]
     with connect(f"ws://127.0.0.1:{view.port}", subprotocols=[f"viser-v{viser.__version__}"]) as ws:
-        ws.send(msgspec.msgpack.encode(msg.as_serializable_dict()))
+        for msg in drag:
+            ws.send(msgspec.msgpack.encode(msg.as_serializable_dict()))
         deadline = time.monotonic() + 5.0
-        while hand.target is None and time.monotonic() < deadline:
+        while (hand.target is None or np.linalg.norm(hand.target - goal) > 1e-9) and time.monotonic() < deadline:
             time.sleep(0.02)
+        np.testing.assert_allclose(hand.target, goal, atol=1e-9)
+        time.sleep(0.2)  # frames drawn while the hand holds the gizmo leave the target alone
     np.testing.assert_allclose(hand.target, goal, atol=1e-9)
     deadline = time.monotonic() + 6.0
     while np.linalg.norm(plant.x - goal) > 0.004 and time.monotonic() < deadline:

@@ -105,7 +105,7 @@ def _device_server(args: argparse.Namespace) -> int:
         link = SimLink(plant, rate=args.rate)
     srv = DeviceServer(link, dev, host=args.host, port=args.port,
                        watchdog=args.watchdog_ms * 1e-3, lockstep=args.lockstep, log=args.log, cpu=args.cpu,
-                       priority=args.priority)
+                       priority=args.priority, spin=args.spin)
     signal.signal(signal.SIGTERM, lambda *_: srv.stop())
     signal.signal(signal.SIGINT, lambda *_: srv.stop())
     print(f"rhi device-server: {dev.name} (simulated, {args.rate:g} Hz) on udp://{args.host}:{srv.port}, "
@@ -217,7 +217,8 @@ def _run(args: argparse.Namespace) -> int:
     try:
         res = run(link, ctrl, rate=rate, duration=duration, safety=cfg.safety, log=log_path,
                   virtual=cfg.virtual, realtime=args.realtime, progress=status,
-                  telemetry=None if view is None else view.telemetry, cpu=args.cpu, priority=args.priority)
+                  telemetry=None if view is None else view.telemetry, cpu=args.cpu, priority=args.priority,
+                  spin=args.spin)
     finally:
         status.close()
         if view is not None:
@@ -265,6 +266,8 @@ def _add_realtime(p, what: str) -> None:
     p.add_argument("--cpu", type=int, help=f"pin {what} to this CPU (e.g. one no other busy process uses)")
     p.add_argument("--priority", type=int, help=f"SCHED_FIFO priority 1..99 of {what} (needs CAP_SYS_NICE "
                    "or an rtprio limit; a warning otherwise)")
+    p.add_argument("--spin", action="store_true", help=f"{what} waits for each tick on a busy core instead of "
+                   "asleep: steadier, shorter ticks for one core at 100 %% (use with --cpu)")
 
 
 _NEGATIVE = re.compile(r"^-(\d|\.\d)")

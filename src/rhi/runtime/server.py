@@ -23,7 +23,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.runtime import protocol as P
 from rhi.runtime.link import DeviceLink, Status
-from rhi.runtime.loop import _realtime, _sleep_until, check_realtime
+from rhi.runtime.loop import _realtime, check_realtime, wait_until
 from rhi.sim.log import LogWriter, layout
 
 
@@ -42,13 +42,15 @@ class DeviceServer:
         exit_on_bye: return from `serve` when the host closes the link (else idle until the next HELLO).
         cpu: pin the device loop to this CPU (a clear warning where the OS refuses).
         priority: SCHED_FIFO priority (1–99) of the device loop (a clear warning where the OS refuses).
+        spin: the device loop waits on a busy core, never asleep (`rhi.runtime.loop.wait_until`).
     """
 
     def __init__(self, link: DeviceLink, device, *, host: str = "127.0.0.1", port: int = 0, watchdog: float = 0.02,
                  lockstep: bool = False, drop=None, reorder_at: float | None = None, log=None,
-                 exit_on_bye: bool = False, cpu: int | None = None, priority: int | None = None) -> None:
+                 exit_on_bye: bool = False, cpu: int | None = None, priority: int | None = None,
+                 spin: bool = False) -> None:
         check_realtime(cpu, priority)
-        self.cpu, self.priority = cpu, priority
+        self.cpu, self.priority, self.spin = cpu, priority, bool(spin)
         if not isinstance(port, int) or not 0 <= port < 65536:
             raise InvalidInput(f"port: expected an integer in 0..65535, got {port!r}")
         self.link, self.device = link, device
@@ -83,8 +85,12 @@ class DeviceServer:
         s = self.sock
         while True:
             if timeout > 0:
-                r, _, _ = select.select([s], [], [], timeout)
-                if not r:
+                if self.spin:
+                    end = time.monotonic() + timeout
+                    while not select.select([s], [], [], 0.0)[0]:
+                        if time.monotonic() >= end:
+                            return newest
+                elif not select.select([s], [], [], timeout)[0]:
                     return newest
                 timeout = 0.0
             try:
@@ -139,7 +145,7 @@ class DeviceServer:
         k = 0
         end = None if duration is None else int(round(duration * self.rate))
         try:
-            with _realtime(self.cpu, self.priority):
+            with _realtime(self.cpu, self.priority, self.spin):
                 # the first reading goes out as soon as a client said HELLO
                 while self.client is None and not self._stop:
                     self._poll(0.05)
@@ -174,7 +180,7 @@ class DeviceServer:
                             if got is not None and got[1] != P.NO_SEQ and got[1] < r.seq - 1:
                                 got = None  # a stale command from before the previous reading
                     else:
-                        _sleep_until(deadline - 2e-4)
+                        wait_until(deadline - 2e-4, self.spin)
                         got = self._poll(max(deadline - time.monotonic(), 0.0))
                     now = time.monotonic()
                     if got is not None:
@@ -220,7 +226,7 @@ class DeviceServer:
                         row[c["ft"]] = r.sensors["ft"]
                     k += 1
                     if not self.lockstep:
-                        _sleep_until(t0 + (k - k0) * period)
+                        wait_until(t0 + (k - k0) * period, self.spin)
         finally:
             self.link.write(np.zeros(self.n), enable=False)
             lw.close()

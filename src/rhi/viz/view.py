@@ -79,6 +79,7 @@ class View:
         self.size = float(np.max(bhi - blo))
         self.overlays = Overlays(self.server, device, self.size, virtual=virtual, fme=fme)
         self._camera(blo, bhi)
+        self._grip = threading.Lock()  # the gizmo's position vs the hand's target (view thread vs viser's loop)
         self._build_gui()
         self.frames = 0
         self.cpu = 0.0
@@ -139,13 +140,18 @@ class View:
                 position=tuple(self.scene.handle_position()))
             self.release = gui.add_button("let go of the handle")
 
+            # on the event loop, in order (a threadpool callback read the gizmo after the view had put it back
+            # on the free handle); the grip keeps the view from placing the gizmo between a drag's start and
+            # the target it sets
             @gizmo.on_update
-            def _(event) -> None:
-                hand.target = np.asarray(gizmo.position, dtype=float)[self.rows]
+            async def _(event) -> None:
+                with self._grip:
+                    hand.target = np.asarray(event.target.position, dtype=float)[self.rows]
 
             @self.release.on_click
             def _(event) -> None:
-                hand.target = None
+                with self._grip:
+                    hand.target = None
 
     def _rest_snapshot(self):
         z = np.zeros(self.device.m)
@@ -180,8 +186,10 @@ class View:
             self.state_html.content = state_panel(snap)
             if self.frames == 0:
                 self.legend_html.content = legend(self.overlays.force_scale, self.overlays.velocity_scale)
-            if self.gizmo is not None and self.hand is not None and self.hand.target is None:
-                self.gizmo.position = tuple(handle)
+            if self.gizmo is not None and self.hand is not None:
+                with self._grip:
+                    if self.hand.target is None:  # a free hand: the gizmo follows the handle
+                        self.gizmo.position = tuple(handle)
             if self.player is not None:
                 self.timeline.value = float(snap.t)  # type: ignore[misc]  # viser's slider has a setter; mypy sees a read-only props field
         self.frames += 1
