@@ -116,7 +116,7 @@ def bench(link_kind: str, duration: float, log_dir: str, config: str | None = No
         q = ctx.Queue()
         proc = ctx.Process(target=_device, args=(q, duration, config, 1 if pin else None, priority, spin), daemon=True)
         proc.start()
-        link = UDPLink("127.0.0.1", q.get(timeout=120), timeout=0.005)  # paced by the device's readings
+        link = UDPLink("127.0.0.1", q.get(timeout=120), timeout=0.005, spin=spin)  # paced by the device's readings
         wall = plant_and_hand(dev, duration)[2] if cfg is None else cfg.virtual
     elif cfg is None:
         plant, hand, wall = plant_and_hand(dev, duration)

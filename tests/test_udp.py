@@ -59,11 +59,12 @@ def _stop(p):
         return p.communicate()[0]
 
 
-def test_lockstep_over_udp_equals_simulate(dev, tmp_path):
-    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye", "--watchdog", "2.0")
+@pytest.mark.parametrize("spin", [False, True])
+def test_lockstep_over_udp_equals_simulate(dev, tmp_path, spin):
+    p, port = _server(tmp_path, "--lockstep", "--exit-on-bye", "--watchdog", "2.0", *(["--spin"] if spin else []))
     try:
         plant, ctrl, hand, wall, phys = _scenario(dev)
-        link = UDPLink("127.0.0.1", port, timeout=0.5)
+        link = UDPLink("127.0.0.1", port, timeout=0.5, spin=spin)
         res = run(link, ctrl, duration=0.6, virtual=wall, realtime=False)
     finally:
         out = _stop(p)

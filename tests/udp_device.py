@@ -1,6 +1,6 @@
 """A device process for the UDP tests: the palpation scenario of test_runtime behind `DeviceServer`.
 
-python tests/udp_device.py PORTFILE [--lockstep] [--drop A B] [--reorder T] [--log PATH] [--duration S]
+python tests/udp_device.py PORTFILE [--lockstep] [--drop A B] [--reorder T] [--log PATH] [--duration S] [--spin]
 """
 
 from __future__ import annotations
@@ -29,11 +29,12 @@ ap.add_argument("--log")
 ap.add_argument("--duration", type=float)
 ap.add_argument("--exit-on-bye", action="store_true")
 ap.add_argument("--watchdog", type=float, default=0.02)
+ap.add_argument("--spin", action="store_true")
 a = ap.parse_args()
 dev = rhi.device("rhi4")
 plant, ctrl, hand, wall, phys = _scenario(dev)
 srv = DeviceServer(SimLink(plant, hand=hand, physical=phys), dev, lockstep=a.lockstep, drop=a.drop,
-                   reorder_at=a.reorder, log=a.log, exit_on_bye=a.exit_on_bye, watchdog=a.watchdog)
+                   reorder_at=a.reorder, log=a.log, exit_on_bye=a.exit_on_bye, watchdog=a.watchdog, spin=a.spin)
 signal.signal(signal.SIGTERM, lambda *_: srv.stop())
 Path(a.portfile).write_text(str(srv.port))
 print(srv.serve(a.duration), flush=True)

@@ -116,7 +116,7 @@ def _device_server(args: argparse.Namespace) -> int:
 
 
 # ------------------------------------------------------------------------------------------ rhi run
-def _link(url: str, rate: float, cfg, realtime: bool):
+def _link(url: str, rate: float, cfg, realtime: bool, spin: bool = False):
     """The device link of `--link`: "sim" (the configuration's simulated device) or udp://HOST:PORT.
 
     Without real time (`--fast`, e.g. against a lock-step device server) a reading may take up to 1 s and the
@@ -132,8 +132,8 @@ def _link(url: str, rate: float, cfg, realtime: bool):
         host, port = parse_url(url)
     except InvalidInput as exc:
         raise InvalidInput(f"--link: {exc}") from None
-    link = UDPLink(host, port, rate=rate) if realtime else \
-        UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0)
+    link = UDPLink(host, port, rate=rate, spin=spin) if realtime else \
+        UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0, spin=spin)
     return _SameDevice(link, cfg.device)
 
 
@@ -198,7 +198,7 @@ def _run(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, device_name=args.device)
     rate = args.rate or cfg.rate
     duration = args.duration if args.duration is not None else cfg.duration
-    link = _link(args.link, rate, cfg, args.realtime)
+    link = _link(args.link, rate, cfg, args.realtime, args.spin)
     out = Path("out") / time.strftime("run-%Y%m%d-%H%M%S")
     log_path = Path(args.log) if args.log else out / "run.rhilog"
     summary_path = Path(args.summary) if args.summary else (log_path.parent if args.log else out) / "summary.json"

@@ -15,6 +15,7 @@ import dataclasses
 import gc
 import math
 import os
+import select
 import signal
 import threading
 import time
@@ -136,6 +137,17 @@ def wait_until(deadline: float, spin: bool = False) -> None:
             return
         if left > 5e-5 and not spin:
             time.sleep(left - 5e-5)
+
+
+def wait_readable(sock, timeout: float, spin: bool = False) -> bool:
+    """Whether `sock` has a datagram waiting, waiting up to `timeout` [s] for one (`spin`: on a busy core)."""
+    if not spin:
+        return bool(select.select([sock], [], [], timeout)[0])
+    end = time.monotonic() + timeout
+    while not select.select([sock], [], [], 0.0)[0]:
+        if time.monotonic() >= end:
+            return False
+    return True
 
 
 def run(

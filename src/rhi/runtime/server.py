@@ -13,7 +13,6 @@ of free-running on its clock.
 
 from __future__ import annotations
 
-import select
 import socket
 import time
 
@@ -23,7 +22,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.runtime import protocol as P
 from rhi.runtime.link import DeviceLink, Status
-from rhi.runtime.loop import _realtime, check_realtime, wait_until
+from rhi.runtime.loop import _realtime, check_realtime, wait_readable, wait_until
 from rhi.sim.log import LogWriter, layout
 
 
@@ -85,12 +84,7 @@ class DeviceServer:
         s = self.sock
         while True:
             if timeout > 0:
-                if self.spin:
-                    end = time.monotonic() + timeout
-                    while not select.select([s], [], [], 0.0)[0]:
-                        if time.monotonic() >= end:
-                            return newest
-                elif not select.select([s], [], [], timeout)[0]:
+                if not wait_readable(s, timeout, self.spin):
                     return newest
                 timeout = 0.0
             try:

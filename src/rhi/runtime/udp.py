@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import select
 import socket
 import time
 import urllib.parse
@@ -13,6 +12,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime import protocol as P
 from rhi.runtime.link import Reading
+from rhi.runtime.loop import wait_readable
 
 
 def parse_url(url: str) -> tuple[str, int]:
@@ -40,6 +40,7 @@ class UDPLink:
         timeout: longest wait for a new reading in `read` [s]; after it the previous reading is returned
             again (the safety layer counts it as stale).
         connect_timeout: longest wait for the device's INFO answer in `open` [s].
+        spin: wait for readings on a busy core, never asleep (`rhi.runtime.loop.wait_until`).
 
     Attributes:
         n: motors; sensors: [(name, width)] the device reports; info: the device's description.
@@ -56,13 +57,14 @@ class UDPLink:
     """
 
     def __init__(self, host: str, port: int, *, rate: float = 1000.0, timeout: float = 0.05,
-                 connect_timeout: float = 2.0) -> None:
+                 connect_timeout: float = 2.0, spin: bool = False) -> None:
         if not isinstance(port, int) or isinstance(port, bool) or not 0 < port < 65536:
             raise InvalidInput(f"port: expected an integer in 1..65535, got {port!r}")
         self.addr = (str(host), port)
         self.rate = scalar("rate", rate, positive=True)
         self.timeout = scalar("timeout", timeout, positive=True)
         self.connect_timeout = scalar("connect_timeout", connect_timeout, positive=True)
+        self.spin = bool(spin)
         self.n = 0
         self.sensors: list[tuple[str, int]] = []
         self.info: dict = {}
@@ -127,10 +129,8 @@ class UDPLink:
         if s is None:
             raise LinkError("link: not open")
         try:
-            if timeout > 0:
-                r, _, _ = select.select([s], [], [], timeout)
-                if not r:
-                    return None
+            if timeout > 0 and not wait_readable(s, timeout, self.spin):
+                return None
             return s.recv(65536, socket.MSG_DONTWAIT)
         except BlockingIOError:
             return None
