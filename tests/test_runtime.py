@@ -119,6 +119,24 @@ def test_link_lost_fault(dev):
     _assert_safe_stop(_sim_run(dev, link_wrap=lambda k: Inject(k, silence=(0.1, 0.5))), "link", 0.0, 0.1)
 
 
+
+def test_safety_check_finite_readings_exactly(dev):
+    """Sums over the readings decide fast; an overflowing sum of finite values is no fault, ±inf that cancel are."""
+    q = np.clip(Q0, dev.q_min, dev.q_max)
+
+    def check(dq=None, **sensors):
+        guard = Safety(dev, SafetyConfig(max_joint_speed=1e300, max_handle_speed=1e300))
+        dq = np.zeros(4) if dq is None else dq
+        ok = guard.check(Reading(0.1, 1, q, dq, {"ft": np.zeros(6), **sensors}), None, np.zeros(2))
+        return ok, guard.fault_kind
+
+    assert check() == (True, None)
+    assert check(big=np.array([1e308, 1e308]), grid=np.full((2, 2), 1e308)) == (True, None)  # finite: no fault
+    assert check(x=np.array([np.inf, -np.inf])) == (False, "nan")  # the sum is NaN
+    assert check(grid=np.array([[0.0, np.nan], [1.0, 2.0]])) == (False, "nan")
+    assert check(dq=np.array([np.inf, -np.inf, 0.0, 0.0])) == (False, "nan")
+    assert check(dq=np.array([1e300, 1e300, 0.0, 0.0])) == (True, None)
+
 class _NaNHand:
     def __init__(self, at):
         self.at = at

@@ -77,8 +77,8 @@ def _reading(name: str, v) -> np.ndarray:
 
 
 def _finite(v: np.ndarray) -> bool:
-    """Whether every entry of the float array v is finite (one dot product; exact check on overflow)."""
-    return math.isfinite(v.dot(v)) or bool(np.isfinite(v).all())
+    """Whether every entry of the float vector v is finite (one sum over Python floats; exact check on overflow)."""
+    return math.isfinite(sum(v.tolist())) or bool(np.isfinite(v).all())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -352,7 +352,7 @@ class NullSpaceController:
             dq = _reading("dq", dq)
         if q.shape != (n,) or dq.shape != (n,):
             raise InvalidInput(f"q/dq: expected shape ({n},), got {q.shape} and {dq.shape}")
-        if not math.isfinite(q.dot(q) + dq.dot(dq)):  # one check for both (each checked exactly on overflow)
+        if not math.isfinite(sum(q.tolist()) + sum(dq.tolist())):  # one check for both (exactly on overflow)
             if not _finite(q):
                 return self._bad_reading(f"q: non-finite joint position at t={t}: {q.tolist()}")
             if not _finite(dq):

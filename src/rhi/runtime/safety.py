@@ -112,6 +112,7 @@ class Safety:
         # the per-tick checks run on Python floats: a handful of comparisons, cheaper than NumPy's ufuncs
         self._bounds = list(zip(self.q_lo.tolist(), self.q_hi.tolist(), self.max_dq.tolist()))
         self._box = list(zip(lo.tolist(), hi.tolist()))
+        self._max_speed = float(self.config.max_handle_speed)
         self.fault: str | None = None
         self.fault_kind: str | None = None
         self.clamped = 0
@@ -173,17 +174,18 @@ class Safety:
             self.trip("silence", f"link silent for {1e3 * (now - self._last_new):.1f} ms (limit "
                       f"{1e3 * self.config.silence:g} ms) at t={r.t:.4f} s")
         q, dq = r.q, r.dq
-        if not math.isfinite(q.dot(q) + dq.dot(dq)) and not (np.isfinite(q).all() and np.isfinite(dq).all()):
-            self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={q.tolist()}, dq={dq.tolist()}")
+        ql, dql = q.tolist(), dq.tolist()  # sums of Python floats: cheaper than NumPy's reductions on a few values
+        if not math.isfinite(sum(ql) + sum(dql)) and not (np.isfinite(q).all() and np.isfinite(dq).all()):
+            self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={ql}, dq={dql}")
             return False
         total = 0.0
         for v in r.sensors.values():
-            total += v.dot(v)
+            total += sum(v.tolist() if v.ndim == 1 else v.ravel().tolist())
         if not math.isfinite(total):  # which one (an overflow of the sum alone is not a fault)
             for name, v in r.sensors.items():
                 if not np.isfinite(v).all():
                     self.trip("nan", f"non-finite sensor {name!r} at t={r.t:.4f} s: {np.asarray(v).tolist()}")
-        if not _inside(q.tolist(), dq.tolist(), self._bounds):
+        if not _inside(ql, dql, self._bounds):
             if (np.abs(dq) > self.max_dq).any():
                 j = int(np.argmax(np.abs(dq) - self.max_dq))
                 self.trip("speed", f"joint {j + 1} speed {dq[j]:.3g} rad/s above {self.max_dq[j]:g} at t={r.t:.4f} s")
@@ -192,8 +194,8 @@ class Safety:
                 self.trip("range", f"joint {j + 1} at {q[j]:.4g} rad, beyond its range by more than "
                           f"{self.config.range_margin:g} rad at t={r.t:.4f} s")
         if xdot is not None:
-            s = math.sqrt(xdot.dot(xdot))
-            if not s <= self.config.max_handle_speed:
+            s = math.hypot(*xdot.tolist())
+            if not s <= self._max_speed:
                 self.trip("handle_speed", f"handle speed {s:.3g} m/s above {self.config.max_handle_speed:g} "
                           f"at t={r.t:.4f} s")
         return self.fault is None

@@ -38,8 +38,9 @@ N_LAW = 8
 #: previous tick, its time, α, λ and the energy the damping took out this tick).
 PC_ON, PC_MOTORS, PC_CONTROL, PC_ALPHA_MAX, PC_E, PC_PREV, PC_T, PC_ALPHA, PC_SCALE, PC_DISSIPATED = range(10)
 N_PC = 10
-#: Slots of the result vector: α, β, V, Ω, clipped, the passivity layer ran.
-R_ALPHA, R_BETA, R_V, R_OMEGA, R_CLIPPED, R_PC = range(6)
+#: Slots of the result vector: α, β, V, Ω, clipped, the passivity layer ran, the FME transition state tr changed.
+R_ALPHA, R_BETA, R_V, R_OMEGA, R_CLIPPED, R_PC, R_TR = range(7)
+N_RES = 7
 
 
 @jit
@@ -119,7 +120,7 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         F_x: (m,) the law's extra force, written [N].
         tau_out: (n,) the torque to send, written [N m].
         sat: (n,) bool, the held joints, written.
-        res: (6,) α, β, V, Ω, clipped, whether the passivity layer ran (R_* slots), written.
+        res: (N_RES,) α, β, V, Ω, clipped, whether the passivity layer ran, whether tr changed (R_* slots), written.
     """
     n, m = q.shape[0], rows.shape[0]
     if not ready:
@@ -138,10 +139,12 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
     tau_s, tau_to = np.zeros(n), np.zeros(n)
     if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
         objectives(obj, q, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
+    tr0, tr1, tr2, tr3 = tr[0], tr[1], tr[2], tr[3]
     status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff,
                                                   w2, vme_D, vme_gain, tau_s, tau_to, tau_out, sat)
     res[R_ALPHA], res[R_BETA], res[R_V], res[R_OMEGA], res[R_CLIPPED] = alpha, beta, V, omega, 1.0 if clipped else 0.0
     res[R_PC] = 0.0
+    res[R_TR] = 0.0 if tr[0] == tr0 and tr[1] == tr1 and tr[2] == tr2 and tr[3] == tr3 else 1.0
     if status != OK or pc[PC_ON] == 0.0 or not math.isfinite(dot(tau_out, tau_out)):
         return status
     motors = pc[PC_MOTORS] != 0.0
