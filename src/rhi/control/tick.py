@@ -284,7 +284,8 @@ class KernelTick:
             self._tr_of = T
         pc = ctrl._pc
         ps = None if pc is None else pc.state
-        self._load_passivity(ps)
+        if ps is not None and ps is not self._ps_of:
+            self._load_passivity(ps)
         q, dq = _f64(q), _f64(dq)
         dev = ctrl.device
         last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already

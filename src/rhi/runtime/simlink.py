@@ -39,6 +39,8 @@ class SimLink:
         self.cmd_seq = -1
         self.enabled = False
         self._zero = np.zeros(plant.n)
+        # the handle's true position and velocity in MuJoCo's sensordata (`Plant.x`, `Plant.xdot`): one gather per read
+        self._xv = np.concatenate([plant._pos, plant._vel])
 
     @property
     def fault(self) -> str | None:
@@ -62,8 +64,9 @@ class SimLink:
         """The plant's encoders, F/T sensor and ground truth (flagged `Status.SIMULATED`)."""
         p, s = self.plant, self.session
         status = _SIMULATED | (_ENABLED if self.enabled else 0) | (_FAULT if s.fault else 0)
-        io, n = p.sensors(), p.n  # q, q̇ and the F/T reading in one call
-        sensors = {"ft": io[2 * n:], "x": p.x, "xdot": p.xdot, "F_hand": s.F_hand, "work": np.array([s.work])}
+        io, n, m = p.sensors(), p.n, p.m  # q, q̇ and the F/T reading in one call
+        xv = p._sd[self._xv]
+        sensors = {"ft": io[2 * n:], "x": xv[:m], "xdot": xv[m:], "F_hand": s.F_hand, "work": np.array([s.work])}
         if s.teleop is not None:
             sensors["slave_x"] = s.slave_x
         return Reading(s.t, self.seq, io[:n], io[n:2 * n], sensors, status, self.cmd_seq, s.fault or "")
