@@ -26,7 +26,7 @@ from rhi.control import (
     fme_shape,
 )
 from rhi.errors import InvalidInput
-from rhi.sim import Hand, HandPath, Plant, Spring, Wall, simulate, stop
+from rhi.sim import Fixture, Hand, HandPath, Plant, Spring, Wall, compose, simulate, stop
 from rhi.sim.loop import Kinematics, Session
 
 REFERENCE = Path(__file__).parent / "data" / "sim_palpation_rhi4.npz"
@@ -107,10 +107,11 @@ def test_loop_kinematics_equal_device_terms():
 
 
 def test_loop_rendering_equals_environment_force():
-    """`Kinematics.render`: a virtual wall in the compiled call, other environments through `force`.
+    """`Kinematics.render`: walls, fixtures and their sums in the compiled call, other environments through `force`.
 
     On every device a wall through a point near the handle (in contact or not, pushed back or not by
-    the velocity) and a spring: x, ẋ as `Kinematics`, the force as the environment's own `force`.
+    the velocity), a spring, a fixture and sums of them: x, ẋ as `Kinematics`, the force as the
+    environment's own `force`.
     """
     rng = np.random.default_rng(11)
     contact = 0
@@ -119,11 +120,13 @@ def test_loop_rendering_equals_environment_force():
             q, dq = rng.uniform(-0.5, 0.5, dev.n), rng.normal(size=dev.n)
             x, xdot = Kinematics(dev)(q, dq)
             normal = rng.normal(size=dev.m)
-            envs = [Wall(x + rng.normal(scale=0.01, size=dev.m), normal, 800.0, damping=30.0),
-                    Spring(x + 0.01, 500.0, damping=2.0), None]
-            for env in envs:
+            wall = Wall(x + rng.normal(scale=0.01, size=dev.m), normal, 800.0, damping=30.0)
+            fixture = Fixture(x + rng.normal(scale=0.01, size=dev.m), rng.normal(size=dev.m), 1000.0, 5.0)
+            envs = [wall, Spring(x + 0.01, 500.0, damping=2.0), None, fixture, compose(wall, fixture),
+                    compose(wall, Spring(x, 10.0))]
+            for k, env in enumerate(envs):
                 kin = Kinematics(dev, env)
-                assert kin._fused == (type(env) is Wall and dev.name != "screw")
+                assert kin._fused == (k in (0, 3, 4) and dev.name != "screw")
                 xr, xdr, F = kin.render(q, dq)
                 np.testing.assert_allclose(xr, x, rtol=0, atol=1e-15, err_msg=dev.name)
                 np.testing.assert_allclose(xdr, xdot, rtol=0, atol=1e-15, err_msg=dev.name)

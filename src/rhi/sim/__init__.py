@@ -4,7 +4,15 @@ Virtual and physical environments, teleoperation, and the 1 kHz simulation loop.
 """
 
 from rhi.sim.environment import Fixture, Spring, Wall, compose, stop
-from rhi.sim.hand import DraggableHand, Hand, HandPath, PushForce, check_path_in_workspace, w_path
+from rhi.sim.hand import (
+    DraggableHand,
+    Hand,
+    HandPath,
+    MinimumJerkPalpation,
+    PushForce,
+    check_path_in_workspace,
+    w_path,
+)
 from rhi.sim.log import Event, Log, LogWriter
 from rhi.sim.loop import Session, simulate
 from rhi.sim.mjcf import PlantFriction, build_mjcf, plant_spec
@@ -20,6 +28,7 @@ __all__ = [
     "Log",
     "LogWriter",
     "HandPath",
+    "MinimumJerkPalpation",
     "Plant",
     "PlantUnstable",
     "PlantFriction",

@@ -1,10 +1,11 @@
 """Many ticks of `rhi.sim.simulate` in one compiled call, for the runs it computes exactly.
 
 `FastLoop.build` accepts a run whose every part the kernels know: a `NullSpaceController` whose
-whole tick runs compiled (`KernelTick.whole_ok`), a `Hand` or no hand, a physical `Wall` or none,
-a virtual `Wall` or none, no teleoperation and no ``record`` hook. `ticks` then runs up to a block
+whole tick runs compiled (`KernelTick.whole_ok`), a `Hand`, a `MinimumJerkPalpation` or no hand, a
+physical `Wall` or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, no teleoperation
+and no ``record`` hook. `ticks` then runs up to a block
 of ticks per call: the plant's sensors (`rhi.sim.io_kernel.sensors`), the handle's kinematics and
-the virtual wall (`rhi.sim.handle_kernel.handle_state`), the controller's input checks and whole tick
+the virtual environment (`rhi.sim.handle_kernel.handle_state`), the controller's input checks and whole tick
 (`rhi.control.kernels.whole`), the torque and a control period of physics steps with the hand and the
 physical wall (`rhi.sim.handle_kernel.hand_period`, MuJoCo's step by `rhi.sim.mjc`), and the log row.
 
@@ -28,8 +29,14 @@ import numpy as np
 from rhi.control.controller import NullSpaceController
 from rhi.control.kernels import whole as _whole
 from rhi.sim.environment import Wall
-from rhi.sim.hand import Hand
-from rhi.sim.handle_kernel import PERIOD_OK, hand_constants, hand_period, handle_state, wall_constants
+from rhi.sim.handle_kernel import (
+    PERIOD_OK,
+    hand_constants,
+    hand_period,
+    hand_supported,
+    handle_state,
+    wall_constants,
+)
 from rhi.sim.io_kernel import log_row, sensors
 from rhi.terms_kernel import _jit
 
@@ -208,7 +215,7 @@ class FastLoop:
         dev = controller.device
         if (dev.n, dev.m) != (plant.n, m) or not set(controller._sensors) <= {"force", "ft"}:
             return None
-        if hand is not None and (type(hand) is not Hand or hand.path.points.shape[1] != m):
+        if hand is not None and not hand_supported(hand, phys, m):
             return None
         if phys is not None and (type(phys) is not Wall or phys.point.shape != (m,)):
             return None

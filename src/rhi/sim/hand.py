@@ -2,7 +2,8 @@
 
 `Hand` is a Cartesian impedance (PD) between the handle and a reference point that moves
 along a `HandPath`, F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) [N], optionally saturated at the force
-a person comfortably applies. `PushForce` is the constant external force of the system
+a person comfortably applies; `MinimumJerkPalpation` strokes along a line with the minimum-jerk
+profile (the §3.5 palpation). `PushForce` is the constant external force of the system
 identification experiments (§3.5, §6.4). The simulation loop logs F_h, ẋ and the user's
 work W = ∫ F_hᵀ ẋ dt (eq. 5.15).
 """
@@ -153,6 +154,61 @@ class Hand:
                 r = self.max_force / nf
                 F = [f * r for f in F]
         return np.array(F)
+
+
+@dataclasses.dataclass(frozen=True)
+class MinimumJerkPalpation:
+    """A hand probing a virtual tissue: a minimum-jerk stroke along u, then a hold.
+
+    The reference moves from ``start`` to ``start + depth u`` along the minimum-jerk profile
+    s(τ) = 10τ³ − 15τ⁴ + 6τ⁵ (τ = t/duration; peak speed 1.875 depth/duration), the
+    smooth reaching motion of human arms (Flash & Hogan 1985), and stays there; the hand
+    is a Cartesian impedance to it, F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ), saturated at
+    ``max_force``. With ``depth`` beyond the physical stop, the stroke ends on the stop.
+
+    Attributes:
+        start: (m,) start point [m].
+        direction: (m,) u.
+        depth: stroke length [m].
+        duration: stroke duration [s].
+        stiffness, damping: K_h [N/m], B_h [N s/m] (a relaxed grasp).
+        max_force: saturation of |F_h| [N].
+    """
+
+    start: np.ndarray
+    direction: np.ndarray
+    depth: float
+    duration: float
+    stiffness: float = 300.0
+    damping: float = 10.0
+    max_force: float = 20.0
+
+    def __post_init__(self) -> None:
+        p = as_array("start", self.start, ndim_min=1)
+        object.__setattr__(self, "start", p)
+        object.__setattr__(self, "direction", unit_vector("direction", self.direction, p.shape[-1]))
+        for name in ("depth", "duration", "stiffness", "max_force"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
+        if not (math.isfinite(self.damping) and self.damping >= 0):
+            raise InvalidInput(f"damping: must be finite and >= 0, got {self.damping!r}")
+
+    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Reference position (m,) [m] and velocity (m,) [m/s] at time t [s]."""
+        tau = min(max(t / self.duration, 0.0), 1.0)
+        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+        ds = 30.0 * tau**2 * (1.0 - tau) ** 2 / self.duration
+        return self.start + self.depth * s * self.direction, self.depth * ds * self.direction
+
+    def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+        """F_h: (m,) [N] on the handle at position x (m,) [m], velocity ẋ (m,) [m/s]."""
+        xr, vr = self.reference(t)
+        F = self.stiffness * (xr - x) + self.damping * (vr - xdot)
+        nf = math.sqrt(float(F @ F))  # = np.linalg.norm(F), without its overhead (called at every plant step)
+        if nf > self.max_force:
+            F = F * (self.max_force / nf)
+        return F
 
 
 def _vector(name: str, v, m: int) -> list[float]:

@@ -19,6 +19,8 @@ import math
 import numpy as np
 
 from rhi.chain_kernel import joint_frame
+from rhi.sim.environment import Compose, Fixture, Wall
+from rhi.sim.hand import Hand, MinimumJerkPalpation
 from rhi.sim.mjc import step1, step2
 from rhi.terms_kernel import _jit
 
@@ -41,8 +43,8 @@ def handle_state(ints, joints, fc, q, dq, out):
         q: (n,) motor positions [rad].
         dq: (n,) motor velocities [rad/s].
         out: (2, m) output: the end-effector position [m], then its velocity [m/s]; or (3, m): then also the
-            force of a wall on the handle [N] (`rhi.sim.Wall.force`), its constants at the end of `fc`
-            (`wall_constants`).
+            force of a virtual environment on the handle [N] (`_env_force`), its `env_constants` at the end
+            of `fc`.
     """
     nt, n, m = joints.shape[0], q.shape[0], out.shape[1]
     oR = np.empty((nt, 3, 3))
@@ -86,15 +88,58 @@ def handle_state(ints, joints, fc, q, dq, out):
         out[0, i] = pt[r]
         out[1, i] = v[r]
     if out.shape[0] == 3:
-        o = 12 + nt + nt * n
-        push = _wall_push(out[0], out[1], fc, o)
-        for i in range(m):
-            out[2, i] = -push * fc[o + m + i]
+        _env_force(out[0], out[1], fc, 12 + nt + nt * n, out[2])
 
 
 def wall_constants(wall) -> list[float]:
     """A `rhi.sim.Wall`'s constants for the kernels: its point (m,) [m], normal (m,), K_e [N/m], B_e [N s/m]."""
     return [*wall.point.tolist(), *wall.normal.tolist(), wall.stiffness, wall.damping]
+
+
+def env_constants(env, m: int) -> list[float] | None:
+    """A virtual environment's constants for `handle_state` (`_env_force`), or None where it has other parts.
+
+    A `Wall`, a `Fixture` or a `Compose` of them, for a handle of m task rows. Layout: the number of
+    parts, then each part's kind (0: wall, 1: fixture) and constants: a wall's `wall_constants`; a
+    fixture's point (m,) [m], projector I − u uᵀ (m, m) row-major, K [N/m] and B [N s/m].
+    """
+    parts = env.parts if type(env) is Compose else (env,)
+    c: list[float] = [float(len(parts))]
+    for p in parts:
+        if type(p) is Wall and p.point.shape == (m,):
+            c += [0.0, *wall_constants(p)]
+        elif type(p) is Fixture and p.point.shape == (m,):
+            c += [1.0, *p.point.tolist(), *p._P.ravel().tolist(), p.stiffness, p.damping]
+        else:
+            return None
+    return c
+
+
+@_jit
+def _env_force(x, v, c, o, F):
+    """Write the force (m,) [N] of the environment whose `env_constants` start at c[o] on the handle at x, ẋ into F.
+
+    The parts' forces summed in order, each as its `force` computes it: a wall's −push n (`_wall_push`), a
+    fixture's −(K (x − point) + B ẋ) (I − u uᵀ).
+    """
+    m = x.shape[0]
+    for j in range(m):
+        F[j] = 0.0
+    count, o = int(c[o]), o + 1
+    for _ in range(count):
+        if c[o] == 0.0:
+            push = _wall_push(x, v, c, o + 1)
+            for j in range(m):
+                F[j] += -push * c[o + 1 + m + j]
+            o += 1 + 2 * m + 2
+        else:
+            K, B = c[o + 1 + m + m * m], c[o + 2 + m + m * m]
+            for j in range(m):
+                f = 0.0
+                for i in range(m):
+                    f += -(K * (x[i] - c[o + 1 + i]) + B * v[i]) * c[o + 1 + m + i * m + j]
+                F[j] += f
+            o += 3 + m + m * m
 
 
 @_jit
@@ -117,19 +162,36 @@ def _wall_push(x, v, c, o):
 
 
 def hand_constants(hand, wall) -> np.ndarray:
-    """The flat constants of `hand_step` for a `rhi.sim.Hand` and a physical `rhi.sim.Wall` (or None).
+    """The flat constants of `hand_step` for a `rhi.sim.Hand` or `MinimumJerkPalpation` and a physical `Wall` (or None).
 
     Layout: k, m, start [s], speed [m/s], K_h [N/m], B_h [N s/m], max |F_h| [N] (inf: none), then the
     wall flag (1/0), its point (m,) [m], normal (m,), K_e [N/m] and B_e [N s/m] (zeros without a wall),
-    then the path's arc lengths (k,) [m], its points (k, m) [m] and segment directions (k − 1, m).
+    then for a `Hand` the path's arc lengths (k,) [m], its points (k, m) [m] and segment directions
+    (k − 1, m); for a `MinimumJerkPalpation` k = 0, the stroke's duration [s] in place of the speed, then
+    its depth [m], start (m,) [m] and direction (m,).
     """
+    w = lambda m: [1.0, *wall_constants(wall)] if wall is not None else [0.0] * (2 * m + 3)  # noqa: E731
+    if type(hand) is MinimumJerkPalpation:
+        m = hand.start.shape[0]
+        head = [0, m, 0.0, hand.duration, hand.stiffness, hand.damping, hand.max_force]
+        return np.array([*head, *w(m), hand.depth, *hand.start.tolist(), *hand.direction.tolist()], dtype=float)
     path = hand.path
     P = np.asarray(path.points, dtype=float)
     k, m = P.shape
     head = [k, m, path.start, path.speed, hand.stiffness, hand.damping,
             np.inf if hand.max_force is None else hand.max_force]
-    w = [1.0, *wall_constants(wall)] if wall is not None else [0.0] * (2 * m + 3)
-    return np.concatenate([head, w, path._s, P.ravel(), np.ravel(path._u)]).astype(float)
+    return np.concatenate([head, w(m), path._s, P.ravel(), np.ravel(path._u)]).astype(float)
+
+
+def hand_supported(hand, wall, m: int) -> bool:
+    """Whether `hand_constants` describes `hand` and the physical `wall` (or None) for a handle of m task rows."""
+    if type(hand) is Hand:
+        dim = hand.path.points.shape[1]
+    elif type(hand) is MinimumJerkPalpation:
+        dim = hand.start.shape[0]
+    else:
+        return False
+    return dim == m and (wall is None or (type(wall) is Wall and wall.point.shape == (m,)))
 
 
 @_jit
@@ -162,25 +224,34 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
             wd += F[j] * sd[idx[m + j]]
         acc[0] += wd * acc[1]
     start, speed, K, B, fmax = c[2], c[3], c[4], c[5], c[6]
-    o = 7 + 2 * m + 3  # the path's arc lengths
-    s, P, U = c[o:o + k], c[o + k:o + k + k * m], c[o + k + k * m:]
-    i, dd, moving = 0, 0.0, False
-    if k > 1 and t > start:
-        d = (t - start) * speed
-        if d >= s[k - 1]:
-            i = k - 1
-        else:
-            i = np.searchsorted(s, d, side="right") - 1  # the segment holding d (zero-length ones skipped)
-            dd, moving = d - s[i], True
-    for j in range(m):
-        u = U[i * m + j] if moving else 0.0
-        v = speed * u if moving else 0.0
-        F[j] = K * ((P[i * m + j] + dd * u) - sd[idx[j]]) + B * (v - sd[idx[m + j]])
+    o = 7 + 2 * m + 3  # the path's arc lengths, or the stroke's depth
+    if k == 0:  # `MinimumJerkPalpation.force`: s(τ) = 10τ³ − 15τ⁴ + 6τ⁵, τ = t / duration (speed holds the duration)
+        depth = c[o]
+        tau = min(max(t / speed, 0.0), 1.0)
+        sj = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
+        ds = 30.0 * tau**2 * (1.0 - tau) ** 2 / speed
+        for j in range(m):
+            u = c[o + 1 + m + j]
+            F[j] = K * ((c[o + 1 + j] + depth * sj * u) - sd[idx[j]]) + B * (depth * ds * u - sd[idx[m + j]])
+    else:
+        s, P, U = c[o:o + k], c[o + k:o + k + k * m], c[o + k + k * m:]
+        i, dd, moving = 0, 0.0, False
+        if k > 1 and t > start:
+            d = (t - start) * speed
+            if d >= s[k - 1]:
+                i = k - 1
+            else:
+                i = np.searchsorted(s, d, side="right") - 1  # the segment holding d (zero-length ones skipped)
+                dd, moving = d - s[i], True
+        for j in range(m):
+            u = U[i * m + j] if moving else 0.0
+            v = speed * u if moving else 0.0
+            F[j] = K * ((P[i * m + j] + dd * u) - sd[idx[j]]) + B * (v - sd[idx[m + j]])
     if fmax < np.inf:
         ss = 0.0
         for j in range(m):
             ss += F[j] * F[j]
-        nf = math.hypot(F[0], F[1]) if m == 2 else math.sqrt(ss)
+        nf = math.hypot(F[0], F[1]) if m == 2 and k > 0 else math.sqrt(ss)  # as Hand.force / the stroke's
         if nf > fmax:
             r = fmax / nf
             for j in range(m):

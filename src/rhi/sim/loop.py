@@ -20,8 +20,6 @@ import pinocchio as pin
 from rhi import batch
 from rhi._validate import scalar
 from rhi.errors import InvalidInput
-from rhi.sim.environment import Wall
-from rhi.sim.hand import Hand
 from rhi.sim.log import Log, LogWriter, layout
 from rhi.sim.plant import Plant, unstable
 from rhi.sim.telemetry import Telemetry
@@ -167,28 +165,26 @@ class Session:
         return None
 
     def _compiled(self, hand, phys) -> tuple[Any, np.ndarray] | None:
-        """The kernel of `_steps_compiled` and its constants for a `Hand` and a physical `Wall` (or none).
+        """The kernel of `_steps_compiled` and its constants where the kernels know the hand and the physical wall.
 
+        A `Hand` or a `MinimumJerkPalpation` and a `Wall` or none (`rhi.sim.handle_kernel.hand_supported`).
         None for other hands and environments, or a hand or wall of another dimension than the plant's
         (`_steps` raises their error).
         """
         if self._fused_for[0] is hand and self._fused_for[1] is phys:
             return self._fused
-        if type(hand) is not Hand or (phys is not None and type(phys) is not Wall):
-            return None
-        m = self.plant.m
-        if hand.path.points.shape[1] != m or (phys is not None and phys.point.shape != (m,)):
-            return None
-        from rhi.sim.handle_kernel import hand_constants, hand_period
+        from rhi.sim.handle_kernel import hand_constants, hand_period, hand_supported
 
+        if not hand_supported(hand, phys, self.plant.m):
+            return None
         self._fused = (hand_period, hand_constants(hand, phys))
         self._fused_for = (hand, phys)
         return self._fused
 
     def _steps_compiled(self, kernel, c: np.ndarray) -> str | None:
-        """`_steps` for a `Hand` and a physical `Wall` (or none): the period in one compiled call.
+        """`_steps` for a `Hand` or a `MinimumJerkPalpation` and a physical `Wall` (or none): one compiled call.
 
-        The same arithmetic as `Hand.force` and `Wall.force` (`rhi.sim.handle_kernel.hand_period`), with the
+        The same arithmetic as the hand's `force` and `Wall.force` (`rhi.sim.handle_kernel.hand_period`), with the
         handle's state read from MuJoCo's sensors, the force written to its applied force and MuJoCo's step
         called from there.
         """
@@ -417,8 +413,9 @@ class Kinematics:
     What a haptic rendering loop computes before its controller runs, leaving the device's
     `terms` snapshot untouched: for trees of one-DoF revolute/prismatic joints one compiled call
     (`rhi.sim.handle_kernel`, on the constants of `rhi.chain_kernel.pack`), which also evaluates a
-    virtual `Wall`; otherwise one Pinocchio forward-kinematics pass with velocities on a `pin.Data`
-    of its own. Equal to `Device.fk(q)`, `Device.terms(q, dq).xdot` and `virtual.force` (to rounding).
+    virtual `Wall`, `Fixture` or a `compose` of them; otherwise one Pinocchio forward-kinematics pass
+    with velocities on a `pin.Data` of its own. Equal to `Device.fk(q)`, `Device.terms(q, dq).xdot` and
+    `virtual.force` (to rounding).
 
     Args:
         device: the controller's device.
@@ -437,13 +434,14 @@ class Kinematics:
         self._fused = False  # the compiled call evaluates the virtual wall too
         if batch.supported(self.model):
             from rhi.chain_kernel import pack
-            from rhi.sim.handle_kernel import handle_state, wall_constants
+            from rhi.sim.handle_kernel import env_constants, handle_state
 
             ints, joints, consts = pack(self.model, self.frame)
             fc = [consts[:12], self.b, self.A.ravel()]
-            self._fused = type(virtual) is Wall and virtual.point.shape == (self.m,)
-            if self._fused:
-                fc.append(np.array(wall_constants(virtual)))
+            env = None if virtual is None else env_constants(virtual, self.m)
+            self._fused = env is not None
+            if env is not None:
+                fc.append(np.array(env))
             self._compiled = (handle_state, np.concatenate([ints, self.rows]).astype(np.int64), joints,
                               np.concatenate(fc))
             # load (or compile) the kernel now, not in a real-time loop's first tick: one call at q = 0

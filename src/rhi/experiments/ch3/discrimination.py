@@ -38,14 +38,12 @@ within-subject design calls for, and paired t-tests with Holm–Bonferroni (§3.
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from rhi import thesis as T
-from rhi._validate import as_array, unit_vector
 from rhi.analysis import psychophysics as pp
 from rhi.analysis.stats import paired_t_tests
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
@@ -57,7 +55,7 @@ from rhi.experiments.ch3.nullspace import controller, start_configuration
 from rhi.experiments.identification import U
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress
-from rhi.sim import Fixture, Plant, Wall, compose, simulate, stop
+from rhi.sim import Fixture, MinimumJerkPalpation, Plant, Wall, compose, simulate, stop
 
 #: Table 3.3: (mean, std) of WF, JND [N/m], PSE [N/m] per device.
 THESIS_TABLE_3_3 = T.TABLE_3_3
@@ -71,61 +69,6 @@ STOP_DISTANCE = 0.08
 FIXTURE_STIFFNESS, FIXTURE_DAMPING = 1000.0, 5.0
 #: Palpation durations (in-stroke, minimum jerk) [s] of the lookup grid.
 DURATIONS = (0.6, 0.9, 1.3, 2.0)
-
-
-@dataclasses.dataclass(frozen=True)
-class MinimumJerkPalpation:
-    """A hand probing a virtual tissue: a minimum-jerk stroke along u, then a hold.
-
-    The reference moves from ``start`` to ``start + depth u`` along the minimum-jerk profile
-    s(τ) = 10τ³ − 15τ⁴ + 6τ⁵ (τ = t/duration; peak speed 1.875 depth/duration), the
-    smooth reaching motion of human arms (Flash & Hogan 1985), and stays there; the hand
-    is a Cartesian impedance to it, F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ), saturated at
-    ``max_force``. With ``depth`` beyond the physical stop, the stroke ends on the stop.
-
-    Attributes:
-        start: (m,) start point [m].
-        direction: (m,) u.
-        depth: stroke length [m].
-        duration: stroke duration [s].
-        stiffness, damping: K_h [N/m], B_h [N s/m] (a relaxed grasp).
-        max_force: saturation of |F_h| [N].
-    """
-
-    start: np.ndarray
-    direction: np.ndarray
-    depth: float
-    duration: float
-    stiffness: float = 300.0
-    damping: float = 10.0
-    max_force: float = 20.0
-
-    def __post_init__(self) -> None:
-        p = as_array("start", self.start, ndim_min=1)
-        object.__setattr__(self, "start", p)
-        object.__setattr__(self, "direction", unit_vector("direction", self.direction, p.shape[-1]))
-        for name in ("depth", "duration", "stiffness", "max_force"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
-        if not (math.isfinite(self.damping) and self.damping >= 0):
-            raise InvalidInput(f"damping: must be finite and >= 0, got {self.damping!r}")
-
-    def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Reference position (m,) [m] and velocity (m,) [m/s] at time t [s]."""
-        tau = min(max(t / self.duration, 0.0), 1.0)
-        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
-        ds = 30.0 * tau**2 * (1.0 - tau) ** 2 / self.duration
-        return self.start + self.depth * s * self.direction, self.depth * ds * self.direction
-
-    def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
-        """F_h: (m,) [N] on the handle at position x (m,) [m], velocity ẋ (m,) [m/s]."""
-        xr, vr = self.reference(t)
-        F = self.stiffness * (xr - x) + self.damping * (vr - xdot)
-        nf = math.sqrt(float(F @ F))  # = np.linalg.norm(F), without its overhead (called at every plant step)
-        if nf > self.max_force:
-            F = F * (self.max_force / nf)
-        return F
 
 
 def perceived_stiffness(d: np.ndarray, F: np.ndarray) -> float:
