@@ -32,6 +32,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from rhi import batch
 from rhi.control import (
     ControllerConfig,
     ForceRendering,
@@ -106,8 +107,11 @@ def _energies(dev: Device, log, friction, stiffness: float) -> dict[str, float]:
     q, tau, dt = log.q, log.tau, float(log.t[1] - log.t[0])
     dq = np.diff(q, axis=0)
     motors = float(np.einsum("ki,ki->", tau[:-1], dq))
-    x = np.array([dev.fk(qi) for qi in q])
-    F = np.array([dev.terms(qi, None, check=False).Jsharp.T.dot(ti) for qi, ti in zip(q[:-1], tau[:-1])])
+    # in batch: x, J and M of every row; the task force J#ᵀτ = Λ J M⁻¹ τ, Λ = (J M⁻¹ Jᵀ)⁻¹ (DeviceTerms.Jsharp)
+    d = batch.terms(dev, q, ("x", "J", "M"))
+    x, J, M = d["x"], d["J"][:-1], d["M"][:-1]
+    MiJt = np.linalg.solve(M, np.swapaxes(J, 1, 2))
+    F = np.linalg.solve(J @ MiJt, np.einsum("knm,kn->km", MiJt, tau[:-1])[..., None])[..., 0]
     task = float(np.einsum("ki,ki->", F, np.diff(x, axis=0)))
     u, x0 = np.array(ch6.U), np.array(ch6.X0)
     U = 0.5 * stiffness * np.maximum((x - x0) @ u, 0.0) ** 2
