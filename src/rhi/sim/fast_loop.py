@@ -35,7 +35,7 @@ from rhi.sim.handle_kernel import (
     hand_period,
     hand_supported,
     handle_state,
-    wall_constants,
+    physical_constants,
 )
 from rhi.sim.io_kernel import log_row, sensors
 from rhi.terms_kernel import _jit
@@ -152,8 +152,7 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
 
 def _no_hand(m: int, wall) -> np.ndarray:
     """`hand_constants` of a hand that never pushes (stiffness and damping 0), with the physical wall (or none)."""
-    w = [1.0, *wall_constants(wall)] if wall is not None else [0.0] * (2 * m + 3)
-    return np.array([1, m, 0.0, 0.0, 0.0, 0.0, np.inf, *w, 0.0, *([0.0] * m)], dtype=float)
+    return np.array([1, m, 0.0, 0.0, 0.0, 0.0, np.inf, *physical_constants(wall, m), 0.0, *([0.0] * m)], dtype=float)
 
 
 def whole_args(controller) -> tuple:

@@ -6,8 +6,9 @@ environment's input): forward kinematics of a tree of one-DoF revolute/prismatic
 joints j supporting the frame, with the linear Jacobian column J_j = ω_j × (p − o_j) for a
 revolute joint and ω_j for a prismatic one (ω_j = R_j a_j the joint's world axis, o_j its
 origin); each joint's frame by `rhi.chain_kernel.joint_frame` (Pinocchio's conventions), without the
-inertias, the Jacobian's angular rows or the dynamics. `hand_step` is `rhi.sim.Hand.force` plus
-a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
+inertias, the Jacobian's angular rows or the dynamics; with the virtual environment's force (walls,
+fixtures and their sums). `hand_step` is `rhi.sim.Hand.force` (or `rhi.sim.MinimumJerkPalpation.force`)
+plus a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
 handle's applied force in the same call; `hand_period` runs a control period's physics steps with it,
 MuJoCo's step included (`rhi.sim.mjc`). Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
 """
@@ -170,17 +171,22 @@ def hand_constants(hand, wall) -> np.ndarray:
     (k − 1, m); for a `MinimumJerkPalpation` k = 0, the stroke's duration [s] in place of the speed, then
     its depth [m], start (m,) [m] and direction (m,).
     """
-    w = lambda m: [1.0, *wall_constants(wall)] if wall is not None else [0.0] * (2 * m + 3)  # noqa: E731
     if type(hand) is MinimumJerkPalpation:
         m = hand.start.shape[0]
         head = [0, m, 0.0, hand.duration, hand.stiffness, hand.damping, hand.max_force]
-        return np.array([*head, *w(m), hand.depth, *hand.start.tolist(), *hand.direction.tolist()], dtype=float)
+        return np.array([*head, *physical_constants(wall, m), hand.depth, *hand.start.tolist(), *hand.direction.tolist()],
+                        dtype=float)
     path = hand.path
     P = np.asarray(path.points, dtype=float)
     k, m = P.shape
     head = [k, m, path.start, path.speed, hand.stiffness, hand.damping,
             np.inf if hand.max_force is None else hand.max_force]
-    return np.concatenate([head, w(m), path._s, P.ravel(), np.ravel(path._u)]).astype(float)
+    return np.concatenate([head, physical_constants(wall, m), path._s, P.ravel(), np.ravel(path._u)]).astype(float)
+
+
+def physical_constants(wall, m: int) -> list[float]:
+    """The physical wall's part of `hand_constants`: its flag and `wall_constants` (zeros without one)."""
+    return [1.0, *wall_constants(wall)] if wall is not None else [0.0] * (2 * m + 3)
 
 
 def hand_supported(hand, wall, m: int) -> bool:
@@ -200,9 +206,9 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
 
     First adds the user's work of the previous step, acc[1] · F_h·ẋ (F the previous step's hand
     force, ẋ the handle velocity now, acc[1] the timestep) to acc[0] when acc[2] is nonzero; then
-    F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) at the reference x_r, ẋ_r of the path at time t (saturated
-    at max |F_h|), as `rhi.sim.Hand.force`, plus the wall's −max(K_e d + B_e ḋ, 0) n while
-    d = nᵀ(x − point) > 0, as `rhi.sim.Wall.force`.
+    F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) at the reference x_r, ẋ_r of the path (or the stroke) at time t
+    (saturated at max |F_h|), as `rhi.sim.Hand.force` (`MinimumJerkPalpation.force`), plus the wall's
+    −max(K_e d + B_e ḋ, 0) n while d = nᵀ(x − point) > 0, as `rhi.sim.Wall.force`.
 
     Args:
         t: time [s].
