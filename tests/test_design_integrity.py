@@ -63,6 +63,65 @@ def test_checkpoint_round_trip_and_integrity(tmp_path):
         EvalCache(path, tag="problem-B")
 
 
+def _rewrite(path: Path, edit) -> None:
+    """Apply `edit` to the checkpoint's results and store it with a valid checksum (a deliberate edit)."""
+    from rhi.design.checkpoint import _digest
+
+    blob = json.loads(path.read_text())
+    edit(blob["results"])
+    blob["sha256"] = _digest(blob["tag"], blob["results"])
+    path.write_text(json.dumps(blob))
+
+
+def test_checkpoint_values_are_checked_not_only_its_checksum(tmp_path):
+    path = tmp_path / "ck.json"
+    serial = lambda f, xs: [f(x) for x in xs]  # noqa: E731
+    fn = lambda x: {"C2": float(x[0]) * 2.0, "coverage": 1.0}  # noqa: E731
+    _cache(path)
+    _rewrite(path, lambda r: r[next(iter(r))].__setitem__("C2", 99.0))  # a wrong value, checksum recomputed
+    c = EvalCache(path, tag="problem-A")  # 3 entries, 3 spot checks: the edited one is recomputed
+    with pytest.raises(InvalidInput, match="checkpoint: .* recomputes to"):
+        c.map(fn, [[0.5]], serial)
+    for edit, match in [(lambda r: r[next(iter(r))].pop("C2"), "has fields"),
+                        (lambda r: r.__setitem__("zz", {"C2": 1.0, "coverage": 1.0}), "not a design vector"),
+                        (lambda r: r.__setitem__(next(iter(r)), [1, 2]), "not a record of numbers"),
+                        (lambda r: r.__setitem__("0x1p-1,0x1p-1", {"C2": 1.0, "coverage": 1.0}), "of 1 values")]:
+        _cache(path)
+        _rewrite(path, edit)
+        with pytest.raises(InvalidInput, match=f"checkpoint: .*{match}"):
+            EvalCache(path, tag="problem-A")
+    _cache(path)  # an honest file replays (its spot checks pass)
+    c = EvalCache(path, tag="problem-A")
+    assert c.map(fn, [[0.1], [0.2]], serial) == [fn([0.1]), fn([0.2])] and c.hits == 2
+
+
+WRITER = """
+import sys
+import numpy as np
+from rhi.design import EvalCache
+path, me = sys.argv[1], int(sys.argv[2])
+serial = lambda f, xs: [f(x) for x in xs]
+for i in range(40):
+    c = EvalCache(path, tag="shared", spot_checks=0)
+    c.map(lambda x: {"v": float(x[0])}, [[me * 1000.0 + i]], serial)
+"""
+
+
+def test_two_writers_of_one_checkpoint_both_finish_and_leave_a_valid_file(tmp_path):
+    """The first-run crash: two experiments saving one checkpoint at once (the fixed `.tmp` name raced)."""
+    path = tmp_path / "shared.json"
+    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    procs = [subprocess.Popen([sys.executable, "-c", WRITER, str(path), str(k)], env=env, stderr=subprocess.PIPE,
+                              text=True) for k in (1, 2)]
+    errs = [p.communicate(timeout=120)[1] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], errs
+    data = EvalCache(path, tag="shared").data  # loads: schema, checksum and entries valid
+    values = {r["v"] for r in data.values()}
+    assert values <= {k * 1000.0 + i for k in (1, 2) for i in range(40)}
+    assert {1039.0, 2039.0} & values and len(values) >= 40  # each save merges what the other wrote
+    assert not list(tmp_path.glob("*.tmp"))  # no temporary file left behind
+
+
 def _alive(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]

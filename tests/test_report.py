@@ -172,3 +172,21 @@ def test_packaged_timings_order_a_first_run():
         times = rep._previous_times(rep.TIMINGS.parent / "no such folder", mode)
         assert {s.name for s in rep.STEPS} <= set(times) and all(v >= 0 for v in times.values())
     assert rep._previous_times(rep.TIMINGS.parent / "no such folder", "full")["beyond.passivity"] > 100
+
+
+def test_a_failed_reproduction_ends_with_one_line_naming_the_step(tmp_path, monkeypatch, capsys):
+    """A failing experiment: `rhi experiment` exits 2 with one line naming it and saying that re-running resumes."""
+    import dataclasses
+
+    from rhi.cli import main
+    from rhi.report import reproduce as rep
+
+    step = next(s for s in rep.STEPS if s.name == "ch7.example_3dof")
+    monkeypatch.setattr(rep, "STEPS", [dataclasses.replace(step, quick={"steps": -1})])
+    assert main(["experiment", "ch7.example_3dof", "--quick", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("rhi: error: reproduce: ch7.example_3dof failed (")
+    assert "re-running the same command resumes" in err[0]
+    assert "Traceback" in (tmp_path / "o" / "reproduce-error.log").read_text()
+    with pytest.raises(InvalidInput, match="out: cannot write into /proc/rhi"):  # refused before anything runs
+        rep.reproduce("/proc/rhi/out", quick=True, experiment="ch7.example_3dof")

@@ -217,13 +217,17 @@ def optimize(
     if refine:
         x0s = [x_best] + [x for x in _starts(np.array(seen_x), np.array(seen_f), lo, hi, starts, separation)
                           if np.max(np.abs((x - x_best) / np.where(hi > lo, hi - lo, 1.0))) >= separation][:starts - 1]
-        rcache = EvalCache(None if checkpoint is None else str(checkpoint) + ".refine", tag + "|refine")
+        # a Nelder-Mead run is costly to recompute: its entries are checked through the best one below
+        rcache = EvalCache(None if checkpoint is None else str(checkpoint) + ".refine", tag + "|refine", spot_checks=0)
         polished = rcache.map(functools.partial(_nelder_mead, problem, which), x0s, ex.map)
         n_refine = sum(r["nfev"] for r in polished)
         best = min(range(len(polished)), key=lambda i: (polished[i]["fun"], i))
         if polished[best]["fun"] < de.fun:
             x_best = np.array(polished[best]["x"])
+            rcache.confirm(x0s[best], {**polished[best], "fun": -evaluate(problem, x_best)[which]})
+    values = evaluate(problem, x_best)
+    cache.confirm(x_best, values)  # the optimum's entry, if the checkpoint held it, must be true
     if progress:
         progress(total, total)
-    return Optimum(which, x_best, problem.params(x_best), evaluate(problem, x_best), np.asarray(de.x, dtype=float),
+    return Optimum(which, x_best, problem.params(x_best), values, np.asarray(de.x, dtype=float),
                    len(cache) + n_refine, np.array(history))

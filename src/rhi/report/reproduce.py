@@ -15,7 +15,9 @@ import os
 import platform
 import resource
 import sys
+import tempfile
 import time
+import traceback
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
@@ -137,6 +139,29 @@ def _part_key(name: str, label: str) -> str:
     return f"{name}[{label}]"
 
 
+def _writable(out: Path) -> None:
+    """Create `out` and check that files can be written there, before any experiment runs."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as exc:
+        raise InvalidInput(f"out: cannot write into {out} ({exc.strerror or exc})") from None
+
+
+def _failed(task: str, exc: BaseException, out: Path) -> RhiError:
+    """The one-line error of a failed task; its traceback goes to out/reproduce-error.log."""
+    log = out / "reproduce-error.log"
+    try:
+        log.write_text("".join(traceback.format_exception(exc)))
+        where = f"traceback in {log}"
+    except OSError:
+        where = "no traceback written"
+    what = (str(exc).strip().splitlines() or [""])[0][:300]
+    return RhiError(f"reproduce: {task} failed ({type(exc).__name__}: {what}; {where}); re-running the same "
+                    f"command resumes from the finished design evaluations in {out / 'checkpoints'}")
+
+
 def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool = False,
               experiment: str | None = None, jobs: int | None = None) -> tuple[Path, list[Result]]:
     """Run the experiments (all, one chapter or one experiment) and write out/report.html + out/results.json.
@@ -152,7 +177,8 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
             longest first. With the Ray executor (`rhi.design.executors.configure`) the experiments run one at a time.
 
     Raises:
-        InvalidInput: an unknown chapter or experiment, or `jobs` not a positive integer.
+        InvalidInput: an unknown chapter or experiment, `jobs` not a positive integer, or `out` not writable.
+        RhiError: an experiment failed: one line naming it (its traceback in out/reproduce-error.log).
     """
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise InvalidInput(f"jobs: must be a positive integer or None, got {jobs!r}")
@@ -164,6 +190,7 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         if not steps:
             raise InvalidInput(f"experiment: unknown experiment {experiment!r}; available: {', '.join(experiments())}")
     out = Path(out)
+    _writable(out)
     if DEFAULTS["executor"] == "ray":  # the cluster parallelises the maps; one driver runs the experiments
         jobs = 1
     mode = "quick" if quick else "full"
@@ -202,8 +229,12 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
                     if s.progress:
                         sub = bar.add_task(f"  {s.chapter} {s.run.__name__}", total=None)
                         kwargs["progress"] = lambda k, n, sub=sub: bar.update(sub, completed=k, total=n)
-                    res = s.run(**kwargs)
-                    finished(s, res, _draw(s, res, out), time.perf_counter() - t_step, _cpu() - c_step)
+                    try:
+                        res = s.run(**kwargs)
+                        drawn = _draw(s, res, out)
+                    except Exception as exc:
+                        raise _failed(s.name, exc, out) from exc
+                    finished(s, res, drawn, time.perf_counter() - t_step, _cpu() - c_step)
         else:
             _parallel(steps, plans, quick, out, jobs, _previous_times(out, mode), finished, task_seconds, warmup)
     done: list[tuple[str, Result, dict]] = [(s.chapter, results[s.name], dict(figures[s.name])) for s in steps]
@@ -252,7 +283,10 @@ def _parallel(steps: list[Step], plans: dict[str, Plan], quick: bool, out: Path,
             outputs: dict[str, dict[int, Any]] = {name: {} for name in plans}
             spent: dict[str, list[float]] = {name: [0.0, 0.0] for name in plans}  # wall and CPU of the parts so far
             for warmed in wait(warming).done:
-                warmup[warming[warmed]] = round(warmed.result(), 2)
+                try:
+                    warmup[warming[warmed]] = round(warmed.result(), 2)
+                except Exception as exc:
+                    raise _failed(f"the warm-up of {warming[warmed]}", exc, out) from exc
             while queue or running:
                 while queue and len(running) < jobs:  # one task per free worker: the order decides late
                     _, kind, s, i = queue.pop(0)
@@ -265,7 +299,12 @@ def _parallel(steps: list[Step], plans: dict[str, Plan], quick: bool, out: Path,
                 done_now, _ = wait(running, return_when=FIRST_COMPLETED)
                 for fut in done_now:
                     kind, s, i = running.pop(fut)
-                    output, t_task, c_task = fut.result()
+                    try:
+                        output, t_task, c_task = fut.result()
+                    except Exception as exc:
+                        label = "merge" if kind == "merge" else plans[s.name].parts[i].label if kind == "part" else ""
+                        task = f"{s.name} ({label})" if label else s.name
+                        raise _failed(task, exc, out) from exc
                     if kind == "step":
                         finished(s, *output, t_task, c_task)
                         continue

@@ -172,7 +172,7 @@ def _full_design(ex, density, checkpoint_dir, progress, maxiter, popsize, k2) ->
     # Fig. 4.7: the four designs of §4.4
     designs = {}
     th_opts = {w: optimize(prob1, w, executor=ex, seed=0, maxiter=maxiter,
-                           checkpoint=checkpoint(checkpoint_dir, f"ch4_theta_{w}_K{k2:g}")) for w in ("C1", "C2")}
+                           checkpoint=checkpoint(checkpoint_dir, f"ch4_full_theta_{w}_K{k2:g}")) for w in ("C1", "C2")}
     for w, o in th_opts.items():
         designs[f"θz only, {w}"] = (prob1, o.x)
     for w, o in opts.items():
