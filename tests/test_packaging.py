@@ -14,7 +14,8 @@ import pytest
 import rhi
 
 ROOT = Path(__file__).resolve().parents[1]
-EXTRAS = ("mujoco", "psignifit", "statsmodels", "matplotlib", "viser", "ray", "pandas")  # not core dependencies
+# not core dependencies
+EXTRAS = ("mujoco", "psignifit", "statsmodels", "matplotlib", "viser", "ray", "pandas", "mcap", "pyarrow")
 HEAVY = (*EXTRAS, "scipy", "xacro", "rich")  # `import rhi.metrics` and the measures below need none of these
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rhi import __version__
+from rhi.cli_log import add_commands as add_log_commands
 from rhi.device import available_devices, device
 from rhi.device_measures import all_measures
 from rhi.errors import InvalidInput, LinkError, RhiError
@@ -284,7 +285,8 @@ def _join_negative(argv: list[str]) -> list[str]:
     return out
 
 
-_EXTRAS = {"mujoco": "sim", "psignifit": "analysis", "statsmodels": "analysis", "matplotlib": "plots", "viser": "view"}
+_EXTRAS = {"mujoco": "sim", "psignifit": "analysis", "statsmodels": "analysis", "matplotlib": "plots", "viser": "view",
+           "mcap": "logs", "pyarrow": "logs"}
 """The optional dependencies and the extra that installs each (pyproject.toml)."""
 
 
@@ -332,6 +334,7 @@ def main(argv: list[str] | None = None) -> int:
     d.set_defaults(func=_device_server)
     _add_run(sub)
     add_commands(sub, _floats)
+    add_log_commands(sub)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.func(args)

@@ -216,7 +216,8 @@ def run(
     N = None if duration is None else int(round(duration * rate))
     ms = getattr(getattr(getattr(link, "session", None), "teleop", None), "slave", None)
     ms = ms.m if ms is not None else 0
-    w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"), "rate": float(rate),
+    w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"),
+                                                "task_axes": getattr(dev, "task_axes", None), "rate": float(rate),
                                                 "source": type(link).__name__, "realtime": bool(realtime),
                                                 "spin": bool(spin)})
     c = w.cols

@@ -9,7 +9,10 @@ File format (``*.rhilog``, little-endian): the 8 bytes ``b"RHILOG1\n"``, a uint6
 length L, L bytes of UTF-8 JSON (``{"columns": [[name, width], ...], "meta": {...}}``,
 padded with spaces to a multiple of 8 bytes), then rows of float64, each the columns'
 widths summed. A reader takes the whole rows present (`Log.load`); events are in
-``<log>.events.jsonl``, one JSON object per line.
+``<log>.events.jsonl``, one JSON object per line; the writer's `close` ends that file with
+``{"fault": reason}`` after a fault and ``{"closed": rows}`` (a reader following a log still being
+written, `rhi.sim.log_export`, stops there). `Log.to_mcap` and `Log.to_parquet` write the log for
+Foxglove, PlotJuggler, pandas and polars (`rhi.sim.log_formats`).
 """
 
 from __future__ import annotations
@@ -24,12 +27,10 @@ from typing import Any
 import numpy as np
 
 from rhi.errors import InvalidInput
+from rhi.sim.log_formats import TIMING, write_log
 
 MAGIC = b"RHILOG1\n"
 
-#: Per-tick timing columns [s]: wall time since the run's start, read, controller step,
-#: write, whole tick, and how late the tick started against its absolute deadline.
-TIMING = ("wall", "t_read", "t_step", "t_write", "t_tick", "late")
 
 
 @dataclasses.dataclass
@@ -74,6 +75,7 @@ class Log:
         fault: why the run or the controller stopped, if it did.
         events: safety and other events, in order.
         extra: (N, ...) columns a `record` hook of `rhi.sim.simulate` added, by name (kept in memory).
+        meta: the run's description from the log file's header (device, task_axes, rate, source, ...).
     """
 
     t: np.ndarray
@@ -104,6 +106,7 @@ class Log:
     fault: str | None = None
     events: list[Event] = dataclasses.field(default_factory=list)
     extra: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    meta: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -118,20 +121,20 @@ class Log:
         out.update({k: v for k, v in self.extra.items() if np.asarray(v).size})
         return out
 
-    def to_csv(self, path) -> None:
-        """Write the log as CSV (one column per scalar, header names like q1, x1, F_hand2).
+    def to_csv(self, path) -> Path:
+        """Write the log as CSV (one column per scalar, header names like q1, x1, F_hand2; `rhi.sim.log_formats`).
 
         An empty log (no tick) writes the header only.
         """
-        cols, names = [], []
-        for name, v in self.columns().items():
-            v = np.asarray(v).reshape(len(v), -1)
-            cols.append(v)
-            names += [name] if v.shape[1] == 1 else [f"{name}{i + 1}" for i in range(v.shape[1])]
-        if not names:
-            names = ["t"]
-        data = np.hstack(cols) if cols else np.zeros((0, len(names)))
-        np.savetxt(path, data, delimiter=",", header=",".join(names), comments="")
+        return write_log(self, path, "csv")
+
+    def to_mcap(self, path) -> Path:
+        """Write the log as MCAP (JSON channels for Foxglove and PlotJuggler; see `rhi.sim.log_formats`)."""
+        return write_log(self, path, "mcap")
+
+    def to_parquet(self, path) -> Path:
+        """Write the log as Parquet (one float64 column per scalar, units in the column metadata)."""
+        return write_log(self, path, "parquet")
 
     def to_npz(self, path) -> None:
         """Write the log as compressed NPZ (one array per column; `fault` and `events` as JSON strings)."""
@@ -159,8 +162,51 @@ class Log:
         return _load_csv(p)
 
 
-def _events_path(path: Path) -> Path:
+def events_path(path: Path) -> Path:
+    """The events file beside the `.rhilog` at `path`."""
     return path.with_name(path.name + ".events.jsonl")
+
+
+def read_header(path: Path) -> tuple[list[tuple[str, int]], dict, int]:
+    """(columns [(name, width)], meta, byte offset of the first row) of the `.rhilog` at `path`.
+
+    Raises:
+        InvalidInput: the file is not a `.rhilog` or its header is damaged (naming the path).
+    """
+    with path.open("rb") as fh:
+        if fh.read(len(MAGIC)) != MAGIC:
+            raise InvalidInput(f"path: {str(path)!r} is not an rhi log (.rhilog)")
+        try:
+            (L,) = struct.unpack("<Q", fh.read(8))
+            hdr = json.loads(fh.read(L).decode())
+            columns = [(str(c), int(w)) for c, w in hdr["columns"]]
+            meta = dict(hdr.get("meta") or {})
+        except (ValueError, KeyError, TypeError, struct.error) as exc:
+            raise InvalidInput(f"path: {str(path)!r} has a damaged log header: {exc}") from None
+    return columns, meta, len(MAGIC) + 8 + L
+
+
+def parse_events(lines) -> tuple[list[Event], str | None, bool]:
+    """(events, the fault line's reason or None, whether the writer closed) from lines of an events file.
+
+    Lines cut by a crash and blank lines are skipped.
+    """
+    events: list[Event] = []
+    fault, closed = None, False
+    for line in lines:
+        if not line.strip():
+            continue
+        try:
+            d = json.loads(line)
+        except ValueError:
+            continue  # a line cut by a crash
+        if "fault" in d and len(d) == 1:
+            fault = d["fault"]
+        elif "closed" in d and len(d) == 1:
+            closed = True
+        else:
+            events.append(Event(**d))
+    return events, fault, closed
 
 
 def layout(n: int, m: int, m_slave: int = 0) -> list[tuple[str, int]]:
@@ -211,7 +257,7 @@ class LogWriter:
             try:
                 self.path.parent.mkdir(parents=True, exist_ok=True)
                 self._fh = self.path.open("wb")
-                self._ev = _events_path(self.path).open("w")
+                self._ev = events_path(self.path).open("w")
             except OSError as exc:
                 raise InvalidInput(f"log: cannot write {str(self.path)!r}: {exc}") from None
             hdr = json.dumps({"columns": self.columns, "meta": self.meta}).encode()
@@ -268,6 +314,7 @@ class LogWriter:
         if self._fh is not None and self._ev is not None:
             if self.fault is not None:
                 self._ev.write(json.dumps({"fault": self.fault}) + "\n")
+            self._ev.write(json.dumps({"closed": self.rows}) + "\n")
             self._fh.close()
             self._ev.close()
             self._fh = self._ev = None
@@ -279,7 +326,7 @@ class LogWriter:
             return _load_binary(self.path)
         data = np.vstack(self._chunks) if self._chunks else np.zeros((0, self.width))
         log = _from_array(data, self.columns)
-        log.events, log.fault = list(self.events), self.fault
+        log.events, log.fault, log.meta = list(self.events), self.fault, dict(self.meta)
         return log
 
 
@@ -298,33 +345,16 @@ def _from_array(data: np.ndarray, columns: list[tuple[str, int]]) -> Log:
 
 
 def _load_binary(path: Path) -> Log:
-    with path.open("rb") as fh:
-        fh.read(len(MAGIC))
-        (L,) = struct.unpack("<Q", fh.read(8))
-        try:
-            hdr = json.loads(fh.read(L).decode())
-            columns = [(str(c), int(w)) for c, w in hdr["columns"]]
-        except (ValueError, KeyError, TypeError) as exc:
-            raise InvalidInput(f"path: {str(path)!r} has a damaged log header: {exc}") from None
+    columns, meta, offset = read_header(path)
     width = sum(w for _, w in columns)
-    offset = len(MAGIC) + 8 + L
     rows = (path.stat().st_size - offset) // (8 * width)
     data = (np.memmap(path, dtype="<f8", mode="r", offset=offset, shape=(rows, width)) if rows
             else np.zeros((0, width)))
     log = _from_array(data, columns)
-    ev = _events_path(path)
+    log.meta = meta
+    ev = events_path(path)
     if ev.is_file():
-        for line in ev.read_text().splitlines():
-            if not line.strip():
-                continue
-            try:
-                d = json.loads(line)
-            except ValueError:
-                continue  # a line cut by a crash
-            if "fault" in d and len(d) == 1:
-                log.fault = d["fault"]
-            else:
-                log.events.append(Event(**d))
+        log.events, log.fault, _ = parse_events(ev.read_text().splitlines())
         if log.fault is None:
             faults = [e for e in log.events if e.kind not in ("clamp", "reset", "info")]
             log.fault = faults[0].detail if faults else None

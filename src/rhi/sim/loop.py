@@ -269,7 +269,8 @@ def simulate(
     n, m = plant.n, plant.m
     dev = getattr(controller, "device", plant.device)
     ms = teleop.slave.m if teleop is not None else 0
-    w = LogWriter(layout(n, m, ms), log, meta={"device": dev.name, "rate": float(rate), "source": "simulate"})
+    w = LogWriter(layout(n, m, ms), log,
+                  meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate), "source": "simulate"})
     c = w.cols
     # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `io_kernel.log_row`), the scalars
     # from work to alpha_pc, then seq, the timing columns and safety: one write each.
