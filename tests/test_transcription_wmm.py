@@ -1,0 +1,131 @@
+"""rhi's App. A controller against a second, independent transcription of the thesis's equations.
+
+`tests/wmm_transcription.py` transcribes eqs. A.5–A.21 step by step in plain NumPy from the thesis
+text (only the device model is shared: fk, the generalized Jacobian, limits, Mecanum geometry;
+∂J/∂q by finite differences). Each test drives the transcription in closed loop and, at sampled
+states along the run, asks rhi's `WeightedDistributionController` for its command at the *same*
+state: the two must agree to the stated tolerance. A planted error in either (a changed gain, a
+changed reading) makes them disagree, which `test_the_comparison_can_fail` checks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from wmm_transcription import Q0, Transcription, desired_circle, run
+
+from rhi.control.mobile import DMConfig, WeightedConfig, WeightedDistributionController
+from rhi.device import device
+
+#: Agreement of the commands [rad/s, m/s] at the same state: analytic vs finite-difference ∂J/∂q
+#: (step 1e-6) and two different routes to the weighted pseudoinverse.
+TOL_V = 1e-6
+
+
+@pytest.fixture(scope="module")
+def wmm():
+    return device("wmm")
+
+
+def _rhi(dev, **kw) -> WeightedDistributionController:
+    return WeightedDistributionController(dev, WeightedConfig(**{"dt": 0.01, "k_x": 10.0, "epsilon": 0.2, **kw}))
+
+
+def _compare(ctl: WeightedDistributionController, tr: Transcription, states, stage: str, target) -> dict[str, float]:
+    """Largest |rhi − transcription| of v, γ and η over the states (rhi's clipped commands are skipped)."""
+    dv = dg = de = 0.0
+    clipped = 0
+    for t, q in states:
+        xd, dxd = target(t)
+        mine = tr.command(q, t, xd, dxd, stage=stage)
+        cmd = ctl.step(t, q, xd, dxd, stage=stage)
+        if cmd.clipped:
+            clipped += 1
+            continue
+        dv = max(dv, float(np.abs(cmd.v - mine["v"]).max()))
+        if ctl.config.distribution == "weighted":
+            dg, de = max(dg, abs(cmd.gamma - mine["gamma"])), max(de, abs(cmd.eta - mine["eta"]))
+    return {"v": dv, "gamma": dg, "eta": de, "clipped": clipped, "n": len(states)}
+
+
+def test_tracking_A19_matches_the_transcription(wmm):
+    """§A.4.2 (Table A.1): proposed weighted distribution, literal reading (wheel-speed Jacobian, η of the arm-only
+    solution), along the whole 0.25 m circle including the 7–20 s where γ > 0."""
+    tr = Transcription(wmm)
+    x0 = wmm.fk(Q0)
+    out = run(tr, Q0, 40.0, lambda t: "track", lambda t: desired_circle(x0, t))
+    assert out["gamma"].max() > 0.5  # the base takes part: the comparison covers γ > 0
+    states = list(zip(out["t"][::8], out["q"][::8]))
+    d = _compare(_rhi(wmm), Transcription(wmm), states, "track", lambda t: desired_circle(x0, t))
+    assert d["clipped"] == 0
+    assert d["v"] < TOL_V and d["gamma"] < 1e-9 and d["eta"] < 1e-9, d
+
+
+def test_traditional_pinv_matches_the_transcription(wmm):
+    """§A.4.2's traditional controller J⁺ = Jᵀ(JJᵀ)⁻¹ is the transcription at W_x = I: the wheel-speed Jacobian
+    (``pinv``, as printed) and the generalized one (``pinv_generalized``, base velocities mapped by P⁺)."""
+    x0 = wmm.fk(Q0)
+    rng = np.random.default_rng(3)
+    states = [(t, Q0 + np.r_[rng.normal(scale=0.05, size=3), rng.normal(scale=0.1, size=7)]) for t in (0.0, 9.0, 21.0)]
+    for dist, jac in (("pinv", "wheel"), ("pinv_generalized", "generalized")):
+        ctl = _rhi(wmm, distribution=dist)
+        for t, q in states:
+            dxd = desired_circle(x0, t)[1]
+            xd = wmm.fk(q) + 0.002  # a small error: no bound is reached
+            Jq, P, J = Transcription(wmm, jacobian=jac).jacobians(q)
+            v = J.T @ np.linalg.solve(J @ J.T, dxd + 10.0 * (xd - wmm.fk(q)))
+            dq = np.r_[P @ v[:4], v[4:]] if jac == "wheel" else v
+            assert np.abs(ctl.step(t, q, xd, dxd).dq - dq).max() < 1e-9
+
+
+@pytest.mark.parametrize(("u", "projector"), [((1, 0, 0), "weighted"), ((1, 0, 0), "generalized"),
+                                              ((0, 0, 1), "generalized")])
+def test_dm_enhancement_A17_A20_matches_the_transcription(wmm, u, projector):
+    """§A.4.3: Cartesian phase (A.17–A.18, z only) and null-space phase (A.19–A.20) along u, k_C = 0.01,
+    k_N = 0.2, W_τ = diag(1, 1, 1, 1, 2.5, 2.5, 2.5); rhi's "generalized" projector is the transcription's
+    "orthogonal" (I − J_q⁺J_q, eq. A.7 with Q = I)."""
+    tr = Transcription(wmm, u=u, null_projector="weighted" if projector == "weighted" else "orthogonal")
+    x0 = wmm.fk(Q0)
+    a = run(tr, Q0, 2.0, lambda t: "dm_cartesian", lambda t: (x0, np.zeros(3)))
+    q1 = a["q"][-1]
+    x1 = wmm.fk(q1)
+    b = run(tr, q1, 3.0, lambda t: "dm_null", lambda t: (x1, np.zeros(3)))
+    ctl = _rhi(wmm, null_space=projector, dm=DMConfig(u=u, k_c=0.01, k_n=0.2))
+    assert abs(ctl.dm(Q0) - tr.H2(Q0)) < 1e-12
+    d1 = _compare(ctl, tr, list(zip(a["t"][::25], a["q"][::25])), "dm_cartesian", lambda t: (x0, np.zeros(3)))
+    d2 = _compare(ctl, tr, list(zip(b["t"][::25], b["q"][::25])), "dm_null", lambda t: (x1, np.zeros(3)))
+    for d in (d1, d2):
+        assert d["clipped"] == 0 and d["v"] < TOL_V, d
+    assert tr.H2(b["q"][-1]) > tr.H2(q1)  # the null-space phase does raise DM: the comparison is not at rest
+
+
+def test_dm_gradient_A9_reading(wmm):
+    """Eq. A.9 prints the factor −½ H₂^(−3/2); the derivative of H₂ = s^(−1/2) has −½ s^(−3/2) = −½ H₂³.
+    rhi uses the latter; the two differ by H₂^4.5 (≈ 420 at DM_x = 3.8), so the readings are distinguishable."""
+    tr_exact = Transcription(wmm, u=(1, 0, 0))
+    tr_print = Transcription(wmm, u=(1, 0, 0), grad_factor="printed")
+    ctl = _rhi(wmm, dm=DMConfig(u=(1, 0, 0)))
+    from rhi.control.mobile.measures import dm_gradient
+    terms = wmm.terms(Q0)
+    g_rhi = dm_gradient(terms.J[:, 3:], terms.dJ[:, 3:, 3:], (1, 0, 0), ctl.config.dm.torque_limits)
+    h = tr_exact.H2(Q0)
+    assert np.allclose(g_rhi, tr_exact.grad_H2(Q0), rtol=1e-6, atol=1e-8)
+    assert np.allclose(tr_print.grad_H2(Q0) * h**4.5, tr_exact.grad_H2(Q0), rtol=1e-9)
+    # the finite difference of H₂ itself decides which factor is the derivative
+    e = np.zeros(wmm.n)
+    e[4] = 1e-6
+    fd = (tr_exact.H2(Q0 + e) - tr_exact.H2(Q0 - e)) / 2e-6
+    assert fd == pytest.approx(tr_exact.grad_H2(Q0)[1], rel=1e-5)
+
+
+def test_the_comparison_can_fail(wmm):
+    """The comparison detects a planted difference: another ε, another η reading, another Jacobian."""
+    tr = Transcription(wmm)
+    x0 = wmm.fk(Q0)
+    out = run(tr, Q0, 12.0, lambda t: "track", lambda t: desired_circle(x0, t))
+    states = list(zip(out["t"][700::40], out["q"][700::40]))  # 7–12 s: γ > 0
+    target = lambda t: desired_circle(x0, t)  # noqa: E731
+    assert _compare(_rhi(wmm, epsilon=0.3), Transcription(wmm), states, "track", target)["v"] > 1e-3
+    assert _compare(_rhi(wmm), Transcription(wmm, jacobian="generalized"), states, "track", target)["v"] > 1e-3
+    prev = Transcription(wmm, eta_from="previous")
+    assert _compare(_rhi(wmm), prev, states, "track", target)["gamma"] > 1e-3
