@@ -32,7 +32,7 @@ def _rhi(dev, **kw) -> WeightedDistributionController:
 
 
 def _compare(ctl: WeightedDistributionController, tr: Transcription, states, stage: str, target) -> dict[str, float]:
-    """Largest |rhi − transcription| of v, γ and η over the states (rhi's clipped commands are skipped)."""
+    """Largest |rhi − transcription| of the generalized command q̇, γ and η over the states (rhi's clipped commands are skipped)."""
     dv = dg = de = 0.0
     clipped = 0
     for t, q in states:
@@ -42,7 +42,7 @@ def _compare(ctl: WeightedDistributionController, tr: Transcription, states, sta
         if cmd.clipped:
             clipped += 1
             continue
-        dv = max(dv, float(np.abs(cmd.v - mine["v"]).max()))
+        dv = max(dv, float(np.abs(cmd.dq - mine["dq"]).max()))
         if ctl.config.distribution == "weighted":
             dg, de = max(dg, abs(cmd.gamma - mine["gamma"])), max(de, abs(cmd.eta - mine["eta"]))
     return {"v": dv, "gamma": dg, "eta": de, "clipped": clipped, "n": len(states)}
