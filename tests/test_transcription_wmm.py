@@ -129,3 +129,36 @@ def test_the_comparison_can_fail(wmm):
     assert _compare(_rhi(wmm), Transcription(wmm, jacobian="generalized"), states, "track", target)["v"] > 1e-3
     prev = Transcription(wmm, eta_from="previous")
     assert _compare(_rhi(wmm), prev, states, "track", target)["gamma"] > 1e-3
+
+
+def test_alternative_readings_match_the_transcription(wmm):
+    """The two readings rhi offers besides the literal one agree with the transcription's: W_x on the generalized
+    Jacobian (``weighting="generalized"``) along the circle, and eq. A.9's factor as printed in the Cartesian phase."""
+    x0 = wmm.fk(Q0)
+    tr = Transcription(wmm, jacobian="generalized")
+    out = run(tr, Q0, 12.0, lambda t: "track", lambda t: desired_circle(x0, t))
+    assert out["gamma"].max() > 0.2
+    d = _compare(_rhi(wmm, weighting="generalized"), Transcription(wmm, jacobian="generalized"),
+                 list(zip(out["t"][::20], out["q"][::20])), "track", lambda t: desired_circle(x0, t))
+    assert d["clipped"] == 0 and d["v"] < TOL_V and d["gamma"] < 1e-9, d
+    tr = Transcription(wmm, u=(1, 0, 0), grad_factor="printed")
+    a = run(tr, Q0, 1.0, lambda t: "dm_cartesian", lambda t: (x0, np.zeros(3)))
+    ctl = _rhi(wmm, dm=DMConfig(u=(1, 0, 0), gradient="printed"))
+    d = _compare(ctl, Transcription(wmm, u=(1, 0, 0), grad_factor="printed"), list(zip(a["t"][::20], a["q"][::20])),
+                 "dm_cartesian", lambda t: (x0, np.zeros(3)))
+    assert d["v"] < 1e-9 and np.abs(a["dq"]).max() > 0, d
+
+
+def test_self_motion_at_a_joint_bound_keeps_the_task(wmm):
+    """At the elbow's position bound (q4 = 2.5 rad, reached by the z enhancement after ≈ 27 s) the DM gradient
+    pushes past the bound: rhi scales the self-motion down instead of clipping the joint, so J q̇ = ẋ_c still
+    holds (clipping let the end effector drift 24 cm upwards while DM was 'enhanced')."""
+    q = np.array([0.3499, 0.0278, 0.0232, -0.0232, -0.2782, 0.1164, 2.5 - 1e-5, -0.0199, -0.5612, 0.0])
+    x = wmm.fk(q)
+    ctl = _rhi(wmm, dm=DMConfig(u=(0, 0, 1)), null_space="generalized")
+    tr = Transcription(wmm, u=(0, 0, 1), null_projector="orthogonal")
+    free = tr.command(q, 0.0, x, np.zeros(3), stage="dm_null")["dq"]
+    assert free[6] * 0.01 > 1e-5  # the unbounded law would drive q4 past 2.5 within one sample
+    cmd = ctl.step(0.0, q, x, np.zeros(3), stage="dm_null")
+    assert cmd.clipped and q[6] + cmd.dq[6] * 0.01 <= 2.5 + 1e-12
+    assert np.abs(wmm.jacobian(q) @ cmd.dq).max() < 1e-9  # the held position is kept: J q̇ = 0

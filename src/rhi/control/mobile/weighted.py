@@ -25,6 +25,7 @@ from rhi.control.mobile.bounds import (
     JointBounds,
     check_dt,
     joint_bounds,
+    scale_factor,
     velocity_bounds_unchecked,
 )
 from rhi.control.mobile.kinematics import check_base, check_vector, gram_inverse
@@ -126,6 +127,8 @@ class DMConfig:
         k_n: null-space gain k_N of eq. A.20 (thesis k_H = 0.2).
         axes: Cartesian components optimised by eq. A.18 (thesis: "z" only); the others get 0.
         x_min, x_max: (len(axes),) position bounds of those components [m] (thesis z ∈ [0.36, 0.56]).
+        gradient: eq. A.9's factor: "exact" (−½ s^(−3/2) = −½ H₂³, the derivative of H₂) or
+            "printed" (−½ H₂^(−3/2) as eq. A.9 prints it: the exact gradient times H₂^(−4.5)).
     """
 
     u: tuple[float, ...] = (0.0, 0.0, 1.0)
@@ -135,8 +138,11 @@ class DMConfig:
     axes: str = "z"
     x_min: tuple[float, ...] = (0.36,)
     x_max: tuple[float, ...] = (0.56,)
+    gradient: Literal["exact", "printed"] = "exact"
 
     def __post_init__(self) -> None:
+        if self.gradient not in ("exact", "printed"):
+            raise InvalidInput(f"gradient: expected 'exact' or 'printed', got {self.gradient!r}")
         object.__setattr__(self, "u", tuple(unit_vector("u", self.u, 3)))
         t = as_array("torque_limits", self.torque_limits, ndim_min=1)
         if (t <= 0).any():
@@ -151,6 +157,11 @@ class DMConfig:
             v = getattr(self, name)
             if not math.isfinite(v) or v < 0:
                 raise InvalidInput(f"{name}: must be finite and >= 0, got {v!r}")
+
+
+def _factor(d: DMConfig, h: float) -> float:
+    """1 for the exact A.9 gradient, H₂^(−4.5) for the factor as printed (see `DMConfig.gradient`)."""
+    return 1.0 if d.gradient == "exact" else h**-4.5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -168,6 +179,9 @@ class WeightedConfig:
         null_space: projector of the DM null-space stage (see
             `WeightedDistributionController._null_motion`): "generalized" (default; reproduces
             the thesis's §A.4.3 numbers) or "weighted" (eq. A.19 as printed).
+        weighting: the Jacobian W_x weights (``distribution="weighted"``): "wheel" (eqs. A.11–A.12
+            as printed: J = [J_b P, J_m], b = 4 wheel speeds) or "generalized" (J_q = [J_b, J_m],
+            n_b = 3 base velocities; §B.2: for a holonomic base both Jacobians "can be utilized").
         dm: directional manipulability enhancement, or None.
         bounds: joint bounds of the generalized coordinates [x_b, y_b, θ_b, q_m]; None: the device's.
         geometry: Mecanum geometry {wheel_radius, half_length, half_width} [m]; None: the device's.
@@ -178,6 +192,7 @@ class WeightedConfig:
     epsilon: float = 0.2
     distribution: Literal["weighted", "pinv", "pinv_generalized"] = "weighted"
     null_space: Literal["generalized", "weighted"] = "generalized"
+    weighting: Literal["wheel", "generalized"] = "wheel"
     dm: DMConfig | None = None
     bounds: JointBounds | None = None
     geometry: dict | None = None
@@ -187,6 +202,8 @@ class WeightedConfig:
         if self.distribution not in ("weighted", "pinv", "pinv_generalized"):
             raise InvalidInput(
                 f"distribution: expected 'weighted', 'pinv' or 'pinv_generalized', got {self.distribution!r}")
+        if self.weighting not in ("wheel", "generalized"):
+            raise InvalidInput(f"weighting: expected 'wheel' or 'generalized', got {self.weighting!r}")
         if self.null_space not in ("generalized", "weighted"):
             raise InvalidInput(f"null_space: expected 'generalized' or 'weighted', got {self.null_space!r}")
         if not math.isfinite(self.k_x) or self.k_x < 0:
@@ -205,7 +222,8 @@ class VelocityCommand:
         gamma: motion-distribution weight γ (A.14).
         eta: η of eq. A.15 (arm-only demand).
         dm: directional manipulability H₂ of the arm (NaN without a DMConfig) [N].
-        clipped: whether a velocity bound had to be enforced on the command.
+        clipped: whether a velocity bound had to be enforced on the command (the self-motion
+            scaled down, or the command clipped).
     """
 
     v: np.ndarray
@@ -229,8 +247,11 @@ class WeightedDistributionController:
       of the optimised axes, 0 otherwise (A.17–A.18);
     * ``"dm_null"``: tracking plus (I − J†J) v_n, v_n = k_N [0; ∇_{q_m}H₂ᵀ] (A.19–A.20).
 
-    The command is finally kept within the arm's local velocity bounds (A.13) and the
-    base's velocity bounds (Table B.1) by clipping, which `VelocityCommand.clipped` reports.
+    The command is kept within the arm's local velocity bounds (A.13) and the base's
+    velocity bounds (Table B.1), which the thesis's law does not enforce: first the
+    self-motion of "dm_null" is scaled by the largest s ∈ [0, 1] that fits them (the task
+    stays exact), then what still exceeds a bound is clipped; `VelocityCommand.clipped`
+    reports either.
 
     Args:
         device: the mobile manipulator (``rhi.device("wmm")``).
@@ -296,6 +317,19 @@ class WeightedDistributionController:
         vq = vq - Jq.T @ (Gi @ (Jq @ vq)) if Gi is not None else vq - np.linalg.pinv(Jq) @ (Jq @ vq)
         return np.concatenate([np.linalg.pinv(P) @ vq[:3], vq[3:]])
 
+    def _weighted_pinv(self, gamma: float, J, Jq, P) -> np.ndarray:
+        """J† of eq. A.11 at γ as a map to [wheel speeds; arm rates] (11, 3), for ``config.weighting``.
+
+        "wheel": W_x = diag(γ I_4, (1 − γ) I_m) on J = [J_b P, J_m] (eqs. A.11–A.12 as printed);
+        "generalized": W_x = diag(γ I_3, (1 − γ) I_m) on J_q = [J_b, J_m], the base part sent
+        to the wheels as P⁺ q̇_b.
+        """
+        m = self.m
+        if self.config.weighting == "wheel":
+            return weighted_pinv_psd(J, motion_weights(gamma, self.n_wheels, m))
+        Jg = weighted_pinv_psd(Jq, motion_weights(gamma, 3, m))
+        return np.vstack([np.linalg.pinv(P) @ Jg[:3], Jg[3:]])
+
     def step(self, t: float, q, x_des=None, dx_des=None, *, stage: str = "track") -> VelocityCommand:
         """One control step.
 
@@ -324,7 +358,7 @@ class WeightedDistributionController:
         grad = None
         if stage == "dm_cartesian":
             d, h, Jm, dJm = self._dm_terms(terms)
-            gx = dm_cartesian_gradient(Jm, dJm, d.u, d.torque_limits)  # A.10
+            gx = dm_cartesian_gradient(Jm, dJm, d.u, d.torque_limits) * _factor(d, h)  # A.10
             dx = np.zeros(3)
             for i, ax in enumerate(d.axes):
                 k = "xyz".index(ax)
@@ -336,7 +370,7 @@ class WeightedDistributionController:
             dx = dx_des + c.k_x * (x_des - x)
             if stage == "dm_null":
                 d, h, Jm, dJm = self._dm_terms(terms)
-                grad = d.k_n * dm_gradient(Jm, dJm, d.u, d.torque_limits)  # v_n of A.20 (arm part), A.9
+                grad = d.k_n * dm_gradient(Jm, dJm, d.u, d.torque_limits) * _factor(d, h)  # v_n of A.20, A.9
             elif c.dm is not None:
                 h = float(dm_value(Jq[:, 3:], c.dm.u, c.dm.torque_limits))
         vlo, vhi = velocity_bounds_unchecked(q, self.bounds, c.dt)
@@ -346,21 +380,26 @@ class WeightedDistributionController:
         elif c.distribution == "pinv_generalized":
             Jp = np.vstack([np.linalg.pinv(P) @ np.eye(3, self.device.n), np.eye(self.device.n)[3:]]) @ np.linalg.pinv(Jq)
         else:
-            J0 = weighted_pinv_psd(J, motion_weights(0.0, nw, m))
+            J0 = self._weighted_pinv(0.0, J, Jq, P)
             v0 = J0 @ dx
             if grad is not None:
                 v0 = v0 + self._null_motion(J, Jq, P, J0, grad)
             eta = float(distribution_ratio(v0[nw:], vlo[3:], vhi[3:]))
             gamma = float(distribution_gamma(eta, c.epsilon))
-            Jp = J0 if gamma == 0.0 else weighted_pinv_psd(J, motion_weights(gamma, nw, m))
+            Jp = J0 if gamma == 0.0 else self._weighted_pinv(gamma, J, Jq, P)
         v = Jp @ dx
+        null_scale = 1.0
         if grad is not None:
-            v = v + self._null_motion(J, Jq, P, Jp, grad)  # A.19
+            vn = self._null_motion(J, Jq, P, Jp, grad)  # A.19
+            # the self-motion is scaled down (as App. B's β, Fig. B.4) where it would drive a joint past
+            # its bounds (A.13): clipping it instead would break the task (J v ≠ ẋ)
+            null_scale, _ = scale_factor(np.r_[P @ vn[:nw], vn[nw:]], np.r_[P @ v[:nw], v[nw:]], lo=vlo, hi=vhi)
+            v = v + null_scale * vn
         # enforce the bounds: arm rates (A.13), base generalized velocity (Table B.1)
         v_arm = np.clip(v[nw:], vlo[3:], vhi[3:])
         dqb = P @ v[:nw]
         ratio = np.max(np.abs(dqb) / np.maximum(np.abs(np.where(dqb >= 0, vhi[:3], vlo[:3])), EPS))
-        clipped = bool(np.any(v_arm != v[nw:]) or ratio > 1.0)
+        clipped = bool(np.any(v_arm != v[nw:]) or ratio > 1.0 or null_scale < 1.0)
         if ratio > 1.0:
             v[:nw] /= ratio
             dqb = dqb / ratio
