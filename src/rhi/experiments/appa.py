@@ -18,6 +18,7 @@ from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
+from scipy.optimize import minimize
 
 from rhi import thesis as T
 from rhi.control.mobile import W_TAU_LIMITS, DMConfig, WeightedConfig, WeightedDistributionController
@@ -64,15 +65,23 @@ def tracking(
     slip = slip if slip is not None else SlipModel()
     dev = device("wmm")
     traj = circle(dev.fk(Q0), radius, duration=duration, dt=dt)
-    methods: dict[str, Literal["weighted", "pinv", "pinv_generalized"]] = {
-        "proposed": "weighted", "traditional": "pinv_generalized", "traditional_wheel_speeds": "pinv"}
+    methods: dict[str, tuple[Literal["weighted", "pinv", "pinv_generalized"], Literal["wheel", "generalized"]]] = {
+        "proposed": ("weighted", "wheel"), "traditional": ("pinv_generalized", "wheel"),
+        "traditional_wheel_speeds": ("pinv", "wheel"), "proposed_generalized": ("weighted", "generalized")}
     prog = ProgressChain(progress, traj.t.size * len(methods))
     logs: dict[str, MobileLog] = {}
-    for name, dist in methods.items():
-        ctl = WeightedDistributionController(dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, distribution=dist))
+    for name, (dist, weighting) in methods.items():
+        ctl = WeightedDistributionController(dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, distribution=dist,
+                                                                 weighting=weighting))
         logs[name] = simulate_mobile(ctl, traj, Q0, plant=MobilePlant(dev, slip=slip),
                                      progress=prog.run(traj.t.size))
     thesis = {m: {**T.TABLE_A_1[m], "err": T.ERROR_A[m]} for m in ("proposed", "traditional")}
+    thesis["proposed_generalized"] = thesis["proposed"]
+    notes_m = {"traditional_wheel_speeds": "J⁺ of the wheel-speed Jacobian [J_b P, J_m] (wheel speeds in rad/s): "
+                                          "not in the thesis",
+               "proposed_generalized": "reading: W_x = diag(γI₃, (1−γ)I₇) on J_q = [J_b, J_m] (§B.2: for a "
+                                       "holonomic base both Jacobians 'can be utilized'); A.12 as printed weights "
+                                       "the 4 wheel speeds"}
     comps = (("v_xb", CM, "cm/s"), ("v_yb", CM, "cm/s"), ("ω_b", DEG, "°/s"))
     rows, err_rows = [], []
     arrays: dict[str, np.ndarray] = {"t": traj.t, "x_des": traj.x}
@@ -82,11 +91,16 @@ def tracking(
         stats[name] = st
         th = thesis.get(name)
         label = name.replace("_", " ")
-        note = "" if name != "traditional_wheel_speeds" else \
-            "J⁺ of the wheel-speed Jacobian [J_b P, J_m] (wheel speeds in rad/s): not in the thesis"
+        note = notes_m.get(name, "")
         for i, (c, scale, unit) in enumerate(comps):
             rows.append(Row(f"{label}: max |{c}|", th["max"][i] if th else None, float(st["max"][i] * scale), unit, note))
             rows.append(Row(f"{label}: RMS {c}", th["rms"][i] if th else None, float(st["rms"][i] * scale), unit, note))
+        if name.startswith("proposed"):
+            moving = np.any(np.abs(log.base_velocity) > 1e-9, axis=1)
+            rms_m = np.sqrt(np.mean(log.base_velocity[moving] ** 2, axis=0)) if moving.any() else np.full(3, np.nan)
+            for i, (c, scale, unit) in enumerate(comps):
+                rows.append(Row(f"{label}: RMS {c} over the base's motion only", th["rms"][i], float(rms_m[i] * scale),
+                                unit, "reading: Table A.1's RMS over the samples where the base is commanded"))
         emax = np.abs(log.error).max(axis=0) * CM
         for i, ax in enumerate("xy"):
             err_rows.append(Row(f"{label}: max tracking error {ax}", th["err"][i] if th else None, float(emax[i]), "cm",
@@ -120,8 +134,20 @@ def tracking(
             "columns by R/4 ≈ 0.02 m/rad and already favours the arm: a plain pseudoinverse's split depends on "
             "the base's units, which is what W_x makes explicit.",
             "Mecanum geometry (R, l1, l2) and the base inertia are flagged estimates (models/wmm/README.md).",
+            _table_a1_bound(duration),
         ],
     )
+
+
+def _table_a1_bound(duration: float) -> str:
+    """The note on Table A.1's own consistency: the largest RMS its max and the base's motion interval allow."""
+    on = float(T.BASE_INTERVAL_A[1]) - float(T.BASE_INTERVAL_A[0])
+    mx, rms = float(T.TABLE_A_1["proposed"]["max"][0]), float(T.TABLE_A_1["proposed"]["rms"][0])
+    return (f"Thesis arithmetic: with max |v_xb| = {mx} cm/s and the base moving only {on:.2f} s (7.15–20.35 s), the RMS "
+            f"over a {duration:g} s run is at most {mx} × √({on:.2f}/{duration:g}) = {mx * math.sqrt(on / duration):.2f} "
+            f"cm/s < the printed {rms}: Table A.1's proposed RMS is over a run ≤ {on * (mx / rms) ** 2:.1f} s or over "
+            "another window (the 'over the base's motion only' rows), while the traditional RMS (base always moving) "
+            "is over the run.")
 
 
 def _dm_phase(ctl: WeightedDistributionController, q0: np.ndarray, t_cart: float, t_null: float, dt: float,
@@ -175,19 +201,23 @@ def dm_enhancement(
 def dm_enhancement_plan(dt: float = 0.01, t_cartesian: float = 5.0, t_null: float = 15.0,
                         t_long: float = 60.0) -> Plan:
     """`dm_enhancement` as independent parts, one per run (arguments as `dm_enhancement`)."""
-    runs: list[tuple[str, tuple[float, float, float], Literal["generalized", "weighted"], float]] = [
-        ("z", (0.0, 0.0, 1.0), "generalized", t_null), ("x", (1.0, 0.0, 0.0), "generalized", t_null),
-        ("x_weighted", (1.0, 0.0, 0.0), "weighted", t_null)]
+    X, Z = (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)
+    runs: list[tuple[str, tuple[float, float, float], Literal["generalized", "weighted"], float,
+                     Literal["exact", "printed"]]] = [
+        ("z", Z, "generalized", t_null, "exact"), ("x", X, "generalized", t_null, "exact"),
+        ("x_weighted", X, "weighted", t_null, "exact"), ("z_weighted", Z, "weighted", t_null, "exact"),
+        ("x_printed", X, "weighted", t_null, "printed")]
     if t_long > 0:
-        runs.append(("z_long", (0.0, 0.0, 1.0), "generalized", t_long))
-    return Plan([Part(name, functools.partial(dm_run, u, ns, tn, dt=dt, t_cartesian=t_cartesian), 2)
-                 for name, u, ns, tn in runs],
+        runs.append(("z_long", Z, "generalized", t_long, "exact"))
+    return Plan([Part(name, functools.partial(dm_run, u, ns, tn, dt=dt, t_cartesian=t_cartesian, gradient=g), 2)
+                 for name, u, ns, tn, g in runs],
                 functools.partial(_dm_merge, names=tuple(r[0] for r in runs), dt=dt, t_cartesian=t_cartesian,
                                   t_null=t_null, t_long=t_long))
 
 
 def dm_run(u: tuple[float, float, float], null_space: Literal["generalized", "weighted"], t_null: float, *,
-           dt: float, t_cartesian: float, progress: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
+           dt: float, t_cartesian: float, gradient: Literal["exact", "printed"] = "exact",
+           progress: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
     """One run of `dm_enhancement` (a `Part` of its plan): DM enhancement along u, Cartesian then null-space phase.
 
     Args:
@@ -196,6 +226,7 @@ def dm_run(u: tuple[float, float, float], null_space: Literal["generalized", "we
         t_null: null-space phase [s].
         dt: control period [s].
         t_cartesian: Cartesian phase [s].
+        gradient: eq. A.9's factor (`DMConfig.gradient`).
         progress: callback(done, 2) after each phase.
     """
     dev = device("wmm")
@@ -207,8 +238,56 @@ def dm_run(u: tuple[float, float, float], null_space: Literal["generalized", "we
             progress(done[0], 2)
 
     ctl = WeightedDistributionController(
-        dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, null_space=null_space, dm=DMConfig(u=u, k_c=0.01, k_n=0.2)))
+        dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, null_space=null_space,
+                            dm=DMConfig(u=u, k_c=0.01, k_n=0.2, gradient=gradient)))
     return _dm_phase(ctl, Q0, t_cartesian, t_null, dt, tick)
+
+
+def dm_supremum(q_start: np.ndarray, u, *, base_free: bool, starts: int = 3, seed: int = 0) -> float:
+    """Largest DM along u (A.8) over the configurations that keep the end effector at fk(q_start), within the joint limits.
+
+    What the null-space phase (A.19–A.20) can reach at most, however long it runs: with the base
+    fixed (the weighted J† of A.19 at γ = 0) or free. SLSQP from q_start and `starts` − 1 seeded
+    perturbations of its arm angles; the best local maximum (a lower bound of the supremum).
+
+    Args:
+        q_start: (10,) configuration [x_b, y_b, θ_b, q_m].
+        u: (3,) world direction.
+        base_free: let x_b, y_b (±1 m) and θ_b (±π) move.
+        starts: number of SLSQP starts.
+        seed: seed of the perturbations.
+    """
+    dev = device("wmm")
+    w2 = 1.0 / np.asarray(W_TAU_LIMITS) ** 2
+    uu = np.asarray(u, dtype=float) / np.linalg.norm(u)
+    x_held = dev.fk(q_start)
+    lo = np.where(np.isfinite(dev.q_min), dev.q_min, -2 * PI)
+    hi = np.where(np.isfinite(dev.q_max), dev.q_max, 2 * PI)
+    lo[:3], hi[:3] = (q_start[:3] - [1.0, 1.0, PI], q_start[:3] + [1.0, 1.0, PI]) if base_free else (q_start[:3],) * 2
+
+    def neg_dm(q: np.ndarray) -> float:
+        v = dev.jacobian(q)[:, 3:].T @ uu
+        return -min(float((v * w2) @ v) ** -0.5, 1e3)
+
+    cons = {"type": "eq", "fun": lambda q: dev.fk(q) - x_held, "jac": lambda q: dev.jacobian(q)}
+    rng = np.random.default_rng(seed)
+    best = -neg_dm(q_start)
+    for k in range(starts):
+        q0 = q_start + (0.0 if k == 0 else np.r_[np.zeros(3), rng.normal(scale=0.4, size=dev.n - 3)])
+        res = minimize(neg_dm, np.clip(q0, lo, hi), method="SLSQP", bounds=list(zip(lo, hi)), constraints=[cons],
+                       options={"maxiter": 300})
+        if np.linalg.norm(dev.fk(res.x) - x_held) < 1e-6 and np.all(res.x >= lo - 1e-9) and np.all(res.x <= hi + 1e-9):
+            best = max(best, -float(res.fun))
+    return best
+
+
+def _suprema(dev, q_cart: np.ndarray, u, thesis) -> list[Row]:
+    ax = "xyz"[int(np.argmax(np.abs(u)))]
+    at = f"end effector held at z = {dev.fk(q_cart)[2]:.4f} m (after the Cartesian phase)"
+    return [Row(f"largest DM along {ax} the arm's self-motion can reach (base fixed: eq. A.19 as printed)", thesis,
+                dm_supremum(q_cart, u, base_free=False), "N", f"best of 3 SLSQP starts, joint limits; {at}"),
+            Row(f"largest DM along {ax} with the base free", thesis, dm_supremum(q_cart, u, base_free=True), "N",
+                f"best of 3 SLSQP starts, joint limits; {at}")]
 
 
 def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], dt: float, t_cartesian: float,
@@ -220,7 +299,7 @@ def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], d
     def tau_norm(q, u, F=10.0):
         return float(np.linalg.norm(w_tau @ dev.jacobian(q)[:, 3:].T @ (F * np.asarray(u))))
 
-    z, x, xw = out["z"], out["x"], out["x_weighted"]
+    z, x, xw, zw, xp = out["z"], out["x"], out["x_weighted"], out["z_weighted"], out["x_printed"]
     t_end = t_cartesian + t_null
     rows_z = [
         Row("DM along z at q0", T.DM_Z[0], float(z["dm"][0]), "N"),
@@ -228,6 +307,9 @@ def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], d
             "the thesis does not give the simulation's length; null-space gradient ascent is slow along z"),
         Row("‖W_τ τ‖ for a 10 N z force at q0", T.TAU_Z[0], tau_norm(Q0, (0, 0, 1)), "N m"),
         Row(f"‖W_τ τ‖ for a 10 N z force after (t = {t_end:g} s)", T.TAU_Z[1], tau_norm(z["q_end"], (0, 0, 1)), "N m"),
+        Row(f"DM along z after enhancement, eq. A.19 as printed (weighted J†, t = {t_end:g} s)", T.DM_Z[1],
+            float(zw["dm_end"]), "N", "at γ = 0 the weighted J† locks the base: only the arm's own self-motion is left"),
+        *_suprema(dev, z["q_cart"], (0.0, 0.0, 1.0), T.DM_Z[1]),
     ]
     if "z_long" in out:
         zl = out["z_long"]
@@ -236,6 +318,8 @@ def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], d
         at = [dev.joint_names[i] for i in range(dev.n)
               if min(abs(qk[i] - dev.q_min[i]), abs(dev.q_max[i] - qk[i])) < 1e-2]
         where = f"; joints at a position bound: {', '.join(at)}" if at else ""
+        drift = float(np.linalg.norm(zl["x"][int(round(t_cartesian / dt)) + 1:] - dev.fk(zl["q_cart"]), axis=1).max())
+        where += f"; end effector within {drift * 1e3:.3f} mm of the held position"
         rows_z += [
             Row(f"largest DM along z within {t_cartesian + t_long:g} s", T.DM_Z[1], float(zl["dm"][k]), "N",
                 f"reached at t = {zl['t'][k]:.1f} s{where}"),
@@ -249,6 +333,13 @@ def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], d
             "projector of the generalized Jacobian (eq. A.7, Q = I): the base moves with the self-motion"),
         Row(f"DM along x after the null-space phase, eq. A.19 as printed (weighted J†, t = {t_end:g} s)", T.DM_X[2],
             float(xw["dm_end"]), "N", "at γ = 0 the weighted J† locks the base: only the arm's own self-motion is left"),
+        Row(f"DM along x after the Cartesian phase, eq. A.9's factor as printed (t = {t_cartesian:g} s)", T.DM_X[1],
+            float(xp["dm_cart"]), "N", "−½H₂^(−3/2) instead of the derivative's −½H₂³: a step H₂^4.5 ≈ 400× shorter"),
+        Row("end-effector z after the Cartesian phase, eq. A.9's factor as printed", T.Z_AFTER_CARTESIAN,
+            float(dev.fk(xp["q_cart"])[2]), "m"),
+        Row(f"DM along x after the null-space phase, eq. A.9's factor as printed (weighted J†, t = {t_end:g} s)",
+            T.DM_X[2], float(xp["dm_end"]), "N"),
+        *_suprema(dev, x["q_cart"], (1.0, 0.0, 0.0), T.DM_X[2]),
         Row("‖W_τ τ‖ ratio without / with DM enhancement (push along x)", T.TAU_RATIO_PUSH,
             float(x["dm_end"]) / float(x["dm"][0]), "",
             "thesis: measured torques while pushing a 26 kg box (≈ 40 vs ≈ 30 N m); ours: DM_after/DM_before, static"),
@@ -277,5 +368,10 @@ def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], d
             "is not simulated; the torque-norm row compares the DM ratio with the thesis's measured torque ratio.",
             "J_m and u are in world axes (u = [1, 0, 0] or [0, 0, 1]); the thesis's u = J_I⁻¹[1, 0, 0] with J_m "
             "in base axes is the same DM.",
+            "The thesis's law has no position-bound handling: where the self-motion would drive a joint past its "
+            "bound (A.13) it is scaled down so that the held position is kept (the z run's elbow reaches 2.5 rad).",
+            "Readings (findings of the independent transcription, tests/test_transcription_wmm.py): eq. A.19 as "
+            "printed (weighted J†) and eq. A.9's factor as printed are the literal rows; the headline rows use "
+            "the orthogonal projector of J_q and the exact derivative of H₂.",
         ],
     )
