@@ -162,3 +162,76 @@ def test_self_motion_at_a_joint_bound_keeps_the_task(wmm):
     cmd = ctl.step(0.0, q, x, np.zeros(3), stage="dm_null")
     assert cmd.clipped and q[6] + cmd.dq[6] * 0.01 <= 2.5 + 1e-12
     assert np.abs(wmm.jacobian(q) @ cmd.dq).max() < 1e-9  # the held position is kept: J q̇ = 0
+
+
+# --------------------------------------------------------------------------------------------- App. B
+def _amd_states(dev, radius: float, duration: float):
+    """rhi's AMD run (kinematic) on the circle of `radius` [m]: the states the comparison is made at."""
+    from rhi.control.mobile import AMDConfig, AMDController
+    from rhi.sim.mobile import circle, simulate_mobile
+
+    traj = circle(dev.fk(Q0), radius, duration=duration, dt=0.005)
+    return traj, simulate_mobile(AMDController(dev, AMDConfig(dt=0.005)), traj, Q0)
+
+
+def _amd_compare(dev, traj, log, ks, *, sigma_min: float = 0.15) -> dict[str, float]:
+    from amd_transcription import AMDTranscription
+
+    from rhi.control.mobile import AMDConfig, AMDController
+
+    tr = AMDTranscription(dev, sigma_min=sigma_min)
+    ctl = AMDController(dev, AMDConfig(dt=0.005, sigma_min=0.15))
+    A = dev.acceleration_max[:3]
+    out = {"ddq": 0.0, "alpha": 0.0, "beta": 0.0, "base": 0, "n": 0, "scaled": 0, "base_on": 0}
+    for k in ks:
+        q, dq = log.q[k], (log.dq[k - 1] if k else np.zeros(dev.n))
+        # B.20: a disabled base decelerates at its bound until it stops (the last sample lands on zero)
+        stop = np.where(np.abs(dq[:3]) > A * 0.005, -np.sign(dq[:3]) * A, -dq[:3] / 0.005)
+        mine = tr.step(q, dq, traj.x[k], traj.dx[k], traj.ddx[k], stop)
+        ctl.reset()
+        cmd = ctl.step(float(log.t[k]), q, dq, traj.x[k], traj.dx[k], traj.ddx[k])
+        out["ddq"] = max(out["ddq"], float(np.abs(cmd.ddq - mine["ddq"]).max()))
+        out["alpha"] = max(out["alpha"], abs(cmd.alpha - mine["alpha"]))
+        out["beta"] = max(out["beta"], abs(cmd.beta - mine["beta"]))
+        out["base"] += int(cmd.base_active != mine["base_active"])
+        out["base_on"] += int(mine["base_active"])
+        out["scaled"] += int(mine["alpha"] < 1 or mine["beta"] < 1)
+        out["n"] += 1
+    return out
+
+
+def test_amd_B9_B19_matches_the_transcription_within_the_workspace(wmm):
+    """Table B.2, within the workspace (R = 0.1 m): rhi's AMD and the transcription (B.6–B.19, finite-difference
+    J̇q̇, ∇H, ∇²H q̇) agree on every sampled state, including the base activation (σ_m < σ_m,min = 0.15) that the
+    thesis says never happens. Tolerance 1e-4 rad/s²: the nested finite differences of ∇²H q̇."""
+    traj, log = _amd_states(wmm, 0.1, 20.0)
+    on = np.flatnonzero(np.nan_to_num(log.base_active) > 0)
+    assert on.size > 0  # the base is enabled on this circle: the comparison covers both branches
+    d = _amd_compare(wmm, traj, log, [*range(0, log.t.size, 160), *on[::60]])
+    assert d["base"] == 0 and d["base_on"] > 0, d
+    assert d["ddq"] < 1e-4 and d["alpha"] < 1e-9 and d["beta"] < 1e-6, d
+    # and it can fail: a transcription with another σ_m,min disagrees at those states
+    assert _amd_compare(wmm, traj, log, on[::60], sigma_min=0.14)["base"] > 0
+
+
+def test_the_arm_alone_cannot_keep_sigma_min_on_the_inner_circle(wmm):
+    """Why the base moves within the workspace: at the far point of the R = 0.1 m circle, x0 + [0.2, 0, 0], the best
+    σ_min(J_m) the arm alone can have (base fixed, joint limits) is below σ_m,min = 0.15, so the thesis's own rule
+    (§B.3.2: "after the singularity criterion ... becomes lower than σ_m,min, the mobile base will be activated")
+    must enable the base. Independent of rhi's best_sigma: SLSQP on the device model from several starts."""
+    from scipy.optimize import minimize
+
+    x_far = wmm.fk(Q0) + np.array([0.2, 0.0, 0.0])
+    lo = np.where(np.isfinite(wmm.q_min), wmm.q_min, -2 * np.pi)
+    hi = np.where(np.isfinite(wmm.q_max), wmm.q_max, 2 * np.pi)
+    lo[:3] = hi[:3] = 0.0
+    rng = np.random.default_rng(7)
+    best = 0.0
+    for k in range(5):
+        q0 = Q0 + (0 if k == 0 else np.r_[np.zeros(3), rng.normal(scale=0.5, size=7)])
+        res = minimize(lambda q: -np.linalg.svd(wmm.jacobian(q)[:, 3:], compute_uv=False)[-1], np.clip(q0, lo, hi),
+                       method="SLSQP", bounds=list(zip(lo, hi)),
+                       constraints=[{"type": "eq", "fun": lambda q: wmm.fk(q) - x_far}], options={"maxiter": 300})
+        if np.linalg.norm(wmm.fk(res.x) - x_far) < 1e-6:
+            best = max(best, -res.fun)
+    assert 0.09 < best < 0.15
