@@ -60,7 +60,7 @@ class AMDTranscription:
         return (self.dev.jacobian(q + h * dq) - self.dev.jacobian(q - h * dq)) @ dq / (2 * h)
 
     def H(self, q: np.ndarray) -> float:
-        """§B.3.2: H(q_m) = det(J_m J_mᵀ)."""
+        """The tertiary objective of §B.3.2: det(J_m J_mᵀ)."""
         Jm = self.dev.jacobian(q)[:, self.nb:]
         return float(np.linalg.det(Jm @ Jm.T))
 

@@ -32,7 +32,7 @@ def _rhi(dev, **kw) -> WeightedDistributionController:
 
 
 def _compare(ctl: WeightedDistributionController, tr: Transcription, states, stage: str, target) -> dict[str, float]:
-    """Largest |rhi − transcription| of the generalized command q̇, γ and η over the states (rhi's clipped commands are skipped)."""
+    """Largest |rhi − transcription| of the generalized command q̇, γ and η over the states (rhi's clipped ones skipped)."""
     dv = dg = de = 0.0
     clipped = 0
     for t, q in states:
@@ -49,8 +49,11 @@ def _compare(ctl: WeightedDistributionController, tr: Transcription, states, sta
 
 
 def test_tracking_A19_matches_the_transcription(wmm):
-    """§A.4.2 (Table A.1): proposed weighted distribution, literal reading (wheel-speed Jacobian, η of the arm-only
-    solution), along the whole 0.25 m circle including the 7–20 s where γ > 0."""
+    """§A.4.2 (Table A.1): the proposed weighted distribution agrees with the transcription.
+
+    Literal reading (wheel-speed Jacobian, η of the arm-only
+    solution), along the whole 0.25 m circle including the 7–20 s where γ > 0.
+    """
     tr = Transcription(wmm)
     x0 = wmm.fk(Q0)
     out = run(tr, Q0, 40.0, lambda t: "track", lambda t: desired_circle(x0, t))
@@ -62,8 +65,11 @@ def test_tracking_A19_matches_the_transcription(wmm):
 
 
 def test_traditional_pinv_matches_the_transcription(wmm):
-    """§A.4.2's traditional controller J⁺ = Jᵀ(JJᵀ)⁻¹ is the transcription at W_x = I: the wheel-speed Jacobian
-    (``pinv``, as printed) and the generalized one (``pinv_generalized``, base velocities mapped by P⁺)."""
+    """§A.4.2's traditional controller J⁺ = Jᵀ(JJᵀ)⁻¹ agrees with the transcription at W_x = I.
+
+    the wheel-speed Jacobian
+    (``pinv``, as printed) and the generalized one (``pinv_generalized``, base velocities mapped by P⁺).
+    """
     x0 = wmm.fk(Q0)
     rng = np.random.default_rng(3)
     states = [(t, Q0 + np.r_[rng.normal(scale=0.05, size=3), rng.normal(scale=0.1, size=7)]) for t in (0.0, 9.0, 21.0)]
@@ -81,9 +87,12 @@ def test_traditional_pinv_matches_the_transcription(wmm):
 @pytest.mark.parametrize(("u", "projector"), [((1, 0, 0), "weighted"), ((1, 0, 0), "generalized"),
                                               ((0, 0, 1), "generalized")])
 def test_dm_enhancement_A17_A20_matches_the_transcription(wmm, u, projector):
-    """§A.4.3: Cartesian phase (A.17–A.18, z only) and null-space phase (A.19–A.20) along u, k_C = 0.01,
+    """§A.4.3: the DM enhancement agrees with the transcription.
+
+    Cartesian phase (A.17–A.18, z only) and null-space phase (A.19–A.20) along u, k_C = 0.01,
     k_N = 0.2, W_τ = diag(1, 1, 1, 1, 2.5, 2.5, 2.5); rhi's "generalized" projector is the transcription's
-    "orthogonal" (I − J_q⁺J_q, eq. A.7 with Q = I)."""
+    "orthogonal" (I − J_q⁺J_q, eq. A.7 with Q = I).
+    """
     tr = Transcription(wmm, u=u, null_projector="weighted" if projector == "weighted" else "orthogonal")
     x0 = wmm.fk(Q0)
     a = run(tr, Q0, 2.0, lambda t: "dm_cartesian", lambda t: (x0, np.zeros(3)))
@@ -100,8 +109,11 @@ def test_dm_enhancement_A17_A20_matches_the_transcription(wmm, u, projector):
 
 
 def test_dm_gradient_A9_reading(wmm):
-    """Eq. A.9 prints the factor −½ H₂^(−3/2); the derivative of H₂ = s^(−1/2) has −½ s^(−3/2) = −½ H₂³.
-    rhi uses the latter; the two differ by H₂^4.5 (≈ 420 at DM_x = 3.8), so the readings are distinguishable."""
+    """Eq. A.9's factor: rhi uses the exact derivative, the printed one differs by H₂^4.5.
+
+    Eq. A.9 prints the factor −½ H₂^(−3/2); the derivative of H₂ = s^(−1/2) has −½ s^(−3/2) = −½ H₂³.
+    rhi uses the latter; the two differ by H₂^4.5 (≈ 420 at DM_x = 3.8), so the readings are distinguishable.
+    """
     tr_exact = Transcription(wmm, u=(1, 0, 0))
     tr_print = Transcription(wmm, u=(1, 0, 0), grad_factor="printed")
     ctl = _rhi(wmm, dm=DMConfig(u=(1, 0, 0)))
@@ -132,8 +144,11 @@ def test_the_comparison_can_fail(wmm):
 
 
 def test_alternative_readings_match_the_transcription(wmm):
-    """The two readings rhi offers besides the literal one agree with the transcription's: W_x on the generalized
-    Jacobian (``weighting="generalized"``) along the circle, and eq. A.9's factor as printed in the Cartesian phase."""
+    """The two readings rhi offers besides the literal one agree with the transcription's.
+
+    W_x on the generalized
+    Jacobian (``weighting="generalized"``) along the circle, and eq. A.9's factor as printed in the Cartesian phase.
+    """
     x0 = wmm.fk(Q0)
     tr = Transcription(wmm, jacobian="generalized")
     out = run(tr, Q0, 12.0, lambda t: "track", lambda t: desired_circle(x0, t))
@@ -150,9 +165,12 @@ def test_alternative_readings_match_the_transcription(wmm):
 
 
 def test_self_motion_at_a_joint_bound_keeps_the_task(wmm):
-    """At the elbow's position bound (q4 = 2.5 rad, reached by the z enhancement after ≈ 27 s) the DM gradient
+    """At a joint bound the self-motion is scaled down and the task is kept.
+
+    At the elbow's position bound (q4 = 2.5 rad, reached by the z enhancement after ≈ 27 s) the DM gradient
     pushes past the bound: rhi scales the self-motion down instead of clipping the joint, so J q̇ = ẋ_c still
-    holds (clipping let the end effector drift 24 cm upwards while DM was 'enhanced')."""
+    holds (clipping let the end effector drift 24 cm upwards while DM was 'enhanced').
+    """
     q = np.array([0.3499, 0.0278, 0.0232, -0.0232, -0.2782, 0.1164, 2.5 - 1e-5, -0.0199, -0.5612, 0.0])
     x = wmm.fk(q)
     ctl = _rhi(wmm, dm=DMConfig(u=(0, 0, 1)), null_space="generalized")
@@ -166,7 +184,7 @@ def test_self_motion_at_a_joint_bound_keeps_the_task(wmm):
 
 # --------------------------------------------------------------------------------------------- App. B
 def _amd_states(dev, radius: float, duration: float):
-    """rhi's AMD run (kinematic) on the circle of `radius` [m]: the states the comparison is made at."""
+    """Rhi's AMD run (kinematic) on the circle of `radius` [m]: the states the comparison is made at."""
     from rhi.control.mobile import AMDConfig, AMDController
     from rhi.sim.mobile import circle, simulate_mobile
 
@@ -201,9 +219,12 @@ def _amd_compare(dev, traj, log, ks, *, sigma_min: float = 0.15) -> dict[str, fl
 
 
 def test_amd_B9_B19_matches_the_transcription_within_the_workspace(wmm):
-    """Table B.2, within the workspace (R = 0.1 m): rhi's AMD and the transcription (B.6–B.19, finite-difference
+    """Table B.2: rhi's AMD agrees with the transcription within the workspace.
+
+    Within the workspace (R = 0.1 m), rhi's AMD and the transcription (B.6–B.19, finite-difference
     J̇q̇, ∇H, ∇²H q̇) agree on every sampled state, including the base activation (σ_m < σ_m,min = 0.15) that the
-    thesis says never happens. Tolerance 1e-4 rad/s²: the nested finite differences of ∇²H q̇."""
+    thesis says never happens. Tolerance 1e-4 rad/s²: the nested finite differences of ∇²H q̇.
+    """
     traj, log = _amd_states(wmm, 0.1, 20.0)
     on = np.flatnonzero(np.nan_to_num(log.base_active) > 0)
     assert on.size > 0  # the base is enabled on this circle: the comparison covers both branches
@@ -215,10 +236,13 @@ def test_amd_B9_B19_matches_the_transcription_within_the_workspace(wmm):
 
 
 def test_the_arm_alone_cannot_keep_sigma_min_on_the_inner_circle(wmm):
-    """Why the base moves within the workspace: at the far point of the R = 0.1 m circle, x0 + [0.2, 0, 0], the best
+    """The arm alone cannot keep σ_min(J_m) ≥ σ_m,min at the far point of the R = 0.1 m circle.
+
+    At the far point of the R = 0.1 m circle, x0 + [0.2, 0, 0], the best
     σ_min(J_m) the arm alone can have (base fixed, joint limits) is below σ_m,min = 0.15, so the thesis's own rule
     (§B.3.2: "after the singularity criterion ... becomes lower than σ_m,min, the mobile base will be activated")
-    must enable the base. Independent of rhi's best_sigma: SLSQP on the device model from several starts."""
+    must enable the base. Independent of rhi's best_sigma: SLSQP on the device model from several starts.
+    """
     from scipy.optimize import minimize
 
     x_far = wmm.fk(Q0) + np.array([0.2, 0.0, 0.0])

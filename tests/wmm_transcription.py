@@ -89,15 +89,21 @@ class Transcription:
 
     @staticmethod
     def dagger(J: np.ndarray, W: np.ndarray) -> np.ndarray:
-        """Eq. A.11: J† = W_x Jᵀ(J W_x Jᵀ)⁻¹; where J W_x Jᵀ is singular (γ = 1: the base cannot move z) the
-        inverse is read as the Moore–Penrose inverse (the thesis's formula is undefined there)."""
+        """Eq. A.11: J† = W_x Jᵀ(J W_x Jᵀ)⁻¹.
+
+        Where J W_x Jᵀ is singular (γ = 1: the base cannot move z) the
+        inverse is read as the Moore–Penrose inverse (the thesis's formula is undefined there).
+        """
         G = J @ W @ J.T
         Gi = np.linalg.inv(G) if np.linalg.cond(G) < 1e12 else np.linalg.pinv(G, rcond=1e-10)
         return W @ J.T @ Gi
 
     def velocity_limits(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Eq. A.13 after Flacco et al. [51] (the thesis prints no formula): for each arm joint
-        Q̇_max = min{(Q_max − q)/T, V_max, √(2 A (Q_max − q))}, Q̇_min = max{(Q_min − q)/T, −V_max, −√(2 A (q − Q_min))}."""
+        """Eq. A.13 after Flacco et al. [51] (the thesis prints no formula).
+
+        For each arm joint Q̇_max = min{(Q_max − q)/T, V_max, √(2 A (Q_max − q))} and
+        Q̇_min = max{(Q_min − q)/T, −V_max, −√(2 A (q − Q_min))}.
+        """
         d = self.dev
         qm = q[3:]
         qmin, qmax = d.q_min[3:], d.q_max[3:]
@@ -195,7 +201,12 @@ def run(tr: Transcription, q0: np.ndarray, duration: float, stage_of, target, dt
     """Kinematic closed loop q⁺ = q + q̇T (the robot follows the command), K = duration/T + 1 samples.
 
     Args:
-        stage_of: t ↦ stage; target: t ↦ (x_d, ẋ_d).
+        tr: the transcribed controller.
+        q0: (10,) start configuration.
+        duration: run length [s].
+        stage_of: t ↦ stage.
+        target: t ↦ (x_d, ẋ_d).
+        dt: sampling time [s].
     """
     K = int(round(duration / dt)) + 1
     q = q0.copy()
@@ -211,8 +222,10 @@ def run(tr: Transcription, q0: np.ndarray, duration: float, stage_of, target, dt
 
 
 def base_stats(t: np.ndarray, dq: np.ndarray, window: str = "run") -> dict[str, np.ndarray]:
-    """Table A.1's statistics of the commanded base velocity [cm/s, cm/s, °/s]: max |.| and RMS over the run
-    ("run") or over the samples where the base is commanded ("moving")."""
+    """Table A.1's statistics of the commanded base velocity [cm/s, cm/s, °/s].
+
+    Max |.| and RMS over the run ("run") or over the samples where the base is commanded ("moving").
+    """
     v = dq[:, :3] * np.array([100.0, 100.0, 180.0 / PI])
     moving = np.any(np.abs(dq[:, :3]) > 1e-9, axis=1)
     sel = moving if window == "moving" else np.ones(len(t), bool)

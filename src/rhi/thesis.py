@@ -256,6 +256,10 @@ RMS_RATIO_A = tuple(_v(f"sA_4_2.rms_ratio.{c}", t, "%", "§A.4.2 (line 2194)")
                     for c, t in zip(("vx", "vy", "w"), ("65.12", "45.77", "6.94")))
 #: §A.4.2 / Fig. A.6: the proposed method's base moves only during 7.15–20.35 s.
 BASE_INTERVAL_A = _pair("sA_4_2.base_interval", ("7.15", "20.35"), "s", "§A.4.2, Fig. A.6 (line 2194)", relative=False)
+#: §A.4.2: "the maximum radius of the circle within the manipulator workspace at this initial position is only 0.11 m".
+WORKSPACE_RADIUS_A = _v("sA_4_2.workspace_radius", "0.11", "m", "§A.4.2 (line 2172)")
+#: §B.4.2: the 0.25 m radius "is beyond the manipulator workspace (0.2 m) at its initial configuration".
+WORKSPACE_RADIUS_B = _v("sB_4_2.workspace_radius", "0.2", "m", "§B.4.2 (line 2479)")
 _A43 = "§A.4.3 (lines 2202–2212)"
 #: §A.4.3: DM along z before/after enhancement [N], and ‖W_τ τ‖ for a 10 N z force before/after [N m].
 DM_Z = _pair("sA_4_3.dm_z", ("1.125", "4.031"), "N", _A43)

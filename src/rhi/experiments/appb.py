@@ -68,6 +68,28 @@ def best_sigma(x, starts: int = 6, seed: int = 0) -> float:
     return float(best)
 
 
+def workspace_radius(starts: int = 4, seed: int = 0) -> float:
+    """Largest radius R [m] of the §A.4.2/§B.4.3 circle whose far point x0 + [2R, 0, 0] the arm alone reaches (base fixed).
+
+    Half the arm's reach along +x from its start position x0 = fk(q0) at x0's height and y:
+    SLSQP from q0 and `starts` − 1 seeded perturbations, the best local maximum.
+    """
+    arm = device("gen3")
+    x0 = arm.fk(Q0[3:])
+    lo = np.where(np.isfinite(arm.q_min), arm.q_min, -2 * math.pi)
+    hi = np.where(np.isfinite(arm.q_max), arm.q_max, 2 * math.pi)
+    rng = np.random.default_rng(seed)
+    best = 0.0
+    cons = {"type": "eq", "fun": lambda q: arm.fk(q)[1:] - x0[1:], "jac": lambda q: arm.jacobian(q)[1:]}
+    for k in range(starts):
+        q0 = Q0[3:] + (0 if k == 0 else rng.normal(scale=0.5, size=arm.n))
+        res = minimize(lambda q: -arm.fk(q)[0], np.clip(q0, lo, hi), jac=lambda q: -arm.jacobian(q)[0],
+                       method="SLSQP", bounds=list(zip(lo, hi)), constraints=[cons], options={"maxiter": 300})
+        if np.abs(arm.fk(res.x)[1:] - x0[1:]).max() < 1e-6:
+            best = max(best, float(arm.fk(res.x)[0] - x0[0]) / 2)
+    return best
+
+
 def _run(controller, radius: float, duration: float, dt: float, slip: SlipModel, progress) -> MobileLog:
     dev = controller.device
     traj = circle(dev.fk(Q0), radius, duration=duration, dt=dt)
@@ -178,6 +200,7 @@ def tracking_plan(duration: float = 80.0, dt: float = 0.005, radii: tuple[float,
     far = dev.fk(Q0) + np.array([2 * radii[0], 0.0, 0.0])
     sig_far = best_sigma(far)
     sigma_adapted = 0.9 * sig_far if math.isfinite(sig_far) else sigma_min
+    reach = workspace_radius()
     runs = (("within", radii[0], "proposed", sigma_min), ("within", radii[0], "traditional", sigma_min),
             ("beyond", radii[1], "proposed", sigma_min), ("beyond", radii[1], "traditional", sigma_min),
             ("within", radii[0], "proposed_adapted", sigma_adapted))  # σ_min: AMD only
@@ -185,7 +208,8 @@ def tracking_plan(duration: float = 80.0, dt: float = 0.005, radii: tuple[float,
                                                          slip=slip), K)
              for where, R, method, sig in runs]
     return Plan(parts, functools.partial(_tracking_merge, runs=runs, dt=dt, radii=radii, slip=slip,
-                                         sigma_min=sigma_min, sig_far=sig_far, sigma_adapted=sigma_adapted))
+                                         sigma_min=sigma_min, sig_far=sig_far, sigma_adapted=sigma_adapted,
+                                         reach=reach))
 
 
 def tracking_run(method: str, radius: float, sigma_min: float, *, duration: float, dt: float, slip: SlipModel,
@@ -210,7 +234,8 @@ def tracking_run(method: str, radius: float, sigma_min: float, *, duration: floa
     return _run(ctl, radius, duration, dt, slip, progress)
 
 
-def _tracking_merge(outputs: list[MobileLog], *, runs, dt, radii, slip, sigma_min, sig_far, sigma_adapted) -> Result:
+def _tracking_merge(outputs: list[MobileLog], *, runs, dt, radii, slip, sigma_min, sig_far, sigma_adapted,
+                    reach) -> Result:
     logs = {(where, method): log for (where, _, method, _), log in zip(runs, outputs)}
     thesis_b2 = dict(T.TABLE_B_2)
     thesis_b2["within", "proposed_adapted"] = thesis_b2["within", "proposed"]
@@ -259,6 +284,11 @@ def _tracking_merge(outputs: list[MobileLog], *, runs, dt, radii, slip, sigma_mi
     sig_w = float(np.min(w.sigma))
     rows_err.append(Row(f"best σ_min(J_m) the arm alone can have at the far point of the R = {radii[0]} m circle",
                         None, sig_far, "m/rad", f"σ_m,min = {sigma_min}; SLSQP over the self-motion"))
+    for sec, th in (("§A.4.2", T.WORKSPACE_RADIUS_A), ("§B.4.2", T.WORKSPACE_RADIUS_B)):
+        rows_err.append(Row(f"largest circle radius within the arm's workspace at q0 (far point reachable, base fixed; "
+                            f"vs {sec})", th, reach, "m",
+                            "the thesis gives 0.11 m in §A.4.2 and 0.2 m in §B.4.2 for the same arm, "
+                            "start and circle; Table B.2's 'within' circle has R = 0.1 m"))
     return Result(
         "appb.tracking",
         "§B.4.3 / Table B.2: AMD vs traditional, circles within and beyond the arm's workspace",

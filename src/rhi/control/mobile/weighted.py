@@ -353,7 +353,7 @@ class WeightedDistributionController:
         x, Jq = terms.x, terms.J  # generalized Jacobian [J_b, J_m] (3, n)
         P = mecanum_map(q[2], **self.geometry)
         J = wheel_jacobian(Jq, P)  # A.5
-        nw, m = self.n_wheels, self.m
+        nw = self.n_wheels
         h = math.nan
         grad = None
         if stage == "dm_cartesian":
