@@ -95,7 +95,7 @@ def tracking(
         for i, (c, scale, unit) in enumerate(comps):
             rows.append(Row(f"{label}: max |{c}|", th["max"][i] if th else None, float(st["max"][i] * scale), unit, note))
             rows.append(Row(f"{label}: RMS {c}", th["rms"][i] if th else None, float(st["rms"][i] * scale), unit, note))
-        if name.startswith("proposed"):
+        if th and name.startswith("proposed"):
             moving = np.any(np.abs(log.base_velocity) > 1e-9, axis=1)
             rms_m = np.sqrt(np.mean(log.base_velocity[moving] ** 2, axis=0)) if moving.any() else np.full(3, np.nan)
             for i, (c, scale, unit) in enumerate(comps):

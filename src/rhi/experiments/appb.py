@@ -284,9 +284,9 @@ def _tracking_merge(outputs: list[MobileLog], *, runs, dt, radii, slip, sigma_mi
     sig_w = float(np.min(w.sigma))
     rows_err.append(Row(f"best σ_min(J_m) the arm alone can have at the far point of the R = {radii[0]} m circle",
                         None, sig_far, "m/rad", f"σ_m,min = {sigma_min}; SLSQP over the self-motion"))
-    for sec, th in (("§A.4.2", T.WORKSPACE_RADIUS_A), ("§B.4.2", T.WORKSPACE_RADIUS_B)):
+    for sec, ws in (("§A.4.2", T.WORKSPACE_RADIUS_A), ("§B.4.2", T.WORKSPACE_RADIUS_B)):
         rows_err.append(Row(f"largest circle radius within the arm's workspace at q0 (far point reachable, base fixed; "
-                            f"vs {sec})", th, reach, "m",
+                            f"vs {sec})", ws, reach, "m",
                             "the thesis gives 0.11 m in §A.4.2 and 0.2 m in §B.4.2 for the same arm, "
                             "start and circle; Table B.2's 'within' circle has R = 0.1 m"))
     return Result(
