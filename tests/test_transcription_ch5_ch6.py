@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import rhi
 import transcription as tr
 from conftest import random_q
+
+import rhi
 from rhi.control import FMEMatching, FMESchedule, TransitionConfig, TransitionState, transition_step
 from rhi.control.manipulability import Manipulability
 from rhi.control.transition import aso_volume
@@ -143,10 +143,41 @@ def test_tmi_equals_eqs_4_11_to_4_17(rng):
 
 
 def test_yoshikawa_gradient_is_eq_5_14(rng):
-    """rhi's scenario-2 objective with plain J (k_q=None, log=False) is −μ of eq. 5.14: ∂ν/∂q = −∂μ/∂q."""
+    """The scenario-2 objective of rhi with plain J (k_q=None, log=False) is −μ of eq. 5.14: ∂ν/∂q = −∂μ/∂q."""
     dev = rhi.device("rhi4", d2=0.1405)
     obj = Manipulability(log=False, k_q=None)
     for q in random_q(dev, rng, 10):
         g_tr = tr.gradient_fd(lambda p: tr.yoshikawa(dev.jacobian(p)), q)
         np.testing.assert_allclose(-np.asarray(obj.gradient(dev, q)), g_tr, rtol=1e-6, atol=1e-9)
         assert -obj.value(dev, q) == pytest.approx(tr.yoshikawa(dev.jacobian(q)), rel=1e-12)
+
+
+def test_clipped_tick_equals_the_transcription_at_beta_20_in_saturation(rhi4, rng, fmes):
+    """With null_space="clipped" rhi's tick is the thesis's law with each joint clipped, saturated or not (1e-6 N m)."""
+    _, _, Mf, Ms = fmes
+    x0, u = np.array(X0), np.array(U)
+    q_near = rhi4.ik(x0 + np.array([0.0, 0.01]), np.array([0.3, 0.5, 0.4, 0.6]))
+    saturated = 0
+    for _ in range(10):
+        q = q_near + rng.normal(0.0, 0.05, 4)
+        dq = rng.normal(0.0, 0.5, 4)
+        ctrl = palpation_controller(rhi4, Mf, limits=False, null_space="clipped")
+        tau = ctrl.step(0.0, q, dq, {"ft": np.zeros(6), "force": np.zeros(2)})
+        ref = tr.ThesisPalpation(rhi4, Mf, Ms, lambda t, V: 1.0, x0=x0, u=u, beta=20.0, k_d=K_D)
+        tau_tr = ref.step(0.0, q, dq)
+        saturated += int(np.any(np.abs(tau_tr) >= rhi4.torque_max - 1e-12))
+        np.testing.assert_allclose(tau, tau_tr, atol=1e-6)
+        assert ctrl.state.alpha == pytest.approx(ref.state.alpha, abs=1e-12)
+    assert saturated >= 5  # the comparison covers the saturated regime
+
+
+def test_scaled_tick_keeps_the_torque_in_the_null_space_where_the_transcription_clips(rhi4, fmes):
+    """The two readings part in saturation: 'scaled' (Algorithm 2) differs from the clipped law."""
+    _, _, Mf, Ms = fmes
+    x0, u = np.array(X0), np.array(U)
+    q = rhi4.ik(x0 + np.array([0.0, 0.01]), np.array([0.3, 0.5, 0.4, 0.6])) + 0.05
+    ctrl = palpation_controller(rhi4, Mf, limits=False, null_space="scaled")
+    tau = ctrl.step(0.0, q, np.zeros(4), {"ft": np.zeros(6), "force": np.zeros(2)})
+    tau_tr = tr.ThesisPalpation(rhi4, Mf, Ms, lambda t, V: 1.0, x0=x0, u=u, beta=20.0, k_d=K_D).step(0.0, q, np.zeros(4))
+    assert np.any(np.abs(tau_tr) >= rhi4.torque_max - 1e-12)
+    assert np.max(np.abs(tau - tau_tr)) > 0.1

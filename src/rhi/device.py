@@ -34,6 +34,7 @@ from rhi.device_spec import (
     read_spec,
 )
 from rhi.device_terms import DeviceTerms, FastMaps, compiled_terms, eye, fast_maps, inv_small, lazy
+from rhi.device_variant import read_variant
 from rhi.errors import InvalidInput, ModelError
 
 __all__ = ["BATCH_MIN", "MODELS", "Device", "DeviceTerms", "LinearLimits", "available_devices", "device", "eye",
@@ -437,18 +438,22 @@ class Device:
 
 
 # ---------------------------------------------------------------------- loading
-def device(name: str, **params: float) -> Device:
+def device(name: str, params: str | None = None, **design: float) -> Device:
     """Load a bundled device by name (see `available_devices()`).
 
     Args:
         name: device name, e.g. "rhi4", "phantom", "rehab", "planar3r", "gen3".
-        **params: design parameters declared in the device's `device.toml`
+        params: a named parameter variant from the model folder (`rhi.device_variant`), e.g.
+            "thesis-fit" for rhi4 and its halves (inertias fitted to the thesis's numbers,
+            models/rhi4/README.md); None or "default": the default model.
+        **design: design parameters declared in the device's `device.toml`
             (e.g. `d2=0.1405` for rhi4) [m or rad].
 
     Raises:
         UnknownDevice: no bundled device has that name.
+        InvalidInput: an unknown parameter variant.
     """
-    return from_spec(bundled_spec(name), **params)
+    return from_spec(bundled_spec(name), variant=params, **design)
 
 
 def load_device(folder: str | Path, **params: float) -> Device:
@@ -456,18 +461,23 @@ def load_device(folder: str | Path, **params: float) -> Device:
     return from_spec(read_spec(folder), **params)
 
 
-def from_spec(spec: DeviceSpec, **params: float) -> Device:
+def from_spec(spec: DeviceSpec, variant: str | None = None, **params: float) -> Device:
     """Build the device a `DeviceSpec` describes, with design parameters set [m or rad].
 
-    A derived spec (``base = ...``) loads its bundled base and locks the joints it names.
+    A derived spec (``base = ...``) loads its bundled base (with the same `variant`) and locks the
+    joints it names. `variant`: a parameter variant's name (`device`), None or "default".
     """
+    if variant == "default":
+        variant = None
     if spec.base is not None:  # a device derived from another by locking joints
-        return device(spec.base, **params).lock(spec.lock, name=spec.name)
+        name = spec.name if variant is None else f"{spec.name}:{variant}"
+        return device(spec.base, params=variant, **params).lock(spec.lock, name=name)
     urdf, ee_frame = spec.chain()
-    model, values = build_model(spec, params)
+    var = None if variant is None else read_variant(spec.folder, variant, spec.name)
+    model, values = build_model(spec, params, None if var is None else var.links)
     dev = Device(
         model,
-        name=spec.name,
+        name=spec.name if var is None else f"{spec.name}:{var.name}",  # the variant is part of the label
         ee_frame=ee_frame,
         task_axes=spec.task,
         actuation=spec.actuation,
@@ -478,7 +488,7 @@ def from_spec(spec: DeviceSpec, **params: float) -> Device:
         torque_max=spec.torque_max,
         linear_limits=spec.linear_limits,
         joint_names=spec.joint_names,
-        armature=spec.armature,
+        armature=spec.armature if var is None or var.armature is None else var.armature,
         params=values,
         damping=spec.damping,
         frictionloss=spec.frictionloss,

@@ -242,12 +242,14 @@ def _parse(folder: Path, doc: dict) -> DeviceSpec:
     )
 
 
-def build_model(spec: DeviceSpec, params: dict[str, float]) -> tuple[pin.Model, dict[str, float]]:
+def build_model(spec: DeviceSpec, params: dict[str, float],
+                links: dict[str, dict[str, float]] | None = None) -> tuple[pin.Model, dict[str, float]]:
     """The Pinocchio model of a spec's URDF with its design parameters set.
 
     Args:
         spec: a spec that is not derived (``spec.base is None``).
         params: {parameter: value} overriding the declared defaults [m or rad].
+        links: inertial overrides of a parameter variant (`rhi.device_variant`), or None.
 
     Returns:
         (model, {parameter: value used}).
@@ -257,6 +259,10 @@ def build_model(spec: DeviceSpec, params: dict[str, float]) -> tuple[pin.Model, 
         ModelError: the URDF is missing or malformed, or a parameter names an unknown target.
     """
     model = load_urdf(spec.chain()[0])
+    if links:
+        from rhi.device_variant import model_with_links
+
+        model = model_with_links(spec.chain()[0], links)
     unknown = set(params) - set(spec.parameters)
     if unknown:
         raise InvalidInput(f"params: unknown parameter(s) {sorted(unknown)} for {spec.name}; "

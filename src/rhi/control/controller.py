@@ -174,6 +174,10 @@ class ControllerConfig:
             with a primary law that compensates G_x (eqs. 5.4, 7.2) the whole g(q) is compensated.
         aso_shape: S of eq. 6.14 when no FME schedule is given.
         implementation: "fast" (default) or "reference" (the slow oracle; same torques).
+        null_space: how the objectives' null-space torque meets the torque box: "scaled" (Algorithm 2,
+            eq. 7.16: scaled by the largest β <= 1 that keeps the box, projected off ASCM's held joints)
+            or "clipped" (chapter 6 as written, eqs. 6.2–6.6: τ = α τ_m + (I − JᵀJ#ᵀ)τ_S, then the
+            programmed limits clip each joint; runs the reference tick).
     """
 
     primary: PrimaryLaw
@@ -187,6 +191,7 @@ class ControllerConfig:
     gravity_compensation: bool = True
     aso_shape: float = 50.0
     implementation: Literal["fast", "reference"] = "fast"
+    null_space: Literal["scaled", "clipped"] = "scaled"
 
 
 @dataclasses.dataclass
@@ -244,6 +249,8 @@ class NullSpaceController:
         allocation = allocation_method(config.saturation)
         if config.projector not in ("dynamic", "pseudoinverse"):
             raise InvalidInput(f"projector: expected 'dynamic' or 'pseudoinverse', got {config.projector!r}")
+        if config.null_space not in ("scaled", "clipped"):
+            raise InvalidInput(f"null_space: expected 'scaled' or 'clipped', got {config.null_space!r}")
         if config.implementation not in ("fast", "reference"):
             raise InvalidInput(f"implementation: expected 'fast' or 'reference', got {config.implementation!r}")
         scalar("damping", config.damping, nonnegative=True)
@@ -277,7 +284,7 @@ class NullSpaceController:
         self._pc = None if pas is None else PassivityController(pas, reference=config.implementation == "reference")
         self._n = device.n
         self._kernel = (None if config.implementation == "reference" or allocation.kernel is None
-                        else KernelTick(self))
+                        or config.null_space == "clipped" else KernelTick(self))
 
     @property
     def passivity(self) -> PassivityState | None:

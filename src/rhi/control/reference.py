@@ -81,6 +81,8 @@ def reference_tick(
         tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), torque_min=lo, torque_max=hi,
                                  skip=al.clipped)
         al = dataclasses.replace(al, tau=tau1)
+    if cfg.null_space == "clipped":  # eqs. 6.2–6.6 as written: the caller clips τ to the box
+        return al.tau + N @ tau_to, gamma * al.alpha, 1.0, al.saturated, al.clipped
     delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, torque_min=lo, torque_max=hi, N=N)
     return (al.tau + delta if beta else al.tau), gamma * al.alpha, beta, al.saturated, al.clipped
 

@@ -53,8 +53,9 @@ Why our numbers differ from the thesis's:
   report our model's effective inertia Λ = (uᵀ J M⁻¹ Jᵀ u)⁻¹ (eq. 3.13) and the quasi-static
   viscous friction our plant reflects along u at the same configurations, beside them.
 - Fig. 6.11: the thesis's β = 20 makes the null-space torque saturate the actuators during
-  a reconfiguration, which bounds the applied null-space torque with or without the
-  transition method (see `transition`).
+  a reconfiguration. `transition` runs the §6.4 law as written, each joint clipped at its
+  programmed limit (the literal reading; with it the method lowers the handle disturbance), and
+  chapter 7's Algorithm 2 (τ_S scaled into the box) beside it (see `transition`).
 - Fig. 6.10: the thesis shows the map without its configurations or numbers; where the
   joint limits leave little self-motion the two matched configurations nearly coincide and
   the ratio is close to 1 (our minimum is slightly below 1).

@@ -5,6 +5,8 @@ See `rhi.experiments.ch6` for the choices the thesis leaves open.
 
 from __future__ import annotations
 
+from typing import Literal
+
 import numpy as np
 
 from rhi import thesis as T
@@ -56,6 +58,9 @@ MAP_X = (0.25, 0.75)
 MAP_Y = (-0.5, 0.3)
 
 CASES = ("free", "stiff")
+NullSpace = Literal["scaled", "clipped"]
+#: How the §6.4 controller's null-space torque meets the torque box (`palpation_controller`).
+NULL_SPACE: NullSpace = "scaled"
 
 
 # --------------------------------------------------------------------------- objectives
@@ -180,7 +185,7 @@ def reflected_damping(J: np.ndarray, M: np.ndarray, D: np.ndarray, u, k_d: float
 def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMESchedule | None = None,
                          *, limits: bool = True, beta: float = BETA, projector: ProjectorKind = "dynamic",
                          objectives: tuple[ObjectiveTerm, ...] = (), x0=X0, u=U, gravity: bool = False,
-                         saturation: Saturation = "scaling") -> NullSpaceController:
+                         saturation: Saturation = "scaling", null_space: NullSpace = NULL_SPACE) -> NullSpaceController:
     """Spring palpation (eq. 6.21) with force scaling; FME matching to `desired` or by the ASO `schedule`.
 
     Args:
@@ -195,6 +200,8 @@ def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMES
         u: (m,) its direction (§6.4: u = [0, 1]).
         gravity: compensate G_x in the primary law (eq. 6.21 has none: rhi4 moves in a horizontal plane).
         saturation: allocation under the torque limits ("scaling", §6.3.1; or "ascm", ch. 7).
+        null_space: "clipped" (eqs. 6.2–6.6 as written: τ_m + (I − JᵀJ#ᵀ)τ_S, each joint clipped at its
+            programmed limit) or "scaled" (chapter 7's Algorithm 2 scales τ_S into the box).
     """
     law = SpringPalpation(K_E, tuple(x0), normal=tuple(u), damping=0.0, coriolis=False, gravity=gravity,
                           passivity=None)
@@ -204,7 +211,7 @@ def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMES
     if limits:
         terms.append(ObjectiveTerm(BARRIER, LIMIT_GAIN))
     cfg = ControllerConfig(primary=law, objectives=tuple(terms), fme=schedule, damping=K_D, saturation=saturation,
-                           projector=projector, aso_shape=ASO_S)
+                           projector=projector, aso_shape=ASO_S, null_space=null_space)
     return NullSpaceController(dev, cfg)
 
 

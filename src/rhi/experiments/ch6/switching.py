@@ -19,6 +19,7 @@ from rhi.experiments.ch6.setup import (
     RHO,
     THESIS_TF,
     X0,
+    NullSpace,
     U,
     best_match,
     controller_terms,
@@ -47,6 +48,8 @@ def transition(
     compare_beta: float | None = 2.0,
     starts: int = 3,
     limits: bool = True,
+    null_space: NullSpace = "clipped",
+    alternative: NullSpace | None = "scaled",
     progress: Progress | None = None,
 ) -> Result:
     """Fig. 6.11: the desired-FME transition driven by the ASO, with and without the cosine blend.
@@ -68,20 +71,17 @@ def transition(
       force scaling and the torque box);
     - the force disturbance at the handle, |F_sensor − F_commanded| along u.
 
-    What we find, and why it differs from the thesis's Fig. 6.11: the method bounds the
-    per-tick change of M_des (by π Δt/(2ρ)) and removes the jump of τ_S, as the thesis
-    says. The thesis also shows less interference with the handle's motion and force. In
-    our simulation that part is not reproduced: with the thesis's β = 20, −β∂ν/∂q exceeds
-    the torque box for most of a reconfiguration, so the applied τ_N is bounded by the
-    actuators in both variants (per-tick ‖Δτ_N‖ alike) and the reconfiguration from the
-    M_Free^des to the M_Stiff^des optimum runs at saturated torque either way; the
-    handle-force disturbance is then not smaller with the method (its largest value comes
-    from q4 reaching its −20° limit at speed while the hand releases). `compare_beta`
-    (default 2) repeats both variants at a gain whose null-space torque mostly stays inside
-    the box: there the method lowers the applied τ_N jumps, but the largest handle
-    disturbances of both variants occur in the saturated phase after the blend, not at the
-    switch, so the handle-force comparison stays inconclusive. The thesis's hardware
-    gradient scale is unknown; its β = 20 is the default.
+    Reading of the torque limits (issue 23's transcription, tests/test_transcription_ch5_ch6.py): the
+    §6.4 controller is τ = α τ_m + (I − JᵀJ#ᵀ)τ_S (eqs. 6.2–6.6, α of §6.3.1) on a device whose
+    "joint torques limitation [is] programmed as T_i = [3, 3, 1, 1] N.m": each joint is clipped at
+    its limit ("clipped", the literal reading and the default). With it the method lowers the
+    handle-force disturbance and stops the chattering of eq. 6.15, as Fig. 6.11 shows. rhi used to
+    run chapter 7's Algorithm 2 here ("scaled": τ_S scaled into the box, `alternative`), which keeps
+    τ_N in the null space but lets the M_Stiff^des reconfiguration run at saturated torque for longer
+    with the method than without; there the disturbance is larger with the method. Both readings
+    are reported. With the thesis's β = 20, −β∂ν/∂q exceeds the box for most of a reconfiguration
+    in either reading; `compare_beta` repeats both variants at a gain whose null-space torque mostly
+    stays inside it. The thesis shows Fig. 6.11 as curves only.
 
     Args:
         settle: time the hand holds X₀ first [s].
@@ -98,6 +98,9 @@ def transition(
         compare_beta: a second β run for comparison (None: skip).
         starts: starts of the static M_Free^des matching (`best_match`).
         limits: add the joint-limit barrier to the controller.
+        null_space: "clipped" (the literal reading: eqs. 6.2–6.6 as written, the programmed limits
+            clip each joint) or "scaled" (chapter 7's Algorithm 2 scales τ_S into the torque box).
+        alternative: the other reading, run too at `beta` and reported beside (None: skip).
         progress: callback(done, total) in control ticks.
     """
     check_motion(settle=settle, depth=depth, speed=speed, hold=hold, release=release)
@@ -110,7 +113,8 @@ def transition(
     duration = settle + 2 * depth / speed + hold + release
     ticks = int(round(duration * 1000.0))
     betas = [beta] + ([] if compare_beta is None else [compare_beta])
-    total = 2 * ticks * len(betas)
+    runs = [(b, null_space) for b in betas] + ([] if alternative is None else [(beta, alternative)])
+    total = 2 * ticks * len(runs)
     motion = dict(settle=settle, depth=depth, speed=speed, hold=hold, stiffness=hand_stiffness,
                   damping=hand_damping, duration=duration)
     variants = {
@@ -118,21 +122,21 @@ def transition(
         "without": TransitionConfig(eps1=eps1, eps2=eps1, rho=0.0, S=ASO_S),
     }
     arrays: dict[str, np.ndarray] = {"M_free_des": Mf, "M_stiff_des": Ms, "settle": np.array(settle)}
-    out: dict[tuple[float, str], dict[str, float]] = {}
-    for j, b in enumerate(betas):
+    out: dict[tuple[float, str, str], dict[str, float]] = {}
+    for j, (b, ns) in enumerate(runs):
         q_start = best_match(dev, x0, WeightedSum(controller_terms(Mf, dev.torque_max, limits=limits, beta=b)),
                              starts=starts)
         for i, (name, tc) in enumerate(variants.items()):
             offset = (2 * j + i) * ticks
             metrics, arr = _transition_run(dev, Mf, Ms, tc, b, q_start, motion, rho * float(np.linalg.norm(Mf - Ms)),
-                                           limits, progress, offset, total)
-            out[b, name] = metrics
+                                           limits, progress, offset, total, ns)
+            out[b, ns, name] = metrics
             if j == 0:
                 arrays.update({f"{k}_{name}": v for k, v in arr.items()})
                 arrays["q_start"] = q_start
     dist = float(np.linalg.norm(Mf - Ms))
     bound = np.pi * 1e-3 / (2.0 * rho) if rho > 0 else np.inf
-    w, wo = out[beta, "with"], out[beta, "without"]
+    w, wo = out[beta, null_space, "with"], out[beta, null_space, "without"]
     rows = [
         Row("full transition time t_f − t₀ = ρ‖M_Free − M_Stiff‖_F", THESIS_TF, rho * dist, "s",
             "thesis: ρ = 0.003 'so that the transition performed in 0.5 second'"),
@@ -149,9 +153,9 @@ def transition(
         Row("V min, with the method", None, w["V_min"], ""),
         Row("V max, with the method", None, w["V_max"], ""),
     ]
-    for b in betas:
-        tag = f" (β = {b:g})"
-        bw, bwo = out[b, "with"], out[b, "without"]
+    for b, ns in runs:
+        tag = f" (β = {b:g})" if ns == null_space else f" (β = {b:g}, reading '{ns}')"
+        bw, bwo = out[b, ns, "with"], out[b, ns, "without"]
         rows += [
             Row("max per-tick ‖Δτ_N‖ of the applied null-space torque, with" + tag, None, bw["dtau_n"], "N m",
                 "after the force scaling and the torque box"),
@@ -171,13 +175,13 @@ def transition(
         "τ_S is the FME term of eq. 6.6 along the logged configuration; its jump from the M_des change "
         "alone is evaluated at the frozen configuration of the tick. τ_N is the applied null-space torque "
         "(dynamically consistent J#), which the force scaling and the torque box bound in both variants.",
-        f"With the thesis's β = {beta:g} the null-space torque saturates the actuators during a reconfiguration: "
-        "the method removes the jump of τ_S and bounds ΔM_des per tick, but the applied τ_N is bounded by the "
-        "torque box in both variants and the handle-force disturbance is not smaller with the method"
-        + ("." if compare_beta is None else
-           f"; at β = {compare_beta:g} (rows 'β = {compare_beta:g}') the applied τ_N jumps are smaller with it, while "
-           "the largest handle disturbances of both variants occur in the saturated phase after the blend.")
-        + " The thesis shows Fig. 6.11 as curves only.",
+        f"Torque limits: reading '{null_space}' (rows without a reading tag)"
+        + ("" if alternative is None else f" and reading '{alternative}' (tagged rows)") + ". 'clipped': eqs. 6.2–6.6 "
+        "as written, each joint clipped at its programmed limit (the literal reading); 'scaled': chapter 7's "
+        "Algorithm 2 scales τ_S into the box. "
+        + "; ".join(f"max disturbance with/without the method, β = {b:g}, '{ns}': {out[b, ns, 'with']['disturbance']:.1f}"
+                    f" / {out[b, ns, 'without']['disturbance']:.1f} N" for b, ns in runs)
+        + ". The thesis shows Fig. 6.11 as curves only.",
     ]
     return Result(
         "ch6.transition",
@@ -190,7 +194,7 @@ def transition(
 
 def _transition_run(dev: Device, Mf: np.ndarray, Ms: np.ndarray, tc: TransitionConfig, beta: float,
                     q_start: np.ndarray, motion: dict, window: float, limits: bool, progress: Progress | None,
-                    offset: int, total: int) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+                    offset: int, total: int, null_space: NullSpace) -> tuple[dict[str, float], dict[str, np.ndarray]]:
     """One simulated push–hold–release with an ASO-switched desired FME: (metrics, arrays) of `transition`.
 
     `window` [s] is the span after the first tick with Ω < 1 over which the disturbance is
@@ -198,7 +202,7 @@ def _transition_run(dev: Device, Mf: np.ndarray, Ms: np.ndarray, tc: TransitionC
     """
     u, x0 = np.array(U), np.array(X0)
     schedule = FMESchedule(Mf, Ms, gain=beta, transition=tc)
-    ctrl = palpation_controller(dev, None, schedule, limits=limits)
+    ctrl = palpation_controller(dev, None, schedule, limits=limits, null_space=null_space)
     hand = InOutHand(x0, u, motion["depth"], motion["speed"], motion["settle"], motion["hold"], motion["stiffness"],
                   motion["damping"])
     log = run(dev, ctrl, hand, q_start, motion["duration"], progress, offset, total)
