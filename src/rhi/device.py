@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pinocchio as pin
@@ -438,43 +438,43 @@ class Device:
 
 
 # ---------------------------------------------------------------------- loading
-def device(name: str, params: str | None = None, **design: float) -> Device:
+def device(name: str, **params: float | str) -> Device:
     """Load a bundled device by name (see `available_devices()`).
 
     Args:
         name: device name, e.g. "rhi4", "phantom", "rehab", "planar3r", "gen3".
-        params: a named parameter variant from the model folder (`rhi.device_variant`), e.g.
-            "thesis-fit" for rhi4 and its halves (inertias fitted to the thesis's numbers,
-            models/rhi4/README.md); None or "default": the default model.
-        **design: design parameters declared in the device's `device.toml`
-            (e.g. `d2=0.1405` for rhi4) [m or rad].
+        **params: design parameters declared in the device's `device.toml`
+            (e.g. `d2=0.1405` for rhi4) [m or rad]; and ``params``: a named parameter variant from
+            the model folder (`rhi.device_variant`), e.g. ``params="thesis-fit"`` for rhi4 and its
+            halves (inertias fitted to the thesis's numbers, models/rhi4/README.md); absent or
+            "default": the default model.
 
     Raises:
         UnknownDevice: no bundled device has that name.
         InvalidInput: an unknown parameter variant.
     """
-    return from_spec(bundled_spec(name), variant=params, **design)
+    return from_spec(bundled_spec(name), **params)
 
 
-def load_device(folder: str | Path, **params: float) -> Device:
+def load_device(folder: str | Path, **params: float | str) -> Device:
     """Load a device folder holding `device.toml` (+ its URDF). See models/README.md for the format."""
     return from_spec(read_spec(folder), **params)
 
 
-def from_spec(spec: DeviceSpec, variant: str | None = None, **params: float) -> Device:
+def from_spec(spec: DeviceSpec, **params: float | str) -> Device:
     """Build the device a `DeviceSpec` describes, with design parameters set [m or rad].
 
     A derived spec (``base = ...``) loads its bundled base (with the same `variant`) and locks the
-    joints it names. `variant`: a parameter variant's name (`device`), None or "default".
+    joints it names. ``params``: a parameter variant's name (`device`), absent or "default".
     """
-    if variant == "default":
-        variant = None
+    variant = params.pop("params", "default")
+    design = cast(dict[str, float], params)  # build_model names any value that is not a number
     if spec.base is not None:  # a device derived from another by locking joints
-        name = spec.name if variant is None else f"{spec.name}:{variant}"
-        return device(spec.base, params=variant, **params).lock(spec.lock, name=name)
+        name = spec.name if variant == "default" else f"{spec.name}:{variant}"
+        return device(spec.base, params=variant, **design).lock(spec.lock, name=name)
     urdf, ee_frame = spec.chain()
-    var = None if variant is None else read_variant(spec.folder, variant, spec.name)
-    model, values = build_model(spec, params, None if var is None else var.links)
+    var = None if variant == "default" else read_variant(spec.folder, variant, spec.name)  # type: ignore[arg-type]
+    model, values = build_model(spec, design, None if var is None else var.links)
     dev = Device(
         model,
         name=spec.name if var is None else f"{spec.name}:{var.name}",  # the variant is part of the label

@@ -5,7 +5,7 @@ A variant lives in the device's model folder as ``<name with - as _>.toml`` (e.g
 only when asked for: ``rhi.device("rhi4", params="thesis-fit")``. The default model never
 changes. Format:
 
-    armature = [..]                 # (n,) rotor inertia [kg m²] replacing device.toml's
+    armature = [..]                 # (n,) rotor inertia [kg m²] replacing the device's
     [links.<urdf link>]             # any of: mass [kg], com_x [m] (along the link), izz [kg m²]
     [fit]                           # provenance (bounds, parameters, residuals); not read here
 """
@@ -44,7 +44,7 @@ class Variant:
 
 def available_variants(folder: Path) -> list[str]:
     """Names of the variants in a model folder (file stems with _ as -)."""
-    return sorted(p.stem.replace("_", "-") for p in Path(folder).glob("*.toml") if p.name != "device.toml")
+    return sorted(p.stem.replace("_", "-") for p in Path(folder).glob("*.toml") if p.stem != "device")
 
 
 def read_variant(folder: Path, name: str, device: str) -> Variant:

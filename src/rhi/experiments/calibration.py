@@ -94,12 +94,12 @@ def _urdf_links(dev: Device) -> dict[str, tuple[float, float]]:
     import xml.etree.ElementTree as ET
 
     root = ET.parse(bundled_spec(dev.name).chain()[0]).getroot()
-    out = {}
+    out: dict[str, tuple[float, float]] = {}
     for el in root.iter("link"):
         inertial = el.find("inertial")
         if inertial is not None:
-            out[el.get("name")] = (float(inertial.find("mass").get("value")),  # type: ignore[union-attr]
-                                   float(inertial.find("inertia").get("izz")))  # type: ignore[union-attr]
+            out[str(el.get("name"))] = (float(inertial.find("mass").get("value", "nan")),  # type: ignore[union-attr]
+                                        float(inertial.find("inertia").get("izz", "nan")))  # type: ignore[union-attr]
     return out
 
 
