@@ -60,6 +60,7 @@ def protocol(
     repetitions: int = REPETITIONS,
     shuffle_devices: bool = True,
     seed: int = 0,
+    first_index: int = 0,
 ) -> list[Trial]:
     """The trial list of the §3.5 experiment, in presentation order.
 
@@ -68,7 +69,9 @@ def protocol(
     a pair comes first is a fair coin. The thesis does not state the device order
     or the order within a pair; we randomise both (counterbalancing) and make
     each subject's session depend only on ``(seed, subject position)``, so adding
-    a subject does not reshuffle the others.
+    a subject does not reshuffle the others (`first_index` is the position of the
+    first subject: ``protocol(["S03"], first_index=2)`` is S03's session of
+    ``protocol(10)``, which a study enrolling one participant at a time uses).
 
     Args:
         subjects: number of subjects (named "S01", "S02", ...) or their names.
@@ -78,6 +81,7 @@ def protocol(
         repetitions: presentations of every comparison per device (thesis: 10).
         shuffle_devices: randomise the device order per subject (else as given).
         seed: seed of the ordering.
+        first_index: position of the first subject (>= 0).
 
     Returns:
         list of `Trial`: ``len(subjects) · len(devices) · len(comparison_percent) · repetitions``
@@ -106,11 +110,13 @@ def protocol(
         raise InvalidInput(f"comparison_percent: need finite values above -100 %, got {comparison_percent!r}")
     if int(repetitions) != repetitions or repetitions < 1:
         raise InvalidInput(f"repetitions: must be a positive integer, got {repetitions!r}")
+    if int(first_index) != first_index or first_index < 0:
+        raise InvalidInput(f"first_index: must be an integer >= 0, got {first_index!r}")
 
     trials: list[Trial] = []
     base = np.repeat(pct, int(repetitions))
     for s_idx, subject in enumerate(names):
-        rng = np.random.default_rng([int(seed), s_idx])
+        rng = np.random.default_rng([int(seed), int(first_index) + s_idx])
         order = rng.permutation(len(devs)) if shuffle_devices else np.arange(len(devs))
         index = 0
         for block, d_idx in enumerate(order):

@@ -56,6 +56,7 @@ from rhi.experiments.identification import U
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress
 from rhi.sim import Fixture, MinimumJerkPalpation, Plant, Wall, compose, simulate, stop
+from rhi.study.results import fit_conditions
 
 #: Table 3.3: (mean, std) of WF, JND [N/m], PSE [N/m] per device.
 THESIS_TABLE_3_3 = T.TABLE_3_3
@@ -204,6 +205,61 @@ def _palpation_measures(item: tuple[str, float, float]) -> tuple[float, float]:
     return float(r["k_hat"]), float(r["peak_speed"])
 
 
+class WeberObserver:
+    """The §3.5 simulated subjects: K̂ of a drawn stroke duration through the device, Weber noise, lapses.
+
+    One observer answers the trials of every subject of a study, in presentation order, from one random
+    stream (``default_rng([seed, 1])``): first each subject's intrinsic Weber fraction w_s ~ N(`weber_mean`,
+    `weber_sd`) clipped to >= 0.02, then per trial two stroke durations, two normal deviates and, with a lapse
+    rate, the lapse draws (see the module docstring). Stiffnesses between the table's are interpolated
+    linearly in K per duration (exact at the table's own).
+
+    Args:
+        table: `stimulus_table` output.
+        subjects: number of subjects.
+        reference: reference stiffness [N/m] (must lie in the table's range).
+        weber_mean, weber_sd: the intrinsic Weber fractions' distribution.
+        lapse: probability of a random answer.
+        seed: seed of the stream.
+    """
+
+    def __init__(self, table: dict[str, np.ndarray], subjects: int, *, reference: float = pp.REFERENCE_STIFFNESS,
+                 weber_mean: float = 0.08, weber_sd: float = 0.02, lapse: float = 0.0, seed: int = 0) -> None:
+        if not (weber_mean > 0 and weber_sd >= 0):
+            raise InvalidInput(f"weber_mean/weber_sd: need a positive mean and non-negative s.d., "
+                               f"got {weber_mean}, {weber_sd}")
+        if not (0.0 <= lapse < 1.0):
+            raise InvalidInput(f"lapse: must lie in [0, 1), got {lapse!r}")
+        if int(subjects) != subjects or subjects < 1:
+            raise InvalidInput(f"subjects: need a positive integer, got {subjects!r}")
+        self.table, self.reference, self.lapse = table, float(reference), float(lapse)
+        self._order = np.argsort(table["stiffness"])
+        self._K = np.asarray(table["stiffness"], dtype=float)[self._order]
+        self.rng = np.random.default_rng([int(seed), 1])
+        self.weber = np.maximum(self.rng.normal(weber_mean, weber_sd, size=int(subjects)), 0.02)
+
+    def _perceived(self, device: str, stiffness: float, j: int) -> float:
+        if device not in self.table:
+            raise InvalidInput(f"table: no entry for device {device!r}")
+        if not self._K[0] - 1e-9 <= stiffness <= self._K[-1] + 1e-9:
+            raise InvalidInput(f"stiffness: {stiffness!r} N/m lies outside the table's "
+                               f"[{self._K[0]:g}, {self._K[-1]:g}] N/m")
+        return float(np.interp(stiffness, self._K, self.table[device][self._order, j]))
+
+    def answer(self, subject: int, device: str, comparison: float) -> int:
+        """1 if subject `subject` (0-based) judges `comparison` [N/m] stiffer than the reference on `device`."""
+        n_dur = self.table["durations"].size
+        j_ref, j_cmp = self.rng.integers(n_dur, size=2)
+        w = self.weber[subject]
+        e = self.rng.standard_normal(2)
+        k_ref = self._perceived(device, self.reference, int(j_ref)) * (1.0 + w * e[0])
+        k_cmp = self._perceived(device, comparison, int(j_cmp)) * (1.0 + w * e[1])
+        answer = k_cmp > k_ref
+        if self.rng.random() < self.lapse:
+            answer = self.rng.random() < 0.5
+        return int(answer)
+
+
 def simulate_study(
     table: dict[str, np.ndarray],
     *,
@@ -217,7 +273,7 @@ def simulate_study(
     lapse: float = 0.0,
     seed: int = 0,
 ) -> tuple[pp.Responses, np.ndarray]:
-    """Simulated 2AFC responses of §3.5 from the stimulus lookup (see the module docstring).
+    """Simulated 2AFC responses of §3.5: the `rhi.analysis.psychophysics.protocol` trials answered by a `WeberObserver`.
 
     Args:
         table: `stimulus_table` output covering `devices` and `comparison_percent`.
@@ -234,11 +290,6 @@ def simulate_study(
     Returns:
         ``(responses, weber)``: the `Responses` and (subjects,) intrinsic Weber fractions.
     """
-    if not (weber_mean > 0 and weber_sd >= 0):
-        raise InvalidInput(f"weber_mean/weber_sd: need a positive mean and non-negative s.d., "
-                           f"got {weber_mean}, {weber_sd}")
-    if not (0.0 <= lapse < 1.0):
-        raise InvalidInput(f"lapse: must lie in [0, 1), got {lapse!r}")
     pct = [float(p) for p in comparison_percent]
     K = reference * (1.0 + np.asarray(pct) / 100.0)
     if len(table["stiffness"]) != len(K) or not np.allclose(table["stiffness"], K):
@@ -250,32 +301,11 @@ def simulate_study(
             raise InvalidInput(f"table: no entry for device {d!r}")
     trials = pp.protocol(subjects, devices, reference=reference, comparison_percent=pct,
                          repetitions=repetitions, seed=seed)
-    rng = np.random.default_rng([int(seed), 1])
-    weber = np.maximum(rng.normal(weber_mean, weber_sd, size=int(subjects)), 0.02)
-    names = sorted({t.subject for t in trials})
-    w_of = dict(zip(names, weber))
-    i_ref = pct.index(0.0)
-    n_dur = table["durations"].size
-    resp = np.empty(len(trials), dtype=np.int8)
-    for k, t in enumerate(trials):
-        kh = table[t.device]
-        i_cmp = pct.index(t.comparison_percent)
-        j_ref, j_cmp = rng.integers(n_dur, size=2)
-        w = w_of[t.subject]
-        e = rng.standard_normal(2)
-        k_ref = kh[i_ref, j_ref] * (1.0 + w * e[0])
-        k_cmp = kh[i_cmp, j_cmp] * (1.0 + w * e[1])
-        answer = k_cmp > k_ref
-        if rng.random() < lapse:
-            answer = rng.random() < 0.5
-        resp[k] = int(answer)
-    return pp.Responses.from_trials(trials, resp), weber
-
-
-def _fit_group(group: tuple) -> pp.PsychometricFit:
-    """`fit_psychometric` of one (comparisons, responses, subject, device, overdispersion, min_trials) group."""
-    x, r, subject, dev, overdispersion, min_trials = group
-    return pp.fit_psychometric(x, r, subject=subject, device=dev, overdispersion=overdispersion, min_trials=min_trials)
+    obs = WeberObserver(table, subjects, reference=reference, weber_mean=weber_mean, weber_sd=weber_sd,
+                        lapse=lapse, seed=seed)
+    index = {name: i for i, name in enumerate(sorted({t.subject for t in trials}))}
+    resp = np.array([obs.answer(index[t.subject], t.device, t.comparison) for t in trials], dtype=np.int8)
+    return pp.Responses.from_trials(trials, resp), obs.weber
 
 
 def _summary_of(analysis, measure: str) -> dict[str, tuple[float, float, float]]:
@@ -326,11 +356,10 @@ def psychophysics(
     responses, weber = simulate_study(table, subjects=subjects, devices=devs, repetitions=repetitions,
                                       comparison_percent=comparison_percent, weber_mean=weber_mean,
                                       weber_sd=weber_sd, lapse=lapse, seed=seed)
-    groups = [(responses.comparison[idx], responses.response[idx], s, d, overdispersion, min(20, len(idx)))
-              for (s, d), idx in responses.groups().items()]
     cb = None if progress is None else (lambda k, n: progress(total - n_fit + k, total))
-    fits = parallel_map(_fit_group, groups, progress=cb)  # independent fits, in parallel on the default executor
-    analysis = pp.analyse_fits(fits, measure="wf", devices=devs, correction="holm")
+    # independent fits, in parallel on the default executor: the analysis `rhi study analyze` runs
+    analysis = fit_conditions(responses, conditions=devs, overdispersion=overdispersion, progress=cb)
+    fits = analysis.fits
     fdr = paired_t_tests(analysis.values, correction="fdr_bh")
 
     rows = []

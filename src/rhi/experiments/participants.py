@@ -1,0 +1,129 @@
+"""Simulated participants for study protocols: the §3.5 observer through the simulated devices, end to end.
+
+`simulated_study` runs `rhi study simulate`: it builds the stimulus lookup of `rhi.experiments.ch3.discrimination`
+(one MuJoCo palpation through each condition's device per comparison stiffness and stroke duration), lets a
+`WeberObserver` answer every trial of every participant's protocol sequence (`rhi.study.simulate.simulate`,
+written into participant folders when asked), and analyses the responses as `rhi study analyze` does
+(`rhi.study.results.fit_conditions`). For the §3.6 protocol and the same seed, the trials, answers and numbers
+are those of `rhi.experiments.ch3.psychophysics`. The power of the one-way ANOVA at Table 3.3's effect size
+(its WF means and s.d.) for the simulated number of participants per condition comes with it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rhi import thesis as T
+from rhi.analysis import psychophysics as pp
+from rhi.errors import InvalidInput
+from rhi.experiments.ch3.discrimination import DURATIONS, WeberObserver, stimulus_table
+from rhi.experiments.ch3.measures import DEVICE_NAMES
+from rhi.experiments.setups import Progress
+from rhi.study.protocol import Protocol
+from rhi.study.results import fit_conditions, responses_of
+from rhi.study.simulate import anova_power, simulate
+
+#: the controller each simulated device runs (`rhi.experiments.ch3.discrimination.palpate`): its run configuration.
+_CH3_CONFIG = {"RHI": "ch3_vme", "PHANToM": None, "Rehab": None}
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulatedStudy:
+    """A simulated study: rows, the analysis, the observers, the lookup, the power at the thesis's effect.
+
+    Attributes:
+        rows: responses.csv rows of every trial.
+        analysis: `rhi.analysis.psychophysics.StudyAnalysis` of the scored trials.
+        weber: (participants,) intrinsic Weber fractions of the simulated observers.
+        table: the stimulus lookup (`stimulus_table`, keyed by condition).
+        power: power of the one-way ANOVA on WF at Table 3.3's means and s.d. with this many per condition.
+    """
+
+    rows: list[dict[str, Any]]
+    analysis: pp.StudyAnalysis
+    weber: np.ndarray
+    table: dict[str, np.ndarray]
+    power: float
+
+
+def _palpation_names(protocol: Protocol) -> dict[str, str]:
+    """{condition: simulated device of `palpate`}; conditions the §3.5 set-up does not simulate are refused."""
+    by_model = {v: k for k, v in DEVICE_NAMES.items()}
+    out = {}
+    for i, c in enumerate(protocol.conditions):
+        name = by_model.get(c.device)
+        if name is None or c.params or c.config != _CH3_CONFIG[name]:
+            raise InvalidInput(f"conditions[{i}]: the simulated participant feels the §3.5 devices only "
+                               f"(rhi4 with config 'ch3_vme', phantom or rehab without config or params), got "
+                               f"device {c.device!r}, config {c.config!r}, params {c.params}")
+        out[c.name] = name
+    return out
+
+
+def stimulus_grid(protocol: Protocol) -> list[float]:
+    """Comparisons [%] of the lookup: the protocol's constant stimuli, or its adaptive range every step (and 0)."""
+    st = protocol.stimulus
+    if st["method"] == "constant":
+        pct = sorted(float(p) for p in st["comparisons_percent"])
+    else:
+        step = st.get("step_percent", 5.0)
+        pct = np.arange(st["min_percent"], st["max_percent"] + 0.5 * step, step).tolist()
+        pct = sorted(set(round(p, 9) for p in pct) | {0.0})
+    if 0.0 not in pct:
+        raise InvalidInput("stimulus.comparisons_percent: the simulated observer needs 0 (the reference) among them")
+    return pct
+
+
+def simulated_study(
+    protocol: Protocol,
+    participants: int = 10,
+    *,
+    out: str | Path | None = None,
+    weber_mean: float = 0.08,
+    weber_sd: float = 0.02,
+    lapse: float = 0.0,
+    durations: Sequence[float] = DURATIONS,
+    overdispersion: bool = True,
+    table: dict[str, np.ndarray] | None = None,
+    progress: Progress | None = None,
+) -> SimulatedStudy:
+    """Simulate a discrimination protocol end to end with §3.5 observers (see the module docstring).
+
+    Args:
+        protocol: a discrimination protocol whose conditions are the §3.5 devices.
+        participants: simulated participants.
+        out: study folder for the participant folders (None: in memory).
+        weber_mean, weber_sd, lapse: the observers (`WeberObserver`).
+        durations: stroke durations of the lookup [s].
+        overdispersion: psignifit's η.
+        table: a precomputed lookup keyed by condition (skips the simulations).
+        progress: callback(done, total) over simulations, then fits.
+    """
+    if protocol.kind != "discrimination_2afc":
+        raise InvalidInput(f"protocol: simulated participants exist for discrimination tasks; {protocol.name} is a "
+                           f"{protocol.kind} task")
+    names = _palpation_names(protocol)
+    conds = protocol.condition_names
+    if table is None:
+        lookup = stimulus_table(tuple(names[c] for c in conds), reference=protocol.stimulus["reference"],
+                                comparison_percent=stimulus_grid(protocol), durations=durations, progress=progress)
+        table = {k: v for k, v in lookup.items() if k in ("stiffness", "durations")}
+        for c in conds:
+            table[c], table[f"{c}_speed"] = lookup[names[c]], lookup[f"{names[c]}_speed"]
+    obs = WeberObserver(table, participants, reference=protocol.stimulus["reference"], weber_mean=weber_mean,
+                        weber_sd=weber_sd, lapse=lapse, seed=protocol.seed)
+    rows = simulate(protocol, participants, obs, out=out)
+    rows_text = [{k: "" if v is None else str(v) for k, v in r.items()} | {"completion_time": ""} for r in rows]
+    analysis = fit_conditions(responses_of(rows_text), conditions=conds, overdispersion=overdispersion)
+    wf = T.TABLE_3_3["wf"]
+    power = anova_power({d: (float(v[0]), float(v[1])) for d, v in wf.items()}, participants) \
+        if participants >= 2 else float("nan")
+    return SimulatedStudy(rows=rows, analysis=analysis, weber=obs.weber, table=table, power=power)
+
+
+__all__ = ["SimulatedStudy", "simulated_study", "stimulus_grid"]

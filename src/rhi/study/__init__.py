@@ -1,0 +1,1 @@
+"""User studies with people: protocols, trial sequences, participant and experimenter pages, session data."""
