@@ -16,6 +16,7 @@ import numpy as np
 
 from rhi import __version__
 from rhi.cli_log import add_commands as add_log_commands
+from rhi.cli_study import add_commands as add_study_commands
 from rhi.device import available_devices, device
 from rhi.device_measures import all_measures
 from rhi.errors import InvalidInput, LinkError, RhiError
@@ -335,6 +336,7 @@ def main(argv: list[str] | None = None) -> int:
     _add_run(sub)
     add_commands(sub, _floats)
     add_log_commands(sub)
+    add_study_commands(sub)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     try:
         return args.func(args)

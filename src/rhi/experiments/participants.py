@@ -98,7 +98,9 @@ def simulated_study(
         protocol: a discrimination protocol whose conditions are the §3.5 devices.
         participants: simulated participants.
         out: study folder for the participant folders (None: in memory).
-        weber_mean, weber_sd, lapse: the observers (`WeberObserver`).
+        weber_mean: mean intrinsic Weber fraction of the observers (`WeberObserver`).
+        weber_sd: its s.d.
+        lapse: the observers' lapse rate.
         durations: stroke durations of the lookup [s].
         overdispersion: psignifit's η.
         table: a precomputed lookup keyed by condition (skips the simulations).

@@ -83,7 +83,8 @@ def answer_row(trial: PlannedTrial, subject: str, percent: float, answer: str, *
         percent: the comparison presented [% of the reference].
         answer: "first" or "second" (the sample judged stiffer).
         response_time: from the end of the second probe's start to the answer [s].
-        t_start, t_end: Unix times of the trial's start and of the answer [s].
+        t_start: Unix time of the trial's start [s].
+        t_end: Unix time of the answer [s].
 
     Raises:
         InvalidInput: an answer other than "first" or "second", or a trial without a reference.
@@ -102,8 +103,10 @@ def answer_row(trial: PlannedTrial, subject: str, percent: float, answer: str, *
 
 def run_row(trial: PlannedTrial, subject: str, measures: dict[str, float], *, t_start: float | None = None,
             t_end: float | None = None) -> dict[str, Any]:
-    """The responses.csv row of a path-following run: `measures` holds tracking_error [m], effort [J],
-    completion_time [s]."""
+    """The responses.csv row of a path-following run.
+
+    `measures` holds tracking_error [m], effort [J] and completion_time [s].
+    """
     return {"trial": trial.index, "subject": subject, "block": trial.block, "condition": trial.condition,
             "training": int(trial.training), "t_start": t_start, "t_end": t_end,
             **{k: float(measures[k]) for k in ("tracking_error", "effort", "completion_time")}}

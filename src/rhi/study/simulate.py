@@ -30,8 +30,7 @@ class Observer(Interface):
     """A simulated participant of a discrimination task."""
 
     def answer(self, subject: int, device: str, comparison: float) -> int:
-        """1 if participant `subject` (0-based in the simulated study) judges `comparison` stiffer on condition
-        `device`."""
+        """1 if participant `subject` (0-based) judges `comparison` stiffer on condition `device`."""
         ...
 
 
