@@ -116,11 +116,13 @@ def study_result(study_dir: str | Path, *, overdispersion: bool = True,
 def write_study_report(study_dir: str | Path, out: str | Path, *, overdispersion: bool = True,
                        progress: Callable[[int, int], None] | None = None) -> tuple[Path, Result]:
     """Write `study_result` as report.html, results.json, results.npz, tables and figures into `out`."""
+    from matplotlib.figure import Figure
+
     from rhi.plots import study as plots
     from rhi.report import write_report
 
     res = study_result(study_dir, overdispersion=overdispersion, progress=progress)
-    figs = {"by_condition": lambda: plots.by_condition(res)}
+    figs: dict[str, Figure | Callable[[], Figure] | Path] = {"by_condition": lambda: plots.by_condition(res)}
     if any(k.startswith("curve/") for k in res.arrays):
         figs["psychometric_curves"] = lambda: plots.psychometric_curves(res)
     path = write_report([("study", res, figs)], out, title=f"rhi study: {res.title}",

@@ -61,7 +61,7 @@ def _field_type(path: str, v) -> str | tuple[str, ...]:
         if not v:
             raise InvalidInput(f"{path}: expected a non-empty list of choices, got []")
         return _strings(path, v)
-    return S.choice("integer", "number", "text")(path, v)
+    return str(S.choice("integer", "number", "text")(path, v))
 
 
 def _fields(path: str, v) -> dict[str, str | tuple[str, ...]]:

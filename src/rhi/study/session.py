@@ -64,7 +64,7 @@ def read_responses(path: str | Path) -> list[dict[str, str]]:
     rows = list(csv.reader(io.StringIO(text)))
     if not rows or tuple(rows[0]) != COLUMNS:
         raise InvalidInput(f"{path}: line 1 is not the responses header {','.join(COLUMNS)}")
-    out = []
+    out: list[dict[str, str]] = []
     for line, r in enumerate(rows[1:], start=2):
         if len(r) != len(COLUMNS) or r[0] != str(len(out)):
             raise InvalidInput(f"{path}, line {line}: expected trial {len(out)} with {len(COLUMNS)} fields, "
