@@ -143,15 +143,16 @@ def test_handle_port_observer():
     assert Eh == pytest.approx(Em, rel=0.02)
 
 
-@pytest.mark.parametrize("port", ["motors", "handle"])
-def test_kernel_equals_reference(port):
+@pytest.mark.parametrize("port,method", [("motors", "damper_bounding"), ("handle", "damper_bounding"),
+                                         ("motors", "damper"), ("motors", "bounding"), ("handle", "damper")])
+def test_kernel_equals_reference(port, method):
     """The compiled PO/PC equals its readable composition (rhi.control.reference) tick by tick, damping active."""
     from rhi.device import device
 
     dev = device("rhi4")
     rng = np.random.default_rng(7)
     lo, hi = -dev.torque_max, dev.torque_max
-    pcs = [PassivityController(Passivity(port=port), reference=r) for r in (False, True)]
+    pcs = [PassivityController(Passivity(port=port, method=method), reference=r) for r in (False, True)]
     q, dq, active = np.array([0.5, 0.95, 0.38, -0.29]), np.zeros(4), 0
     for k in range(400):
         kin = dev.terms(q, dq)
@@ -163,9 +164,11 @@ def test_kernel_equals_reference(port):
         assert fast.dissipated == pytest.approx(ref.dissipated, abs=1e-12)
         assert np.all(taus[0] >= lo) and np.all(taus[0] <= hi)
         active += fast.alpha > 0.0 or fast.scale < 1.0
+        assert method != "damper" or fast.scale == 1.0  # the damper alone never scales the law
+        assert method != "bounding" or fast.alpha == 0.0  # energy bounding alone adds no damper
         dq = dq + DT * np.linalg.solve(kin.M, taus[0])
         q = q + DT * dq
-    assert active > 20  # the damping and the scaling both ran
+    assert active > 20  # the damping or the scaling ran
 
 
 def test_controller_exposes_energy_and_alpha(rhi4):
@@ -189,6 +192,8 @@ def test_bad_passivity_settings():
         Passivity(alpha_max=-1.0)
     with pytest.raises(InvalidInput, match="initial_energy"):
         Passivity(initial_energy=math.nan)
+    with pytest.raises(InvalidInput, match="method"):
+        Passivity(method="bound")
     with pytest.raises(InvalidInput, match="passivity"):
         ForceRendering(passivity=True)
 
@@ -216,3 +221,30 @@ def test_palpation_energy_reduced_duration():
     stiff_on = dict(zip(SUMMARY, a["stiff_objectives_pc_summary"]))
     assert stiff_off["W"] < -0.01 and stiff_on["W"] >= -1e-3
     assert stiff_off["chatter_velocity"] > 2 * stiff_on["chatter_velocity"]
+
+
+def test_sampled_wall_measured_at_the_hand_z_width():
+    """Energy measured at the hand (∫F_hᵀẋ dt in the plant): the PC makes an active sampled wall passive.
+
+    A 20 kN/m sampled wall hands the hand energy without the PC (the check fails) and not with it; a 1 kN/m
+    wall is passive without it and the PC keeps its peak force.
+
+    The Z-width figure and the transparency table come out of this experiment in `rhi reproduce`.
+    """
+    from rhi.experiments.beyond.zwidth import z_width
+    from rhi.plots.passivity import z_width as figure
+    from rhi.report.steps import STEPS
+
+    r = z_width(stiffness=(1e3, 2e4), damping=(0.0,), methods=("none", "damper_bounding", "damper"), duration=0.5)
+    a = r.arrays
+    passive = {m: a[f"{m}_W_min"][:, 0] >= -1e-3 for m in ("none", "damper_bounding", "damper")}
+    assert a["none_W_min"][1, 0] < -5e-3  # J: the stiff sampled wall is active, measured at the hand
+    assert passive["none"].tolist() == [True, False]
+    assert passive["damper_bounding"].all() and passive["damper"].all()
+    for m in ("damper_bounding", "damper"):  # where the wall is passive without the PC, the PC keeps its force
+        assert abs(a[f"{m}_peak"][0, 0] / a["none_peak"][0, 0] - 1.0) <= 0.1
+    assert [t.title for t in r.tables] == ["Z-width: walls rendered passively (hand's work ≥ −1 mJ)",
+                                           "Transparency: rendered force against the ideal wall"]
+    figure(r)
+    step = next(s for s in STEPS if s.run is z_width)
+    assert step.figures == {"passivity_z_width": figure}

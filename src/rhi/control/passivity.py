@@ -73,6 +73,9 @@ from rhi.errors import InvalidInput
 
 #: The port the observer watches: the motors (τ against q̇) or the handle (J#ᵀτ against ẋ).
 Port = Literal["motors", "handle"]
+#: How the controller acts (see `Passivity.method`).
+Method = Literal["damper_bounding", "damper", "bounding"]
+_MODES = {"damper_bounding": _kernel.DAMPER_BOUNDING, "damper": _kernel.DAMPER, "bounding": _kernel.BOUNDING}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -86,12 +89,18 @@ class Passivity:
         control: False: observe only (E_obs is computed, no damping is added).
         initial_energy: E(0) of H&R eq. 1 [J], energy the controller may give back before
             it counts as active (0: the rendered environment starts empty).
+        method: "damper_bounding": H&R's series damper on the predicted deficit plus energy bounding
+            (the law's torque scaled down by what the damper cannot take out; steps 2–4 of
+            `PassivityController.apply`); "damper": H&R's series damper on the observed deficit
+            −E_obs(n) only (no prediction; the law's torque is never scaled, what the damper cannot
+            take out is carried); "bounding": energy bounding only (the law's torque scaled, no damper).
     """
 
     port: Port = "motors"
     alpha_max: float | None = None
     control: bool = True
     initial_energy: float = 0.0
+    method: Method = "damper_bounding"
 
     def __post_init__(self) -> None:
         if self.port not in ("motors", "handle"):
@@ -100,6 +109,13 @@ class Passivity:
             raise InvalidInput(f"alpha_max: must be finite and > 0 [1/s] or None, got {self.alpha_max!r}")
         if not (math.isfinite(self.initial_energy) and self.initial_energy >= 0):
             raise InvalidInput(f"initial_energy: must be finite and >= 0 [J], got {self.initial_energy!r}")
+        if self.method not in _MODES:
+            raise InvalidInput(f"method: expected one of {', '.join(_MODES)}, got {self.method!r}")
+
+    @property
+    def mode(self) -> int:
+        """The compiled kernel's code of `method` (`rhi.control.kernels.passivity`; OBSERVE without control)."""
+        return _MODES[self.method] if self.control else _kernel.OBSERVE
 
 
 @dataclasses.dataclass
@@ -187,10 +203,10 @@ class PassivityController:
         tau = np.empty(tau0.shape[0])
         s.energy, s.alpha, s.scale, dissipated, s.effort = _kernel.apply(
             s.energy, prev, s.position if prev else pos, s.effort if prev else pos, t - s.t, pos, v, Mp, Mi, kin.J,
-            kin.Jsharp, tau0, lo, hi, motors, self.config.control, self._alpha_max, tau)
+            kin.Jsharp, tau0, lo, hi, motors, self.config.mode, self._alpha_max, tau)
         s.dissipated += dissipated
         s.t, s.position = t, np.array(pos, dtype=float)
         return tau
 
 
-__all__ = ["Passivity", "PassivityController", "PassivityState", "Port"]
+__all__ = ["Method", "Passivity", "PassivityController", "PassivityState", "Port"]

@@ -114,17 +114,20 @@ def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau
     if cfg.control and dt > 0.0 and math.isfinite(dt):
         Minv = kin.Minv if motors else kin.JMinv.dot(kin.J.T)
         e0 = effort(tau0)
-        if _work(e0, v, Minv, dt) > E:  # 2. the coming interval would leave E_obs < 0
+        w0 = 0.0 if cfg.method == "damper" else _work(e0, v, Minv, dt)  # "damper": the observed deficit only
+        if w0 > E:  # 2. the coming interval would leave E_obs < 0
             Mv = kin.M.dot(v) if motors else kin.Lambda.dot(v)
             ke2 = float(v.dot(Mv))  # 2 × the kinetic energy of the port's motion [J]
             tau_d = np.zeros_like(tau0)
-            if ke2 > 0.0:  # 3. the series damper
+            if ke2 > 0.0 and cfg.method != "bounding":  # 3. the series damper
                 a_max = 0.5 / dt if cfg.alpha_max is None else cfg.alpha_max
-                s.alpha = min((_work(e0, v, Minv, dt) - E) / (dt * ke2), a_max)
+                s.alpha = min((w0 - E) / (dt * ke2), a_max)
                 tau_d = -s.alpha * Mv if motors else kin.J.T.dot(-s.alpha * Mv)
                 tau_d = np.minimum(np.maximum(tau_d, lo), hi)
                 s.dissipated -= _work(effort(tau_d), v, Minv, dt)
-            if motors:  # 4. the null-space part of the law's torque yields first, then the task part
+            if cfg.method == "damper":  # the law untouched
+                tau = tau0 + tau_d
+            elif motors:  # 4. the null-space part of the law's torque yields first, then the task part
                 tau_t = kin.J.T.dot(kin.Jsharp.T.dot(tau0))
                 lam_n = _largest_scale(E, tau_t + tau_d, tau0 - tau_t, v, Minv, dt)
                 lam_t = 1.0 if lam_n > 0.0 else _largest_scale(E, tau_d, tau_t, v, Minv, dt)

@@ -171,7 +171,7 @@ class KernelTick:
             self._pc = np.zeros(_whole.N_PC)
             if pas is not None:
                 self._pc[_whole.PC_ON], self._pc[_whole.PC_MOTORS] = 1.0, float(pas.port == "motors")
-                self._pc[_whole.PC_CONTROL] = float(pas.control)
+                self._pc[_whole.PC_CONTROL] = float(pas.mode)
                 self._pc[_whole.PC_ALPHA_MAX] = -1.0 if pas.alpha_max is None else pas.alpha_max
             self._pc_pos, self._pc_eff = np.zeros(k), np.zeros(k)
             self._ps_of: PassivityState | None = None  # the PassivityState the passivity slots mirror

@@ -1,4 +1,4 @@
-"""Figures of the passivity experiment (`rhi.experiments.beyond.passivity`): energy at the hand, force, chatter."""
+"""Figures of the passivity experiments (`rhi.experiments.beyond.passivity`, `.zwidth`): energy, force, chatter, Z-width."""
 
 from __future__ import annotations
 
@@ -67,3 +67,35 @@ def chatter(result: Result) -> Figure:
     axes[-1, 0].set_xlabel("t [s]")
     fig.tight_layout()
     return fig
+
+
+def z_width(result: Result) -> Figure:
+    """Colgate and Brown's Z-width per passivity method: walls (K, B) rendered passively at 1 kHz, and the peak force."""
+    a = result.arrays
+    K, B = a["stiffness"], a["damping"]
+    methods = [m for m in ("none", "damper_bounding", "damper", "bounding") if f"{m}_W_min" in a]
+    fig, axes = plt.subplots(1, len(methods), figsize=(3.4 * len(methods), 3.6), sharey=True, squeeze=False)
+    kk, bb = np.meshgrid(np.arange(len(K)), np.arange(len(B)), indexing="ij")
+    for ax, m in zip(axes[0], methods):
+        passive = a[f"{m}_W_min"] >= -1e-3
+        ax.scatter(kk[passive], bb[passive], s=160, marker="o", color="tab:green", label="passive")
+        ax.scatter(kk[~passive], bb[~passive], s=160, marker="x", color="tab:red", label="active")
+        for i in range(len(K)):
+            for j in range(len(B)):
+                ax.annotate(f"{a[f'{m}_peak'][i, j]:.1f}", (i, j), textcoords="offset points", xytext=(0, 9),
+                            ha="center", fontsize=6)
+        ax.set_xticks(range(len(K)), [f"{k / 1e3:g}" for k in K], fontsize=7)
+        ax.set_yticks(range(len(B)), [f"{b:g}" for b in B], fontsize=7)
+        ax.set(xlabel="K [kN/m]", title=_ZW_NAMES[m])
+        ax.set_xlim(-0.5, len(K) - 0.5)
+        ax.set_ylim(-0.5, len(B) - 0.3)
+    axes[0, 0].set_ylabel("B [N s/m]")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=7, loc="upper right", ncol=2, markerscale=0.6)
+    fig.suptitle("Z-width of rhi4 at 1 kHz (numbers: peak force [N])", fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.93))
+    return fig
+
+
+_ZW_NAMES = {"none": "no PC", "damper_bounding": "damper + energy bounding", "damper": "damper (observed deficit)",
+             "bounding": "energy bounding only"}

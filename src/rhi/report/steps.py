@@ -12,6 +12,7 @@ from rhi.experiments.beyond import (
     passivity as expas,
     spatial as exsp,
     spatial_palpation as exspp,
+    zwidth as exzw,
 )
 from rhi.experiments.parts import Plan
 from rhi.experiments.result import Result
@@ -112,6 +113,10 @@ STEPS: list[Step] = [
          {"duration": 1.5, "stiff_duration": 2.0, "speed": 0.03, "cases": ("objectives", "objectives_pc")},
          {"passivity_energy": plpas.energy, "passivity_force": plpas.force, "passivity_chatter": plpas.chatter},
          progress=True, plan=expas.passivity_plan),
+    Step(exzw.z_width, {"duration": 2.0},
+         {"duration": 0.5, "stiffness": (1e3, 2e4, 5e4), "damping": (0.0, 10.0), "methods": ("none", "damper_bounding",
+                                                                                          "damper")},
+         {"passivity_z_width": plpas.z_width}, progress=True, plan=exzw.z_width_plan),
     Step(exa.tracking, {"duration": 40.0}, {"duration": 20.0}, {"fig_a5": pla.tracking, "fig_a6": pla.base_motion},
          progress=True),
     Step(exa.dm_enhancement, {}, {"t_long": 20.0},

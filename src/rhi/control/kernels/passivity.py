@@ -40,8 +40,13 @@ def _effort(motors, Jsharp, tau):
     return tau.copy() if motors else mtv(Jsharp, tau)
 
 
+#: Codes of `apply`'s mode: observe only, series damper and energy bounding, damper on the observed
+#: deficit only, energy bounding only (`rhi.control.passivity.Passivity.method`).
+OBSERVE, DAMPER_BOUNDING, DAMPER, BOUNDING = 0, 1, 2, 3
+
+
 @jit
-def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsharp, tau0, lo, hi, motors, control,
+def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsharp, tau0, lo, hi, motors, mode,
           alpha_max, tau):
     """PO then PC of one tick (steps 1–4 of `PassivityController.apply`).
 
@@ -61,7 +66,8 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
         lo: (n,) lower bound of the torque box [N m].
         hi: (n,) upper bound of the torque box [N m].
         motors: the motor port (else the handle port).
-        control: add damping (else observe only).
+        mode: OBSERVE, DAMPER_BOUNDING (steps 1–4), DAMPER (step 3 on the observed deficit −E_obs(n),
+            no prediction, the law untouched) or BOUNDING (step 4 without the damper).
         alpha_max: bound on α [1/s] (≤ 0: 0.5 / dt).
         tau: (n,) output, the torque to send [N m].
 
@@ -74,20 +80,22 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
     n = tau0.shape[0]
     for i in range(n):
         tau[i] = tau0[i]
-    if control and dt > 0.0 and math.isfinite(dt):
+    if mode != OBSERVE and dt > 0.0 and math.isfinite(dt):
         e0 = _effort(motors, Jsharp, tau0)
-        w0 = _work(e0, v, Minv_port, dt)
+        w0 = 0.0 if mode == DAMPER else _work(e0, v, Minv_port, dt)
         if w0 > E:
             Mv = mv(M_port, v)
             ke2 = dot(v, Mv)  # 2 × the kinetic energy of the port's motion [J]
             tau_d = np.zeros(n)
-            if ke2 > 0.0:
+            if ke2 > 0.0 and mode != BOUNDING:
                 a_max = 0.5 / dt if alpha_max <= 0.0 else alpha_max
                 alpha = min((w0 - E) / (dt * ke2), a_max)
                 tau_d = -alpha * Mv if motors else mtv(J, -alpha * Mv)
                 tau_d = np.minimum(np.maximum(tau_d, lo), hi)
                 dissipated = -_work(_effort(motors, Jsharp, tau_d), v, Minv_port, dt)
-            if motors:  # the null-space part yields first, then the task part
+            if mode == DAMPER:
+                out = tau0 + tau_d
+            elif motors:  # the null-space part yields first, then the task part
                 tau_t = mtv(J, mtv(Jsharp, tau0))
                 tau_n = tau0 - tau_t
                 lam_n = _largest_scale(E, tau_t + tau_d, tau_n, v, Minv_port, dt)

@@ -34,7 +34,7 @@ FORCE, SPRING, FREE = 1, 2, 3
 #: Scalar slots of the law vector; then B^d (m × m), X₀ (m), normal (m), viscous (n), Coulomb (n).
 LAW_KIND, LAW_GAIN, LAW_CORIOLIS, LAW_GRAVITY, LAW_STIFFNESS, LAW_NORMAL, LAW_FRICTION, LAW_VS = range(8)
 N_LAW = 8
-#: Slots of the passivity vector: settings (on, motor port, control, α bound), then state (E_obs, a
+#: Slots of the passivity vector: settings (on, motor port, mode of `passivity.apply`, α bound), then state (E_obs, a
 #: previous tick, its time, α, λ and the energy the damping took out this tick).
 PC_ON, PC_MOTORS, PC_CONTROL, PC_ALPHA_MAX, PC_E, PC_PREV, PC_T, PC_ALPHA, PC_SCALE, PC_DISSIPATED = range(10)
 N_PC = 10
@@ -156,7 +156,7 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
     prev = pc[PC_PREV] != 0.0
     E, a_pc, scale, dissipated, eff = passivity.apply(
         pc[PC_E], prev, pc_pos if prev else pos, pc_eff if prev else pos, t - pc[PC_T], pos, v, Mp, Mi, J, Jsharp,
-        tau0, lo, hi, motors, pc[PC_CONTROL] != 0.0, pc[PC_ALPHA_MAX], tau_out)
+        tau0, lo, hi, motors, int(pc[PC_CONTROL]), pc[PC_ALPHA_MAX], tau_out)
     pc[PC_E], pc[PC_ALPHA], pc[PC_SCALE], pc[PC_DISSIPATED] = E, a_pc, scale, dissipated
     pc[PC_PREV], pc[PC_T] = 1.0, t
     assign(pc_pos, pos)
