@@ -216,11 +216,39 @@ def _run(args: argparse.Namespace) -> int:
         from rhi.viz.cli import attach_view
 
         view = attach_view(cfg, ctrl, link, port=args.view_port, mouse=args.mouse, loop_cpu=args.cpu)
+    def once(safety, left, path=log_path):
+        return run(link, ctrl, rate=rate, duration=left, safety=safety, log=path, virtual=cfg.virtual,
+                   realtime=args.realtime, progress=status, telemetry=None if view is None else view.telemetry,
+                   cpu=args.cpu, priority=args.priority, spin=args.spin)
+
     try:
-        res = run(link, ctrl, rate=rate, duration=duration, safety=cfg.safety, log=log_path,
-                  virtual=cfg.virtual, realtime=args.realtime, progress=status,
-                  telemetry=None if view is None else view.telemetry, cpu=args.cpu, priority=args.priority,
-                  spin=args.spin)
+        if view is None:
+            res = once(cfg.safety, duration)
+        else:  # faults shown in the page and reset there, pause and resume: one log per run
+            from rhi.viz.session import supervise
+
+            def restart() -> None:
+                nonlocal link
+                link = _link(args.link, rate, cfg, args.realtime, args.spin)
+                if args.mouse:
+                    view.hand.target = None
+                    link.hand = view.hand
+                ctrl.reset()
+
+            runs = [0]
+
+            def supervised(guard, left):
+                runs[0] += 1
+                k = runs[0]
+                return once(guard, left, log_path if k == 1 else log_path.with_suffix(f".{k}.rhilog"))
+
+            results = supervise(supervised, view.commands, cfg.device, restart, config=cfg.safety,
+                                duration=duration, say=lambda line: print(line, file=sys.stderr, flush=True))
+            res = results[-1]
+            if len(results) > 1:
+                print(f"rhi run: {len(results)} runs under the view; the last one's log and summary follow",
+                      flush=True)
+                log_path = log_path.with_suffix(f".{len(results)}.rhilog")
     finally:
         status.close()
         if view is not None:

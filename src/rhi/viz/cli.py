@@ -44,15 +44,25 @@ def _view(args: argparse.Namespace) -> int:
             view.player.play()
         print(f"rhi view: replaying {args.log} ({log.t[-1] - log.t[0]:.2f} s) at {view.url}", flush=True)
         return _serve(view)
+    from rhi.mobile_base import BASE_JOINTS
     from rhi.viz.live import live
+
+    if tuple(dev.joint_names[:3]) == BASE_JOINTS:  # velocity-commanded: drawn, not simulated live
+        view = View(dev, None, q0=args.q0, host=args.host, port=args.port)
+        print(f"rhi view: {dev.name} is velocity-commanded (App. A/B): shown at rest at {view.url} (replay its "
+              "logs with `rhi view LOG --device ...`)", flush=True)
+        return _serve(view)
 
     def hello(view) -> None:
         print(f"rhi view: {dev.name} simulated live at 1 kHz at {view.url} (drag the gizmo to push the handle "
-              "into the wall; Ctrl-C to stop)", flush=True)
+              "into the wall; pause and reset in the page; Ctrl-C to stop)", flush=True)
 
-    res = live(dev, duration=args.duration, host=args.host, port=args.port, on_start=hello)
-    s = res.summary
-    print(f"rhi view: {s['ticks']} ticks, missed deadlines {s['missed']} ({s['missed_pct']:.3f} %)")
+    results = live(dev, duration=args.duration, host=args.host, port=args.port, on_start=hello, q0=args.q0,
+                   say=lambda line: print(line, flush=True))
+    ticks = sum(r.summary["ticks"] for r in results)
+    missed = sum(r.summary["missed"] for r in results)
+    print(f"rhi view: {len(results)} run(s), {ticks} ticks, missed deadlines {missed} "
+          f"({100.0 * missed / max(ticks, 1):.3f} %)")
     return 0
 
 
@@ -106,4 +116,6 @@ def add_commands(sub, floats) -> None:
     v.add_argument("--host", default="127.0.0.1")
     v.add_argument("--port", type=int, default=8080)
     v.add_argument("--duration", type=float, default=3600.0, help="live simulation length [s]")
+    v.add_argument("--q0", type=floats, help="start configuration [rad] (default: mid-range, bent where that is "
+                                             "singular: rhi.viz.posed.rest_configuration)")
     v.set_defaults(func=_view)

@@ -52,6 +52,14 @@ def state_panel(snap) -> str:
             f"safety: {html.escape(badge[1])}</div></div>")
 
 
+def status_line(text: str) -> str:
+    """The run's status ("warming up …", "live", "paused", a fault with its reason) as a coloured line."""
+    low = text.lower()
+    color = "#d62728" if low.startswith(("fault", "stopped")) else "#2ca02c" if low == "live" else "#ff7f0e"
+    return (f'<div id="rhi-status" style="font:12px sans-serif;padding:3px 6px;border-radius:3px;color:white;'
+            f'background:{color}">{html.escape(text)}</div>')
+
+
 def legend(force_scale: float | None, velocity_scale: float | None) -> str:
     """What the colours at the handle mean, with the display scales."""
     fs = "" if force_scale is None else f" (1 N = {1000 * force_scale:.2g} mm)"

@@ -19,11 +19,34 @@ from rhi.sim.mobile import MobilePlant
 from rhi.sim.plant import Plant
 
 
+#: the smallest σ_min/σ_max of the Jacobian a start pose may have (`rest_configuration`)
+WELL_CONDITIONED = 0.1
+
+
 def rest_configuration(device: Device) -> np.ndarray:
-    """Mid-range motor coordinates (0 for unbounded ones): (n,) [rad or m]."""
+    """A documented, non-singular start pose: (n,) [rad or m].
+
+    Mid-range motor coordinates (0 for unbounded ones). Where that pose is singular or nearly so
+    (σ_min/σ_max of J below 0.1: a stretched serial arm such as planar3r or gen3 at zero), each joint
+    is bent by alternating ±0.4 rad (then ±0.8 rad), kept 10 % inside its range: the first such pose
+    that is well conditioned, else the best one tried.
+    """
     lo, hi = device.joint_limits
     ok = np.isfinite(lo) & np.isfinite(hi)
-    return np.where(ok, 0.5 * (np.where(ok, lo, 0.0) + np.where(ok, hi, 0.0)), 0.0)
+    lo0, hi0 = np.where(ok, lo, 0.0), np.where(ok, hi, 0.0)
+    mid = 0.5 * (lo0 + hi0)
+    inner_lo = np.where(ok, lo0 + 0.1 * (hi0 - lo0), -np.inf)
+    inner_hi = np.where(ok, hi0 - 0.1 * (hi0 - lo0), np.inf)
+    alt = np.where(np.arange(device.n) % 2 == 0, 1.0, -1.0)
+    best, best_c = mid, -1.0
+    for q in (mid, *(np.clip(mid + a * alt, inner_lo, inner_hi) for a in (0.4, -0.4, 0.8, -0.8))):
+        s = np.linalg.svd(device.jacobian(q), compute_uv=False)
+        c = float(s[-1] / s[0]) if s[0] > 0 else 0.0
+        if c >= WELL_CONDITIONED:
+            return q
+        if c > best_c:
+            best, best_c = q, c
+    return best
 
 
 class Posed:

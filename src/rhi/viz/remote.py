@@ -22,6 +22,7 @@ import numpy as np
 from rhi.errors import InvalidInput
 from rhi.sim.hand import DraggableHand
 from rhi.sim.log import layout
+from rhi.viz.commands import ViewCommands
 
 _FAULT_BYTES = 512
 
@@ -180,6 +181,7 @@ def _serve(device, tel_name: str, sizes, hand, kw: dict, ready, stop, cpus) -> N
     stop.wait()
     view.close()
     tel.close()
+    kw["commands"].close()
     if hand is not None:
         hand.close()
 
@@ -198,6 +200,7 @@ class RemoteView:
 
     Attributes:
         telemetry: the `SharedTelemetry` the loop publishes into.
+        commands: the view's pause / reset requests and the run's status line (`rhi.viz.session.supervise`).
         port: the port the view listens on.
     """
 
@@ -207,6 +210,7 @@ class RemoteView:
             raise InvalidInput("hand: a view in another process needs a SharedDraggableHand")
         self.hand = hand
         self.telemetry = SharedTelemetry(device.n, device.m, m_slave, every=every)
+        self.commands = kw["commands"] = ViewCommands()
         ctx = mp.get_context("spawn")
         ready, self._stop = ctx.Queue(), ctx.Event()
         self.process = ctx.Process(target=_serve, args=(device, self.telemetry.name, self.telemetry.sizes, hand, kw,
@@ -231,5 +235,6 @@ class RemoteView:
             self.process.terminate()
             self.process.join(5)
         self.telemetry.close()
+        self.commands.close()
         if self.hand is not None:
             self.hand.close()

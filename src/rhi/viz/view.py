@@ -23,8 +23,9 @@ from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.sim.hand import DraggableHand
 from rhi.sim.log import Log
+from rhi.viz.commands import ViewCommands
 from rhi.viz.overlays import HandleMeasures, Overlays, handle_measures
-from rhi.viz.panels import legend, state_panel, torque_panel
+from rhi.viz.panels import legend, state_panel, status_line, torque_panel
 from rhi.viz.posed import Posed, rest_configuration
 from rhi.viz.replay import LogPlayer
 from rhi.viz.scene import DeviceScene
@@ -46,6 +47,8 @@ class View:
         host, port: where the server listens (port 0: a free port).
         fps: browser updates per second (the thread's rate).
         lp_every: solve the force-capability LP every this many frames (it costs milliseconds).
+        commands: the run's `ViewCommands` (`rhi.viz.session.supervise`): pause / resume and reset buttons and the
+            run's status line (warming up, live, paused, the fault and its reason), or None.
 
     Attributes:
         server: the `viser.ViserServer`.
@@ -55,7 +58,8 @@ class View:
     """
 
     def __init__(self, device: Device, source=None, *, hand: DraggableHand | None = None, virtual=None, fme=None,
-                 q0=None, host: str = "127.0.0.1", port: int = 8080, fps: float = 45.0, lp_every: int = 10) -> None:
+                 q0=None, host: str = "127.0.0.1", port: int = 8080, fps: float = 45.0, lp_every: int = 10,
+                 commands: ViewCommands | None = None) -> None:
         import viser
 
         if not np.isfinite(fps) or not 1 <= fps <= 240:
@@ -63,6 +67,8 @@ class View:
         if hand is not None and not isinstance(hand, DraggableHand):
             raise InvalidInput(f"hand: expected a rhi.sim.DraggableHand, got {type(hand).__name__}")
         self.device, self.hand, self.fps, self.lp_every = device, hand, float(fps), max(1, int(lp_every))
+        self.commands = commands
+        self._status = (-1, "")
         self._meas: HandleMeasures | None = None  # the last measures (the LP's force kept between LP frames)
         self.player = LogPlayer(source) if isinstance(source, Log) else None
         self.source = self.player or source
@@ -127,6 +133,8 @@ class View:
             @self.play_button.on_click
             def _(event) -> None:
                 p.pause() if p.playing else p.play()
+        if self.commands is not None:
+            self._build_run_controls(self.commands)
         self.state_html = gui.add_html(state_panel(self._rest_snapshot()))
         self.torque_html = gui.add_html("")
         self.legend_html = gui.add_html(legend(None, None))
@@ -152,6 +160,31 @@ class View:
             def _(event) -> None:
                 with self._grip:
                     hand.target = None
+
+    def _build_run_controls(self, cmd: ViewCommands) -> None:
+        """The run's status line, a pause / resume button, a reset button and a stop button."""
+        gui = self.server.gui
+        self.status_html = gui.add_html(status_line("starting …"))
+        self.pause_button = gui.add_button("pause")
+        self.reset_button = gui.add_button("reset (re-arm safety, restart)")
+        self.stop_button = gui.add_button("stop the session", color="red")
+
+        @self.pause_button.on_click
+        def _(event) -> None:
+            cmd.paused = not cmd.paused
+            self.pause_button.label = "resume" if cmd.paused else "pause"
+
+        @self.reset_button.on_click
+        def _(event) -> None:
+            if self.hand is not None:
+                with self._grip:
+                    self.hand.target = None
+            cmd.request_reset()
+            self.pause_button.label = "pause"
+
+        @self.stop_button.on_click
+        def _(event) -> None:
+            cmd.request_stop()
 
     def _rest_snapshot(self):
         z = np.zeros(self.device.m)
@@ -196,6 +229,11 @@ class View:
 
     def step(self) -> bool:
         """Draw the newest snapshot if there is a new one; returns whether it drew."""
+        if self.commands is not None:
+            st = self.commands.status()
+            if st[0] != self._status[0]:
+                self._status = st
+                self.status_html.content = status_line(st[1])
         snap = self.source.latest() if self.source is not None else None
         if snap is None or (self._last_t is not None and snap.t == self._last_t):
             return False
