@@ -99,24 +99,21 @@ def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
         text = b.evaluate("document.getElementById('rhi-status').innerText")
         assert text.startswith("fault (") and "press reset" in text, text
         assert any("handle speed" in line for line in lines)
-        t_fault = view.telemetry.latest().t
         b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('reset')).click()")
         assert b.wait_for("document.getElementById('rhi-status').innerText === 'live'", timeout=20)
         assert view.hand.target is None  # the mouse hand let go
-        deadline = time.monotonic() + 10
-        while (view.telemetry.latest().t >= t_fault or view.telemetry.latest().t < 0.2) \
-                and time.monotonic() < deadline:
-            time.sleep(0.05)
+        t1 = view.telemetry.latest().t
+        time.sleep(0.5)
         snap = view.telemetry.latest()
-        assert 0.2 <= snap.t < t_fault + 0.2 and snap.safety == "ok"  # restarted at t = 0, running again
+        assert snap.t > t1 and snap.safety == "ok"  # running again
         # pause: the run stops with zero torque; resume goes on from where the device is
-        b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.trim().toLowerCase() === 'pause').click()")
-        assert b.wait_for("document.getElementById('rhi-status').innerText.startsWith('paused')", timeout=10)
+        b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('pause')).click()")
+        assert b.wait_for("document.getElementById('rhi-status').innerText.startsWith('paused')", timeout=30)
         t_pause = view.telemetry.latest().t
         time.sleep(0.5)
         assert view.telemetry.latest().t == pytest.approx(t_pause, abs=5e-3)
-        b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.trim().toLowerCase() === 'resume').click()")
-        assert b.wait_for("document.getElementById('rhi-status').innerText === 'live'", timeout=10)
+        b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('resume')).click()")
+        assert b.wait_for("document.getElementById('rhi-status').innerText === 'live'", timeout=30)
         assert view.telemetry.latest().t > t_pause
         b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('stop the')).click()")
         session.join(30)
@@ -129,3 +126,5 @@ def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
     runs = out["runs"]
     assert [r.summary["fault_kind"] for r in runs] == ["handle_speed", "estop", "estop"], [r.fault for r in runs]
     assert "paused" in runs[1].fault and "stopped in the view" in runs[2].fault
+    assert runs[1].log.t[0] < 0.01 < runs[0].log.t[-1]  # the reset restarted the device at its start
+    assert runs[2].log.t[0] == pytest.approx(runs[1].log.t[-1], abs=0.01)  # resume goes on where it paused
