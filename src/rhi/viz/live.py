@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rhi._validate import as_array
 from rhi.control import (
     ControllerConfig,
     FMESchedule,
@@ -23,7 +24,6 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
-from rhi._validate import as_array
 from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.mobile_base import BASE_JOINTS

@@ -18,7 +18,6 @@ from rhi.mobile_base import BASE_JOINTS
 from rhi.sim.mobile import MobilePlant
 from rhi.sim.plant import Plant
 
-
 #: the smallest σ_min/σ_max of the Jacobian a start pose may have (`rest_configuration`)
 WELL_CONDITIONED = 0.1
 
