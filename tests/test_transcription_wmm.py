@@ -259,3 +259,20 @@ def test_the_arm_alone_cannot_keep_sigma_min_on_the_inner_circle(wmm):
         if np.linalg.norm(wmm.fk(res.x) - x_far) < 1e-6:
             best = max(best, -res.fun)
     assert 0.09 < best < 0.15
+
+
+def test_self_motion_goes_on_without_a_joint_held_at_its_bound(wmm):
+    """A joint at its bound is left out of the generalized self-motion; the others carry on.
+
+    With the elbow at its bound (q4 = 2.5 rad) the other joints go on raising DM (saturation in the null
+    space [51]) instead of stopping there; the task is kept.
+    """
+    q = np.array([0.3499, 0.0278, 0.0232, -0.0232, -0.2782, 0.1164, 2.5, -0.0199, -0.5612, 0.0])
+    x = wmm.fk(q)
+    ctl = _rhi(wmm, dm=DMConfig(u=(0, 0, 1)), null_space="generalized")
+    cmd = ctl.step(0.0, q, x, np.zeros(3), stage="dm_null")
+    tr = Transcription(wmm, u=(0, 0, 1))
+    assert tr.grad_H2(q)[3] > 0  # the gradient pushes the elbow past its bound
+    assert abs(cmd.dq[6]) < 1e-9 and np.abs(cmd.dq[3:]).max() > 1e-3
+    assert np.abs(wmm.jacobian(q) @ cmd.dq).max() < 1e-9
+    assert tr.H2(q + 0.01 * cmd.dq) > tr.H2(q)

@@ -35,6 +35,8 @@ from rhi.device import Device, DeviceTerms
 from rhi.errors import InfeasibleLimits, InvalidInput
 from rhi.mobile_base import mecanum_map, wheel_geometry, wheel_jacobian
 
+#: An arm joint whose local velocity bound (A.13) toward its position bound is below this [rad/s] is at that bound.
+HELD = 1e-6
 #: App. A.4.3: W_τ = diag(1, 1, 1, 1, 2.5, 2.5, 2.5) = diag(1/τ_lim) with τ_lim below.
 W_TAU_LIMITS = (1.0, 1.0, 1.0, 1.0, 0.4, 0.4, 0.4)
 
@@ -248,10 +250,11 @@ class WeightedDistributionController:
     * ``"dm_null"``: tracking plus (I − J†J) v_n, v_n = k_N [0; ∇_{q_m}H₂ᵀ] (A.19–A.20).
 
     The command is kept within the arm's local velocity bounds (A.13) and the base's
-    velocity bounds (Table B.1), which the thesis's law does not enforce: first the
-    self-motion of "dm_null" is scaled by the largest s ∈ [0, 1] that fits them (the task
-    stays exact), then what still exceeds a bound is clipped; `VelocityCommand.clipped`
-    reports either.
+    velocity bounds (Table B.1), which the thesis's law does not enforce: the self-motion
+    of "dm_null" leaves out the joints at a position bound it pushes against (with the
+    ``"generalized"`` projector), is scaled by the largest s ∈ [0, 1] that fits the bounds
+    (the task stays exact), and what still exceeds a bound is clipped;
+    `VelocityCommand.clipped` reports scaling or clipping.
 
     Args:
         device: the mobile manipulator (``rhi.device("wmm")``).
@@ -300,19 +303,25 @@ class WeightedDistributionController:
         cmd = self.step(t, q, x_des, dx_des, stage=stage)
         return MobileStep(cmd.dq, None, cmd.x, {"gamma": cmd.gamma, "eta": cmd.eta, "dm": cmd.dm})
 
-    def _null_motion(self, J, Jq, P, Jp, grad_arm) -> np.ndarray:
+    def _null_motion(self, J, Jq, P, Jp, grad_arm, held) -> np.ndarray:
         """(I − J†J) v_n, v_n = [0; k_N ∇_{q_m}H₂ᵀ] (eqs. A.19–A.20), as [wheel speeds; arm rates].
 
         ``null_space="weighted"``: the projector of the distribution's own J† (eq. A.19 as
         printed; at γ = 0 that J† has no base rows and the base cannot move).
         ``"generalized"``: the orthogonal projector of the generalized Jacobian
         J_q = [J_b, J_m] (eq. A.7 with Q = I), whose base motion is sent to the wheels as
-        P⁺ q̇_b; the base then moves with the arm's self-motion.
+        P⁺ q̇_b; the base then moves with the arm's self-motion. The arm joints `held` (at a
+        position bound the gradient pushes against) take no part: their columns and entries
+        are removed, so the other joints carry on the self-motion (saturation in the null
+        space, Flacco et al. [51], which eq. A.13 cites).
         """
         if self.config.null_space == "weighted":
             v = np.concatenate([np.zeros(self.n_wheels), grad_arm])
             return v - Jp @ (J @ v)
-        vq = np.concatenate([np.zeros(3), grad_arm])
+        vq = np.concatenate([np.zeros(3), np.where(held, 0.0, grad_arm)])
+        if held.any():
+            Jq = Jq.copy()
+            Jq[:, 3:][:, held] = 0.0
         Gi = gram_inverse(Jq, 0.0)
         vq = vq - Jq.T @ (Gi @ (Jq @ vq)) if Gi is not None else vq - np.linalg.pinv(Jq) @ (Jq @ vq)
         return np.concatenate([np.linalg.pinv(P) @ vq[:3], vq[3:]])
@@ -374,6 +383,7 @@ class WeightedDistributionController:
             elif c.dm is not None:
                 h = float(dm_value(Jq[:, 3:], c.dm.u, c.dm.torque_limits))
         vlo, vhi = velocity_bounds_unchecked(q, self.bounds, c.dt)
+        held = None if grad is None else (grad > 0) & (vhi[3:] <= HELD) | (grad < 0) & (vlo[3:] >= -HELD)
         gamma, eta = math.nan, math.nan
         if c.distribution == "pinv":
             Jp = np.linalg.pinv(J)
@@ -383,14 +393,14 @@ class WeightedDistributionController:
             J0 = self._weighted_pinv(0.0, J, Jq, P)
             v0 = J0 @ dx
             if grad is not None:
-                v0 = v0 + self._null_motion(J, Jq, P, J0, grad)
+                v0 = v0 + self._null_motion(J, Jq, P, J0, grad, held)
             eta = float(distribution_ratio(v0[nw:], vlo[3:], vhi[3:]))
             gamma = float(distribution_gamma(eta, c.epsilon))
             Jp = J0 if gamma == 0.0 else self._weighted_pinv(gamma, J, Jq, P)
         v = Jp @ dx
         null_scale = 1.0
         if grad is not None:
-            vn = self._null_motion(J, Jq, P, Jp, grad)  # A.19
+            vn = self._null_motion(J, Jq, P, Jp, grad, held)  # A.19
             # the self-motion is scaled down (as App. B's β, Fig. B.4) where it would drive a joint past
             # its bounds (A.13): clipping it instead would break the task (J v ≠ ẋ)
             null_scale, _ = scale_factor(np.r_[P @ vn[:nw], vn[nw:]], np.r_[P @ v[:nw], v[nw:]], lo=vlo, hi=vhi)
