@@ -88,6 +88,16 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _fidelity(args: argparse.Namespace) -> int:
+    from rhi.report.fidelity import rejudge
+
+    text, tally = rejudge(args.runs)
+    if args.to:
+        Path(args.to).write_text(text)
+    print(tally if args.to else text)
+    return 0
+
+
 def _device_server(args: argparse.Namespace) -> int:
     from rhi.runtime import SimLink
     from rhi.runtime.config import load_config
@@ -348,6 +358,10 @@ def main(argv: list[str] | None = None) -> int:
         q.add_argument("--address", help="Ray cluster address for --executor ray (default: start a local instance)")
         q.add_argument("--workers", type=int, help="processes of the local pool (default: CPU count)")
         q.set_defaults(func=_reproduce)
+    f = sub.add_parser("fidelity", help="judge the headline claims of reproduction runs again and write their dossiers")
+    f.add_argument("runs", nargs="+", help="output folders of `rhi reproduce` (their results.json; later ones win)")
+    f.add_argument("--to", help="write the dossiers' Markdown here (e.g. docs/fidelity.md) instead of printing it")
+    f.set_defaults(func=_fidelity)
     d = sub.add_parser("device-server", help="serve a simulated device over UDP (the protocol of docs/protocol.md)")
     d.add_argument("device")
     d.add_argument("--port", type=int, default=5005, help="UDP port (0: any free port; default 5005)")

@@ -10,6 +10,7 @@ also carries
 - ``tol``: half a unit of the last digit the thesis prints (``"0.371"`` → ±0.0005, ``"89"`` → ±0.5),
   unless stated otherwise (a claim such as an ordering is exact: tol 0);
 - ``unit``, ``source`` (table, figure or section, with the thesis line it is printed on);
+- ``text``: the number as the thesis prints it (``printed(v)`` also rounds a derived value to its tolerance);
 - ``relative``: whether a relative difference means something (not for p-values, angles,
   counts, orderings or values within a few roundings of zero).
 
@@ -30,6 +31,7 @@ class ThesisValue(float):
     """A thesis number: a float with key, tolerance [same unit], unit, source and whether relative differences mean something."""
 
     key: str
+    text: str
     tol: float
     unit: str
     source: str
@@ -40,7 +42,7 @@ class ThesisValue(float):
                 relative: bool | None = None, claim: bool = False) -> ThesisValue:
         """A float with the thesis's key, unit, source and rounding tolerance."""
         self = super().__new__(cls, float(text))
-        self.key, self.unit, self.source, self.claim = key, unit, source, claim
+        self.key, self.text, self.unit, self.source, self.claim = key, text, unit, source, claim
         self.tol = _rounding(text) if tol is None else float(tol)
         if relative is None:
             relative = not claim and unit not in ("deg", "rad", "p") and abs(float(self)) > 10 * self.tol
@@ -53,6 +55,16 @@ class ThesisValue(float):
     def within(self, x: float) -> bool:
         """Whether `x` equals this value within its tolerance (the thesis's rounding)."""
         return bool(math.isfinite(x) and abs(x - float(self)) <= self.tol * (1 + 1e-9) + 1e-15)
+
+
+def printed(v: ThesisValue) -> str:
+    """The number as the thesis prints it ("0.0590", "-5.674"); a derived one to the digits its tolerance allows."""
+    if not v.source.startswith("derived:"):
+        return v.text
+    if v.tol <= 0:
+        return f"{float(v):g}"
+    decimals = max(0, math.ceil(-math.log10(2 * v.tol)))
+    return f"{float(v):.{decimals}f}"
 
 
 def _rounding(text: str) -> float:
@@ -122,8 +134,13 @@ TABLE_3_1_Q = tuple(tuple(_v(f"table3_1.q.{i}.{k}", t, "rad", "§3.5 text below 
 #: Table 3.1 / §3.5: ρ_RHI > ρ_PHANToM, ρ_Rehab and Λ_RHI < Λ_PHANToM < Λ_Rehab at both points.
 TABLE_3_1_RHO_ORDER = _claim("table3_1.rho_order", "Table 3.1, §3.5: ρ_RHI larger than the PHANToM's and the Rehab's")
 TABLE_3_1_LAMBDA_ORDER = _claim("table3_1.lambda_order", "Table 3.1, §3.5: Λ_RHI < Λ_PHANToM < Λ_Rehab")
-#: Remarks I and II (§3.3), Figs 3.7–3.8: ρ_r ≥ 1 and Λ_r ≤ 1 at every point of the common workspace.
-REMARKS_3_3 = _claim("fig3_7.remarks", "§3.3 Remarks I–II, Figs 3.7–3.8: ρ_r ≥ 1 and Λ_r ≤ 1 everywhere")
+#: Remark I (§3.3, eq. 3.10), Fig. 3.8: ρ_r = ρ_RHI/ρ_PHANToM ≥ 1 at every point of the common workspace.
+REMARK_I = _claim("fig3_8.rho_r", "§3.3 Remark I (eq. 3.10), Fig. 3.8 (line 672): ρ_r ≥ 1 everywhere")
+#: Remark II (§3.3, eq. 3.15), Fig. 3.7: Λ_r = Λ_RHI/Λ_PHANToM ≤ 1 at every point of the common workspace.
+REMARK_II = _claim("fig3_7.lambda_r", "§3.3 Remark II (eq. 3.15), Fig. 3.7 (line 672): Λ_r ≤ 1 everywhere")
+#: §3.3 eqs. 3.16–3.19, Figs 3.2–3.3: the redundant 2-DoF prismatic robot's apparent inertia is smaller than the
+#: 1-DoF robot's ("As |(B2/s + M2)/(B1/s + B2/s + M2)| ≤ 1, ... smaller").
+PRISMATIC_A2_BELOW_A1 = _claim("eq3_19.a2_below_a1", "§3.3 eqs. 3.16–3.19, Figs 3.2–3.3 (line 550): |A2| ≤ |A1|")
 #: Table 3.2: identified Λ [kg] along u at the two points.
 TABLE_3_2 = {d: _pair(f"table3_2.{d}", t, "kg", "Table 3.2 (line 652)")
              for d, t in (("RHI", ("0.0691", "0.0718")), ("PHANToM", ("0.0734", "0.0728")), ("Rehab", ("0.5399", "0.5683")))}
@@ -176,6 +193,11 @@ TABLE_4_1 = {
         ("C2", {"l2": "0.269", "z_ph": "-0.065", "theta_z": "0", "GM_T": "0.0590", "GC_M": "0.7315", "GM_M": "0.0728"}),
     )
 }
+
+#: §4.4, Fig. 4.7: the joint energy A→B is "much smaller" where C2 is optimised, in both rounds (D = {θz} and
+#: D = {l2, θz, Z_PH}): C2's below C1's at 2 design rounds.
+ENERGY_ORDER_4_7 = _v("fig4_7.energy_order", "2", "", "§4.4, Fig. 4.7 (line 968): C2's joint energy is much smaller",
+                      tol=0.0, claim=True)
 
 # ---------------------------------------------------------------- chapter 5
 #: §5.4.1: TME area increase by the TMI null-space controller at the fixed point [%].
@@ -230,6 +252,19 @@ PHI_RATIO_6_1 = _ratio("table6_1.Phi_ratio", TABLE_6_1["stiff"][1], TABLE_6_1["f
 GAIN_6_4 = _v("s6_4.gain", "51", "%", "§6.4, Fig. 6.9 (line 1428)")
 #: §6.5: duration of the M_Free → M_Stiff transition [s] ("performed in 0.5 second").
 TRANSITION_TIME = _v("s6_5.t_f", "0.5", "s", "§6.5 (line 1462)")
+
+#: §6.3.2, Fig. 6.6: the ASO V of eq. 6.14 spans [0, 1] over the torque box of a 2-DoF robot (|T1| ≤ 0.5 N m,
+#: |T2| ≤ 2 N m, S = 50): 1 at zero torque, 0 at saturation.
+ASO_SPAN_6_6 = _claim("fig6_6.aso_span", "§6.3.2, Fig. 6.6 (line 1364): V spans [0, 1], 0 at saturation")
+#: §6.4, Fig. 6.10: F_max with the M_Stiff^des configuration larger than with M_Free^des "over the entire workspace".
+FMAX_ENTIRE_6_10 = _claim("fig6_10.entire", "§6.4, Fig. 6.10 (line 1459): larger over the entire workspace")
+#: §6.4, Fig. 6.11: the transition method prevents the discontinuity in the control effort (per-tick jump of the
+#: null-space torque smaller with it) ...
+EFFORT_6_11 = _claim("fig6_11.effort", "§6.4, Fig. 6.11 (line 1469): the method prevents the control-effort "
+                                       "discontinuity")
+#: ... and so the interference of the internal motion with the handle's force (disturbance smaller with it).
+INTERFERENCE_6_11 = _claim("fig6_11.interference", "§6.4, Fig. 6.11(a–b) (line 1469): less interference of the "
+                                                   "internal motion with the handle force")
 
 # ---------------------------------------------------------------- chapter 7
 #: §7.3 / Fig. 7.1: simple scaling's peak force below ASCM's [%].

@@ -151,6 +151,29 @@ class Result:
         }
 
 
+def result_from_json(d: dict[str, Any]) -> Result:
+    """A `Result` back from its `Result.to_json(arrays=False)` form (thesis values by their `rhi.thesis` key).
+
+    Raises:
+        InvalidInput: a missing key (named by its path) or a thesis key `rhi.thesis` does not know.
+    """
+    from rhi import thesis as T
+
+    try:
+        tables = []
+        for t in d["tables"]:
+            rows = []
+            for r in t["rows"]:
+                thesis = T.get(r["source"]) if r["source"] else r["thesis"]
+                own_tol = isinstance(thesis, ThesisValue) and r["tolerance"] == thesis.tol
+                rows.append(Row(r["quantity"], thesis, math.nan if r["rhi"] is None else float(r["rhi"]), r["unit"],
+                                r["note"], None if own_tol or r["bound"] else r["tolerance"], r["bound"]))
+            tables.append(Table(t["title"], rows))
+        return Result(d["name"], d["title"], tables, {}, list(d["notes"]))
+    except KeyError as e:
+        raise InvalidInput(f"results: key {e.args[0]!r} missing in {d.get('name', '?')!r}") from None
+
+
 def _jsonable(v: np.ndarray) -> Any:
     """Array as nested lists with None where it is not finite (JSON has no NaN)."""
     a = np.asarray(v)

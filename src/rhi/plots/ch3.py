@@ -68,3 +68,18 @@ def configurations(result: Result) -> Figure:
     axes[0].set_ylabel("y [m]")
     axes[0].legend()
     return fig
+
+
+def apparent_inertia(result: Result) -> Figure:
+    """Figs 3.2–3.3: |A1(jω)| (eq. 3.17) and |A2(jω)| (eq. 3.19) of the drawn case, with MuJoCo's measured points."""
+    a = result.arrays
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.loglog(a["omega"], a["a1"], label="1-DoF, eq. 3.17")
+    ax.loglog(a["omega"], a["a2"], label="redundant 2-DoF, eq. 3.19")
+    ax.loglog(a["sim_omega"], a["sim_a1"], "o", color="C0", label="1-DoF, MuJoCo")
+    ax.loglog(a["sim_omega"], a["sim_a2"], "s", color="C1", label="2-DoF, MuJoCo")
+    ax.set_xlabel("ω [rad/s]")
+    ax.set_ylabel("|F_h / (s² X1)| [kg]")
+    ax.legend()
+    ax.set_title("Apparent inertia, eqs. 3.17 and 3.19")
+    return fig

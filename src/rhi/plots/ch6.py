@@ -85,6 +85,19 @@ def fmax_ratio_map(result: Result) -> Figure:
     return fig
 
 
+def aso_example(result: Result) -> Figure:
+    """Fig. 6.6: the ASO V of eq. 6.14 over the two-DoF example's torque box (S = 50)."""
+    a = result.arrays
+    fig, ax = plt.subplots(figsize=(5.5, 4.5))
+    cs = ax.contourf(a["tau1"], a["tau2"], a["V"], levels=np.linspace(0, 1, 11), cmap="viridis")
+    ax.contour(a["tau1"], a["tau2"], a["V"], levels=[0.7], colors="w", linestyles="--")
+    fig.colorbar(cs, ax=ax, label="V")
+    ax.set_xlabel("τ1 [N m]")
+    ax.set_ylabel("τ2 [N m]")
+    ax.set_title("ASO, eq. 6.14, S = 50 (dashed: V = 0.7)")
+    return fig
+
+
 def transition(result: Result) -> Figure:
     """Fig. 6.11: null-space signal without (a) and with (b) the transition method; (c) V and Ω; (d) M_des."""
     a = result.arrays

@@ -67,6 +67,7 @@ class Step:
 STEPS: list[Step] = [
     Step(ex3.table_3_1, {}, {}, {"configurations": pl3.configurations,
                                         "configurations_rendered": plr.ch3_configurations}),
+    Step(ex3.apparent_inertia_example, {}, {}, {"fig3_2_3": pl3.apparent_inertia}),
     Step(ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
          {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
     Step(ex3.nullspace_configurations, {}, {"duration": 4.0, "starts": ("rehab",), "hard_stops": False},
@@ -99,6 +100,7 @@ STEPS: list[Step] = [
     Step(ex6.transition, {},
          {"settle": 0.2, "depth": 0.015, "speed": 0.03, "hold": 0.3, "release": 0.7, "compare_beta": None},
          {"fig6_11": pl6.transition}, progress=True),
+    Step(ex6.aso_example, {}, {"resolution": 41}, {"fig6_6": pl6.aso_example}),
     Step(ex6.fmax_ratio_map, {"resolution": 25}, {"resolution": 7, "starts": 1}, {"fig6_10": pl6.fmax_ratio_map},
          progress=True),
     Step(ex7.example_3dof, {"steps": 401}, {"steps": 101}, {"fig7_1": pl7.example_3dof}),

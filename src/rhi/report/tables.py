@@ -1,4 +1,4 @@
-"""Result tables in the report: thesis ± tolerance, rhi, difference, verdict colour, note; and the audit.
+"""Result tables in the report: thesis as printed, rhi, difference, verdict colour, note; and the audit.
 
 A row is
 
@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 from rhi.experiments.result import Result, Row, Table
 from rhi.report.explain import explanation
-from rhi.thesis import ThesisValue, is_registered
+from rhi.thesis import ThesisValue, is_registered, printed
 
 
 def fmt(v: float | None) -> str:
@@ -32,13 +32,23 @@ def fmt(v: float | None) -> str:
 
 
 def thesis_cell(r: Row) -> str:
-    """The thesis column: value ± tolerance, or the bound."""
+    """The thesis column: the number as the thesis printed it (its rounding is the tolerance), or the bound."""
     if r.thesis is None:
         return "—"
     if r.bound is not None:
         return f"{'≤' if r.bound == 'max' else '≥'} {fmt(r.thesis)}"
-    tol = r.tol
-    return fmt(r.thesis) if not tol else f"{fmt(r.thesis)} ± {tol:.2g}"
+    if isinstance(r.thesis, ThesisValue):
+        text = printed(r.thesis)
+        return text if r.tolerance is None else f"{text} (± {r.tolerance:.2g})"
+    return fmt(r.thesis)
+
+
+def difference_cell(r: Row) -> str:
+    """The difference rhi − thesis ("0" below floating-point noise, — for a bound)."""
+    d = r.difference
+    if r.bound is not None or d is None:
+        return "—"
+    return "0" if abs(d) <= 1e-9 * max(1.0, abs(float(r.thesis or 0.0))) else fmt(d)
 
 
 def note_of(r: Row) -> str:
@@ -60,7 +70,7 @@ def row_class(r: Row) -> str:
 
 def table_html(table: Table) -> str:
     """One result table as HTML."""
-    head = ("<tr><th>quantity</th><th>thesis ± tolerance</th><th>rhi</th><th>difference</th><th>rel.</th><th>unit</th>"
+    head = ("<tr><th>quantity</th><th>thesis (as printed)</th><th>rhi</th><th>difference</th><th>rel.</th><th>unit</th>"
             "<th>source</th><th>note</th></tr>")
     body = []
     for r in table.rows:
@@ -68,7 +78,7 @@ def table_html(table: Table) -> str:
         src = r.thesis.source if isinstance(r.thesis, ThesisValue) else ("rhi bound" if r.bound else "")
         body.append(
             f"<tr class='{row_class(r)}'><td>{html.escape(r.quantity)}</td><td>{html.escape(thesis_cell(r))}</td>"
-            f"<td>{fmt(r.ours)}</td><td>{'—' if r.bound else fmt(r.difference)}</td>"
+            f"<td>{fmt(r.ours)}</td><td>{difference_cell(r)}</td>"
             f"<td>{'—' if rel is None else f'{100 * rel:+.1f} %'}</td><td>{html.escape(r.unit)}</td>"
             f"<td class='src'>{html.escape(src)}</td><td>{html.escape(note_of(r))}</td></tr>")
     return f"<h3>{html.escape(table.title)}</h3><table>{head}{''.join(body)}</table>"

@@ -2,7 +2,7 @@
 
 Thesis §6.3–6.4: the 3-DoF example (Figs 6.3–6.4), palpation of a 1000 N/m spring with
 the configuration set by FME matching to M_Free^des vs M_Stiff^des (Fig. 6.9, Table 6.1),
-the F_max ratio map (Fig. 6.10) and the ASO-driven transition between the desired FMEs
+the ASO of the two-DoF example (Fig. 6.6), the F_max ratio map (Fig. 6.10) and the ASO-driven transition between the desired FMEs
 with and without the cosine blend (Fig. 6.11).
 
 Set-up and the choices the thesis leaves open (each fixed before comparing with the thesis):
@@ -65,6 +65,7 @@ from rhi.experiments.ch6.capability import fmax_ratio_map
 from rhi.experiments.ch6.contact import palpation
 from rhi.experiments.ch6.example import example_3dof
 from rhi.experiments.ch6.identification import sysid_table_6_1
+from rhi.experiments.ch6.observer import aso_example
 from rhi.experiments.ch6.switching import transition
 
-__all__ = ["example_3dof", "fmax_ratio_map", "palpation", "sysid_table_6_1", "transition"]
+__all__ = ["aso_example", "example_3dof", "fmax_ratio_map", "palpation", "sysid_table_6_1", "transition"]

@@ -1,0 +1,222 @@
+"""The dossiers' data: for each headline claim, its thesis passage, its literal reading and the other readings the text supports.
+
+Each `rhi.report.dossiers.Reading` quotes the thesis sentence (with its line in the seed text) that allows
+it and names the result row that holds rhi's number under it; `Dossier.missing` names data the thesis
+does not publish; `Dossier.inconsistent` gives thesis numbers that contradict each other. Readings are
+listed whatever their number; the conclusion follows from the run.
+"""
+
+from __future__ import annotations
+
+from rhi.report.dossiers import Dossier, Reading
+
+
+def _all(fraction: float) -> float:
+    """A fraction of grid points as an "everywhere" claim: 1 where it is 1."""
+    return float(fraction == 1.0)
+
+
+def _neg(x: float) -> float:
+    return -x
+
+
+P1 = "(0.49, -0.22)"
+J_SHARP = ("J# = M_q⁻¹Jᵀ[JM_q⁻¹Jᵀ]⁻¹, 'generalized inverse of the Jacobian' (§3.4 line 565, §6.3 line 1260, "
+           "§7.2 line 1510)")
+J_PLUS = "the plain pseudoinverse J⁺ = Jᵀ(JJᵀ)⁻¹ projector"
+J_PLUS_WHY = ("§4.2 (line 748): 'the superscript † indicates the pseudo-inverse of a matrix, J† = Jᵀ(JJᵀ)⁻¹' — the "
+              "thesis's other generalized inverse, used for its manipulability measures")
+FIT = "the thesis-calibrated model (params=\"thesis-fit\")"
+FIT_WHY = ("§3.3 (line 497): the inertias come from [23] Çavuşoğlu et al. 2002 and [45] Dyck 2013, which the thesis "
+           "cites but does not print; the calibrated model fits them to the thesis's inertia-dependent numbers")
+SUBJECTS = "the 10 subjects' per-trial responses (§3.5–3.6); only means, standard deviations and test statistics are printed"
+
+_D = [
+    # ---- chapter 3
+    Dossier("eq3_19.a2_below_a1", "§3.3 eqs. 3.16–3.19, Figs 3.2–3.3 (lines 529–553)",
+            "|A2(jω)| ≤ |A1(jω)| for every mass, damping and frequency (no values are given: a grid of them)",
+            (Reading("the part beyond M1: |A2 − M1| ≤ |A1 − M1|", "line 550: 'As |(B2/s + M2)/(B1/s + (B2/s + M2))| "
+                     "≤ 1, thus, the apparent inertia of the redundant two-DoF robot is smaller' — the factor "
+                     "multiplies B1/s, the part of A1 beyond M1", "ch3.apparent_inertia_example",
+                     "fraction with |A2 − M1| ≤ |A1 − M1|", _all),
+             Reading("the mass part: Re A2 ≤ Re A1", "line 540: A1 'is the apparent inertia' (its real part M1 is "
+                     "the mass)", "ch3.apparent_inertia_example", "fraction with Re A2 ≤ Re A1", _all))),
+    Dossier("table3_1.rho.RHI.0", "§3.5, Table 3.1 (line 638), eq. 3.6; the configuration printed below it (line 648)",
+            "ρ = (uᵀ(JJᵀ)†u)^(−1/2) (eq. 3.6) at the printed q = [0.125, 0.022, 0.298, 0.175] rad",
+            (Reading("the RHI at rhi's own optimum of eq. 3.22",
+                     "line 640: 'Data reported for the RHI in Table 3.1 corresponds to the optimized configuration of "
+                     "the RHI with the objective function given in (3.22)'", "ch3.table_3_1",
+                     f"ρ RHI at {P1} (our optimum of eq. 3.22)"),),
+            inconsistent="at (0.49, −0.14) the printed q and the printed ρ_RHI = 0.387 agree under eq. 3.6 with the "
+                         "published link lengths; at (0.49, −0.22) the printed q gives a different ρ than the printed "
+                         "0.371 (rhi's number in the literal row)"),
+    Dossier("table3_1.lambda.RHI.0", "§3.5, Table 3.1 (line 638), eq. 3.13",
+            "Λ = (uᵀM_x⁻¹u)⁻¹ (eq. 3.13) at the printed q with rhi's estimated link inertias",
+            (Reading("the RHI at rhi's own optimum of eq. 3.22", "line 640 (as for ρ)", "ch3.table_3_1",
+                     f"Λ RHI at {P1} (our optimum of eq. 3.22)"),
+             Reading(FIT, FIT_WHY, "ch3.table_3_1", f"Λ RHI at {P1} (thesis configuration, thesis-fit")),
+            missing="the link masses and inertias of the PHANToM and the Rehab halves: cited ([23], [45]), not printed"),
+    Dossier("table3_1.lambda_order", "§3.5, Table 3.1 (line 638), text line 648",
+            "Λ_RHI < Λ_PHANToM < Λ_Rehab by eq. 3.13 at both points, the RHI at the printed q, rhi's inertias",
+            (Reading(FIT, FIT_WHY, "ch3.table_3_1", "Λ order RHI < PHANToM < Rehab, thesis-fit"),),
+            missing="the link masses and inertias: cited ([23], [45]), not printed"),
+    Dossier("fig3_8.rho_r", "§3.3 Remark I, eqs. 3.8–3.10; §3.5 Fig. 3.8 (line 672)",
+            "ρ_r = ρ_RHI/ρ_PHANToM ≥ 1 at every grid point, the RHI at the eq. 3.22 optimum of each point",
+            (Reading("the RHI with its PHANToM joints at the PHANToM's own angles",
+                     "eq. 3.8: ρ_RHI = (uᵀ(Ĵ_AD Ĵ_ADᵀ + J_NHI J_NHIᵀ)†u)^(−1/2) — the proof compares the NHI at the "
+                     "same joint angles inside the RHI", "ch3.ratio_maps",
+                     "fraction of points with ρ_r ≥ 1, the RHI at the PHANToM's angles", _all),)),
+    Dossier("fig3_7.lambda_r", "§3.3 Remark II, eqs. 3.11–3.15; §3.5 Fig. 3.7 (line 672)",
+            "Λ_r = Λ_RHI/Λ_PHANToM ≤ 1 at every grid point, the RHI at the eq. 3.22 optimum of each point (as Table "
+            "3.1's RHI data, line 640), rhi's estimated inertias",
+            (Reading("the RHI with its PHANToM joints at the PHANToM's own angles, the added joints free",
+                     "eq. 3.12: M_x,RHI = (M_x,NHI⁻¹ + M̂_x⁻¹)⁻¹ — the proof's NHI is the RHI's own PHANToM chain at "
+                     "the same joint angles", "ch3.ratio_maps",
+                     "fraction of points with Λ_r ≤ 1, the RHI at the PHANToM's angles", _all),
+             Reading(FIT, FIT_WHY, "ch3.ratio_maps", "fraction of points with Λ_r ≤ 1, thesis-fit", _all)),
+            missing="the link masses and inertias: cited ([23], [45]), not printed"),
+    Dossier("table3_2.order", "§3.5, Table 3.2 (line 652), eq. 3.24",
+            "Λ identified by least squares (eq. 3.24) on the simulated plant, ordered RHI ≤ PHANToM < Rehab at both "
+            "points",
+            (Reading(FIT, FIT_WHY, "ch3.sysid_table_3_2", "cases with identified Λ ordered RHI ≤ PHANToM < Rehab "
+                     "(of 2 points), thesis-fit"),),
+            missing="the hardware's friction and the force-sensor records of the identification (line 656)"),
+    *[Dossier(key, "§3.5–3.6, Table 3.3 (line 691), line 699", literal, missing=SUBJECTS)
+      for key, literal in (("table3_3.wf_order", "mean WF over the subjects, RHI < PHANToM < Rehab"),
+                           ("s3_6.anova.p", "one-way ANOVA on the subjects' WF, p"),
+                           ("s3_6.paired.RHI-PHANToM", "Holm-adjusted paired t-test RHI vs PHANToM on WF, p"))],
+    # ---- chapter 4
+    Dossier("s4_4.theta_z.C1", "§4.4 first round, Fig. 4.4 caption (line 927)",
+            "θz maximising C1 over D = {θz} in rhi's §4.4 set-up",
+            (Reading("the mirror design −θz", "C1 is symmetric in θz (row 'max |C1(θz) − C1(−θz)|'), so both signs "
+                     "are optima of the printed C1", "ch4.theta_z_design", "θz maximising C1", _neg),),
+            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only)"),
+    Dossier("s4_4.theta_z.C2", "§4.4 first round, Fig. 4.4 caption (line 927)",
+            "θz maximising C2 over D = {θz} in rhi's §4.4 set-up", (),
+            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only)"),
+    Dossier("table4_1.C2.l2", "§4.4 second round, Table 4.1 (line 929)",
+            "l2 of rhi's C2 optimum over D = {l2, θz, Z_PH}, K2/K1 as Table 4.1 implies", (),
+            missing="the slave workspace W, r0 and K2/K1 (§4.4 gives them only in part)"),
+    Dossier("table4_1.C2.GM_T", "§4.4, Table 4.1 (line 929), eq. 4.18",
+            "GM_T of eq. 4.18 at the thesis's printed C2 design in rhi's set-up", (),
+            missing="the slave workspace W over which the global index is averaged"),
+    Dossier("fig4_7.energy_order", "§4.4, Fig. 4.7 (line 968), eq. 4.22",
+            "mean ‖q̇‖² along A → B at 0.01 m/s (eq. 4.22 with Λ_T = diag(σ_I)), C2's below C1's in both rounds", (),
+            missing="the designs' energies are drawn only; Fig. 4.7 prints no number"),
+    # ---- chapter 5
+    Dossier("s5_4_1.tme_increase", "§5.4.1, Fig. 5.3 (line 1121)",
+            "TME area σ₁σ₂ after / before the TMI null-space controller, from q_i = [−0.63, 0.25, 0.28, 0.09] rad",
+            (Reading("the penalised TMI (eq. 4.17 with J^q)", "line 847: the joint-limit penalty of eq. 4.20 enters "
+                     "the TMI the controller maximises", "ch5.fixed_point", "penalised TMI"),),
+            missing="the penalty's k_q (eq. 4.20 gives only its form)"),
+    Dossier("s5_4_1.s2_below_s1", "§5.4.1 (line 1134), Fig. 5.5",
+            "100 (1 − mean TME area of scenario 2 / scenario 1) along rhi's W", (),
+            missing="the W trajectory's coordinates (Fig. 5.5 draws it only)"),
+    Dossier("table5_1.effort_order", "§5.4.1, Fig. 5.6 (line 1163), eq. 5.15",
+            "the user's work of eq. 5.15 over the W, scenario 1 < 2 < 3, same B^d in all", (),
+            missing="the W trajectory's coordinates and the hand's motion along it"),
+    # ---- chapter 6
+    Dossier("s6_4.gain", "§6.4, Fig. 6.9 (line 1428)",
+            "peak simulated F/T-sensor force with M_Stiff^des over M_Free^des, J# null-space projector",
+            (Reading("static force scaling at the settled configurations", "line 1428: 'the force feedback "
+                     "capability of the RHI' (a capability, not a measured peak)", "ch6.palpation",
+                     "force gain, force scaling at the settled"),
+             Reading(J_PLUS, J_PLUS_WHY, "ch6.palpation", "force gain M_Stiff vs M_Free, simulated sensor peak, "
+                     "controller with J⁺")),
+            missing="the hardware's friction and the human hand's stiffness during the palpation"),
+    *[Dossier(f"table6_1.{c}.F_max", "§6.4, Table 6.1 (line 1442)",
+              f"peak simulated F/T-sensor force along u with M_{c.capitalize()}^des, J#",
+              (Reading("static force scaling at the settled configuration", "Table 6.1 caption: 'maximum force "
+                       "feedback capability'", "ch6.palpation",
+                       f"F_max along u, M_{c.capitalize()}^des: force scaling at the settled"),
+               Reading("LP with null-space torques at the settled configuration", "§7.2's F_max (eq. 7.4) is an LP "
+                       "over the torque box", "ch6.palpation", f"F_max along u, M_{c.capitalize()}^des: LP with "
+                       "null-space torques")),
+              missing="the hardware's friction and the human hand's stiffness during the palpation")
+      for c in ("free", "stiff")],
+    Dossier("table6_1.M_x_ratio", "§6.4, Table 6.1 (line 1442)",
+            "identified M_x(M_Stiff)/M_x(M_Free), eq. 3.24 on the simulated plant, J#",
+            (Reading(J_PLUS, J_PLUS_WHY, "ch6.sysid_table_6_1", "M_x ratio Stiff/Free, identified (J⁺)"),
+             Reading("the model's Λ ratio at the settled configurations", "Table 6.1 caption: 'inertia M_x'",
+                     "ch6.palpation", "inertia ratio Λ_Stiff/Λ_Free")),
+            missing="the link inertias (cited, not printed) and the hardware's friction"),
+    *[Dossier(f"table6_1.{c}.M_x", "§6.4, Table 6.1 (line 1442), eq. 3.24",
+              f"M_x identified by eq. 3.24 on the simulated plant with M_{c.capitalize()}^des, J# null-space "
+              "projector (the text's)",
+              (Reading(J_PLUS, J_PLUS_WHY, "ch6.sysid_table_6_1",
+                       f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J⁺)"),
+               Reading("the model's Λ at the settled configuration", "eq. 3.13 (Table 6.1's 'inertia M_x')",
+                       "ch6.palpation", f"M_x along u, M_{c.capitalize()}^des: our model's Λ"),
+               Reading(FIT, FIT_WHY, "ch6.sysid_table_6_1",
+                       f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J#, thesis-fit")),
+              missing="the link inertias (cited, not printed)")
+      for c in ("free", "stiff")],
+    Dossier("fig6_10.entire", "§6.4, Fig. 6.10 (line 1459)",
+            "F_max (force scaling) with the M_Stiff^des configuration above that with M_Free^des at every grid point",
+            (Reading("LP with null-space torques", "line 1459: 'the maximum force feedback capability'",
+                     "ch6.fmax_ratio_map", "fraction of points with ratio > 1, LP", _all),),
+            missing="the grid and the configurations of Fig. 6.10 (a map only, no numbers)"),
+    *[Dossier(key, "§6.4, Fig. 6.11 (line 1469)", literal,
+              (Reading("the same at β = 2", "line 1414 gives β = 20; the figure shows no saturation, which β = 2 "
+                       "avoids in rhi's plant", "ch6.transition", f"{row}, with (β = 2)"),),
+              missing="Fig. 6.11 shows curves only; the hardware's friction")
+      for key, literal, row in (
+          ("fig6_11.effort", "max per-tick ‖Δτ_N‖ with the method below without, β = 20",
+           "max per-tick ‖Δτ_N‖ of the applied null-space torque"),
+          ("fig6_11.interference", "max handle-force disturbance with the method below without, β = 20",
+           "max handle-force disturbance"))],
+    # ---- chapter 7
+    Dossier("fig7_1.scaling_gap", "§7.3, Fig. 7.1 (line 1627)",
+            "peak force of simple scaling below ASCM's, J# null-space projector (the text's) with rhi's planar3r masses",
+            (Reading(J_PLUS, J_PLUS_WHY, "ch7.example_3dof", "peak force deficit of scaling vs ASCM (pseudoinverse"),),
+            missing="the 3-DoF example's link masses, which J# needs (line 1627 gives lengths and torque bounds only)"),
+    Dossier("s7_5.gain", "§7.5, Fig. 7.6 (line 1714)",
+            "peak force before a joint range limit, ASCM over no compensation, J#",
+            (Reading("the static capability at the contact configuration, J#", "line 1714: 'the maximum force "
+                     "feedback of the RHI is enhanced'", "ch7.palpation", "static gain of ASCM over scaling (dynamic J#)"),
+             Reading("the static capability at the contact configuration, " + J_PLUS, J_PLUS_WHY, "ch7.palpation",
+                     "static gain of ASCM over scaling (pseudoinverse J⁺)"),
+             Reading("the LP allocation", "§7.2 eq. 7.4 (the capability ASCM approaches)", "ch7.palpation",
+                     "peak force before a joint range limit, lp (dynamic) vs none")),
+            missing="the hardware's friction and the human hand's stiffness"),
+    # ---- appendix A
+    *[Dossier(f"sA_4_2.rms_ratio.{c}", "§A.4.2, Table A.1 (line 2161), line 2194",
+              f"RMS {name} commanded, proposed / traditional, on the 0.25 m circle with K_x = 10 I, ε = 0.2",
+              (),
+              missing="the wheel-ground slip and the motion-capture noise of the experiment")
+      for c, name in (("vx", "v_xb"), ("w", "ω_b"))],
+    Dossier("sA_4_2.base_interval.0", "§A.4.2, Fig. A.6 (line 2194)",
+            "first time the proposed controller commands the base", (),
+            missing="the wheel-ground slip and the motion-capture noise of the experiment"),
+    Dossier("sA_4_3.dm_z.1", "§A.4.3 (line 2202)",
+            "DM along z after the experiment's phases (5 s Cartesian, 15 s null-space), the experiment's gains",
+            (Reading("the null-space phase run until DM stops rising", "line 2202 states no duration for the "
+                     "simulation", "appa.dm_enhancement", "largest DM along z within"),)),
+    Dossier("sA_4_3.dm_x.2", "§A.4.3 (line 2212), eq. A.19",
+            "DM along x after the null-space phase (5–20 s), eq. A.19 as printed (weighted J†)",
+            (Reading("the generalized projector", "eq. A.19's weighted pseudoinverse with the (A.11)–(A.12) weights",
+                     "appa.dm_enhancement", "DM along x after the null-space phase (t"),)),
+    # ---- appendix B
+    Dossier("sB_4_2.singular_t", "§B.4.2, Fig. B.7 (line 2483)",
+            "first time σ_min(J_m) < 0.05 without avoidance",
+            (Reading("the task must be scaled (α < 1)", "line 2483: 'the desired trajectory cannot be tracked at "
+                     "about 8.35s'", "appb.singularity", "without avoidance: first time the task must be scaled"),
+             Reading("the tracking error exceeds 1 cm", "line 2483: 'significant tracking errors start to emerge'",
+                     "appb.singularity", "without avoidance: first time the tracking error exceeds"))),
+    Dossier("sB_4_3.base_on", "§B.4.3, Fig. B.11 (line 2549)",
+            "first time the proposed controller enables the base beyond the workspace (σ_m,min = 0.15)", (),
+            missing="the wheel-ground slip of the experiment"),
+    Dossier("sB_4_3.periods.within", "§B.4.3, Table B.2 (line 2501)",
+            "base activation periods within the workspace with σ_m,min = 0.15 (line 2479)", (),
+            inconsistent="σ_m,min = 0.15 (line 2479) and a base that never moves on the R = 0.1 m circle cannot both "
+                         "hold if the arm alone cannot keep σ_min(J_m) ≥ 0.15 at the circle's far point (rhi's best: "
+                         "the row 'best σ_min(J_m) the arm alone', appb.tracking)"),
+    *[Dossier(key, "§B.5 conclusion (line 2555), §B.4.3", literal, (),
+              missing="the wheel-ground slip of the experiment")
+      for key, literal in (("sB_5.err_reduction.0", "100 (1 − max error x proposed / traditional), beyond"),
+                           ("sB_5.err_reduction.1", "100 (1 − max error y proposed / traditional), beyond"),
+                           ("sB_5.base_time_reduction", "100 (1 − base motion time proposed / traditional), beyond"))],
+]
+
+#: The dossiers by claim key.
+DOSSIERS: dict[str, Dossier] = {d.key: d for d in _D}
