@@ -124,7 +124,7 @@ def rules_html() -> str:
         f"<li><b>close</b>: within {CLOSE_BAND:.0%} of the thesis's value (not for orderings, counts, angles, "
         "p-values).</li>"
         "<li><b>direction only</b>: the claimed effect (a sign against a stated baseline) has the thesis's sign "
-        f"and at least {EFFECT_FRACTION:.0%} of its size. Only where the sign could come out either way: never on "
+        "and at least a third of its size. Only where the sign could come out either way: never on "
         "a time, an ordering, or what the method forces (gradient ascent).</li>"
         "<li><b>not reproduced</b>: none of the above.</li>"
         "<li><b>cannot be reproduced from what the thesis publishes</b>: decided by the claim's inputs alone "
