@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import os
 
+import browser
 import pytest
 
-import browser
 from rhi.experiments import ch3, ch7
 from rhi.experiments.ch6 import aso_example
 from rhi.report import write_report
