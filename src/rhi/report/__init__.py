@@ -100,7 +100,9 @@ def write_report(
     verdicts = headline.evaluate(CLAIMS, done)
     cases = dossiers.evaluate(verdicts, DOSSIERS, done)
     problems = audit(done) + [f"no dossier for the claim not reproduced {m}"
-                              for m in dossiers.missing_dossiers(verdicts, DOSSIERS)]
+                              for m in dossiers.missing_dossiers(verdicts, DOSSIERS)] + [
+        f"headline claim {v.claim.where} ({v.claim.claim}): {v.reason}" for v in verdicts
+        if v.verdict == headline.NOT_RUN and v.reason.startswith("missing")]
     counts = summary(done)
     payload["headline"] = [{"where": v.claim.where, "claim": v.claim.claim, "key": v.claim.key,
                             "thesis": v.thesis_text, "rhi": v.ours, "rhi_text": v.ours_text, "verdict": v.verdict,

@@ -33,6 +33,7 @@ class Reading:
         experiment: the experiment whose row holds rhi's number under this reading.
         quantity: the row's quantity prefix.
         transform: turns the row's value into the claim's unit (e.g. a fraction into "holds" = 1.0).
+        below: for an ordering, a second row: the value is then 1 where `quantity`'s row is below it, else 0.
     """
 
     name: str
@@ -40,12 +41,16 @@ class Reading:
     experiment: str
     quantity: str
     transform: Callable[[float], float] | None = None
+    below: str | None = None
 
     def value(self, look: Lookup) -> float | None:
         """The number of rhi under this reading, None where this run has no such row."""
-        if not look.has(self.experiment, self.quantity):
+        rows = (self.quantity,) if self.below is None else (self.quantity, self.below)
+        if not all(look.has(self.experiment, q) for q in rows):
             return None
         v = look(self.experiment, self.quantity)
+        if self.below is not None:
+            v = float(v < look(self.experiment, self.below))
         return self.transform(v) if self.transform is not None else v
 
 

@@ -180,8 +180,12 @@ def evaluate(claims: Sequence[Claim], results: Sequence[Result]) -> list[Verdict
         if not all(e in look.results for e in c.experiments):
             out.append(Verdict(c, None, NOT_RUN, "its experiment is not part of this run"))
             continue
-        ours = float(c.measure(look))
-        extra = c.details(look) if c.details is not None else {}
+        try:
+            ours = float(c.measure(look))
+            extra = c.details(look) if c.details is not None else {}
+        except InvalidInput as e:  # a row the claim reads is missing: reported, not fatal to the report
+            out.append(Verdict(c, None, NOT_RUN, f"missing in this run's results: {e}"))
+            continue
         reason = c.reason.format(ours=ours, **extra)
         if c.variant:
             reason = f"{reason} [Variant: {c.variant}]"

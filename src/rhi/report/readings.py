@@ -62,14 +62,14 @@ _D = [
             missing="the link masses and inertias: cited ([23], [45]), not printed"),
     Dossier("fig3_8.rho_r", "§3.3 Remark I, eqs. 3.8–3.10; §3.5 Fig. 3.8 (line 672)",
             "ρ_r = ρ_RHI/ρ_PHANToM ≥ 1 at every grid point, the RHI at the eq. 3.22 optimum of each point",
-            (Reading("the RHI with its PHANToM joints at the PHANToM's own angles",
+            (Reading("the RHI at the PHANToM's own angles, q = [0, 0, q_PHANToM]",
                      "eq. 3.8: ρ_RHI = (uᵀ(Ĵ_AD Ĵ_ADᵀ + J_NHI J_NHIᵀ)†u)^(−1/2) — the proof compares the NHI at the "
                      "same joint angles inside the RHI", "ch3.ratio_maps",
                      "fraction of points with ρ_r ≥ 1, the RHI at the PHANToM's angles", _all),)),
     Dossier("fig3_7.lambda_r", "§3.3 Remark II, eqs. 3.11–3.15; §3.5 Fig. 3.7 (line 672)",
             "Λ_r = Λ_RHI/Λ_PHANToM ≤ 1 at every grid point, the RHI at the eq. 3.22 optimum of each point (as Table "
             "3.1's RHI data, line 640), rhi's estimated inertias",
-            (Reading("the RHI with its PHANToM joints at the PHANToM's own angles, the added joints free",
+            (Reading("the RHI at the PHANToM's own angles, q = [0, 0, q_PHANToM]",
                      "eq. 3.12: M_x,RHI = (M_x,NHI⁻¹ + M̂_x⁻¹)⁻¹ — the proof's NHI is the RHI's own PHANToM chain at "
                      "the same joint angles", "ch3.ratio_maps",
                      "fraction of points with Λ_r ≤ 1, the RHI at the PHANToM's angles", _all),
@@ -109,8 +109,12 @@ _D = [
             (Reading("the penalised TMI (eq. 4.17 with J^q)", "line 847: the joint-limit penalty of eq. 4.20 enters "
                      "the TMI the controller maximises", "ch5.fixed_point", "penalised TMI"),),
             missing="the penalty's k_q (eq. 4.20 gives only its form)"),
-    Dossier("s5_4_1.s2_below_s1", "§5.4.1 (line 1134), Fig. 5.5",
-            "100 (1 − mean TME area of scenario 2 / scenario 1) along rhi's W", (),
+    Dossier("s5_4_1.s2_below_s1", "§5.4.1 (line 1134), Fig. 5.5, eq. 5.14",
+            "100 (1 − mean TME area of scenario 2 / scenario 1) along rhi's W; rhi's scenario 2 ascends −log μ of the "
+            "joint-limit-penalised J^q (k_q = 10), not eq. 5.14's plain μ",
+            (Reading("eq. 5.14 as printed: τ_N = α ∂μ/∂q, μ = √det(J Jᵀ)", "line 1134: 'The RHI with its "
+                     "manipulability optimizer', eq. 5.14", "ch5.w_trajectory",
+                     "scenario 2's mean TME area below scenario 1's, eq. 5.14 as printed"),),
             missing="the W trajectory's coordinates (Fig. 5.5 draws it only)"),
     Dossier("table5_1.effort_order", "§5.4.1, Fig. 5.6 (line 1163), eq. 5.15",
             "the user's work of eq. 5.15 over the W, scenario 1 < 2 < 3, same B^d in all", (),
@@ -158,13 +162,15 @@ _D = [
             missing="the grid and the configurations of Fig. 6.10 (a map only, no numbers)"),
     *[Dossier(key, "§6.4, Fig. 6.11 (line 1469)", literal,
               (Reading("the same at β = 2", "line 1414 gives β = 20; the figure shows no saturation, which β = 2 "
-                       "avoids in rhi's plant", "ch6.transition", f"{row}, with (β = 2)"),),
+                       "avoids in rhi's plant", "ch6.transition", w, below=wo),),
               missing="Fig. 6.11 shows curves only; the hardware's friction")
-      for key, literal, row in (
+      for key, literal, w, wo in (
           ("fig6_11.effort", "max per-tick ‖Δτ_N‖ with the method below without, β = 20",
-           "max per-tick ‖Δτ_N‖ of the applied null-space torque"),
+           "max per-tick ‖Δτ_N‖ of the applied null-space torque, with (β = 2)",
+           "max per-tick ‖Δτ_N‖ of the applied null-space torque, without (β = 2)"),
           ("fig6_11.interference", "max handle-force disturbance with the method below without, β = 20",
-           "max handle-force disturbance"))],
+           "max handle-force disturbance |F_sensor − F_commanded| along u, with (β = 2)",
+           "max handle-force disturbance, without (β = 2)"))],
     # ---- chapter 7
     Dossier("fig7_1.scaling_gap", "§7.3, Fig. 7.1 (line 1627)",
             "peak force of simple scaling below ASCM's, J# null-space projector (the text's) with rhi's planar3r masses",

@@ -127,8 +127,14 @@ def maybe_reachable(dev: Device, points: np.ndarray, n: int = 201) -> np.ndarray
     return dist <= 3.0 * step
 
 
-def _ratio_row(row: tuple[float, np.ndarray], xs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """ρ_r and Λ_r (each (len(xs),), NaN where unreached) along the grid row ``row = (y [m], candidates (len(xs),))``.
+def _ratio_row(row: tuple[float, np.ndarray], xs: np.ndarray) -> tuple[np.ndarray, ...]:
+    """ρ_r, Λ_r along a grid row, the RHI at its eq.-3.22 optimum and at the PHANToM's angles: four (len(xs),) arrays.
+
+    ``row = (y [m], candidates (len(xs),))``; NaN where unreached.
+
+    "At the PHANToM's own angles" is the RHI with its added joints at 0, where its last two links are the
+    PHANToM at the PHANToM's base, and those links at the PHANToM's IK angles: q = [0, 0, q_PHANToM] (the
+    NHI inside the RHI that the proofs of Remarks I–II compare, eqs. 3.8 and 3.12); NaN outside the RHI's limits.
 
     The PHANToM's IK and the RHI's eq.-3.22 optimum are warm-started from the previous
     point of the row; every row starts from the same configurations ([0.5, 0.3] rad and
@@ -140,8 +146,7 @@ def _ratio_row(row: tuple[float, np.ndarray], xs: np.ndarray) -> tuple[np.ndarra
     devs = _devices_cached()
     rhi, ph = devs["RHI"], devs["PHANToM"]
     objective = VMEMatching(tuple(U), BETA)
-    rho = np.full(len(xs), np.nan)
-    lam = np.full(len(xs), np.nan)
+    rho, lam, rho_at, lam_at = (np.full(len(xs), np.nan) for _ in range(4))
     q_ph = np.array([0.5, 0.3])
     q_rhi = np.array(THESIS_Q[0])
     for i, x in enumerate(xs):
@@ -155,7 +160,11 @@ def _ratio_row(row: tuple[float, np.ndarray], xs: np.ndarray) -> tuple[np.ndarra
         r1, l1 = measures(rhi, q_rhi)
         r0, l0 = measures(ph, q_ph)
         rho[i], lam[i] = r1 / r0, l1 / l0
-    return rho, lam
+        q_at = np.concatenate([np.zeros(2), q_ph])
+        if rhi.within_limits(q_at):
+            r2, l2 = measures(rhi, q_at)
+            rho_at[i], lam_at[i] = r2 / r0, l2 / l0
+    return rho, lam, rho_at, lam_at
 
 
 _DEVICES: dict[str, Device] = {}
@@ -204,7 +213,10 @@ def ratio_maps(
         rows[j] = r
     rho_r = np.array([r[0] for r in rows])
     lam_r = np.array([r[1] for r in rows])
+    rho_at, lam_at = np.array([r[2] for r in rows]), np.array([r[3] for r in rows])
     ok = np.isfinite(rho_r)
+    at = np.isfinite(rho_at)
+    tag = ", the RHI at the PHANToM's angles"
     res = Result(
         "ch3.ratio_maps",
         "Figs 3.7–3.8: ratios ρ_RHI/ρ_PHANToM and Λ_RHI/Λ_PHANToM over the common workspace",
@@ -215,8 +227,16 @@ def ratio_maps(
             Row("min Λ_r", None, float(np.min(lam_r[ok])) if ok.any() else np.nan),
             Row("fraction of points with ρ_r ≥ 1", None, float(np.mean(rho_r[ok] >= 1 - 1e-9)) if ok.any() else np.nan),
             Row("fraction of points with Λ_r ≤ 1", None, float(np.mean(lam_r[ok] <= 1 + 1e-9)) if ok.any() else np.nan),
+            Row("points with the RHI at the PHANToM's angles within the RHI's limits", None, float(at.sum()), "",
+                "q = [0, 0, q_PHANToM]: the RHI's last two links are the PHANToM"),
+            Row("fraction of points with ρ_r ≥ 1" + tag, None,
+                float(np.mean(rho_at[at] >= 1 - 1e-9)) if at.any() else np.nan),
+            Row("fraction of points with Λ_r ≤ 1" + tag, None,
+                float(np.mean(lam_at[at] <= 1 + 1e-9)) if at.any() else np.nan),
+            Row("max Λ_r" + tag, None, float(np.max(lam_at[at])) if at.any() else np.nan),
         ])],
-        {"x": xs, "y": ys, "rho_ratio": rho_r, "lambda_ratio": lam_r, "workspaces": workspaces()},
+        {"x": xs, "y": ys, "rho_ratio": rho_r, "lambda_ratio": lam_r, "rho_ratio_at_phantom": rho_at,
+         "lambda_ratio_at_phantom": lam_at, "workspaces": workspaces()},
         ["The thesis shows these maps as figures only; we report their extremes.",
          "Λ_r uses our documented inertial model; ρ_r is kinematic.",
          "Configurations are warm-started along each grid row; rows run in parallel (rhi.design.executors)."],
