@@ -193,3 +193,22 @@ def test_a_failed_reproduction_ends_with_one_line_naming_the_step(tmp_path, monk
     assert "Traceback" in (tmp_path / "o" / "reproduce-error.log").read_text()
     with pytest.raises(InvalidInput, match="out: cannot write into /proc/rhi"):  # refused before anything runs
         rep.reproduce("/proc/rhi/out", quick=True, experiment="ch7.example_3dof")
+
+
+def test_fidelity_judges_a_written_run_again(tmp_path, capsys):
+    """`rhi fidelity out` reads results.json back (thesis values by key) and gives the report's verdicts."""
+    from rhi.cli import main
+    from rhi.report.fidelity import load_runs
+
+    res = ch3.table_3_1()
+    write_report([("ch3", res, {})], tmp_path)
+    data = json.loads((tmp_path / "results.json").read_text())
+    loaded, meta = load_runs([tmp_path])
+    again = headline.evaluate(CLAIMS, loaded)
+    assert [(v.verdict, v.ours) for v in again] == [(h["verdict"], h["rhi"]) for h in data["headline"]]
+    assert T.is_registered(loaded[0].tables[0].rows[0].thesis) and meta["chapters"] == "?"
+    out = tmp_path / "fidelity.md"
+    assert main(["fidelity", str(tmp_path), "--to", str(out)]) == 0
+    assert "reproduced" in capsys.readouterr().out and out.read_text().startswith("# Fidelity")
+    assert "## Table 3.1" in out.read_text()  # Λ_RHI is not reproduced with rhi's inertias: its dossier
+    assert main(["fidelity", str(tmp_path / "nowhere")]) == 2  # an error naming the folder, no traceback

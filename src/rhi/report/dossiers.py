@@ -146,7 +146,8 @@ def to_html(cases: Sequence[Case]) -> str:
             f"<table><tr><th>reading</th><th>what the text says</th><th>rhi</th><th>verdict</th></tr>"
             f"<tr><td><b>literal</b> (the headline)</td><td class='src'>{html.escape(d.literal)}</td>"
             f"<td>{html.escape(v.ours_text)}</td><td>{html.escape(v.verdict)}</td></tr>{items}</table>"
-            + (f"<p><b>Not published</b>: {html.escape(d.missing)}</p>" if d.missing else "")
+            + (f"<p><b>Not published</b>: {html.escape(d.missing)}</p>" if d.missing and d.missing not in c.conclusion
+               else "")
             + f"<p><b>Conclusion</b>: {html.escape(c.conclusion)}</p></section>")
     return "\n".join(parts)
 
@@ -161,6 +162,6 @@ def to_markdown(cases: Sequence[Case], header: str = "") -> str:
                 "| reading | what the text says | rhi | verdict |", "|---|---|---|---|",
                 f"| **literal** (the headline) | {d.literal} | {v.ours_text} | {v.verdict} |"]
         out += [f"| {rd.name} | {rd.sentence} | {_fmt(x, v)} | {verdict} |" for rd, x, verdict in c.readings]
-        out += [""] + ([f"- **Not published**: {d.missing}"] if d.missing else []) + [
+        out += [""] + ([f"- **Not published**: {d.missing}"] if d.missing and d.missing not in c.conclusion else []) + [
             f"- **Conclusion**: {c.conclusion}", ""]
     return "\n".join(s.replace("\n", " ") if s.startswith("|") else s for s in out)

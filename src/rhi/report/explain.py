@@ -13,8 +13,8 @@ from rhi.experiments.result import Row
 EXPLANATIONS: dict[str, str] = {
     "table3_1.rho": "ρ depends on kinematics only; rows at rhi's own optimum of eq. 3.22 differ where SLSQP finds "
                     "another point of the self-motion manifold than the thesis's hardware controller did.",
-    "table3_1.lambda": "Λ depends on link inertias the thesis does not publish (its model is from [23], [45]); rhi's "
-                       "are the estimates of models/rhi4/README.md, so only the ordering RHI < PHANToM < Rehab is checked.",
+    "table3_1.lambda": "Λ depends on link inertias the thesis cites ([23], [45]) but does not print; rhi's are the "
+                       "estimates of models/rhi4/README.md (the report's dossiers show the thesis-calibrated variant).",
     "table3_1.q": "the thesis's configuration comes from its controller on the hardware; rhi's from SLSQP on eq. 3.22 "
                   "with the §5.4 joint limits: another point of a flat objective along the self-motion manifold.",
     "table3_2": "identified on the simulated plant whose inertias and friction are estimates (models/rhi4/README.md); "
@@ -49,8 +49,8 @@ EXPLANATIONS: dict[str, str] = {
                 "not published), so base commands differ in size while the ordering proposed < traditional is kept.",
     "sA_4_2": "rhi's base slip model is seeded and estimated (not published); tracking errors and base commands "
               "depend on it.",
-    "sA_4_3": "DM enhancement depends on the gains and the duration of each phase, which the thesis states only "
-              "in part; rhi uses its stated gains and the phase lengths of §A.4.3.",
+    "sA_4_3": "rhi uses the gains and phase lengths §A.4.3 states; the report's dossier gives the readings of the "
+              "projector (eq. A.19 as printed, generalized) and the largest DM the self-motion can reach.",
     "sB_4_2": "the time the arm becomes singular depends on the circle's start and speed and on σ_m,min, which "
               "the thesis states only in part; rhi reports three criteria of 'singular'.",
     "sB_4_3": "rhi's simulated base (seeded slip and noise) and the σ_m,min threshold decide when the base is "
