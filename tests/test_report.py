@@ -206,7 +206,7 @@ def test_fidelity_judges_a_written_run_again(tmp_path, capsys):
     loaded, meta = load_runs([tmp_path])
     again = headline.evaluate(CLAIMS, loaded)
     assert [(v.verdict, v.ours) for v in again] == [(h["verdict"], h["rhi"]) for h in data["headline"]]
-    assert T.is_registered(loaded[0].tables[0].rows[0].thesis) and meta["chapters"] == "?"
+    assert T.is_registered(loaded[0].tables[0].rows[0].thesis) and meta["chapters"] == "ch3"
     out = tmp_path / "fidelity.md"
     assert main(["fidelity", str(tmp_path), "--to", str(out)]) == 0
     assert "reproduced" in capsys.readouterr().out and out.read_text().startswith("# Fidelity")

@@ -1,8 +1,9 @@
 """The verdict rules of the headline: each verdict recomputed from its numbers, no direction test that cannot fail.
 
 The independent recomputation below is written from the rules' text (`rhi.report.rules`), not from `judge`.
-It runs on the tables of a --quick reproduction of every thesis chapter (tests/data/quick_results.json, the
-`results` of the runs' results.json), so every headline claim is judged, and on a live partial run.
+It runs on the tables of a --quick reproduction of every thesis chapter (tests/data/quick_results.json.gz: the
+`results` of the runs' results.json, merged, arrays dropped, gzipped), so every headline claim is judged, and on
+a live partial run.
 """
 
 from __future__ import annotations

@@ -67,6 +67,12 @@ def _mx(c: str, projector: str) -> Callable[[Lookup], float]:
     return lambda r: r("ch6.sysid_table_6_1", quantity)
 
 
+def _mx_pinv(c: str) -> Callable[[Lookup], dict]:
+    """The J⁺ identification beside the J# one, for the claim's reason."""
+    pinv = _mx(c, "J⁺")
+    return lambda r: {"pinv": pinv(r)}
+
+
 def _transition(rows: tuple[str, str]) -> Callable[[Lookup], float]:
     """1 where Fig. 6.11's measure at the thesis's β = 20 is smaller with the method (rows[0]) than without."""
     return lambda r: _holds(r("ch6.transition", rows[0]) < r("ch6.transition", rows[1]))
@@ -204,7 +210,7 @@ CLAIMS: list[Claim] = [
     *[Claim("Table 6.1", f"M_x(M_{c.capitalize()}^des) = {T.TABLE_6_1[c][0].text} kg, identified", T.TABLE_6_1[c][0],
             ("ch6.sysid_table_6_1",), _mx(c, "J#"),
             "identified on the simulated plant with J# (the text's projector): {ours:.4f} kg; with J⁺: {pinv:.4f} kg",
-            PLANT, details=lambda r, c=c: {"pinv": _mx(c, "J⁺")(r)},
+            PLANT, details=_mx_pinv(c),
             variant="J# as the text names it; the J⁺ variant is in the dossier")
       for c in ("free", "stiff")],
     Claim("§6.5", "the M_Free → M_Stiff transition takes 0.5 s", T.TRANSITION_TIME, ("ch6.transition",),

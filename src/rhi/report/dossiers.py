@@ -154,14 +154,19 @@ def to_html(cases: Sequence[Case]) -> str:
 
 def to_markdown(cases: Sequence[Case], header: str = "") -> str:
     """The dossiers as Markdown (docs/fidelity.md)."""
+
+    def cell(text: str) -> str:
+        return text.replace("|", "\\|").replace("\n", " ")
+
     out = [header] if header else []
     for c in cases:
         v, d = c.verdict, c.dossier
         out += [f"## {v.claim.where} — {v.claim.claim}", "", f"- **Passage**: {d.passage}",
                 f"- **Thesis**: {v.thesis_text}; **verdict** (literal reading): {v.verdict}", "",
                 "| reading | what the text says | rhi | verdict |", "|---|---|---|---|",
-                f"| **literal** (the headline) | {d.literal} | {v.ours_text} | {v.verdict} |"]
-        out += [f"| {rd.name} | {rd.sentence} | {_fmt(x, v)} | {verdict} |" for rd, x, verdict in c.readings]
+                f"| **literal** (the headline) | {cell(d.literal)} | {cell(v.ours_text)} | {v.verdict} |"]
+        out += [f"| {cell(rd.name)} | {cell(rd.sentence)} | {cell(_fmt(x, v))} | {verdict} |"
+                for rd, x, verdict in c.readings]
         out += [""] + ([f"- **Not published**: {d.missing}"] if d.missing and d.missing not in c.conclusion else []) + [
             f"- **Conclusion**: {c.conclusion}", ""]
-    return "\n".join(s.replace("\n", " ") if s.startswith("|") else s for s in out)
+    return "\n".join(out)

@@ -39,7 +39,7 @@ def load_runs(runs: Sequence[str | Path]) -> tuple[list[Result], dict]:
         InvalidInput: a folder without a readable results.json.
     """
     by_name: dict[str, Result] = {}
-    modes, chapters = [], []
+    modes = []
     for run in runs:
         path = Path(run) / "results.json"
         try:
@@ -48,9 +48,8 @@ def load_runs(runs: Sequence[str | Path]) -> tuple[list[Result], dict]:
             raise InvalidInput(f"runs: cannot read {path}: {e}") from None
         for res in data.get("results", []):
             by_name[res["name"]] = result_from_json(res)
-        meta = data.get("meta", {})
-        modes.append(str(meta.get("mode", "?")))
-        chapters.append(str(meta.get("chapters", "?")))
+        modes.append(str(data.get("meta", {}).get("mode", "?")))
+    chapters = dict.fromkeys(name.split(".")[0] for name in by_name)
     return list(by_name.values()), {"mode": "/".join(sorted(set(modes))), "chapters": ", ".join(chapters)}
 
 

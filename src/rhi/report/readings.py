@@ -155,6 +155,10 @@ _D = [
                        f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J#, thesis-fit")),
               missing="the link inertias (cited, not printed)")
       for c in ("free", "stiff")],
+    Dossier("s6_5.t_f", "§6.4 (line 1462), eqs. 6.16–6.19",
+            "the full transition time ρ‖M_Free − M_Stiff‖_F with ρ = 0.003",
+            (Reading("the time spent blending in the run", "line 1462: 'so that the transition performed in 0.5 "
+                     "second'", "ch6.transition", "time spent blending (0 < Ω < 1)"),)),
     Dossier("fig6_10.entire", "§6.4, Fig. 6.10 (line 1459)",
             "F_max (force scaling) with the M_Stiff^des configuration above that with M_Free^des at every grid point",
             (Reading("LP with null-space torques", "line 1459: 'the maximum force feedback capability'",
@@ -194,6 +198,9 @@ _D = [
     Dossier("sA_4_2.base_interval.0", "§A.4.2, Fig. A.6 (line 2194)",
             "first time the proposed controller commands the base", (),
             missing="the wheel-ground slip and the motion-capture noise of the experiment"),
+    Dossier("sA_4_3.dm_z.0", "§A.4.3 (line 2202), eq. A.17",
+            "DM = 1/‖W_τ J_mᵀ u‖ along u = [0, 0, 1] at the stated q0, rhi's Gen3 model (Kinova's published lengths)", (),
+            missing="the arm model the thesis used (it names the Kinova Gen3 but prints no kinematic parameters)"),
     Dossier("sA_4_3.dm_z.1", "§A.4.3 (line 2202)",
             "DM along z after the experiment's phases (5 s Cartesian, 15 s null-space), the experiment's gains",
             (Reading("the null-space phase run until DM stops rising", "line 2202 states no duration for the "

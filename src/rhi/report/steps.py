@@ -67,9 +67,9 @@ class Step:
 STEPS: list[Step] = [
     Step(ex3.table_3_1, {}, {}, {"configurations": pl3.configurations,
                                         "configurations_rendered": plr.ch3_configurations}),
-    Step(ex3.apparent_inertia_example, {}, {}, {"fig3_2_3": pl3.apparent_inertia}),
     Step(ex3.ratio_maps, {"resolution": 41}, {"resolution": 13},
          {"fig3_6": pl3.workspaces, "fig3_7": pl3.lambda_ratio, "fig3_8": pl3.rho_ratio}, progress=True),
+    Step(ex3.apparent_inertia_example, {}, {}, {"fig3_2_3": pl3.apparent_inertia}),
     Step(ex3.nullspace_configurations, {}, {"duration": 4.0, "starts": ("rehab",), "hard_stops": False},
          {"fig_ch3_control": pl3c.convergence, "ch3_control_configurations": pl3c.configurations,
           "ch3_control_drift": pl3c.drift_hist}, progress=True),
