@@ -26,6 +26,7 @@ from rhi.device import device
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain
+from rhi.mobile_base import wheel_geometry
 from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, hold, simulate_mobile
 
 PI = math.pi
@@ -117,7 +118,7 @@ def tracking(
     return Result(
         "appa.tracking",
         f"§A.4.2 / Table A.1: {radius} m circle beyond the arm's workspace, weighted distribution vs pseudoinverse",
-        [Table("Table A.1: commanded base velocity", rows + ratio),
+        [Table("Table A.1: commanded base velocity", rows + ratio + _geometry_sensitivity(dev, traj, dt)),
          Table("§A.4.2: tracking and base motion", err_rows + interval)],
         arrays,
         [
@@ -138,6 +139,26 @@ def tracking(
             _omega_peak(logs["proposed"]),
         ],
     )
+
+
+def _geometry_sensitivity(dev, traj, dt: float) -> list[Row]:
+    """Rows: the proposed run's ω_b (kinematic) for wheel-base sizes l1 + l2 around rhi's estimate (the thesis gives none).
+
+    Under eq. A.12 as printed W_x weights wheel speeds, so the base's rotation costs ∝ (l1 + l2) per rad/s: ω_b
+    depends on a number the thesis does not publish (Fig. A.4 names R, l1, l2 only). Not a reading: no thesis value.
+    """
+    geo = wheel_geometry(dev)
+    base = geo["half_length"] + geo["half_width"]
+    rows = []
+    for size in (0.30, base, 0.65):
+        g = dict(geo, half_length=geo["half_length"] * size / base, half_width=geo["half_width"] * size / base)
+        ctl = WeightedDistributionController(dev, WeightedConfig(dt=dt, k_x=10.0, epsilon=0.2, geometry=g))
+        st = simulate_mobile(ctl, traj, Q0).base_stats()
+        note = "sensitivity (kinematic run): l1 + l2 is not given in the thesis" + (" (rhi's estimate)" if size == base
+                                                                                     else "")
+        rows += [Row(f"proposed, l1 + l2 = {size:.2f} m: max |ω_b|", None, float(st["max"][2] * DEG), "°/s", note),
+                 Row(f"proposed, l1 + l2 = {size:.2f} m: RMS ω_b", None, float(st["rms"][2] * DEG), "°/s", note)]
+    return rows
 
 
 def _omega_peak(log: MobileLog) -> str:
