@@ -869,3 +869,29 @@ def test_projector_forms(rng, rhi4):
         assert b2 == pytest.approx(b1, abs=1e-10)
     with pytest.raises(Singular, match="J"):
         null_projector(np.array([[1.0, 2.0, 0.0], [2.0, 4.0, 0.0]]))
+
+
+@pytest.mark.parametrize("saturation", ["lp", "ascm", "scaling", "none", "active_set"])
+def test_a_non_finite_primary_force_is_a_safe_stop_in_every_saturation_mode(saturation):
+    """Issue 24: with saturation="lp", a non-finite force (a singular configuration) raised `tau: contains NaN`."""
+    import rhi
+    from rhi.control import ControllerConfig, NullSpaceController
+
+    dev = rhi.device("rhi4")
+
+    class Blows:  # a primary law whose force overflows on the second tick (as near a singularity)
+        def forces(self, t, kin, sensors):
+            return (np.full(dev.m, np.nan) if t > 0 else np.ones(dev.m)), np.zeros(dev.m)
+
+        def required_sensors(self):
+            return ()
+
+        def check(self, device):
+            pass
+
+    ctrl = NullSpaceController(dev, ControllerConfig(primary=Blows(), saturation=saturation))
+    q = np.array([-0.63, 0.25, 0.28, 0.09])
+    assert np.isfinite(ctrl.step(0.0, q, np.zeros(4))).all() and not ctrl.state.stopped
+    np.testing.assert_array_equal(ctrl.step(1e-3, q, np.zeros(4)), 0.0)
+    assert ctrl.state.stopped and "tau:" not in ctrl.state.fault, ctrl.state.fault
+    np.testing.assert_array_equal(ctrl.step(2e-3, q, np.zeros(4)), 0.0)  # latched

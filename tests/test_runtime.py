@@ -107,6 +107,42 @@ def test_frozen_sensors_fault(dev, window, tmp_path):
     assert len(again) == len(res.log) and again.fault == res.fault
 
 
+def test_frozen_values_with_advancing_sequence_numbers_fault(dev, tmp_path):
+    """Issue 24's fault 2: the values stop while the sequence numbers advance (the frozen-sensor rule)."""
+    res = _sim_run(dev, link_wrap=lambda k: Inject(k, frozen=(0.3, 0.6)), log=tmp_path / "f.rhilog")
+    ticks = SafetyConfig().frozen_ticks
+    _assert_safe_stop(res, "frozen", 0.3 + ticks * 1e-3, 0.3 + (ticks + 1) * 1e-3)
+    assert Log.load(tmp_path / "f.rhilog").fault == res.fault
+    # configurable: a longer window of identical readings before the rule applies
+    res = _sim_run(dev, link_wrap=lambda k: Inject(k, frozen=(0.3, 0.6)), safety=SafetyConfig(frozen_ticks=200))
+    _assert_safe_stop(res, "frozen", 0.5, 0.502)
+
+
+def test_frozen_sensor_rule_cannot_fire_at_rest(dev):
+    """A device at rest (zero velocity, a noisy or a constant F/T) never trips the rule; frozen values in motion do."""
+    rng = np.random.default_rng(0)
+    safety = Safety(dev, SafetyConfig(frozen_ticks=5))
+    for k in range(200):  # at rest: positions and velocities unchanged, a real F/T sensor's noise
+        r = Reading(seq=k, t=k * 1e-3, q=Q0, dq=np.zeros(4), sensors={"ft": 1e-3 * rng.standard_normal(6)})
+        assert safety.check(r, None), safety.fault
+    for k in range(200, 400):  # a simulated sensor without contact reads exact zeros
+        assert safety.check(Reading(seq=k, t=k * 1e-3, q=Q0, dq=np.zeros(4), sensors={"ft": np.zeros(6)}), None)
+    ft = np.array([0.1, 0.2, 0.0, 0.0, 0.0, 0.01])
+    for k in range(400, 406):  # the same non-zero wrench bit for bit at rest: not a fault (a simulated sensor)
+        assert safety.check(Reading(seq=k, t=k * 1e-3, q=Q0, dq=np.zeros(4), sensors={"ft": ft}), None)
+    for k in range(406, 412):  # ... while the joints move: frozen
+        safety.check(Reading(seq=k, t=k * 1e-3, q=Q0 + 1e-4 * k, dq=np.full(4, 0.1), sensors={"ft": ft}), None)
+    assert safety.fault_kind == "frozen" and "force/torque" in safety.fault
+    safety = Safety(dev, SafetyConfig(frozen_ticks=5, frozen_motion=1e-3))
+    for k in range(6):  # 0.5 rad/s for 5 ms: 2.5 mrad implied, positions unchanged
+        safety.check(Reading(seq=k, t=k * 1e-3, q=Q0, dq=np.array([0.5, 0, 0, 0]), sensors={}), None)
+    assert safety.fault_kind == "frozen" and "encoders" in safety.fault
+    with pytest.raises(InvalidInput, match="frozen_ticks"):
+        SafetyConfig(frozen_ticks=0)
+    with pytest.raises(InvalidInput, match="frozen_motion"):
+        SafetyConfig(frozen_motion=float("nan"))
+
+
 def test_nan_reading_fault(dev):
     _assert_safe_stop(_sim_run(dev, link_wrap=lambda k: Inject(k, nan=(0.2, 0.3))), "nan", 0.2, 0.201)
 
@@ -189,11 +225,14 @@ def test_estop_method_and_sigint(dev):
             return np.zeros(4)
 
     _assert_safe_stop(_sim_run(dev, controller=Stopper(), safety=guard), "estop", 0.1, 0.102)
-    plant, ctrl, hand, wall, phys = _scenario(dev)
-    threading.Timer(0.2, lambda: os.kill(os.getpid(), signal.SIGINT)).start()
-    res = run(SimLink(plant, hand=hand), ctrl, duration=2.0)
-    assert res.summary["fault_kind"] == "estop" and "SIGINT" in res.fault
-    assert res.log.wall[-1] < 1.0
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):  # Ctrl-C, `kill` (systemd, Docker), a closed terminal
+        plant, ctrl, hand, wall, phys = _scenario(dev)
+        before = signal.getsignal(sig)
+        threading.Timer(0.2, lambda sig=sig: os.kill(os.getpid(), sig)).start()
+        res = run(SimLink(plant, hand=hand), ctrl, duration=2.0)
+        assert res.summary["fault_kind"] == "estop" and res.fault.endswith(sig.name)
+        assert res.log.wall[-1] < 1.0 and signal.getsignal(sig) is before
+        np.testing.assert_array_equal(res.log.tau[-1], 0.0)
 
 
 def test_latched_until_reset(dev):

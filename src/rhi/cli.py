@@ -9,6 +9,7 @@ import os
 import re
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -200,13 +201,28 @@ class _Status:
             self.stream.flush()
 
 
+def _writable(option: str, path: Path) -> None:
+    """Check before a run that the output file `path` can be written (creating its folder, not the file)."""
+    if path.is_dir():
+        raise InvalidInput(f"{option}: {path} is a directory, not a file")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidInput(f"{option}: cannot create the folder {path.parent} ({exc.strerror or exc})") from None
+    if not os.access(path if path.exists() else path.parent, os.W_OK):
+        raise InvalidInput(f"{option}: cannot write {path} (permission denied)")
+
+
 def _run(args: argparse.Namespace) -> int:
     from rhi.runtime import run
     from rhi.runtime.config import load_config
+    from rhi.runtime.loop import ESTOP_SIGNALS
 
     for name, v in (("--duration", args.duration), ("--rate", args.rate)):
         if v is not None and (not math.isfinite(v) or v <= 0):
             raise InvalidInput(f"{name}: must be a finite number > 0, got {v!r}")
+    if args.mouse and not args.view:
+        raise InvalidInput("--mouse: the mouse moves the hand in the browser view; add --view")
     cfg = load_config(args.config, device_name=args.device)
     rate = args.rate or cfg.rate
     duration = args.duration if args.duration is not None else cfg.duration
@@ -214,8 +230,10 @@ def _run(args: argparse.Namespace) -> int:
     out = Path("out") / time.strftime("run-%Y%m%d-%H%M%S")
     log_path = Path(args.log) if args.log else out / "run.rhilog"
     summary_path = Path(args.summary) if args.summary else (log_path.parent if args.log else out) / "summary.json"
-    for p in (log_path, summary_path):
-        p.parent.mkdir(parents=True, exist_ok=True)
+    _writable("--log", log_path)
+    _writable("--summary", summary_path)
+    about = {"name": cfg.name, "source": cfg.source, "device": cfg.device.name, "link": args.link}
+    summary_path.write_text(json.dumps({"config": about, "log": str(log_path), "running": True}, indent=1))
     print(f"rhi run: {cfg.name} on {cfg.device.name} over {args.link} at {rate:g} Hz, "
           f"{'until Ctrl-C' if duration is None else f'{duration:g} s'}"
           f"{'' if args.realtime else ' (as fast as possible)'}", flush=True)
@@ -264,7 +282,7 @@ def _run(args: argparse.Namespace) -> int:
         if view is not None:
             view.close()
     s = res.summary
-    s["config"] = {"name": cfg.name, "source": cfg.source, "device": cfg.device.name, "link": args.link}
+    s["config"] = about
     s["log"] = str(log_path)
     if hasattr(link, "stats"):
         s["link_stats"] = dict(link.stats)
@@ -275,7 +293,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"log: {log_path}\nsummary: {summary_path}")
     if res.fault is not None:
         print(f"rhi run: fault ({s['fault_kind']}): {res.fault}", file=sys.stderr)
-        return 130 if s["fault_kind"] == "estop" and "SIGINT" in res.fault else 1
+        signals = [sig for sig in ESTOP_SIGNALS if s["fault_kind"] == "estop" and res.fault.endswith(sig.name)]
+        return 128 + int(signals[0]) if signals else 1  # the shell's code for a command ended by that signal
     return 0
 
 
@@ -380,8 +399,13 @@ def main(argv: list[str] | None = None) -> int:
     add_log_commands(sub)
     add_study_commands(sub)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
+    previous = _interrupt_on_signals()
     try:
         return args.func(args)
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM or SIGHUP outside a run's loop (which makes them an e-stop)
+        name = str(exc) or "SIGINT"
+        print(f"rhi: stopped by {name}", file=sys.stderr)
+        return 128 + int(getattr(signal, name, signal.SIGINT))
     except RhiError as exc:
         print(f"rhi: error: {exc}", file=sys.stderr)
         return 2
@@ -391,6 +415,19 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"rhi: error: this command needs {exc.name}: pip install 'rhi[{extra}]' (or 'rhi[all]')", file=sys.stderr)
         return 2
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def _interrupt_on_signals() -> dict:
+    """SIGTERM and SIGHUP stop the command as Ctrl-C does (its cleanup runs); {signal: previous handler}."""
+    def interrupt(num, _frame):
+        raise KeyboardInterrupt(signal.Signals(num).name)
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.signal(sig, interrupt) for sig in (signal.SIGTERM, getattr(signal, "SIGHUP", None)) if sig}
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import null_basis, tertiary
 from rhi.control.transition import aso_volume
 from rhi.device import DeviceTerms
-from rhi.errors import InvalidInput
+from rhi.errors import InvalidInput, Singular
 from rhi.metrics import nullspace_projector
 
 if TYPE_CHECKING:
@@ -57,6 +57,9 @@ def reference_tick(
     if cfg.gravity_compensation and kin.g @ kin.g != 0.0:
         b = b + (kin.g - J.T @ kin.Gx)  # (I − JᵀJ#ᵀ) g: the part G_x leaves out
     tau_m = a + b
+    if not np.isfinite(tau_m).all():  # e.g. at a singular configuration or a joint limit: a safe stop (`step`)
+        raise Singular(f"the primary law's joint torque Jᵀ F is not finite: F_render={np.asarray(F_r).tolist()}, "
+                       f"F_extra={np.asarray(F_x).tolist()}")
     s.V = aso_volume(tau_m, torque_min=lo, torque_max=hi, S=ctrl.aso_shape)
     objectives = ctrl.objectives
     fme = cfg.fme
@@ -74,6 +77,8 @@ def reference_tick(
 
     M = kin.M if cfg.projector == "dynamic" else None
     Z = null_basis(J, M)
+    if not np.isfinite(Z).all():
+        raise Singular("the null-space basis is not finite")
     al = ctrl.allocation.allocate(a, b, Z, torque_min=lo, torque_max=hi)
     N = nullspace_projector(J, M)
     gamma = 1.0

@@ -19,17 +19,13 @@ IK warm start along a row is the same whichever process computes it.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import os
-import signal
-import sys
-import threading
-import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 from typing import Any
 
+from rhi._lifetime import die_with_parent
 from rhi.errors import InvalidInput
 
 
@@ -63,34 +59,6 @@ class SerialExecutor:
 PRELOAD = ["rhi.design", "rhi.control"]
 
 
-def _watch_parent(main_pid: int) -> None:
-    while True:
-        time.sleep(0.5)
-        try:
-            os.kill(main_pid, 0)
-        except ProcessLookupError:
-            os._exit(1)
-        except PermissionError:  # the pid now belongs to another user's process: ours is gone
-            os._exit(1)
-
-
-def _worker_init(main_pid: int) -> None:
-    """Make a pool worker die with the process that started the pool (no orphans after a kill).
-
-    On Linux the kernel sends SIGKILL when the worker's parent (the fork server, which exits
-    when the main process dies) goes; everywhere, a daemon thread exits once the main process is gone.
-    """
-    if sys.platform.startswith("linux"):
-        try:
-            libc = ctypes.CDLL(None, use_errno=True)
-            libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass
-    if os.getppid() == 1:  # the parent is already gone
-        os._exit(1)
-    threading.Thread(target=_watch_parent, args=(main_pid,), daemon=True, name="rhi-parent-watch").start()
-
-
 def _check_workers(workers) -> None:
     """`workers` must be None (the CPU count) or an integer >= 1."""
     if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
@@ -100,7 +68,7 @@ def _check_workers(workers) -> None:
 def _new_pool(workers: int) -> ProcessPoolExecutor:
     ctx = get_context("forkserver")
     ctx.set_forkserver_preload(PRELOAD)  # no effect once this process's fork server runs
-    return ProcessPoolExecutor(workers, mp_context=ctx, initializer=_worker_init, initargs=(os.getpid(),))
+    return ProcessPoolExecutor(workers, mp_context=ctx, initializer=die_with_parent, initargs=(os.getpid(),))
 
 
 class PoolExecutor(SerialExecutor):

@@ -8,7 +8,7 @@ its parts with the figures. The longest tasks start first (by the times of the p
 
 from __future__ import annotations
 
-import functools
+import contextlib
 import json
 import multiprocessing
 import os
@@ -27,6 +27,7 @@ import matplotlib.pyplot as plt
 from matplotlib.figure import Figure
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
+from rhi._lifetime import die_with_parent
 from rhi.design.executors import DEFAULTS, configure, shared
 from rhi.errors import InvalidInput, RhiError
 from rhi.experiments.parts import Part, Plan
@@ -97,6 +98,12 @@ def _draw(s: Step, res: Result, out: Path) -> tuple[dict[str, Path], float]:
         plt.close(fig)
         paths[name] = path
     return paths, time.perf_counter() - t
+
+
+def _worker_init(defaults: dict[str, Any], main_pid: int) -> None:
+    """A reproduction worker: dies with the main process (no orphan after a kill), the main process's executor."""
+    die_with_parent(main_pid)
+    configure(**defaults)
 
 
 def _step(name: str) -> Step:
@@ -274,7 +281,8 @@ def _parallel(steps: list[Step], plans: dict[str, Plan], quick: bool, out: Path,
     """
     running: dict[Future, tuple[str, Step, int]] = {}
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=functools.partial(configure, **DEFAULTS)) as pool:
+    with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_worker_init,
+                             initargs=(dict(DEFAULTS), os.getpid())) as pool:
         try:
             warming = {pool.submit(warm, group): group for group in GROUPS}  # the kernels, once, before any task
             plans = {s.name: plans.get(s.name) or s.plan(**(s.quick if quick else s.full))
@@ -318,7 +326,10 @@ def _parallel(steps: list[Step], plans: dict[str, Plan], quick: bool, out: Path,
                             queue.insert(0, (0.0, "merge", s, -1))
                     else:
                         finished(s, *output, *spent[s.name])
-        except BaseException:  # a task failed (or Ctrl-C): the queued ones do not run
+        except BaseException:  # a task failed (or Ctrl-C, SIGTERM): the queued ones do not run, the running ones stop
             pool.shutdown(wait=False, cancel_futures=True)
+            for proc in dict(getattr(pool, "_processes", None) or {}).values():  # CPython's {pid: Process}
+                with contextlib.suppress(OSError):
+                    proc.terminate()  # else leaving the pool would wait for the running tasks to end
             raise
 

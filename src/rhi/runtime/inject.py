@@ -3,6 +3,8 @@
 ```python
 link = Inject(SimLink(plant, hand=hand), freeze=(0.5, 0.6))   # encoders and F/T frozen 100 ms
 res = run(link, controller, realtime=False)                    # → a "stale" fault at t = 0.503 s
+link = Inject(SimLink(plant, hand=hand), frozen=(0.5, 0.8))   # values frozen, sequence numbers advancing
+res = run(link, controller, realtime=False)                    # → a "frozen" fault (SafetyConfig.frozen_ticks)
 ```
 """
 
@@ -35,18 +37,22 @@ class Inject:
     Args:
         link: the link to wrap.
         freeze: the reading (sequence number and values) stops changing, as a hung sensor driver.
+        frozen: the values (q, q̇, sensors) stop changing while the sequence number and time advance, as a
+            device that keeps sending its last sample.
         nan: the F/T sensor reads NaN.
         reorder_at: at this time, return the reading from two samples earlier once (an out-of-order packet).
         silence: read() raises `LinkError` (the device went away).
     """
 
-    def __init__(self, link: DeviceLink, *, freeze=None, nan=None, reorder_at: float | None = None,
+    def __init__(self, link: DeviceLink, *, freeze=None, frozen=None, nan=None, reorder_at: float | None = None,
                  silence=None) -> None:
         self.link = link
         self.n = link.n
         self.rate = getattr(link, "rate", None)
         self.session = getattr(link, "session", None)
         self.freeze, self.nan, self.silence = _window("freeze", freeze), _window("nan", nan), _window("silence", silence)
+        self.frozen = _window("frozen", frozen)
+        self._values: Reading | None = None
         self.reorder_at = reorder_at
         self._held: Reading | None = None
         self._hist: list[Reading] = []
@@ -71,6 +77,10 @@ class Inject:
             self._held = self._held or r
             return self._held
         self._held = None
+        if self._in(self.frozen, r.t):
+            self._values = self._values or r
+            return dataclasses.replace(r, q=self._values.q, dq=self._values.dq, sensors=self._values.sensors)
+        self._values = None
         if self.reorder_at is not None and r.t >= self.reorder_at and not self._reordered and old is not None:
             self._reordered = True
             return old

@@ -229,9 +229,7 @@ def run(
     kin = None if dev is None else Kinematics(dev, virtual)
     top = 0.0  # the largest τ_i / limit_i so far (`Safety.ratio`)
     stats = {"ticks": 0, "missed": 0, "skipped_slots": 0, "max_torque_ratio": 0.0}
-    prev_sigint = None
-    if threading.current_thread() is threading.main_thread():
-        prev_sigint = signal.signal(signal.SIGINT, lambda *_: guard.estop("SIGINT"))
+    previous = _estop_on_signals(guard)
     k = slot = 0
     t_dev = 0.0
     warmup = getattr(controller, "warmup", None)
@@ -321,8 +319,8 @@ def run(
                 link.write(zero, enable=False)
         with contextlib.suppress(Exception):
             link.close()
-        if prev_sigint is not None:
-            signal.signal(signal.SIGINT, prev_sigint)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
         for kind, detail in guard.drain():
             w.event(t_dev, kind, detail, k)
         if w.fault is None and guard.fault is not None:
@@ -331,6 +329,17 @@ def run(
     stats["ticks"] = k
     result_log = w.to_log()
     return RunResult(result_log, _summary(result_log, stats, rate, guard, realtime, spin))
+
+
+#: The signals that stop a run as an e-stop (Ctrl-C; `kill`, systemd and Docker; a closed terminal).
+ESTOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def _estop_on_signals(guard: Safety) -> dict:
+    """Make `ESTOP_SIGNALS` an e-stop of `guard` (from the main thread only); {signal: previous handler}."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.signal(sig, lambda num, _frame: guard.estop(signal.Signals(num).name)) for sig in ESTOP_SIGNALS}
 
 
 class _Offsets(NamedTuple):

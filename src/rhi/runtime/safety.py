@@ -7,9 +7,19 @@ fault); a non-finite torque is a fault.
 
 Checks, each tick: device status flags (e-stop, watchdog, fault), non-finite readings, a
 sequence number that goes backwards (out of order) or does not advance for `stale_ticks`
-ticks (frozen sensors), link silence longer than `silence`, joint speed above
-`max_joint_speed`, a joint beyond its range by more than `range_margin`, handle speed above
-`max_handle_speed`, an external e-stop (`estop`, SIGINT in `rhi.runtime.run`).
+ticks (a stalled stream), frozen sensors (below), link silence longer than `silence`, joint
+speed above `max_joint_speed`, a joint beyond its range by more than `range_margin`, handle
+speed above `max_handle_speed`, an external e-stop (`estop`; SIGINT, SIGTERM and SIGHUP in
+`rhi.runtime.run`).
+
+Frozen sensors (sequence numbers advance, values do not), over `frozen_ticks` consecutive new
+readings: the encoders, when the joint positions and velocities are identical bit for bit while
+a reported velocity implies more than `frozen_motion` of motion over that time (device clock);
+the force/torque sensor, when its six values are identical bit for bit while the joints moved
+(a reading below `FT_EXEMPT`, a simulated sensor without contact, is exempt). Neither can trip
+on a device at rest: its velocities are zero and its positions do not change. Commanded torque
+against friction is deliberately not a criterion: a user's grip can hold the handle still
+against any torque the device commands.
 """
 
 from __future__ import annotations
@@ -30,6 +40,9 @@ def _positive(name: str, v, *, integer: bool = False) -> None:
     scalar(name, v, positive=True)
 
 
+#: A force/torque reading whose components are all below this [N, N m] (a simulated sensor without contact)
+#: is exempt from the frozen-sensor rule: a real sensor's noise is far above it.
+FT_EXEMPT = 1e-6
 _BAD_STATUS = int(Status.ESTOP | Status.WATCHDOG | Status.FAULT)
 
 
@@ -38,7 +51,10 @@ class SafetyConfig:
     """Limits of the safety layer (all finite and positive).
 
     Attributes:
-        stale_ticks: ticks without a new sequence number before the sensors count as frozen.
+        stale_ticks: ticks without a new sequence number before the stream counts as stalled.
+        frozen_ticks: consecutive new readings with identical values before the frozen-sensor rule applies.
+        frozen_motion: the displacement the reported joint velocity implies over those readings above which
+            unchanged positions count as frozen encoders [rad].
         silence: longest time without a new reading before the link counts as dead [s].
         max_joint_speed: |q̇| limit [rad/s], one value or (n,).
         range_margin: how far beyond a joint limit a joint may be [rad].
@@ -46,6 +62,8 @@ class SafetyConfig:
     """
 
     stale_ticks: int = 3
+    frozen_ticks: int = 50
+    frozen_motion: float = 1e-3
     silence: float = 0.02
     max_joint_speed: float | tuple[float, ...] = 20.0
     range_margin: float = 0.05
@@ -53,7 +71,8 @@ class SafetyConfig:
 
     def __post_init__(self) -> None:
         _positive("stale_ticks", self.stale_ticks, integer=True)
-        for f in ("silence", "range_margin", "max_handle_speed"):
+        _positive("frozen_ticks", self.frozen_ticks, integer=True)
+        for f in ("silence", "range_margin", "max_handle_speed", "frozen_motion"):
             _positive(f, getattr(self, f))
         v = self.max_joint_speed
         vals = v if isinstance(v, (tuple, list)) else (v,)
@@ -122,6 +141,13 @@ class Safety:
         self._same = 0
         self._last_new: float | None = None
         self._estop: str | None = None
+        # the frozen-sensor rule: the last new reading's (q, q̇) and F/T as Python floats, how many new readings
+        # repeated them, since when (device time [s]) and from which positions
+        self._joints: tuple | None = None
+        self._joints_same, self._joints_t0 = 0, 0.0
+        self._ft: list[float] | None = None
+        self._ft_same = 0
+        self._ft_q0: list[float] | None = None
 
     # ------------------------------------------------------------------ faults
     def trip(self, kind: str, detail: str) -> None:
@@ -140,6 +166,8 @@ class Safety:
             self.events.append(("reset", f"fault cleared: {self.fault}"))
         self.fault = self.fault_kind = self._estop = None
         self._same, self._last_new = 0, None
+        self._joints = self._ft = None
+        self._joints_same = self._ft_same = 0
 
     def drain(self) -> list[tuple[str, str]]:
         """The events since the last call."""
@@ -162,8 +190,11 @@ class Safety:
                       + (f": {r.detail}" if r.detail else ""))
         seq = int(r.seq)
         last = self._last_seq
+        q, dq = r.q, r.dq
+        ql, dql = q.tolist(), dq.tolist()  # sums of Python floats: cheaper than NumPy's reductions on a few values
         if last is None or seq > last:
             self._same, self._last_new, self._last_seq = 0, now, seq
+            self._check_frozen(r, ql, dql)
         elif seq < last:
             self.trip("order", f"out-of-order reading: sequence {seq} after {last} at t={r.t:.4f} s")
         else:
@@ -173,8 +204,6 @@ class Safety:
         if now is not None and self._last_new is not None and now - self._last_new > self.config.silence:
             self.trip("silence", f"link silent for {1e3 * (now - self._last_new):.1f} ms (limit "
                       f"{1e3 * self.config.silence:g} ms) at t={r.t:.4f} s")
-        q, dq = r.q, r.dq
-        ql, dql = q.tolist(), dq.tolist()  # sums of Python floats: cheaper than NumPy's reductions on a few values
         if not math.isfinite(sum(ql) + sum(dql)) and not (np.isfinite(q).all() and np.isfinite(dq).all()):
             self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={ql}, dq={dql}")
             return False
@@ -199,6 +228,29 @@ class Safety:
                 self.trip("handle_speed", f"handle speed {s:.3g} m/s above {self.config.max_handle_speed:g} "
                           f"at t={r.t:.4f} s")
         return self.fault is None
+
+    def _check_frozen(self, r: Reading, ql: list[float], dql: list[float]) -> None:
+        """The frozen-sensor rule (module docstring) on a reading with a new sequence number."""
+        t = float(r.t)
+        if (ql, dql) != self._joints:
+            self._joints, self._joints_same, self._joints_t0 = (ql, dql), 0, t
+        else:
+            self._joints_same += 1
+        ft = r.sensors.get("ft")
+        ftl = None if ft is None else ft.tolist()
+        if ftl != self._ft:
+            self._ft, self._ft_same, self._ft_q0 = ftl, 0, ql
+        else:
+            self._ft_same += 1
+        n = self.config.frozen_ticks
+        if self._joints_same >= n:
+            moved = max(map(abs, dql), default=0.0) * (t - self._joints_t0)
+            if moved > self.config.frozen_motion:
+                self.trip("frozen", f"encoders frozen: positions unchanged for {self._joints_same} readings while the "
+                          f"joint velocities {dql} rad/s imply {moved:.3g} rad of motion at t={t:.4f} s")
+        if self._ft_same >= n and ftl is not None and ql != self._ft_q0 and max(map(abs, ftl)) >= FT_EXEMPT:
+            self.trip("frozen", f"force/torque sensor frozen: {ftl} repeated bit for bit for {self._ft_same} "
+                      f"readings while the joints moved at t={t:.4f} s")
 
     def filter(self, tau, t: float) -> np.ndarray:
         """The torque to send: τ clamped into the limits (counted), or zeros on a fault or a non-finite τ.

@@ -19,6 +19,7 @@ from multiprocessing import shared_memory
 
 import numpy as np
 
+from rhi._lifetime import die_with_parent
 from rhi.errors import InvalidInput
 from rhi.sim.hand import DraggableHand
 from rhi.sim.log import layout
@@ -168,6 +169,8 @@ class SharedDraggableHand(DraggableHand):
 
 def _serve(device, tel_name: str, sizes, hand, kw: dict, ready, stop, cpus) -> None:
     from rhi.viz.view import View
+
+    die_with_parent()  # a killed `rhi run --view` or `rhi view` takes its view with it
 
     if cpus:
         try:
