@@ -155,6 +155,18 @@ def test_w_trajectory_scenarios(wtraj):
     assert max(damp) / min(damp) < 1.1
 
 
+def test_w_trajectory_reports_the_alternative_readings(wtraj):
+    """Issue 23: the plain-J and literal-eq.-5.14 readings of scenarios 1–2 stand beside the headline."""
+    bound = _row(wtraj, "mean of the slave's own σ₁σ₂").ours
+    s3 = _row(wtraj, "mean TME area, scenario 3").ours
+    for name in ("reading 'plain J' (k_q = None in eqs. 5.11, 5.14): mean TME area, scenario 1",
+                 "reading 'plain J': mean TME area, scenario 2",
+                 "reading 'literal eq. 5.14' (τ_N = α ∂μ/∂q, plain J): mean TME area, scenario 2"):
+        assert s3 < _row(wtraj, name).ours <= bound  # an RHI objective beats the Rehab, inside the slave's ME
+    for name in ("reading 'plain J': scenario 2's mean TME area below", "reading 'literal eq. 5.14': scenario 2's"):
+        assert np.isfinite(_row(wtraj, name).ours)
+
+
 def test_w_outside_workspace_raises():
     with pytest.raises(Unreachable, match="path"):
         ch5.w_trajectory(center=(1.5, 0.0))

@@ -40,6 +40,10 @@ from rhi.experiments.setups import Progress, positive, ticks
 from rhi.metrics import ellipsoid_axes, penalized_jacobian, teleoperation_ellipsoid, tmi, velocity_ellipsoid
 from rhi.sim import Hand, Plant, Teleoperation, check_path_in_workspace, simulate
 
+#: Alternative readings of scenarios 1–2 run beside the headline: (tag, scenario, changed setting).
+READINGS = (("plain", "s1", {"k_q": None}), ("plain", "s2", {"k_q": None}),
+            ("literal", "s2", {"k_q": None, "literal": True}))
+
 
 def w_trajectory(
     *,
@@ -54,6 +58,7 @@ def w_trajectory(
     damping: float = NULL_DAMPING,
     friction: str = "thesis",
     ellipses: int = 13,
+    readings: bool = True,
     progress: Progress | None = None,
 ) -> Result:
     """Figs 5.5–5.6: the W trajectory at 2 cm/s with three scenarios, the slave following by teleoperation.
@@ -80,6 +85,9 @@ def w_trajectory(
         damping: null-space damping k_D [N m s/rad].
         friction: "thesis" (Γ = 0.01, eq. 5.13) or "device".
         ellipses: points along the W where Fig. 5.5's ellipses are kept.
+        readings: also run the alternative readings of scenarios 1–2 and report them beside (issue 23):
+            "plain J" (k_q = None in both objectives) and "literal eq. 5.14" (scenario 2 with
+            τ_N = α ∂μ/∂q of the plain Jacobian, not −α ∂(−log μ(J^q))/∂q).
         progress: optional callback(done, total).
 
     The scenarios are independent (`w_trajectory_plan`: `rhi reproduce` runs them side by side).
@@ -90,7 +98,7 @@ def w_trajectory(
     """
     return run_plan(w_trajectory_plan(scale=scale, speed=speed, settle=settle, center=center, width=width,
                                       height=height, k_q=k_q, gain=gain, damping=damping, friction=friction,
-                                      ellipses=ellipses), progress)
+                                      ellipses=ellipses, readings=readings), progress)
 
 
 def w_trajectory_plan(
@@ -106,6 +114,7 @@ def w_trajectory_plan(
     damping: float = NULL_DAMPING,
     friction: str = "thesis",
     ellipses: int = 13,
+    readings: bool = True,
 ) -> Plan:
     """`w_trajectory` as independent parts, one per scenario (arguments as `w_trajectory`).
 
@@ -136,7 +145,10 @@ def w_trajectory_plan(
               "k_q": k_q, "gain": gain, "damping": damping, "friction": friction, "ellipses": ellipses,
               "start": {k: tuple(v.tolist()) for k, v in start.items()}}
     parts = [Part(key, functools.partial(w_scenario, key, **common), ticks(duration)) for key in SCENARIOS]
-    return Plan(parts, functools.partial(_w_merge, **common))
+    if readings:  # the alternative readings of scenarios 1–2, after the three scenarios (`READINGS`)
+        parts += [Part(f"{key}_{tag}", functools.partial(w_scenario, key, **{**common, **change}), ticks(duration))
+                  for tag, key, change in READINGS]
+    return Plan(parts, functools.partial(_w_merge, readings=readings, **common))
 
 
 def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progress | None = None,
@@ -166,7 +178,7 @@ def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progr
     if key == "s1":
         obj = TMIMatching(slave, lambda tele=tele: tele.slave.q, k_q=k_q)
     elif key == "s2":
-        obj = Manipulability(log=True, k_q=k_q)
+        obj = Manipulability(log=not setting.get("literal", False), k_q=k_q)
     else:
         obj = None
     plant = Plant(dev, friction=plant_friction(friction, dev))
@@ -225,7 +237,7 @@ def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progr
 
 
 def _w_merge(outputs: list[tuple[dict, dict]], *, scale, speed, settle, center, width, height, k_q, gain, damping,
-             friction, ellipses, start) -> Result:
+             friction, ellipses, start, readings) -> Result:
     path = w_reference(center, width * scale, height * scale, speed, settle)
     slave = devices()["slave"]
     arrays: dict[str, np.ndarray] = {"path": path.points, "settle": np.array(settle)}
@@ -244,6 +256,7 @@ def _w_merge(outputs: list[tuple[dict, dict]], *, scale, speed, settle, center, 
     weight = 1.0 - s_ax[:, 1] / s_ax[:, 0]
     align = float(np.sum(weight * np.abs(np.einsum("kj,kj->k", tangent, U_ax[:, :, 0]))) / np.sum(weight))
     names = {k: f"scenario {i + 1} ({v})" for i, (k, v) in enumerate(SCENARIOS.items())}
+    alt = {f"{key}_{tag}": st for (tag, key, _), (st, _arr) in zip(READINGS, outputs[len(SCENARIOS):])}
     rows = [
         Row(f"mean TME area, {names['s1']}", T.MEAN_TME_S1, s1["area"],
             "m²/s² per (rad/s)²",
@@ -263,6 +276,18 @@ def _w_merge(outputs: list[tuple[dict, dict]], *, scale, speed, settle, center, 
         Row("W's alignment with the slave ME major axis (mean |cos|, anisotropy-weighted)", None, align, "",
             "1: strokes along the major axis; 0.64: random directions"),
     ]
+    if alt:  # the alternative readings (issue 23), each beside the headline's scenario 2 gap
+        rows += [
+            Row("reading 'plain J' (k_q = None in eqs. 5.11, 5.14): mean TME area, scenario 1", None,
+                alt["s1_plain"]["area"], "m²/s² per (rad/s)²"),
+            Row("reading 'plain J': mean TME area, scenario 2", None, alt["s2_plain"]["area"], "m²/s² per (rad/s)²"),
+            Row("reading 'plain J': scenario 2's mean TME area below scenario 1's", THESIS_S2_BELOW_S1,
+                100.0 * (1.0 - alt["s2_plain"]["area"] / alt["s1_plain"]["area"]), "%"),
+            Row("reading 'literal eq. 5.14' (τ_N = α ∂μ/∂q, plain J): mean TME area, scenario 2", None,
+                alt["s2_literal"]["area"], "m²/s² per (rad/s)²", "scenario 1 as the headline"),
+            Row("reading 'literal eq. 5.14': scenario 2's mean TME area below scenario 1's", THESIS_S2_BELOW_S1,
+                100.0 * (1.0 - alt["s2_literal"]["area"] / s1["area"]), "%"),
+        ]
     effort = [
         Row(f"user work over the W, {names[k]}", None, stats[k]["work"], "J", "eq. 5.15, simulated hand")
         for k in SCENARIOS
