@@ -128,3 +128,89 @@ def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
     assert "paused" in runs[1].fault and "stopped in the view" in runs[2].fault
     assert runs[1].log.t[0] < 0.01 < runs[0].log.t[-1]  # the reset restarted the device at its start
     assert runs[2].log.t[0] == pytest.approx(runs[1].log.t[-1], abs=0.01)  # resume goes on where it paused
+
+
+def test_environment_description_round_trips_through_a_log(tmp_path):
+    from rhi.sim import Fixture, Spring, Wall, compose, simulate
+    from rhi.sim.environment import describe, from_description
+    from rhi.sim.log import Log
+    from rhi.viz.live import demo_setup
+
+    env = compose(Wall([0.1, 0.2], [0.0, 1.0], 1000.0, 2.0), Spring([0.0, 0.1], 50.0, direction=[1.0, 0.0]),
+                  Fixture([0.0, 0.0], [0.0, 1.0]))
+    back = from_description(describe(env))
+    x, v = np.array([0.05, 0.25]), np.array([0.1, -0.2])
+    np.testing.assert_allclose(back.force(x, v), env.force(x, v), rtol=0, atol=1e-15)
+    with pytest.raises(InvalidInput, match=r"environment\[0\]"):
+        from_description([{"type": "wall", "point": [0, 0], "normal": [0, 1], "stifness": 1.0}])
+    plant, ctrl, wall, _ = demo_setup(rhi.device("rhi4"))
+    simulate(plant, ctrl, duration=0.01, virtual=wall, log=tmp_path / "run.rhilog")
+    drawn = from_description(Log.load(tmp_path / "run.rhilog").meta["environment"])
+    assert isinstance(drawn, Wall) and drawn.stiffness == wall.stiffness
+    np.testing.assert_array_equal(drawn.point, wall.point)
+
+
+def test_log_player_speed_steps_and_state():
+    from rhi.sim.log import Log
+    from rhi.viz.replay import LogPlayer
+
+    t = np.arange(0.0, 1.0, 1e-3)
+    n = len(t)
+    log = Log(t=t, q=np.zeros((n, 4)), dq=np.zeros((n, 4)), tau=np.zeros((n, 4)), x=np.zeros((n, 2)),
+              xdot=np.zeros((n, 2)), F_hand=np.zeros((n, 2)), F_env=np.zeros((n, 2)), ft=np.zeros((n, 6)),
+              work=np.zeros(n), V=np.zeros(n), omega=np.zeros(n), alpha=np.zeros(n), beta=np.zeros(n),
+              slave_x=np.zeros((n, 0)))
+    p = LogPlayer(log, speed=2.0)
+    assert not p.playing and p.state == "paused at t = 0.000 s"
+    p.step(3, fps=30.0)
+    assert p.time == pytest.approx(0.1) and not p.playing
+    p.step(-10, fps=30.0)
+    assert p.time == 0.0
+    for bad in (0.0, 5.0, float("nan"), "2", True):
+        with pytest.raises(InvalidInput, match="speed"):
+            p.speed = bad
+    p.seek(10.0)
+    assert p.state == "at the end"
+
+
+@pytest.mark.realtime
+def test_replay_opens_paused_and_plays_at_twice_the_speed(tmp_path):
+    """In the page: paused at t = 0 with the logged wall drawn; at 2× a 3 s log ends in 1.5 s (±20 %)."""
+    need_browser()
+    from rhi.sim import DraggableHand, simulate
+    from rhi.sim.log import Log
+    from rhi.viz.live import demo_setup
+    from rhi.viz.view import View
+
+    dev = rhi.device("rhi4")
+    plant, ctrl, wall, q0 = demo_setup(dev)
+    hand = DraggableHand()
+    hand.target = dev.fk(q0) + [0.0, 0.03]  # into the wall
+    simulate(plant, ctrl, duration=3.0, hand=hand, virtual=wall, log=tmp_path / "run.rhilog")
+    log = Log.load(tmp_path / "run.rhilog")
+    v = View(dev, log, port=0).start()
+    b = browser.Browser(v.url)
+    try:
+        assert v.overlays.virtual is not None  # the wall, from the log's header
+        state = "document.getElementById('rhi-play').innerText"
+        assert b.wait_for(f"{state} === 'paused at t = 0.000 s'", timeout=60)
+        time.sleep(0.5)
+        assert v.player.time == log.t[0] and not v.player.playing
+        b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.trim() === '2×').click()")
+        assert b.wait_for(f"{state} === 'paused at t = 0.000 s'", timeout=20)
+        deadline = time.monotonic() + 10
+        while v.player.speed != 2.0 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert v.player.speed == 2.0
+        b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('play')).click()")
+        assert b.wait_for(f"{state} === 'playing at 2×'", timeout=20)
+        t_play, clicked = v.player._anchor  # the log time and the wall time of the click's play()
+        while v.player.playing and time.monotonic() - clicked < 10:
+            time.sleep(0.005)
+        elapsed = time.monotonic() - clicked
+        assert t_play == log.t[0]
+        assert 0.8 * 1.5 <= elapsed <= 1.2 * 1.5, elapsed  # 3 s of log at 2×
+        assert b.wait_for(f"{state} === 'at the end'", timeout=20)
+    finally:
+        b.close()
+        v.close()

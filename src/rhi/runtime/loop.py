@@ -29,6 +29,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
 from rhi.runtime.safety import Safety, SafetyConfig
+from rhi.sim.environment import describe
 from rhi.sim.log import TIMING, Log, LogWriter, layout, nan_stats
 from rhi.sim.loop import Kinematics
 from rhi.sim.telemetry import TelemetrySink
@@ -219,7 +220,7 @@ def run(
     w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"),
                                                 "task_axes": getattr(dev, "task_axes", None), "rate": float(rate),
                                                 "source": type(link).__name__, "realtime": bool(realtime),
-                                                "spin": bool(spin)})
+                                                "spin": bool(spin), "environment": describe(virtual)})
     c = w.cols
     at = _offsets(w, n, m)
     state = getattr(controller, "state", None)

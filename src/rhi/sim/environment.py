@@ -174,3 +174,51 @@ def compose(*parts) -> Compose:
         if not callable(getattr(p, "force", None)):
             raise InvalidInput(f"parts[{i}]: {type(p).__name__} has no force(x, xdot) method")
     return Compose(tuple(parts))
+
+
+_KINDS = {"wall": Wall, "spring": Spring, "fixture": Fixture}
+
+
+def describe(env) -> list[dict] | None:
+    """A JSON description of a `Wall`, `Spring`, `Fixture` or a `compose` of them (stored in a log's header).
+
+    Returns None for an environment of another type (a user's own: not describable).
+    """
+    if env is None:
+        return None
+    parts = env.parts if isinstance(env, Compose) else (env,)
+    out = []
+    for p in parts:
+        kind = {Wall: "wall", Spring: "spring", Fixture: "fixture"}.get(type(p))
+        if kind is None:
+            return None
+        d = {f.name: getattr(p, f.name) for f in dataclasses.fields(p) if f.init}
+        out.append({"type": kind, **{k: (None if v is None else np.asarray(v, dtype=float).tolist())
+                                     for k, v in d.items()}})
+    return out
+
+
+def from_description(items) -> Wall | Spring | Fixture | Compose | None:
+    """The environment `describe` described (None for None or an empty list).
+
+    Raises:
+        InvalidInput: a malformed description (named by its index and key).
+    """
+    if not items:
+        return None
+    if not isinstance(items, list):
+        raise InvalidInput(f"environment: expected a list of parts, got {type(items).__name__}")
+    parts = []
+    for i, d in enumerate(items):
+        if not isinstance(d, dict) or d.get("type") not in _KINDS:
+            raise InvalidInput(f"environment[{i}]: expected a table with type in {sorted(_KINDS)}, got {d!r}")
+        cls = _KINDS[d["type"]]
+        names = {f.name for f in dataclasses.fields(cls) if f.init}
+        extra = sorted(set(d) - names - {"type"})
+        if extra:
+            raise InvalidInput(f"environment[{i}]: unknown key(s) {extra} for a {d['type']}")
+        try:
+            parts.append(cls(**{k: v for k, v in d.items() if k != "type"}))
+        except TypeError as exc:
+            raise InvalidInput(f"environment[{i}]: {exc}") from None
+    return parts[0] if len(parts) == 1 else compose(*parts)

@@ -20,6 +20,7 @@ import pinocchio as pin
 from rhi import batch
 from rhi._validate import scalar
 from rhi.errors import InvalidInput
+from rhi.sim.environment import describe
 from rhi.sim.log import Log, LogWriter, layout
 from rhi.sim.plant import Plant, unstable
 from rhi.sim.telemetry import Telemetry
@@ -270,7 +271,8 @@ def simulate(
     dev = getattr(controller, "device", plant.device)
     ms = teleop.slave.m if teleop is not None else 0
     w = LogWriter(layout(n, m, ms), log,
-                  meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate), "source": "simulate"})
+                  meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate), "source": "simulate",
+                        "environment": describe(virtual)})
     c = w.cols
     # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `io_kernel.log_row`), the scalars
     # from work to alpha_pc, then seq, the timing columns and safety: one write each.

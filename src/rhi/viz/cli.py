@@ -39,10 +39,15 @@ def _view(args: argparse.Namespace) -> int:
         log = Log.load(args.log)
         if log.q.shape[1:] != (dev.n,):
             raise InvalidInput(f"device: the log has {log.q.shape[1]} motors, {dev.name} has {dev.n} (use --device)")
-        view = View(dev, log, host=args.host, port=args.port)
-        if view.player is not None:  # a Log source always has one
-            view.player.play()
-        print(f"rhi view: replaying {args.log} ({log.t[-1] - log.t[0]:.2f} s) at {view.url}", flush=True)
+        fme = virtual = None
+        if args.config is not None:
+            from rhi.runtime.config import load_config
+
+            cfg = load_config(args.config, device_name=dev.name)
+            fme, virtual = cfg.controller_config.fme, cfg.virtual
+        view = View(dev, log, host=args.host, port=args.port, fme=fme, virtual=virtual, q0=args.q0)
+        print(f"rhi view: {args.log} ({log.t[-1] - log.t[0]:.2f} s) at {view.url}, paused at its start: press "
+              "play in the page", flush=True)
         return _serve(view)
     from rhi.mobile_base import BASE_JOINTS
     from rhi.viz.live import live
@@ -116,6 +121,8 @@ def add_commands(sub, floats) -> None:
     v.add_argument("--host", default="127.0.0.1")
     v.add_argument("--port", type=int, default=8080)
     v.add_argument("--duration", type=float, default=3600.0, help="live simulation length [s]")
+    v.add_argument("--config", help="replay: the run configuration whose environment and desired FME to draw "
+                                    "(default: the environment stored in the log)")
     v.add_argument("--q0", type=floats, help="start configuration [rad] (default: mid-range, bent where that is "
                                              "singular: rhi.viz.posed.rest_configuration)")
     v.set_defaults(func=_view)

@@ -90,6 +90,13 @@ def _wxyz(R: np.ndarray) -> np.ndarray:
     return np.array([q.w, q.x, q.y, q.z])
 
 
+#: the overlay groups a user can switch on and off, with their labels
+GROUPS = {"velocity": "velocity ellipsoid", "force": "force ellipsoid", "desired": "desired FME",
+          "forces": "hand and environment forces", "capability": "force capability along u",
+          "environment": "wall, spring, fixture"}
+_ARROW_GROUP = {"F_hand": "forces", "F_env": "forces", "scaling": "capability", "lp": "capability"}
+
+
 class Overlays:
     """The handle's overlays in a viser scene.
 
@@ -101,8 +108,11 @@ class Overlays:
         fme: a desired-FME schedule (`rhi.control.FMESchedule`) whose M_des(Ω) is drawn, or None.
 
     Attributes:
-        force_scale: [m/N] of the force ellipsoid, capability and force arrows.
+        force_scale: [m/N] of the force ellipsoid, capability and force arrows: 0.35 of the device's size per the
+            largest force seen so far (the capability at the first frame, then any larger hand, environment or
+            capability force: rescaled when a force exceeds the reference by 25 %), so arrows stay readable.
         velocity_scale: [s] of the velocity ellipsoid (1 rad/s of joint speed).
+        shown: which overlay groups are drawn (`GROUPS`; `show` switches one).
     """
 
     def __init__(self, server, device: Device, size: float, *, virtual=None, fme=None, root: str = "/overlays") -> None:
@@ -113,6 +123,9 @@ class Overlays:
         self.virtual, self.fme = virtual, fme
         self.force_scale: float | None = None
         self.velocity_scale: float | None = None
+        self._f_ref = 0.0  # the force [N] that force_scale draws at 0.35 of the device's size
+        self.shown = dict.fromkeys(GROUPS, True)
+        self._env_nodes: list = []
         self.vel = self._ellipsoid(f"{root}/velocity", VELOCITY_RGB, 0.25)
         self.frc = self._ellipsoid(f"{root}/force", FORCE_RGB, 0.3)
         self.des = self._ellipsoid(f"{root}/desired", DESIRED_RGB, 0.9, wireframe=True)
@@ -137,11 +150,30 @@ class Overlays:
         out[self.rows] = v
         return out
 
+    def show(self, group: str, on: bool) -> None:
+        """Draw (or hide) one overlay group of `GROUPS`."""
+        self.shown[group] = bool(on)
+        nodes = {"velocity": [self.vel], "force": [self.frc], "desired": [self.des],
+                 "environment": self._env_nodes + [c for _, c in self._springs]}.get(group, [])
+        nodes += [a for name, a in self._arrows.items() if _ARROW_GROUP[name] == group]
+        for node in nodes:
+            node.visible = bool(on)
+        if group == "desired" and self.fme is None:
+            self.des.visible = False
+
+    def _rescale(self, snap, meas: HandleMeasures) -> None:
+        """Grow the force scale when a force exceeds the reference by 25 % (never shrinks: no breathing)."""
+        seen = [meas.f_scaling, *(np.linalg.norm(np.asarray(getattr(snap, k, 0.0), dtype=float))
+                                   for k in ("F_hand", "F_env"))]
+        f = max((float(v) for v in seen if np.isfinite(v)), default=0.0)
+        if self.force_scale is None or f > 1.25 * self._f_ref:
+            self._f_ref = f if f > 0 else 1.0
+            self.force_scale = 0.35 * self.size / self._f_ref
+
     def update(self, handle: np.ndarray, snap, meas: HandleMeasures) -> None:
         """Redraw at the handle position (3,) [m] for a telemetry snapshot and the measures at its q."""
-        if self.force_scale is None:
-            f_ref = meas.f_scaling if np.isfinite(meas.f_scaling) and meas.f_scaling > 0 else 1.0
-            self.force_scale = 0.35 * self.size / f_ref
+        self._rescale(snap, meas)
+        if self.velocity_scale is None:
             v_ref = float(np.sqrt(np.max(np.linalg.eigvalsh(meas.velocity))))
             self.velocity_scale = 0.35 * self.size / max(v_ref, 1e-6)
         pos = tuple(handle)
@@ -150,8 +182,9 @@ class Overlays:
         if meas.force is not None:
             s, wxyz = ellipsoid_pose(meas.force, self.m)
             self.frc.position, self.frc.wxyz, self.frc.scale = pos, tuple(wxyz), tuple(s * self.force_scale)
-        if self.frc.visible != (meas.force is not None):  # only on change: viser fades a node in when shown
-            self.frc.visible = meas.force is not None
+        frc = meas.force is not None and self.shown["force"]
+        if self.frc.visible != frc:  # only on change: viser fades a node in when shown
+            self.frc.visible = frc
         if self.fme is not None and np.isfinite(getattr(snap, "omega", np.nan)):
             s, wxyz = ellipsoid_pose(self.fme.desired(float(snap.omega)), self.m)
             self.des.position, self.des.wxyz, self.des.scale = pos, tuple(wxyz), tuple(s * self.force_scale)
@@ -159,6 +192,7 @@ class Overlays:
         if not self._env_drawn and self.virtual is not None:
             self._draw_environment(handle[2])
             self._env_drawn = True
+            self.show("environment", self.shown["environment"])
         for rest, coil in self._springs:
             coil.points = np.array([[rest, handle]], dtype=np.float32)
 
@@ -174,7 +208,8 @@ class Overlays:
         r = 0.012 * self.size
         for name, (rgb, v) in vecs.items():
             vec3 = None if v is None else k * self._world(np.asarray(v, dtype=float))
-            show = vec3 is not None and bool(np.all(np.isfinite(vec3))) and float(np.linalg.norm(vec3)) > 1e-6
+            show = vec3 is not None and bool(np.all(np.isfinite(vec3))) and float(np.linalg.norm(vec3)) > 1e-6 \
+                and self.shown[_ARROW_GROUP[name]]
             node = self._arrows.get(name)
             if node is None:
                 if not show:
@@ -195,25 +230,27 @@ class Overlays:
             if isinstance(env, Wall):
                 p, nrm = self._world(env.point, z), self._world(env.normal)
                 if self.m == 3:  # a translucent slab
-                    sc.add_box(name, color=ENV_RGB, dimensions=(0.9 * L, 0.9 * L, 0.004 * L), opacity=0.3,
-                               position=tuple(p + nrm * 0.002 * L), wxyz=tuple(_plane_pose(nrm)))
+                    self._env_nodes.append(sc.add_box(
+                        name, color=ENV_RGB, dimensions=(0.9 * L, 0.9 * L, 0.004 * L), opacity=0.3,
+                        position=tuple(p + nrm * 0.002 * L), wxyz=tuple(_plane_pose(nrm))))
                     continue
                 # planar: the wall's trace in the task plane, hatched on the environment's side
                 along = np.cross([0.0, 0.0, 1.0], nrm)
                 ends = [p - 0.45 * L * along, p + 0.45 * L * along]
                 marks = [(p + s * along, p + s * along + 0.04 * L * (nrm + 0.6 * along))
                          for s in np.linspace(-0.42 * L, 0.42 * L, 15)]
-                sc.add_line_segments(name, np.array([ends, *marks], dtype=np.float32), colors=ENV_RGB,
-                                     thickness=3.0, thickness_units="screen")
+                self._env_nodes.append(sc.add_line_segments(
+                    name, np.array([ends, *marks], dtype=np.float32), colors=ENV_RGB, thickness=3.0,
+                    thickness_units="screen"))
             elif isinstance(env, Spring):
                 p = self._world(env.point, z)
-                sc.add_icosphere(name, radius=0.03 * L, color=ENV_RGB, position=tuple(p))
+                self._env_nodes.append(sc.add_icosphere(name, radius=0.03 * L, color=ENV_RGB, position=tuple(p)))
                 self._springs.append((p, sc.add_line_segments(f"{name}/coil", np.zeros((1, 2, 3), np.float32),
                                                               colors=ENV_RGB, thickness=0.008 * L)))
             elif isinstance(env, Fixture):
                 p, d = self._world(env.point, z), self._world(env.direction)
                 pts = np.array([[p - L * d, p + L * d]], dtype=np.float32)
-                sc.add_line_segments(name, pts, colors=ENV_RGB, thickness=0.006 * L)
+                self._env_nodes.append(sc.add_line_segments(name, pts, colors=ENV_RGB, thickness=0.006 * L))
 
 
 def _plane_pose(normal: np.ndarray) -> np.ndarray:

@@ -37,8 +37,15 @@ def torque_panel(tau: np.ndarray, torque_min: np.ndarray, torque_max: np.ndarray
     return '<div id="rhi-torques"><b>joint torques τ [N m] / limit</b>' + "".join(rows) + "</div>"
 
 
+def _vector(v) -> str:
+    v = np.asarray(v, dtype=float)
+    if v.size == 0 or not np.all(np.isfinite(v)):
+        return "—"
+    return f"{np.linalg.norm(v):.2f} ({', '.join(f'{x:+.2f}' for x in v)})"
+
+
 def state_panel(snap) -> str:
-    """ASO V, FME activation Ω, force scaling α, tertiary scaling β, the time and the safety state."""
+    """Read-outs: the time, hand and environment forces, ASO V, FME activation Ω, scalings α, β, the safety state."""
     g = lambda k: getattr(snap, k, math.nan)  # noqa: E731
     safety = getattr(snap, "safety", "ok")
     fault = getattr(snap, "fault", None)
@@ -47,7 +54,9 @@ def state_panel(snap) -> str:
     cells = "".join(f"<tr><td>{k}</td><td style='text-align:right'>{_num(v)}</td></tr>"
                     for k, v in (("t [s]", g("t")), ("ASO V", g("V")), ("Ω", g("omega")), ("α", g("alpha")),
                                  ("β", g("beta"))))
-    return (f'<div id="rhi-state" style="font:12px monospace"><table style="width:100%">{cells}</table>'
+    forces = "".join(f"<tr><td>{k}</td><td style='text-align:right'>{_vector(getattr(snap, f, []))}</td></tr>"
+                     for k, f in (("|F_h| [N]", "F_hand"), ("|F_env| [N]", "F_env")))
+    return (f'<div id="rhi-state" style="font:12px monospace"><table style="width:100%">{cells}{forces}</table>'
             f'<div style="margin-top:4px;padding:3px 6px;border-radius:3px;color:white;background:{badge[0]}">'
             f"safety: {html.escape(badge[1])}</div></div>")
 

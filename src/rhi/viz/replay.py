@@ -15,12 +15,22 @@ from rhi.sim.log import Log
 _FIELDS = ("t", "q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "V", "omega", "alpha", "beta")
 
 
+#: the playback speeds the view offers (× real time); a player accepts any speed between the first and the last
+SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0)
+
+
+def _speed(v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not SPEEDS[0] <= v <= SPEEDS[-1]:
+        raise InvalidInput(f"speed: must be within {SPEEDS[0]}..{SPEEDS[-1]} (× real time), got {v!r}")
+    return float(v)
+
+
 class LogPlayer:
-    """Plays a `Log` (from `simulate`, `rhi.runtime.run` or `Log.load`) against the wall clock.
+    """Plays a `Log` (from `simulate`, `rhi.runtime.run` or `Log.load`) against the wall clock; starts paused.
 
     Args:
         log: the run.
-        speed: playback speed (1: real time).
+        speed: playback speed, 0.1–4 (1: real time).
 
     Attributes:
         playing: whether the time advances.
@@ -29,13 +39,36 @@ class LogPlayer:
     def __init__(self, log: Log, *, speed: float = 1.0) -> None:
         if not isinstance(log, Log) or len(log) == 0:
             raise InvalidInput("log: expected a Log with at least one tick")
-        if not np.isfinite(speed) or speed <= 0:
-            raise InvalidInput(f"speed: must be > 0, got {speed!r}")
-        self.log, self.speed = log, float(speed)
+        self.log, self._speed = log, _speed(speed)
         self.t0, self.t1 = float(log.t[0]), float(log.t[-1])
         self.playing = False
         self._lock = threading.Lock()
         self._anchor = (self.t0, time.monotonic())
+
+    @property
+    def speed(self) -> float:
+        """Playback speed (× real time, 0.1–4); changing it keeps the current time."""
+        return self._speed
+
+    @speed.setter
+    def speed(self, v: float) -> None:
+        v = _speed(v)
+        t = self.time
+        with self._lock:
+            self._anchor, self._speed = (t, time.monotonic()), v
+
+    @property
+    def state(self) -> str:
+        """"playing at 2×", "paused at t = 1.234 s" or "at the end"."""
+        t = self.time
+        if self.playing:
+            return f"playing at {self._speed:g}×"
+        return "at the end" if t >= self.t1 else f"paused at t = {t:.3f} s"
+
+    def step(self, frames: int, fps: float = 30.0) -> None:
+        """Pause and move by `frames` frames of 1/`fps` s of log time (negative: back)."""
+        self.pause()
+        self.seek(self.time + frames / fps)
 
     @property
     def time(self) -> float:
@@ -43,7 +76,7 @@ class LogPlayer:
         with self._lock:
             t, wall = self._anchor
             if self.playing:
-                t += (time.monotonic() - wall) * self.speed
+                t += (time.monotonic() - wall) * self._speed
                 if t >= self.t1:
                     t, self.playing = self.t1, False
                     self._anchor = (t, time.monotonic())

@@ -21,16 +21,21 @@ import numpy as np
 
 from rhi.device import Device
 from rhi.errors import InvalidInput
+from rhi.sim.environment import from_description
 from rhi.sim.hand import DraggableHand
 from rhi.sim.log import Log
 from rhi.viz.commands import ViewCommands
-from rhi.viz.overlays import HandleMeasures, Overlays, handle_measures
+from rhi.viz.overlays import GROUPS, HandleMeasures, Overlays, handle_measures
 from rhi.viz.panels import legend, state_panel, status_line, torque_panel
 from rhi.viz.posed import Posed, rest_configuration
-from rhi.viz.replay import LogPlayer
+from rhi.viz.replay import SPEEDS, LogPlayer
 from rhi.viz.scene import DeviceScene
 
 _AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _play_state(p: LogPlayer) -> str:
+    return f'<div id="rhi-play" style="font:12px monospace">{p.state}</div>'
 
 
 class View:
@@ -69,11 +74,15 @@ class View:
         self.device, self.hand, self.fps, self.lp_every = device, hand, float(fps), max(1, int(lp_every))
         self.commands = commands
         self._status = (-1, "")
+        self._scales: tuple = (None, None)
         self._meas: HandleMeasures | None = None  # the last measures (the LP's force kept between LP frames)
         self.player = LogPlayer(source) if isinstance(source, Log) else None
         self.source = self.player or source
         if self.source is not None and not callable(getattr(self.source, "latest", None)):
             raise InvalidInput(f"source: expected a Log or an object with latest(), got {type(source).__name__}")
+        if self.player is not None:
+            q0 = self.player.log.q[0] if q0 is None else q0
+            virtual = virtual if virtual is not None else from_description(self.player.log.meta.get("environment"))
         self.q0 = rest_configuration(device) if q0 is None else np.asarray(q0, dtype=float)
         self.rows = [_AXES[a] for a in device.task_axes]
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
@@ -81,7 +90,7 @@ class View:
         self.posed = Posed(device)
         self.posed.set(self.q0)
         self.scene = DeviceScene(self.server, self.posed)
-        blo, bhi = self.posed.bounds()
+        blo, bhi = self._motion_bounds()
         self.size = float(np.max(bhi - blo))
         self.overlays = Overlays(self.server, device, self.size, virtual=virtual, fme=fme)
         self._camera(blo, bhi)
@@ -105,6 +114,19 @@ class View:
         """The view's address in a browser."""
         return f"http://127.0.0.1:{self.port}"
 
+    def _motion_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The drawn geometry's box at q0, and over the logged motion when replaying (20 poses along the log)."""
+        lo, hi = self.posed.bounds()
+        if self.player is not None:
+            Q = self.player.log.q
+            for q in Q[np.linspace(0, len(Q) - 1, min(20, len(Q))).astype(int)]:
+                if np.all(np.isfinite(q)):
+                    self.posed.set(q)
+                    a, b = self.posed.bounds()
+                    lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+            self.posed.set(self.q0)
+        return lo, hi
+
     def _camera(self, lo: np.ndarray, hi: np.ndarray) -> None:
         c = 0.5 * (lo + hi)
         d = 1.5 * self.size
@@ -120,24 +142,16 @@ class View:
         gui = self.server.gui
         gui.add_markdown(f"**rhi** · `{self.device.name}` (n = {self.device.n}, task {self.device.task_axes})")
         if self.player is not None:
-            p = self.player
-            step = max((p.t1 - p.t0) / 1000.0, 1e-4)
-            self.timeline = gui.add_slider("time [s]", min=p.t0, max=p.t1, step=step, initial_value=p.t0)
-            self.play_button = gui.add_button("play / pause")
-
-            @self.timeline.on_update
-            def _(event) -> None:
-                if event.client is not None:  # the user moved it (the view moves it while playing)
-                    p.seek(float(self.timeline.value))
-
-            @self.play_button.on_click
-            def _(event) -> None:
-                p.pause() if p.playing else p.play()
+            self._build_replay_controls(self.player)
         if self.commands is not None:
             self._build_run_controls(self.commands)
         self.state_html = gui.add_html(state_panel(self._rest_snapshot()))
         self.torque_html = gui.add_html("")
         self.legend_html = gui.add_html(legend(None, None))
+        with gui.add_folder("overlays", expand_by_default=False):
+            for group, label in GROUPS.items():
+                box = gui.add_checkbox(label, initial_value=True)
+                box.on_update(lambda event, g=group: self.overlays.show(g, bool(event.target.value)))
         self.gizmo = None
         hand = self.hand
         if hand is not None:
@@ -160,6 +174,46 @@ class View:
             def _(event) -> None:
                 with self._grip:
                     hand.target = None
+
+    def _build_replay_controls(self, p: LogPlayer) -> None:
+        """Timeline, play / pause (labelled with the state), frame steps and the speed (`SPEEDS`, 0.1–4×)."""
+        gui = self.server.gui
+        step = max((p.t1 - p.t0) / 1000.0, 1e-4)
+        self.timeline = gui.add_slider("time [s]", min=p.t0, max=p.t1, step=step, initial_value=p.t0)
+        self.play_state = gui.add_html(_play_state(p))
+        self.play_button = gui.add_button("▶ play")
+        steps = gui.add_button_group("step a frame", ("◀ frame", "frame ▶"))
+        speeds = gui.add_button_group("speed", tuple(f"{v:g}×" for v in SPEEDS))
+
+        @self.timeline.on_update
+        def _(event) -> None:
+            if event.client is not None:  # the user moved it (the view moves it while playing)
+                p.seek(float(self.timeline.value))
+
+        @self.play_button.on_click
+        def _(event) -> None:
+            p.pause() if p.playing else p.play()
+            self._replay_state()
+
+        @steps.on_click
+        def _(event) -> None:
+            p.step(-1 if event.target.value.startswith("◀") else 1, self.fps)
+            self._replay_state()
+
+        @speeds.on_click
+        def _(event) -> None:
+            p.speed = float(event.target.value.rstrip("×"))
+            self._replay_state()
+
+    def _replay_state(self) -> None:
+        p = self.player
+        if p is None:
+            return
+        label, state = "⏸ pause" if p.playing else "▶ play", _play_state(p)
+        if self.play_button.label != label:
+            self.play_button.label = label
+        if self.play_state.content != state:  # only changes go to the browser
+            self.play_state.content = state
 
     def _build_run_controls(self, cmd: ViewCommands) -> None:
         """The run's status line, a pause / resume button, a reset button and a stop button."""
@@ -217,18 +271,23 @@ class View:
             lo, hi = self.device.torque_limits
             self.torque_html.content = torque_panel(snap.tau, lo, hi, self.device.joint_names)
             self.state_html.content = state_panel(snap)
-            if self.frames == 0:
-                self.legend_html.content = legend(self.overlays.force_scale, self.overlays.velocity_scale)
+            scales = (self.overlays.force_scale, self.overlays.velocity_scale)
+            if scales != self._scales:  # the first frame, and whenever a larger force rescales the arrows
+                self._scales = scales
+                self.legend_html.content = legend(*scales)
             if self.gizmo is not None and self.hand is not None:
                 with self._grip:
                     if self.hand.target is None:  # a free hand: the gizmo follows the handle
                         self.gizmo.position = tuple(handle)
             if self.player is not None:
                 self.timeline.value = float(snap.t)  # type: ignore[misc]  # viser's slider has a setter; mypy sees a read-only props field
+                self._replay_state()
         self.frames += 1
 
     def step(self) -> bool:
         """Draw the newest snapshot if there is a new one; returns whether it drew."""
+        if self.player is not None:
+            self._replay_state()  # the end of the log pauses the player: the button and the state follow
         if self.commands is not None:
             st = self.commands.status()
             if st[0] != self._status[0]:
