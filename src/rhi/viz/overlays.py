@@ -163,9 +163,9 @@ class Overlays:
 
     def _rescale(self, snap, meas: HandleMeasures) -> None:
         """Grow the force scale when a force exceeds the reference by 25 % (never shrinks: no breathing)."""
-        seen = [meas.f_scaling, *(np.linalg.norm(np.asarray(getattr(snap, k, 0.0), dtype=float))
-                                   for k in ("F_hand", "F_env"))]
-        f = max((float(v) for v in seen if np.isfinite(v)), default=0.0)
+        seen = [float(meas.f_scaling)] + [float(np.linalg.norm(np.asarray(getattr(snap, k, 0.0), dtype=float)))
+                                          for k in ("F_hand", "F_env")]
+        f = max((v for v in seen if np.isfinite(v)), default=0.0)
         if self.force_scale is None or f > 1.25 * self._f_ref:
             self._f_ref = f if f > 0 else 1.0
             self.force_scale = 0.35 * self.size / self._f_ref

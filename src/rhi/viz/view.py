@@ -150,8 +150,7 @@ class View:
         self.legend_html = gui.add_html(legend(None, None))
         with gui.add_folder("overlays", expand_by_default=False):
             for group, label in GROUPS.items():
-                box = gui.add_checkbox(label, initial_value=True)
-                box.on_update(lambda event, g=group: self.overlays.show(g, bool(event.target.value)))
+                gui.add_checkbox(label, initial_value=True).on_update(self._toggle(group))
         self.gizmo = None
         hand = self.hand
         if hand is not None:
@@ -204,6 +203,12 @@ class View:
         def _(event) -> None:
             p.speed = float(event.target.value.rstrip("×"))
             self._replay_state()
+
+    def _toggle(self, group: str):
+        """The callback of one overlay group's checkbox."""
+        def on_update(event) -> None:
+            self.overlays.show(group, bool(event.target.value))
+        return on_update
 
     def _replay_state(self) -> None:
         p = self.player
