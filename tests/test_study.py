@@ -220,3 +220,12 @@ def test_simulate_reproduces_ch3_psychophysics_and_analyze_reads_it_back(tmp_pat
     assert sim.analysis.anova.statistic == pytest.approx(theirs[next(k for k in theirs if k.startswith("one-way"))])
     np.testing.assert_array_equal(sim.weber, ref.arrays["weber"])
     assert 0 < sim.power < 1
+
+
+def test_a_discrimination_task_needs_its_fixture():
+    text = load_protocol("ch3_stiffness_2afc").text
+    a, b = text.index("[fixture]"), text.index("[display]")
+    with pytest.raises(InvalidInput, match="^obstacle: needs a"):
+        parse_protocol(tomllib.loads(text[:a] + text[text.index("[obstacle]"):]))
+    with pytest.raises(InvalidInput, match="^fixture: a discrimination task"):
+        parse_protocol(tomllib.loads(text[:a] + text[b:]))

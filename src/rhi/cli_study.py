@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 import tomllib
 from pathlib import Path
 
@@ -73,10 +74,40 @@ def _analyze(args: argparse.Namespace) -> int:
     return 0
 
 
+def _fields(items: list[str] | None) -> dict[str, str]:
+    out = {}
+    for text in items or []:
+        k, sep, v = text.partition("=")
+        if not sep or not k:
+            raise InvalidInput(f"--field: expected NAME=VALUE, got {text!r}")
+        out[k.strip()] = v.strip()
+    return out
+
+
+def _run(args: argparse.Namespace) -> int:
+    from rhi.study.pages import serve_session
+
+    return serve_session(args.protocol, args.participant, study_dir=args.study, link=args.link,
+                         fields=_fields(args.field), host=args.host, port=args.port, mouse=args.mouse,
+                         rate=args.rate, out=sys.stdout)
+
+
 def add_commands(sub) -> None:
-    """Register `rhi study simulate|analyze` on the `rhi` command's subparsers."""
+    """Register `rhi study run|simulate|analyze` on the `rhi` command's subparsers."""
     st = sub.add_parser("study", help="user studies with people: run a protocol, simulate it, analyse it")
     ss = st.add_subparsers(dest="study_command", required=True)
+    r = ss.add_parser("run", help="run a participant's session: participant and experimenter pages in the browser")
+    r.add_argument("protocol", help="a protocol TOML file or a shipped one (ch3_stiffness_2afc, ch5_path_following)")
+    r.add_argument("--participant", required=True, help="the participant's id (the folder's name)")
+    r.add_argument("--study", default="study", help="the study folder (default: ./study)")
+    r.add_argument("--link", default="sim", help="sim (simulated device) or udp://HOST:PORT (a device server)")
+    r.add_argument("--field", action="append", help="a declared participant field NAME=VALUE (repeatable)")
+    r.add_argument("--host", default="127.0.0.1", help="address of the pages (default 127.0.0.1)")
+    r.add_argument("--port", type=int, default=8090, help="port of the pages (default 8090; 0: any free port)")
+    r.add_argument("--mouse", action="store_true", help="dry run: the mouse is the hand (drag on the experimenter "
+                   "page's hand pad) on the simulated device")
+    r.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (default 1000)")
+    r.set_defaults(func=_run)
     s = ss.add_parser("simulate", help="simulated participants run the protocol end to end (no browser): "
                       "expected JND/WF spread and the ANOVA's power")
     s.add_argument("protocol")

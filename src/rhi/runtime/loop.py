@@ -167,6 +167,7 @@ def run(
     priority: int | None = None,
     spin: bool = False,
     progress: Callable[[dict], None] | None = None,
+    until: threading.Event | None = None,
 ) -> RunResult:
     """Run `controller` against `link` at `rate` until `duration` has passed, a fault, or an e-stop.
 
@@ -190,6 +191,7 @@ def run(
         spin: wait for each deadline on a busy core instead of asleep (`wait_until`): steadier, shorter ticks
             for one core at 100 % (pair with `cpu`).
         progress: called about twice a second with a status dict (rate, misses, max |τ|/limit, V, fault).
+        until: an event that ends the run when set (not a fault), e.g. from the thread of a study's pages.
 
     Returns:
         `RunResult` with the log and a summary.
@@ -243,7 +245,7 @@ def run(
                 w.event(0.0, "info", msg)
             t0 = time.monotonic()
             next_report = t0 + 0.5
-            while N is None or (slot if realtime else k) < N:
+            while (N is None or (slot if realtime else k) < N) and not (until is not None and until.is_set()):
                 deadline = t0 + slot * period
                 if realtime:
                     wait_until(deadline, spin)

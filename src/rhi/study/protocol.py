@@ -276,6 +276,8 @@ def parse_protocol(data: dict, *, name: str = "protocol", source: str = "<dict>"
     fx, ob = d["fixture"], d["obstacle"]
     if ob is not None and fx is None:
         raise InvalidInput("obstacle: needs a [fixture] (the obstacle sits along its direction)")
+    if kind == "discrimination_2afc" and fx is None:
+        raise InvalidInput("fixture: a discrimination task needs a [fixture] (the line the samples are probed along)")
     if fx is not None:
         if fx["point"].shape != fx["direction"].shape:
             raise InvalidInput("fixture.direction: must have the length of fixture.point")

@@ -234,6 +234,9 @@ class Session:
                 while (dest := p.with_name(f"{p.stem}.interrupted-{k}.rhilog")).exists():
                     k += 1
                 os.replace(p, dest)
+                events = p.with_name(p.name + ".events.jsonl")  # the log's companion (`rhi.sim.log`)
+                if events.exists():
+                    os.replace(events, dest.with_name(dest.name + ".events.jsonl"))
 
 
 def _no_text(protocol: Protocol) -> str:

@@ -1,0 +1,224 @@
+"""`rhi study run` in headless Chromium: a scripted participant, a kill mid-way, the resume, the analysis.
+
+The participant answers through the participant's page (its buttons and its keys), each answer drawn from a
+cumulative-Gaussian observer of the stimulus the trial renders; `rhi study run` runs as its own process on the
+simulated devices and is SIGKILLed in the middle of a trial, then started again with the same command.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rhi.analysis import psychophysics as pp
+from rhi.study.session import read_responses
+
+pytest.importorskip("psignifit")
+
+import browser  # noqa: E402  (tests/browser.py)
+
+pytestmark = pytest.mark.skipif(not browser.available(), reason="needs Debian's chromium")
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+PROTOCOL = """
+description = "2 devices x 3 comparisons x 2 repetitions"
+seed = 3
+[task]
+kind = "discrimination_2afc"
+probe_time = 20.0
+stroke_time = 0.4
+[stimulus]
+method = "constant"
+reference = 50.0
+comparisons_percent = [-25.0, 0.0, 25.0]
+repetitions = 2
+[[conditions]]
+name = "RHI"
+device = "rhi4"
+config = "ch3_vme"
+[[conditions]]
+name = "Rehab"
+device = "rehab"
+[blocks]
+rest_every = 5
+[fixture]
+point = [0.49, -0.22]
+direction = [0.0, 1.0]
+[obstacle]
+distance = 0.08
+[display]
+participant = ["next", "answers"]
+[participant]
+fields = { handedness = ["right", "left"] }
+"""
+
+
+class Study:
+    """`rhi study run` as a child process (its own process group), with the URL of its pages."""
+
+    def __init__(self, protocol: Path, study: Path, participant: str) -> None:
+        env = {**os.environ, "PYTHONPATH": SRC, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "rhi", "study", "run", str(protocol), "--participant", participant, "--study",
+             str(study), "--port", "0", "--field", "handedness=right", "--rate", "500"],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
+        self.url = None
+        deadline = time.monotonic() + 180
+        lines = []
+        while self.url is None and time.monotonic() < deadline:
+            line = self.proc.stdout.readline()
+            if not line and self.proc.poll() is not None:
+                break
+            lines.append(line)
+            if line.startswith("participant page: "):
+                self.url = line.split(": ", 1)[1].strip()
+        if self.url is None:
+            self.kill()
+            raise RuntimeError("rhi study run did not start:\n" + "".join(lines))
+
+    def experimenter(self) -> dict:
+        return json.load(urllib.request.urlopen(self.url + "api/experimenter", timeout=10))
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        self.proc.wait(timeout=30)
+
+
+def observer_answer(rng: np.random.Generator, stimulus: float) -> bool:
+    """The scripted participant: P(comparison stiffer) = Φ((c − 50) / σ), JND 6 N/m (σ = JND / z₀.₇₅)."""
+    p = 0.5 * (1.0 + math.erf((stimulus - 50.0) / (6.0 / pp.Z75) / math.sqrt(2.0)))
+    return bool(rng.random() < p)
+
+
+def key(b: browser.Browser, k: str) -> None:
+    code = {"1": "Digit1", "2": "Digit2", "n": "KeyN"}[k]
+    for kind in ("keyDown", "keyUp"):
+        b.call("Input.dispatchKeyEvent", type=kind, key=k, code=code, text=k if kind == "keyDown" else "")
+
+
+def play(b: browser.Browser, study: Study, rng, decisions: dict, phases: list, *, kill_at: int | None = None) -> str:
+    """Work through the participant's page until done (or kill `study` during the second sample of `kill_at`).
+
+    The session's own state (the experimenter's view) says what happens now; the script acts once the
+    participant's page shows it, and waits for the session to move on.
+    """
+    for _ in range(200):
+        if study.proc.poll() is not None:
+            assert study.proc.returncode == 0
+            return "done"
+        try:
+            view = study.experimenter()
+        except OSError:
+            study.proc.wait(timeout=30)
+            continue
+        k, ph = view["committed"], view["phase"]
+        if ph == "done":
+            assert b.wait_for("document.body.dataset.phase === 'done'", 30)
+            study.proc.wait(timeout=60)
+            continue
+        assert b.wait_for(f"document.body.dataset.phase === {json.dumps(ph)}", 60), (k, ph)
+        phases.append((k, ph))
+        if ph in ("ready", "rest"):
+            b.evaluate("document.getElementById('next').click()")
+        elif ph == "probe_1":
+            time.sleep(0.15)  # probing the first sample
+            if k % 2:
+                key(b, "n")
+            else:
+                b.evaluate("document.getElementById('next').click()")
+        elif ph == "probe_2":  # feel the second sample, answer "which was stiffer"
+            if k == kill_at:
+                time.sleep(0.2)
+                study.kill()
+                return "killed"
+            t = view["trial"]
+            stiffer = observer_answer(rng, t["stimulus"])
+            which = "first" if stiffer == t["comparison_first"] else "second"
+            decisions[(view["participant"], k)] = (t["condition"], t["stimulus"], int(stiffer))
+            if k % 3 == 0:
+                key(b, "1" if which == "first" else "2")
+            else:
+                b.evaluate(f"document.getElementById('answer-{which}').click()")
+        else:
+            raise AssertionError(f"unexpected phase {ph}")
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:  # the action reached the session: it committed or moved on
+            try:
+                v = study.experimenter()
+            except OSError:
+                break
+            if (v["committed"], v["phase"]) != (k, ph):
+                break
+            time.sleep(0.05)
+    raise AssertionError("the session did not finish")
+
+
+def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path):
+    proto = tmp_path / "small_2afc.toml"
+    proto.write_text(PROTOCOL)
+    folder = tmp_path / "study"
+    rng = np.random.default_rng(11)
+    decisions: dict = {}
+    phases: list = []
+    s = Study(proto, folder, "P01")
+    with browser.Browser(s.url) as b:
+        assert b.wait_for("document.body.dataset.phase === 'ready'", 60)
+        # the participant's page shows nothing the protocol does not allow: no stimulus, no condition
+        text = b.evaluate("document.body.innerText")
+        assert "RHI" not in text and "Rehab" not in text and "N/m" not in text
+        assert play(b, s, rng, decisions, phases, kill_at=7) == "killed"
+        assert [int(r["trial"]) for r in read_responses(folder / "P01" / "responses.csv")] == list(range(7))
+        s = Study(proto, folder, "P01")  # the same command resumes
+        b.call("Page.navigate", url=s.url)
+        assert play(b, s, rng, decisions, phases) == "done"
+        s.proc.wait(timeout=60)
+        s2 = Study(proto, folder, "P02")
+        b.call("Page.navigate", url=s2.url)
+        assert play(b, s2, rng, decisions, phases) == "done"
+        s2.proc.wait(timeout=60)
+    # every trial exactly once, answers as given; the rests where the protocol puts them (before trials 5, 10)
+    assert {k for k, ph in phases if ph == "rest"} == {5, 10}
+    subj, dev, comp, resp = [], [], [], []
+    for pid in ("P01", "P02"):
+        rows = read_responses(folder / pid / "responses.csv")
+        assert [int(r["trial"]) for r in rows] == list(range(12))
+        for r in rows:
+            cond, stim, stiffer = decisions[(pid, int(r["trial"]))]
+            assert (r["condition"], float(r["stimulus"]), int(r["response"])) == (cond, stim, stiffer)
+            assert float(r["response_time"]) > 0
+            subj.append(pid)
+            dev.append(cond)
+            comp.append(stim)
+            resp.append(stiffer)
+        logs = sorted(p.name for p in (folder / pid / "trials").glob("trial-*-[ab].rhilog"))
+        assert len(logs) == 24  # one log per probe
+    assert list((folder / "P01" / "trials").glob("trial-0007-*.interrupted-1.rhilog"))
+    # rhi study analyze = the analysis fed the same responses directly
+    out = tmp_path / "analysis"
+    env = {**os.environ, "PYTHONPATH": SRC}
+    r = subprocess.run([sys.executable, "-m", "rhi", "study", "analyze", str(folder), "--out", str(out), "--fast"],
+                       capture_output=True, text=True, env=env, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    got = {row["quantity"]: row["rhi"] for t in json.loads((out / "results.json").read_text())["results"][0]["tables"]
+           for row in t["rows"]}
+    direct = pp.analyse(pp.Responses(subject=np.array(subj, dtype=object), device=np.array(dev, dtype=object),
+                                     comparison=np.array(comp), response=np.array(resp)),
+                        devices=["RHI", "Rehab"], overdispersion=False, min_trials=6)
+    for m, label in (("wf", "WF"), ("jnd", "JND"), ("pse", "PSE")):
+        for c, sm in zip(direct.devices, direct.summary[m]):
+            assert got[f"{label} mean, {c}"] == pytest.approx(sm.mean, rel=1e-12)
+            assert got[f"{label} std, {c}"] == pytest.approx(sm.std, rel=1e-12, abs=1e-15)
+    anova = next(v for k, v in got.items() if k.startswith("one-way ANOVA on WF: F"))
+    assert anova == pytest.approx(direct.anova.statistic, rel=1e-12)
+    assert (out / "figures" / "study.small_2afc.psychometric_curves.png").exists()
