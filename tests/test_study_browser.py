@@ -123,11 +123,11 @@ def play(b: browser.Browser, study: Study, rng, decisions: dict, phases: list, *
             study.proc.wait(timeout=30)
             continue
         k, ph = view["committed"], view["phase"]
-        if ph == "done":
-            assert b.wait_for("document.body.dataset.phase === 'done'", 30)
+        if ph == "done":  # the pages show the end for a moment, then the command exits with 0
             study.proc.wait(timeout=60)
             continue
-        assert b.wait_for(f"document.body.dataset.phase === {json.dumps(ph)}", 60), (k, ph)
+        assert b.wait_for(f"document.body.dataset.phase === {json.dumps(ph)}", 60), \
+            (k, ph, b.evaluate("document.body.dataset.phase"), phases[-5:])
         phases.append((k, ph))
         if ph in ("ready", "rest"):
             b.evaluate("document.getElementById('next').click()")

@@ -124,7 +124,7 @@ def serve_session(protocol: str | Path, participant: str, *, study_dir: str | Pa
     try:
         run.finished.wait()
         if run.phase == "done":
-            time.sleep(1.0)  # the pages show the end before the server goes
+            time.sleep(2.0)  # the pages show the end before the server goes
     finally:
         run.haptics.stop()
         srv.shutdown()
