@@ -87,8 +87,9 @@ def test_passive_element_leaves_the_controller_idle():
     assert max(alphas) == 0.0 and min(scales) == 1.0
 
 
+@pytest.mark.parametrize("method", ["damper", "damper_bounding", "bounding"])
 @pytest.mark.parametrize("element", ["negative_damper", "sampled_stiff_spring"])
-def test_active_element_detected_and_made_passive(element):
+def test_active_element_detected_and_made_passive(element, method):
     """A synthetic active element: the observer sees the energy it creates; with the PC the port is passive.
 
     negative damper τ = +b q̇ (active in continuous time); a stiff spring under the zero-order
@@ -109,15 +110,16 @@ def test_active_element_detected_and_made_passive(element):
     assert E_obs[-1] < -10 * ke0
     np.testing.assert_allclose(E_obs[-1], -work_free[-2], rtol=1e-9)
     # with the PC: after the first tick (whose hold interval ΔT is not known yet, so it passes unchanged),
-    # the motors' net work never grows: the port is passive
-    pc = PassivityController(Passivity())
+    # the motors' net work never grows: the port is passive (the damper alone: to what the bound on α carries
+    # over to the next samples, 1e-4 of the initial energy)
+    pc = PassivityController(Passivity(method=method))
     ke, work, E = _free_mass(law, pc=pc, M=M2, q0=q0, v0=v0, ticks=ticks)
-    first = max(work[0], 0.0)
+    first, tol = max(work[0], 0.0), (1e-4 if method == "damper" else 1e-6) * ke0
     assert first < 0.01 * ke0
-    assert work.max() <= first + 1e-6 * ke0
-    assert E.min() >= -first - 1e-6 * ke0
-    assert ke.max() <= ke0 + first + 1e-6 * ke0  # no energy beyond what the mechanism started with
-    assert pc.state.dissipated > 0.0
+    assert work.max() <= first + tol
+    assert E.min() >= -first - tol
+    assert ke.max() <= ke0 + first + tol  # no energy beyond what the mechanism started with
+    assert pc.state.dissipated > 0.0 or method == "bounding"
 
 
 def test_handle_port_observer():
@@ -207,10 +209,15 @@ def test_palpation_energy_reduced_duration():
     """
     from rhi.experiments.beyond.passivity import SUMMARY, passivity
 
-    r = passivity(duration=1.5, stiff_duration=2.0, speed=0.03, cases=("objectives", "objectives_pc"))
+    r = passivity(duration=1.5, stiff_duration=2.0, speed=0.03, cases=("objectives", "objectives_pc",
+                                                                       "objectives_damper"))
     a = r.arrays
     off = dict(zip(SUMMARY, a["objectives_summary"]))
     on = dict(zip(SUMMARY, a["objectives_pc_summary"]))
+    damper = dict(zip(SUMMARY, a["objectives_damper_summary"]))
+    # H&R's series damper alone (the default): passive at the hand, the law never scaled, the wall kept better
+    assert damper["W"] >= -1e-3 and a["objectives_damper_W"].min() >= -1e-3
+    assert damper["force_rms_error"] < on["force_rms_error"]
     assert off["W"] < -0.05  # J: energy given to the hand
     assert off["null"] > 0.5  # J: through the null space (the allocation's unbalanced torque)
     assert abs(off["wall_zoh"]) < 0.01  # J: the sampled wall itself is not the source

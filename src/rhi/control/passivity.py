@@ -50,6 +50,21 @@ the mechanism as long as ``α ΔT < 1``; ``alpha_max`` bounds it (default ``0.5 
 torque box still holds (the PC torque is clipped with the rest); whatever the clip or the
 bound on α leaves undissipated stays in ``E_obs`` and is dissipated in the next intervals.
 
+Methods (``Passivity.method``), named exactly:
+
+- ``"damper"`` (default): H&R's series PC alone. The damper acts on the predicted deficit
+  (E_obs(n) less the coming interval's work of the law's torque, step 2 of `apply`); the
+  control law's torque — the rendered wall, the allocation, the objectives and the safety
+  torques (null-space damping, joint-limit barrier) — is sent unchanged, with the damping
+  added. What the bound on α or the torque box leaves is carried to the next samples.
+- ``"bounding"``: energy bounding alone (no damper): the law's torque is scaled down so that the
+  predicted work of the coming hold interval never exceeds E_obs(n) (step 4 of `apply`).
+- ``"damper_bounding"``: the damper and, for what the damper and the box cannot take out,
+  energy bounding. This is not H&R's series PC alone: most of its passivity comes from the
+  scaling of the law's torque, the wall and the safety torques included (measured in
+  `rhi.experiments.beyond.passivity`; the Z-width and the force each method keeps:
+  `rhi.experiments.beyond.zwidth`).
+
 Null-space objectives. At the motor port their torque is observed with the rest, with no
 storage: the projected gradient −β N ∇ν with the tertiary scaling β of eq. 7.16 switching
 as the allocation holds joints is not the gradient of any potential, and crediting Σ β_i ν_i
@@ -89,18 +104,18 @@ class Passivity:
         control: False: observe only (E_obs is computed, no damping is added).
         initial_energy: E(0) of H&R eq. 1 [J], energy the controller may give back before
             it counts as active (0: the rendered environment starts empty).
-        method: "damper_bounding": H&R's series damper on the predicted deficit plus energy bounding
-            (the law's torque scaled down by what the damper cannot take out; steps 2–4 of
-            `PassivityController.apply`); "damper": H&R's series damper on the observed deficit
-            −E_obs(n) only (no prediction; the law's torque is never scaled, what the damper cannot
-            take out is carried); "bounding": energy bounding only (the law's torque scaled, no damper).
+        method: "damper" (default): H&R's series damper alone (the law's torque, safety torques
+            included, is never scaled; what the damper cannot take out is carried);
+            "damper_bounding": the damper plus energy bounding (the law's torque scaled down by what
+            the damper cannot take out; steps 2–4 of `PassivityController.apply`); "bounding":
+            energy bounding only (no damper).
     """
 
     port: Port = "motors"
     alpha_max: float | None = None
     control: bool = True
     initial_energy: float = 0.0
-    method: Method = "damper_bounding"
+    method: Method = "damper"
 
     def __post_init__(self) -> None:
         if self.port not in ("motors", "handle"):

@@ -119,7 +119,7 @@ def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau
     if cfg.control and dt > 0.0 and math.isfinite(dt):
         Minv = kin.Minv if motors else kin.JMinv.dot(kin.J.T)
         e0 = effort(tau0)
-        w0 = 0.0 if cfg.method == "damper" else _work(e0, v, Minv, dt)  # "damper": the observed deficit only
+        w0 = _work(e0, v, Minv, dt)
         if w0 > E:  # 2. the coming interval would leave E_obs < 0
             Mv = kin.M.dot(v) if motors else kin.Lambda.dot(v)
             ke2 = float(v.dot(Mv))  # 2 × the kinetic energy of the port's motion [J]

@@ -12,6 +12,8 @@ from rhi.experiments.result import Result
 _NAMES = {
     "objectives": "objectives, no PC",
     "objectives_pc": "objectives, PC (motors)",
+    "objectives_damper": "objectives, damper only (motors)",
+    "objectives_bounding": "objectives, bounding only (motors)",
     "bare": "no objectives, no PC",
     "bare_pc": "no objectives, PC (motors)",
     "objectives_pc_handle": "objectives, PC (handle port)",
@@ -97,5 +99,5 @@ def z_width(result: Result) -> Figure:
     return fig
 
 
-_ZW_NAMES = {"none": "no PC", "damper_bounding": "damper + energy bounding", "damper": "damper (observed deficit)",
+_ZW_NAMES = {"none": "no PC", "damper_bounding": "damper + energy bounding", "damper": "series damper only",
              "bounding": "energy bounding only"}

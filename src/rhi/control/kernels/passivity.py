@@ -40,8 +40,8 @@ def _effort(motors, Jsharp, tau):
     return tau.copy() if motors else mtv(Jsharp, tau)
 
 
-#: Codes of `apply`'s mode: observe only, series damper and energy bounding, damper on the observed
-#: deficit only, energy bounding only (`rhi.control.passivity.Passivity.method`).
+#: Codes of `apply`'s mode: observe only, series damper and energy bounding, the series damper only,
+#: energy bounding only (`rhi.control.passivity.Passivity.method`).
 OBSERVE, DAMPER_BOUNDING, DAMPER, BOUNDING = 0, 1, 2, 3
 
 
@@ -66,8 +66,8 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
         lo: (n,) lower bound of the torque box [N m].
         hi: (n,) upper bound of the torque box [N m].
         motors: the motor port (else the handle port).
-        mode: OBSERVE, DAMPER_BOUNDING (steps 1–4), DAMPER (step 3 on the observed deficit −E_obs(n),
-            no prediction, the law untouched) or BOUNDING (step 4 without the damper).
+        mode: OBSERVE, DAMPER_BOUNDING (steps 1–4), DAMPER (steps 1–3: the law untouched) or BOUNDING
+            (steps 1, 2 and 4: no damper).
         alpha_max: bound on α [1/s] (≤ 0: 0.5 / dt).
         tau: (n,) output, the torque to send [N m].
 
@@ -82,7 +82,7 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
         tau[i] = tau0[i]
     if mode != OBSERVE and dt > 0.0 and math.isfinite(dt):
         e0 = _effort(motors, Jsharp, tau0)
-        w0 = 0.0 if mode == DAMPER else _work(e0, v, Minv_port, dt)
+        w0 = _work(e0, v, Minv_port, dt)
         if w0 > E:
             Mv = mv(M_port, v)
             ke2 = dot(v, Mv)  # 2 × the kinetic energy of the port's motion [J]

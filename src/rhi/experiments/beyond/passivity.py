@@ -41,7 +41,7 @@ from rhi.control import (
     WeightedSum,
 )
 from rhi.control.controller import Saturation
-from rhi.control.passivity import Port
+from rhi.control.passivity import Method, Port
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch6 import setup as ch6
@@ -58,14 +58,16 @@ HAND = (3000.0, 40.0, 60.0)
 OUT, DEPTH, SPEED = 0.002, 0.015, 0.01
 #: Target of the issue: the hand's work with the passivity controller [J].
 TARGET_W = -1e-3
-#: case key: (null-space objectives, passivity port or None, saturation handling)
-CASES: dict[str, tuple[bool, Port | None, Saturation]] = {
-    "objectives": (True, None, "ascm"),
-    "objectives_pc": (True, "motors", "ascm"),
-    "bare": (False, None, "ascm"),
-    "bare_pc": (False, "motors", "ascm"),
-    "objectives_pc_handle": (True, "handle", "ascm"),
-    "scaling": (True, None, "scaling"),
+#: case key: (null-space objectives, passivity port or None, saturation handling, `Passivity.method`)
+CASES: dict[str, tuple[bool, Port | None, Saturation, Method]] = {
+    "objectives": (True, None, "ascm", "damper_bounding"),
+    "objectives_pc": (True, "motors", "ascm", "damper_bounding"),
+    "objectives_damper": (True, "motors", "ascm", "damper"),
+    "objectives_bounding": (True, "motors", "ascm", "bounding"),
+    "bare": (False, None, "ascm", "damper_bounding"),
+    "bare_pc": (False, "motors", "ascm", "damper_bounding"),
+    "objectives_pc_handle": (True, "handle", "ascm", "damper_bounding"),
+    "scaling": (True, None, "scaling", "damper_bounding"),
 }
 STIFF_CASES = ("objectives", "objectives_pc")
 #: Window of the moving average that separates chatter from the palpation motion [s].
@@ -83,16 +85,16 @@ def _passivity_state(ctrl: NullSpaceController) -> dict[str, float]:
             "held": 0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated))))}
 
 
-def controller(dev: Device, *, objectives: bool, port: Port | None,
-               saturation: Saturation = "ascm") -> NullSpaceController:
+def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: Saturation = "ascm",
+               method: Method = "damper_bounding") -> NullSpaceController:
     """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`).
 
-    With the ch. 6 null-space objectives if `objectives`, and the passivity controller on `port` if given.
+    With the ch. 6 null-space objectives if `objectives`, and the passivity controller (`method`) on `port` if given.
     """
     u = np.array(ch6.U)
     _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
     terms = ch6.controller_terms(Ms, dev.torque_max) if objectives else ()
-    law = ForceRendering(damping=B_D, passivity=None if port is None else Passivity(port=port))
+    law = ForceRendering(damping=B_D, passivity=None if port is None else Passivity(port=port, method=method))
     return NullSpaceController(dev, ControllerConfig(primary=law, objectives=terms, damping=ch6.K_D,
                                                      saturation=saturation))
 
@@ -131,8 +133,8 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     hand = Hand(HandPath(np.array(pts), speed=speed, start=0.2), stiffness=HAND[0], damping=HAND[1], max_force=HAND[2])
     plant = Plant(dev)
     plant.reset(q0)
-    objectives, port, saturation = CASES[case]
-    ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation)
+    objectives, port, saturation, method = CASES[case]
+    ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation, method=method)
     log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=progress,
                    record=lambda: _passivity_state(ctrl))
     en = _energies(dev, log, plant.friction, stiffness)
@@ -286,7 +288,9 @@ def passivity(
 
 _LABEL = {
     "objectives": "null-space objectives, no PC",
-    "objectives_pc": "null-space objectives, PC (motor port)",
+    "objectives_pc": "null-space objectives, PC: damper + energy bounding (motor port)",
+    "objectives_damper": "null-space objectives, series damper only, the law never scaled (motor port)",
+    "objectives_bounding": "null-space objectives, energy bounding only (motor port)",
     "bare": "no null-space objectives, no PC",
     "bare_pc": "no null-space objectives, PC (motor port)",
     "objectives_pc_handle": "null-space objectives, PC at the handle port",
@@ -394,6 +398,14 @@ def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
                f"({100 * m['pc_active']:.0f} % of the ticks) and scales the law down "
                f"({100 * m['pc_scaled']:.0f} % of the ticks), which weakens the wall; it also removes the "
                "stop impacts' force spikes of the run without it." if m0 else ""))
+    for c in ("objectives_damper", "objectives_bounding"):
+        if c in res and "objectives" in res:
+            m, m0 = res[c], res["objectives"]
+            notes.append(
+                f"{_LABEL[c][0].upper()}{_LABEL[c][1:]}: W = {m['W']:.4g} J (lowest {m['W_min']:.2g} J); force RMS error "
+                f"{m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N without a PC, mean "
+                f"{m['force_mean_error']:.2f} N vs {m0['force_mean_error']:.2f} N; the PC acted on "
+                f"{100 * m['pc_active']:.0f} % of the ticks and scaled the law on {100 * m['pc_scaled']:.0f} %.")
     if "objectives_pc_handle" in res:
         m = res["objectives_pc_handle"]
         notes.append(

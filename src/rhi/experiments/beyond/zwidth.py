@@ -8,7 +8,7 @@ and damping B, and the palpating hand of `rhi.experiments.beyond.passivity` stro
 A wall counts as rendered passively when the hand's work W = ∫F_hᵀẋ dt, measured in the
 plant, never falls below −1 mJ (the device starts at rest). Each passivity method of
 `rhi.control.passivity.Passivity` (the series damper with energy bounding, the damper on the
-observed deficit alone, energy bounding alone) runs the same grid; beside passivity, the
+deficit alone, energy bounding alone) runs the same grid; beside passivity, the
 transparency: the peak force rendered, and its mean error against the ideal wall K δX
 in contact.
 """
@@ -118,8 +118,8 @@ def z_width(*, stiffness: Sequence[float] = STIFFNESS, damping: Sequence[float] 
     return run_plan(z_width_plan(stiffness=stiffness, damping=damping, methods=methods, duration=duration), progress)
 
 
-_LABEL = {"none": "no PC", "damper_bounding": "series damper + energy bounding (default)",
-          "damper": "damper on the observed deficit only", "bounding": "energy bounding only"}
+_LABEL = {"none": "no PC", "damper_bounding": "series damper + energy bounding",
+          "damper": "series damper only (H&R's PC, the law never scaled, default)", "bounding": "energy bounding only"}
 
 
 def _merge(outputs: list[dict[str, float]], *, cases, stiffness, damping, methods, duration) -> Result:
@@ -167,8 +167,8 @@ def _merge(outputs: list[dict[str, float]], *, cases, stiffness, damping, method
         f"{DEPTH * 1e3:g} mm into it at {SPEED * 1e2:g} cm/s for {duration:g} s per wall. Passive: the hand's work, "
         f"measured in the plant, never below {TARGET_W * 1e3:g} mJ.",
         "Colgate and Brown's Z-width: the (K, B) region a sampled device renders passively. Energy bounding keeps "
-        "the hand passive by scaling the law's torque; the damper alone leaves the law's force and dissipates the "
-        "observed deficit through the motion.",
+        "the hand passive by scaling the law's torque; the series damper alone (H&R's PC, the default) leaves the "
+        "law's force and dissipates the deficit through the motion.",
     ]
     return Result("beyond.z_width", "Beyond the thesis: Z-width of rhi4 at 1 kHz and the force each passivity "
                   "method keeps", [Table("Z-width: walls rendered passively (hand's work ≥ −1 mJ)", rows_p),
