@@ -148,7 +148,7 @@ def _doc(name: str = "ch7_ascm_tertiary") -> dict:
     (lambda d: d.update(safety={"silence_ms": 20}), "safety: unknown setting(s) ['silence_ms']"),
     (lambda d: d.update(safety={"stale_ticks": "3"}), "safety.stale_ticks: expected a number"),
     (lambda d: d.update(safety={"stale_ticks": 0}), "safety.stale_ticks: must be a finite integer > 0"),
-    (lambda d: d["device"].update(params={"d9": 0.1}), "device: "),
+    (lambda d: d["device"].update(params={"d9": 0.1}), "device.params: unknown parameter"),
     (lambda d: d["controller"].update(fme={"free_direction": [0.0, 1.0]}), "controller.fme.contact_direction: missing"),
 ])
 def test_bad_config_names_the_key(edit, message):

@@ -20,6 +20,7 @@ import numpy as np
 from rhi.errors import InvalidInput, ModelError
 
 UNBOUNDED = 1e12  # |limit| >= this in a joint range means "no limit" (continuous joints)
+FILL_DENSITY = 1000.0  # [kg/m³] inertia="fill": a point-mass link becomes a solid sphere of water of its mass
 _PACKAGE = re.compile(r"package://([^/\"'\s]+)/")
 _MOVABLE = ("revolute", "continuous", "prismatic")
 _KNOWN_TYPES = _MOVABLE + ("fixed",)
@@ -125,6 +126,17 @@ class JointInfo:
     mimic: dict[str, tuple[str, float, float]]  # joint: (primary, multiplier, offset)
     continuous: set[str]
     no_effort: set[str]  # movable joints without an effort limit
+    filled: dict[str, float] = dataclasses.field(default_factory=dict)  # point-mass link: the moment given [kg m²]
+
+
+def fill_inertia(mass: float) -> float:
+    """The principal moment [kg m²] `inertia="fill"` gives a point mass of `mass` [kg] (> 0).
+
+    A uniform solid sphere of that mass at the density of water (`FILL_DENSITY`): r = (3m / 4πρ)^(1/3),
+    I = (2/5) m r² about every axis (1 kg: r = 6.2 cm, I = 1.5e-3 kg m²; 0.1 kg: r = 2.9 cm, I = 3.3e-5 kg m²).
+    """
+    r = (3.0 * mass / (4.0 * np.pi * FILL_DENSITY)) ** (1.0 / 3.0)
+    return 0.4 * mass * r * r
 
 
 def _floats(elem: ET.Element, attr: str, what: str, count: int, default: str | None = None) -> np.ndarray:
@@ -140,14 +152,15 @@ def _floats(elem: ET.Element, attr: str, what: str, count: int, default: str | N
     return vals
 
 
-def check_urdf(text: str) -> tuple[str, JointInfo]:
+def check_urdf(text: str, *, inertia: str = "strict") -> tuple[str, JointInfo]:
     """Validate URDF text and normalise it for Pinocchio.
 
     Continuous joints become revolute joints with an unbounded range; revolute/prismatic
     joints without `<limit>` get an unbounded range and no effort limit (recorded in
     `JointInfo.no_effort`). Masses must be >= 0 (0 only with a zero inertia: a massless
     dummy link), inertias symmetric positive definite and physically consistent (triangle
-    inequalities), joint axes finite and non-zero.
+    inequalities), joint axes finite and non-zero. A link with a mass and a zero inertia (a point mass)
+    is refused, or with ``inertia="fill"`` given the inertia of `fill_inertia` (listed in `JointInfo.filled`).
 
     Returns:
         (normalised URDF text, joint information).
@@ -161,8 +174,13 @@ def check_urdf(text: str) -> tuple[str, JointInfo]:
     links = root.findall("link")
     if not links:
         raise ModelError("path: no <link> elements in the URDF")
+    if inertia not in ("strict", "fill"):
+        raise InvalidInput(f'inertia: expected "strict" or "fill", got {inertia!r}')
+    filled = {}
     for link in links:
-        _check_link(link)
+        moment = _check_link(link, inertia == "fill")
+        if moment is not None:
+            filled[str(link.get("name"))] = moment
     names = {n for j in root.findall("joint") if (n := j.get("name")) is not None}
     mimic: dict[str, tuple[str, float, float]] = {}
     continuous: set[str] = set()
@@ -213,14 +231,15 @@ def check_urdf(text: str) -> tuple[str, JointInfo]:
             off = float(_floats(m, "offset", f"{what} <mimic>", 1, "0")[0])
             mimic[name] = (primary, mult, off)
             joint.remove(m)  # rhi models mimic joints through its actuation map
-    return ET.tostring(root, encoding="unicode"), JointInfo(mimic, continuous, no_effort)
+    return ET.tostring(root, encoding="unicode"), JointInfo(mimic, continuous, no_effort, filled)
 
 
-def _check_link(link: ET.Element) -> None:
+def _check_link(link: ET.Element, fill: bool) -> float | None:
+    """Check a link's <inertial>; with `fill`, a point mass's moment of inertia given (returned), else None."""
     what = f"link {link.get('name')!r}"
     inertial = link.find("inertial")
     if inertial is None:
-        return
+        return None
     mass_el = inertial.find("mass")
     if mass_el is None:
         raise ModelError(f"{what} <inertial>: missing <mass>")
@@ -243,8 +262,18 @@ def _check_link(link: ET.Element) -> None:
     if mass == 0:
         if np.any(inertia != 0):
             raise ModelError(f"{what} <mass>: value 0 with a non-zero <inertia> (give the mass in kg)")
-        return
+        return None
+    if not np.any(inertia):
+        if not fill:
+            raise ModelError(f"{what} <inertia>: a point mass ({mass:g} kg, zero inertia); give it an inertia, or "
+                             'load with inertia="fill" (--inertia fill, [device] inertia = "fill") for a small one')
+        moment = fill_inertia(mass)
+        el = el if el is not None else ET.SubElement(inertial, "inertia")
+        for k in keys:
+            el.set(k, repr(moment) if k in ("ixx", "iyy", "izz") else "0")
+        return moment
     check_inertia(inertia, f"{what} <inertia>")
+    return None
 
 
 def check_inertia(inertia: np.ndarray, what: str) -> None:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rhi import __version__
+from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
 from rhi.device import available_devices, device
@@ -40,6 +41,15 @@ def _param(text: str) -> tuple[str, float]:
 
 
 def _devices(args: argparse.Namespace) -> int:
+    if args.descriptions:
+        from rhi.loaders import available_descriptions
+
+        found = available_descriptions()
+        if not found:
+            print("no description package installed (pip install example-robot-data)")
+        for name, path in found.items():
+            print(f"{name:<60} {path}")
+        return 0
     print(f"{'name':<12} {'n':>2} {'task':<5} parameters")
     for name in available_devices():
         d = device(name)
@@ -49,7 +59,7 @@ def _devices(args: argparse.Namespace) -> int:
 
 
 def _measure(args: argparse.Namespace) -> int:
-    dev = device(args.device, **dict(args.param or []))
+    dev = device_from_args(args, dict(args.param or []))
     res = all_measures(dev, args.q, args.u)
     if args.json:
         print(json.dumps(res, indent=1))
@@ -101,17 +111,16 @@ def _fidelity(args: argparse.Namespace) -> int:
 
 def _device_server(args: argparse.Namespace) -> int:
     from rhi.runtime import SimLink
-    from rhi.runtime.config import load_config
     from rhi.runtime.server import DeviceServer
     from rhi.sim import Plant
 
     if args.config is not None:  # the device side of a run configuration: its [sim] start, hand and world
-        cfg = load_config(args.config, device_name=args.device)
+        cfg = _config(args)
         dev, link = cfg.device, cfg.sim_link(rate=args.rate)
         if args.q0 is not None:
             link.plant.reset(args.q0)
     else:
-        dev = device(args.device)
+        dev = device_from_args(args)
         plant = Plant(dev)
         lo, hi = dev.joint_limits
         plant.reset(args.q0 if args.q0 is not None else np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0))
@@ -126,6 +135,14 @@ def _device_server(args: argparse.Namespace) -> int:
     stats = srv.serve(args.duration)
     print(json.dumps(stats), flush=True)
     return 0
+
+
+def _config(args: argparse.Namespace):
+    """The run configuration of `--config`, on the device of the command line (a name or a source option)."""
+    from rhi.runtime.config import load_config
+
+    table = device_table(args)
+    return load_config(args.config, device_name=args.device if table is None else None, device=table)
 
 
 # ------------------------------------------------------------------------------------------ rhi run
@@ -215,7 +232,6 @@ def _writable(option: str, path: Path) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from rhi.runtime import run
-    from rhi.runtime.config import load_config
     from rhi.runtime.loop import ESTOP_SIGNALS
 
     for name, v in (("--duration", args.duration), ("--rate", args.rate)):
@@ -223,7 +239,7 @@ def _run(args: argparse.Namespace) -> int:
             raise InvalidInput(f"{name}: must be a finite number > 0, got {v!r}")
     if args.mouse and not args.view:
         raise InvalidInput("--mouse: the mouse moves the hand in the browser view; add --view")
-    cfg = load_config(args.config, device_name=args.device)
+    cfg = _config(args)
     rate = args.rate or cfg.rate
     duration = args.duration if args.duration is not None else cfg.duration
     link = _link(args.link, rate, cfg, args.realtime, args.spin)
@@ -301,7 +317,7 @@ def _run(args: argparse.Namespace) -> int:
 def _add_run(sub) -> None:
     shipped = sorted(p.stem for p in (Path(__file__).parent / "runtime" / "configs").glob("*.toml"))  # no heavy import
     r = sub.add_parser("run", help="run a controller described by a configuration file on a device, in real time")
-    r.add_argument("device", help="the device the controller models, e.g. rhi4")
+    add_device_options(r)
     r.add_argument("--link", default="sim", help="sim (the configuration's simulated device) or udp://HOST:PORT "
                    "(a device server, e.g. `rhi device-server`)")
     r.add_argument("--config", required=True,
@@ -354,9 +370,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="rhi", description=__doc__)
     p.add_argument("--version", action="version", version=f"rhi {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
-    sub.add_parser("devices", help="list the bundled devices").set_defaults(func=_devices)
+    ds = sub.add_parser("devices", help="list the bundled devices")
+    ds.add_argument("--descriptions", action="store_true", help="list the robots of the installed description "
+                    "packages instead (each works as --description NAME)")
+    ds.set_defaults(func=_devices)
     m = sub.add_parser("measure", help="print every measure of a device at a configuration")
-    m.add_argument("device")
+    add_device_options(m)
     m.add_argument("--q", type=_floats, required=True, help="configuration [rad], e.g. 0.125,0.022,0.298,0.175")
     m.add_argument("--u", type=_floats, help="direction for directional measures, e.g. 0,1")
     m.add_argument("--param", type=_param, action="append", help="design parameter NAME=VALUE, e.g. d2=0.1405")
@@ -382,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     f.add_argument("--to", help="write the dossiers' Markdown here (e.g. docs/fidelity.md) instead of printing it")
     f.set_defaults(func=_fidelity)
     d = sub.add_parser("device-server", help="serve a simulated device over UDP (the protocol of docs/protocol.md)")
-    d.add_argument("device")
+    add_device_options(d)
     d.add_argument("--port", type=int, default=5005, help="UDP port (0: any free port; default 5005)")
     d.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     d.add_argument("--rate", type=float, default=1000.0, help="device rate [Hz] (default 1000)")

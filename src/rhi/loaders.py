@@ -26,7 +26,8 @@ from rhi._validate import as_array
 from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError, UnknownDevice
 
-__all__ = ["device_from_description", "device_from_mjcf", "device_from_urdf", "description_path"]
+__all__ = ["available_descriptions", "device_from_description", "device_from_mjcf", "device_from_urdf",
+           "description_path"]
 
 # robots of example-robot-data (PyPI) by short name; any other "<folder>/<file>" under the
 # installed description roots works too (see `description_path`)
@@ -53,6 +54,7 @@ def device_from_urdf(
     friction: Mapping[str, object] | None = None,
     name: str | None = None,
     package_dirs: Sequence[str | Path] = (),
+    inertia: str = "strict",
 ) -> Device:
     """A device from a URDF file, a xacro file or URDF XML text.
 
@@ -72,13 +74,20 @@ def device_from_urdf(
             (default: the URDF `<dynamics damping friction>` of each motor).
         name: device name (default: the file stem).
         package_dirs: extra folders to search for ROS packages.
+        inertia: "strict" (default: a link with a mass and a zero inertia, a point mass, is refused) or "fill"
+            (each point mass becomes a solid sphere of its mass at the density of water, `rhi._urdf.fill_inertia`,
+            with a warning listing them).
 
     Raises:
         ModelError: malformed or physically inconsistent description (the link/joint and attribute are named).
         InvalidInput: a bad argument (named).
     """
     text, near, stem = read_description(path, package_dirs)
-    text, info = check_urdf(text)
+    text, info = check_urdf(text, inertia=inertia)
+    if info.filled:
+        warnings.warn(f"{name or stem}: inertia='fill' gave point-mass links the inertia of a solid sphere of water "
+                      "of their mass: " + ", ".join(f"{k} ({v:.3g} kg m²)" for k, v in info.filled.items()),
+                      stacklevel=2)
     try:
         model = pin.buildModelFromXML(text)
     except Exception as exc:  # Pinocchio/urdfdom raise RuntimeError/ValueError with their own text
@@ -180,6 +189,23 @@ def description_path(robot: str) -> Path:
     roots = description_roots()
     hint = "" if roots else " (install example-robot-data: pip install example-robot-data)"
     raise UnknownDevice(f"robot: no installed description {robot!r}{hint}; short names: {', '.join(sorted(_DESCRIPTIONS))}")
+
+
+def available_descriptions() -> dict[str, Path]:
+    """{name: URDF} of the robots of the installed description packages (example-robot-data, rtb-data).
+
+    The short names (`description_path`) first, then every URDF by its path under its package root
+    (e.g. "so_arm_description/urdf/so101.urdf"); each works as `device_from_description`'s `robot`.
+    """
+    out = {}
+    for short, rel in _DESCRIPTIONS.items():
+        for root in description_roots():
+            if (root / rel).is_file():
+                out.setdefault(short, root / rel)
+    for root in description_roots():
+        for f in sorted(root.rglob("*.urdf")):
+            out.setdefault(str(f.relative_to(root)), f)
+    return out
 
 
 def device_from_description(robot: str, *, ee_frame: str, **kw) -> Device:

@@ -5,7 +5,10 @@ A file holds these tables (every key optional unless marked; the shipped files i
 
 - ``description``: one line about the set-up.
 - ``[run]``: ``rate`` [Hz] (1000), ``duration`` [s] (none: until a fault or Ctrl-C).
-- ``[device]``: ``name`` of a bundled device, ``params`` (its design parameters, e.g. ``{ d2 = 0.1405 }``).
+- ``[device]``: ``name`` of a bundled device, ``params`` (its design parameters, e.g. ``{ d2 = 0.1405 }``);
+  or your robot: ``urdf``, ``mjcf`` or ``description`` with ``ee_frame`` and optionally ``task``, ``ee_offset``,
+  ``lock``, ``armature``, ``torque_min``, ``torque_max``, ``friction`` (``damping``, ``frictionloss``) and
+  ``inertia`` = "fill" (`rhi.device_source`; relative paths from the configuration's folder).
 - ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp",
   "active_set", or a strategy registered with `rhi.control.allocation.register`),
   ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
@@ -60,6 +63,7 @@ from rhi.control import (
 )
 from rhi.control.allocation import method_names
 from rhi.device import Device, device
+from rhi.device_source import SOURCES, device_from_table
 from rhi.errors import InvalidInput
 from rhi.runtime import schema as S
 from rhi.runtime.safety import SafetyConfig
@@ -120,10 +124,10 @@ _HAND = {"path": (S.either(S.matrix, _vec, want="a point or a list of points"), 
          "repeat": (S.integer(low=0), 0), "start": (_nonneg, 0.0), "stiffness": (_nonneg, 300.0),
          "damping": (_nonneg, 10.0),
          "max_force": (S.either(_pos, S.choice("none"), want='a number > 0 or "none"'), 20.0)}
+_PLANT_FRICTION = {"damping": (_num_or_vec, 0.0), "frictionloss": (_num_or_vec, 0.0)}
 _SIM: S.Spec = {
     "q0": (_vec, None), "dq0": (_vec, None),
-    "friction": (S.either(S.choice("device", "none"), S.table({"damping": (_num_or_vec, 0.0),
-                                                               "frictionloss": (_num_or_vec, 0.0)}),
+    "friction": (S.either(S.choice("device", "none"), S.table(_PLANT_FRICTION),
                           want='"device", "none" or a table with damping and frictionloss'), "device"),
     "timestep": (_pos, 5e-4), "handle_mass": (_pos, 1e-3),
     "hand": (S.table(_HAND), None), "physical": (S.tables(_ENV), []),
@@ -145,7 +149,12 @@ def _safety(path: str, v) -> SafetyConfig:
 _ROOT = {
     "description": (S.string, ""),
     "run": (S.table({"rate": (_pos, 1000.0), "duration": (_pos, None)}), {}),
-    "device": (S.table({"name": (S.string, None), "params": (S.numbers_table, {})}), {}),
+    "device": (S.table({"name": (S.string, None), "params": (S.numbers_table, {}), "urdf": (S.string, None),
+                        "mjcf": (S.string, None), "description": (S.string, None), "ee_frame": (S.string, None),
+                        "task": (S.string, None), "ee_offset": (_vec, None), "lock": (S.numbers_table, None),
+                        "armature": (_num_or_vec, None), "torque_min": (_num_or_vec, None),
+                        "torque_max": (_num_or_vec, None), "friction": (S.table(_PLANT_FRICTION), None),
+                        "inertia": (S.choice("strict", "fill"), None)}), {}),
     "controller": (S.table(_CONTROLLER), R),
     "virtual": (S.tables(_ENV), []),
     "sim": (S.table(_SIM), {}),
@@ -312,28 +321,41 @@ def _sim(dev: Device, s: dict) -> dict:
     return s
 
 
-def parse_config(data: dict, *, name: str = "config", source: str = "<dict>",
-                 device_name: str | None = None) -> RunConfig:
+def parse_config(data: dict, *, name: str = "config", source: str = "<dict>", device_name: str | None = None,
+                 device: dict | None = None, base: Path | None = None) -> RunConfig:
     """A `RunConfig` from a parsed TOML document.
 
     Args:
         data: the document (e.g. from `tomllib.loads`).
         name: the configuration's name (for messages and the run summary).
         source: where it was read from (for messages and the run summary).
-        device_name: the device asked for (e.g. `rhi run DEVICE`); must match ``[device] name`` if the file names one.
+        device_name: the device asked for (e.g. `rhi run DEVICE`); must match ``[device] name`` if the file names one
+            (and the loaded device's name for a file source).
+        device: the device given on the command line (a `rhi.device_source` table), for a file whose
+            ``[device]`` names none.
+        base: the folder of ``[device]``'s relative paths (default: the working directory).
 
     Raises:
         InvalidInput: an unknown key or a value of the wrong type (naming its key path), a device mismatch,
             a parameter the controller refuses.
     """
     d = S.parse("", data, _ROOT)
-    dname = d["device"]["name"]
+    table = {k: v for k, v in d["device"].items() if v is not None and v != {}}
+    if device is not None:
+        if table:
+            raise InvalidInput(f"device: {name} describes its device ([device] {', '.join(sorted(table))}); give "
+                               "the device in the file or on the command line, not both")
+        table = dict(device)
+    dname = table.get("name")
     if dname is not None and device_name is not None and dname != device_name:
         raise InvalidInput(f"device: {name} is written for {dname!r} ([device] name), got {device_name!r}")
-    dname = dname or device_name
-    if dname is None:
-        raise InvalidInput(f"device.name: missing ({name} names no device and none was given)")
-    dev = S.prefixed("device", device, dname, **d["device"]["params"])
+    if dname is None and not any(k in table for k in SOURCES):
+        if device_name is None:
+            raise InvalidInput(f"device.name: missing ({name} names no device and none was given)")
+        table["name"] = device_name
+    dev = device_from_table(table, base=base, path="device")
+    if device_name is not None and dev.name != device_name:
+        raise InvalidInput(f"device: {name} describes {dev.name!r} ([device]), got {device_name!r}")
     return RunConfig(name=name, source=source, description=d["description"], device=dev,
                      controller_config=_controller(dev, d["controller"]),
                      virtual=_environments("virtual", d["virtual"], dev.m), safety=d["safety"],
@@ -361,14 +383,14 @@ def config_path(config: str | Path) -> Path:
                        f"(shipped: {', '.join(shipped_configs())})")
 
 
-def load_config(config: str | Path, *, device_name: str | None = None) -> RunConfig:
+def load_config(config: str | Path, *, device_name: str | None = None, device: dict | None = None) -> RunConfig:
     """Load a run configuration from a TOML file or by the name of a shipped one (see `parse_config`)."""
     p = config_path(config)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InvalidInput(f"config: cannot read {str(p)!r} as TOML ({exc})") from None
-    return parse_config(data, name=p.stem, source=str(p), device_name=device_name)
+    return parse_config(data, name=p.stem, source=str(p), device_name=device_name, device=device, base=p.parent)
 
 
 __all__ = ["RunConfig", "config_path", "load_config", "parse_config", "shipped_configs"]

@@ -7,7 +7,7 @@ import os
 import sys
 import time
 
-from rhi.device import device
+from rhi.cli_device import add_device_options, device_from_args
 from rhi.errors import InvalidInput
 
 
@@ -22,7 +22,7 @@ def _render(args: argparse.Namespace) -> int:
     from rhi.viz.posed import rest_configuration
     from rhi.viz.render import render, save_png
 
-    dev = device(args.device)
+    dev = device_from_args(args)
     q = args.q if args.q is not None else rest_configuration(dev)
     img = render(dev, q, width=args.width, height=args.height, azimuth=args.azimuth, elevation=args.elevation)
     print(save_png(img, args.out))
@@ -32,7 +32,7 @@ def _render(args: argparse.Namespace) -> int:
 def _view(args: argparse.Namespace) -> int:
     from rhi.viz.view import View
 
-    dev = device(args.device)
+    dev = device_from_args(args)
     if args.log is not None:
         from rhi.sim.log import Log
 
@@ -106,7 +106,7 @@ def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False,
 def add_commands(sub, floats) -> None:
     """Add `render` and `view` to the `rhi` argument parser's subcommands."""
     r = sub.add_parser("render", help="render a device with MuJoCo's offscreen renderer to a PNG (MUJOCO_GL)")
-    r.add_argument("device")
+    add_device_options(r)
     r.add_argument("--q", type=floats, help="configuration [rad] (default: mid-range)")
     r.add_argument("-o", "--out", default="device.png", help="output PNG (default: device.png)")
     r.add_argument("--width", type=int, default=800)
@@ -117,7 +117,7 @@ def add_commands(sub, floats) -> None:
     v = sub.add_parser("view", help="the device live in the browser (viser): replay a log, or simulate it with the "
                                     "mouse as the hand")
     v.add_argument("log", nargs="?", help="a saved log (.rhilog or .csv) to replay; none: a live simulation")
-    v.add_argument("--device", default="rhi4", help="the device (default: rhi4)")
+    add_device_options(v, positional=False, default="rhi4")
     v.add_argument("--host", default="127.0.0.1")
     v.add_argument("--port", type=int, default=8080)
     v.add_argument("--duration", type=float, default=3600.0, help="live simulation length [s]")
