@@ -197,7 +197,7 @@ def available_descriptions() -> dict[str, Path]:
     The short names (`description_path`) first, then every URDF by its path under its package root
     (e.g. "so_arm_description/urdf/so101.urdf"); each works as `device_from_description`'s `robot`.
     """
-    out = {}
+    out: dict[str, Path] = {}
     for short, rel in _DESCRIPTIONS.items():
         for root in description_roots():
             if (root / rel).is_file():
