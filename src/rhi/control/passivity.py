@@ -192,8 +192,9 @@ class PassivityController:
         3. PC (H&R's series damper): while ``E_pred < 0``, the damping torque
            ``τ_d = −α M q̇`` (``Jᵀ(−α M_x ẋ)`` at the handle port), ``α = −E_pred / (ΔT q̇ᵀMq̇)``
            bounded by ``alpha_max``, clipped to the torque box.
-        4. What the box and the bound on α leave: the law's torque is scaled down, so the law
-           never delivers energy the port has not received. At the motor port its null-space
+        4. Energy bounding (methods "damper_bounding" and "bounding"; "damper" stops at step 3 and
+           carries what is left): what the box and the bound on α leave, the law's torque is scaled
+           down, so the law never delivers energy the port has not received. At the motor port its null-space
            part N τ₀ (N = I − JᵀJ#ᵀ: allocation and objectives, no force at the handle) yields
            first, by the largest λ_N ∈ [0, 1] with ``w(Jᵀ J#ᵀτ₀ + λ_N N τ₀ + τ_d) ≤ E_obs(n)``,
            then the task part, by λ (``scale``) with ``w(λ JᵀJ#ᵀτ₀ + τ_d) ≤ E_obs(n)``; at the
