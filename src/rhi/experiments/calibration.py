@@ -152,7 +152,7 @@ def fit(items: list[dict] | None = None, starts: int = 8, seed: int = 23) -> dic
     return {"p": p, "default": p0, "items": items, "pred_fit": predict(p, items), "pred_default": predict(p0, items)}
 
 
-def calibration(starts: int = 8) -> Result:
+def thesis_fit(starts: int = 8) -> Result:
     """The thesis-fit model: fitted parameters, and per claim thesis / default / thesis-fit, fit or held out."""
     f = fit(starts=starts)
     rows_p = [Row(f"{k}: {BOUNDS[k][3]}", None, float(v), "", f"default {BOUNDS[k][0]:g}, bounds "
@@ -201,4 +201,4 @@ def write_thesis_fit(path=None, starts: int = 8) -> dict:
     return f
 
 
-__all__ = ["BOUNDS", "calibration", "claims", "fit", "predict", "variant_of", "write_thesis_fit"]
+__all__ = ["BOUNDS", "claims", "fit", "predict", "thesis_fit", "variant_of", "write_thesis_fit"]

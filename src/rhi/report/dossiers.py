@@ -34,6 +34,7 @@ class Reading:
         quantity: the row's quantity prefix.
         transform: turns the row's value into the claim's unit (e.g. a fraction into "holds" = 1.0).
         below: for an ordering, a second row: the value is then 1 where `quantity`'s row is below it, else 0.
+        measure: instead of one row, rhi's number from several rows of `experiment` (a `Lookup`).
     """
 
     name: str
@@ -42,9 +43,15 @@ class Reading:
     quantity: str
     transform: Callable[[float], float] | None = None
     below: str | None = None
+    measure: Callable[[Lookup], float] | None = None
 
     def value(self, look: Lookup) -> float | None:
         """The number of rhi under this reading, None where this run has no such row."""
+        if self.measure is not None:
+            try:
+                return float(self.measure(look))
+            except InvalidInput:
+                return None
         rows = (self.quantity,) if self.below is None else (self.quantity, self.below)
         if not all(look.has(self.experiment, q) for q in rows):
             return None
@@ -63,8 +70,10 @@ class Dossier:
         passage: section, equation and figure or table, with the thesis line.
         literal: the literal reading, as the headline measures it.
         readings: the other readings the text supports.
-        inconsistent: thesis numbers that contradict each other (with the numbers), where there are.
+        inconsistent: thesis numbers that contradict each other (with the numbers), where there are;
+            ``{0}``, ``{1}``, ... stand for this run's `evidence` values.
         missing: data the thesis does not publish that the value rests on (named), where it does.
+        evidence: (experiment, quantity prefix) of rows whose values `inconsistent` quotes.
     """
 
     key: str
@@ -73,6 +82,7 @@ class Dossier:
     readings: tuple[Reading, ...] = ()
     inconsistent: str = ""
     missing: str = ""
+    evidence: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if not (self.readings or self.missing or self.inconsistent):
@@ -110,17 +120,18 @@ def evaluate(verdicts: Sequence[Verdict], dossiers: dict[str, Dossier], results:
         for rd in d.readings:
             x = rd.value(look)
             rows.append((rd, x, "—" if x is None else judge(v.claim.thesis, x)))
-        out.append(Case(v, d, tuple(rows), _conclusion(v, d, rows)))
+        quoted = [f"{look(e, q):.4g}" if look.has(e, q) else "(not computed in this run)" for e, q in d.evidence]
+        out.append(Case(v, d, tuple(rows), _conclusion(v, d, rows, quoted)))
     return out
 
 
-def _conclusion(v: Verdict, d: Dossier, rows: list[tuple[Reading, float | None, str]]) -> str:
+def _conclusion(v: Verdict, d: Dossier, rows: list[tuple[Reading, float | None, str]], quoted: list[str]) -> str:
     for wanted in (REPRODUCED, CLOSE):
         hits = [rd.name for rd, _, verdict in rows if verdict == wanted]
         if hits:
             return f"{wanted} under the reading “{hits[0]}” (the literal reading: {v.verdict})"
     if d.inconsistent:
-        return f"inconsistent within the thesis: {d.inconsistent}"
+        return f"inconsistent within the thesis: {d.inconsistent.format(*quoted)}"
     if d.missing:
         return f"rests on data the thesis does not publish: {d.missing}"
     return "not reproduced under any reading the text supports"

@@ -8,7 +8,10 @@ listed whatever their number; the conclusion follows from the run.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from rhi.report.dossiers import Dossier, Reading
+from rhi.report.headline import Lookup
 
 
 def _all(fraction: float) -> float:
@@ -20,12 +23,32 @@ def _neg(x: float) -> float:
     return -x
 
 
-P1 = "(0.49, -0.22)"
+CAL = "calibration.thesis_fit"
+
+
+def _ratio_of(a: str, b: str) -> Callable[[Lookup], float]:
+    """100 a/b [%] of two appa.tracking rows."""
+    return lambda r: 100.0 * r("appa.tracking", a) / r("appa.tracking", b)
+
+
+def _fit_order(table: str) -> Callable[[Lookup], float]:
+    """Points (of 2) where the thesis-fit model's Λ of Table `table` are ordered RHI ≤ PHANToM < Rehab."""
+    def order(r: Lookup) -> float:
+        lam = {(d, p): r(CAL, f"Table {table} Λ {d} at {p}: thesis-fit") for d in ("RHI", "PHANToM", "Rehab")
+               for p in (P1, P2)}
+        return float(sum(lam["RHI", p] <= lam["PHANToM", p] < lam["Rehab", p] for p in (P1, P2)))
+    return order
+
+
+P1, P2 = "(0.49, -0.22)", "(0.49, -0.14)"
 J_SHARP = ("J# = M_q⁻¹Jᵀ[JM_q⁻¹Jᵀ]⁻¹, 'generalized inverse of the Jacobian' (§3.4 line 565, §6.3 line 1260, "
            "§7.2 line 1510)")
 J_PLUS = "the plain pseudoinverse J⁺ = Jᵀ(JJᵀ)⁻¹ projector"
 J_PLUS_WHY = ("§4.2 (line 748): 'the superscript † indicates the pseudo-inverse of a matrix, J† = Jᵀ(JJᵀ)⁻¹' — the "
               "thesis's other generalized inverse, used for its manipulability measures")
+ORTHO = "the orthogonal projector of J_q (eq. A.7 with Q = I)"
+ORTHO_WHY = ("line 2030: 'J_q† = Q⁻¹J_qᵀ(J_qQ⁻¹J_qᵀ)⁻¹ is the weighted pseudoinverse of J_q' — the null space of the "
+             "arm's own Jacobian, the base moving with the self-motion")
 FIT = "the thesis-calibrated model (params=\"thesis-fit\")"
 FIT_WHY = ("§3.3 (line 497): the inertias come from [23] Çavuşoğlu et al. 2002 and [45] Dyck 2013, which the thesis "
            "cites but does not print; the calibrated model fits them to the thesis's inertia-dependent numbers")
@@ -54,11 +77,11 @@ _D = [
             "Λ = (uᵀM_x⁻¹u)⁻¹ (eq. 3.13) at the printed q with rhi's estimated link inertias",
             (Reading("the RHI at rhi's own optimum of eq. 3.22", "line 640 (as for ρ)", "ch3.table_3_1",
                      f"Λ RHI at {P1} (our optimum of eq. 3.22)"),
-             Reading(FIT, FIT_WHY, "ch3.table_3_1", f"Λ RHI at {P1} (thesis configuration, thesis-fit")),
+             Reading(FIT, FIT_WHY, CAL, f"Table 3.1 Λ RHI at {P1}: thesis-fit")),
             missing="the link masses and inertias of the PHANToM and the Rehab halves: cited ([23], [45]), not printed"),
     Dossier("table3_1.lambda_order", "§3.5, Table 3.1 (line 638), text line 648",
             "Λ_RHI < Λ_PHANToM < Λ_Rehab by eq. 3.13 at both points, the RHI at the printed q, rhi's inertias",
-            (Reading(FIT, FIT_WHY, "ch3.table_3_1", "Λ order RHI < PHANToM < Rehab, thesis-fit"),),
+            (Reading(FIT, FIT_WHY, CAL, "", measure=_fit_order("3.1")),),
             missing="the link masses and inertias: cited ([23], [45]), not printed"),
     Dossier("fig3_8.rho_r", "§3.3 Remark I, eqs. 3.8–3.10; §3.5 Fig. 3.8 (line 672)",
             "ρ_r = ρ_RHI/ρ_PHANToM ≥ 1 at every grid point, the RHI at the eq. 3.22 optimum of each point",
@@ -72,14 +95,12 @@ _D = [
             (Reading("the RHI at the PHANToM's own angles, q = [0, 0, q_PHANToM]",
                      "eq. 3.12: M_x,RHI = (M_x,NHI⁻¹ + M̂_x⁻¹)⁻¹ — the proof's NHI is the RHI's own PHANToM chain at "
                      "the same joint angles", "ch3.ratio_maps",
-                     "fraction of points with Λ_r ≤ 1, the RHI at the PHANToM's angles", _all),
-             Reading(FIT, FIT_WHY, "ch3.ratio_maps", "fraction of points with Λ_r ≤ 1, thesis-fit", _all)),
+                     "fraction of points with Λ_r ≤ 1, the RHI at the PHANToM's angles", _all),),
             missing="the link masses and inertias: cited ([23], [45]), not printed"),
     Dossier("table3_2.order", "§3.5, Table 3.2 (line 652), eq. 3.24",
             "Λ identified by least squares (eq. 3.24) on the simulated plant, ordered RHI ≤ PHANToM < Rehab at both "
             "points",
-            (Reading(FIT, FIT_WHY, "ch3.sysid_table_3_2", "cases with identified Λ ordered RHI ≤ PHANToM < Rehab "
-                     "(of 2 points), thesis-fit"),),
+            (Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "", measure=_fit_order("3.2")),),
             missing="the hardware's friction and the force-sensor records of the identification (line 656)"),
     *[Dossier(key, "§3.5–3.6, Table 3.3 (line 691), line 699", literal, missing=SUBJECTS)
       for key, literal in (("table3_3.wf_order", "mean WF over the subjects, RHI < PHANToM < Rehab"),
@@ -114,7 +135,10 @@ _D = [
             "joint-limit-penalised J^q (k_q = 10), not eq. 5.14's plain μ",
             (Reading("eq. 5.14 as printed: τ_N = α ∂μ/∂q, μ = √det(J Jᵀ)", "line 1134: 'The RHI with its "
                      "manipulability optimizer', eq. 5.14", "ch5.w_trajectory",
-                     "scenario 2's mean TME area below scenario 1's, eq. 5.14 as printed"),),
+                     "reading 'literal eq. 5.14': scenario 2's mean TME area below scenario 1's"),
+             Reading("both scenarios on the plain J (k_q = None in eqs. 5.11, 5.14)", "eq. 4.20's penalty is a "
+                     "design-chapter device; eqs. 5.11 and 5.14 print the plain J", "ch5.w_trajectory",
+                     "reading 'plain J': scenario 2's mean TME area below scenario 1's")),
             missing="the W trajectory's coordinates (Fig. 5.5 draws it only)"),
     Dossier("table5_1.effort_order", "§5.4.1, Fig. 5.6 (line 1163), eq. 5.15",
             "the user's work of eq. 5.15 over the W, scenario 1 < 2 < 3, same B^d in all", (),
@@ -142,7 +166,10 @@ _D = [
             "identified M_x(M_Stiff)/M_x(M_Free), eq. 3.24 on the simulated plant, J#",
             (Reading(J_PLUS, J_PLUS_WHY, "ch6.sysid_table_6_1", "M_x ratio Stiff/Free, identified (J⁺)"),
              Reading("the model's Λ ratio at the settled configurations", "Table 6.1 caption: 'inertia M_x'",
-                     "ch6.palpation", "inertia ratio Λ_Stiff/Λ_Free")),
+                     "ch6.palpation", "inertia ratio Λ_Stiff/Λ_Free"),
+             Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "",
+                     measure=lambda r: r(CAL, "Table 6.1 M_x, M_Stiff^des: thesis-fit")
+                     / r(CAL, "Table 6.1 M_x, M_Free^des: thesis-fit"))),
             missing="the link inertias (cited, not printed) and the hardware's friction"),
     *[Dossier(f"table6_1.{c}.M_x", "§6.4, Table 6.1 (line 1442), eq. 3.24",
               f"M_x identified by eq. 3.24 on the simulated plant with M_{c.capitalize()}^des, J# null-space "
@@ -151,8 +178,8 @@ _D = [
                        f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J⁺)"),
                Reading("the model's Λ at the settled configuration", "eq. 3.13 (Table 6.1's 'inertia M_x')",
                        "ch6.palpation", f"M_x along u, M_{c.capitalize()}^des: our model's Λ"),
-               Reading(FIT, FIT_WHY, "ch6.sysid_table_6_1",
-                       f"M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), M_{c.capitalize()}^des (J#, thesis-fit")),
+               Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL,
+                       f"Table 6.1 M_x, M_{c.capitalize()}^des: thesis-fit")),
               missing="the link inertias (cited, not printed)")
       for c in ("free", "stiff")],
     Dossier("s6_5.t_f", "§6.4 (line 1462), eqs. 6.16–6.19",
@@ -191,8 +218,18 @@ _D = [
             missing="the hardware's friction and the human hand's stiffness"),
     # ---- appendix A
     *[Dossier(f"sA_4_2.rms_ratio.{c}", "§A.4.2, Table A.1 (line 2161), line 2194",
-              f"RMS {name} commanded, proposed / traditional, on the 0.25 m circle with K_x = 10 I, ε = 0.2",
-              (),
+              f"RMS {name} commanded, proposed / traditional, on the 0.25 m circle with K_x = 10 I, ε = 0.2, "
+              "W_x on the wheel velocities as printed (eq. A.12)",
+              (Reading("W_x on the generalized Jacobian", "line 2068: 'we choose the entire system Jacobian J in "
+                       "(A.5) to command motion to each actuator'", "appa.tracking", "",
+                       measure=_ratio_of(f"proposed generalized: RMS {name}", f"traditional: RMS {name}")),
+               Reading("the proposed RMS over the base's motion only", "line 2194: 'the mobile base moved only during "
+                       "time 7.15-20.35 s'", "appa.tracking", "",
+                       measure=_ratio_of(f"proposed: RMS {name} over the base's motion only",
+                                         f"traditional: RMS {name}"))),
+              inconsistent=("Table A.1's proposed max |v_xb| = 2.8 cm/s with the base moving only 7.15–20.35 s bounds "
+                            "its RMS over a 40 s turn by 2.8·√(13.2/40) = 1.61 cm/s, below the printed 1.68"
+                            if c == "vx" else ""),
               missing="the wheel-ground slip and the motion-capture noise of the experiment")
       for c, name in (("vx", "v_xb"), ("w", "ω_b"))],
     Dossier("sA_4_2.base_interval.0", "§A.4.2, Fig. A.6 (line 2194)",
@@ -201,14 +238,24 @@ _D = [
     Dossier("sA_4_3.dm_z.0", "§A.4.3 (line 2202), eq. A.17",
             "DM = 1/‖W_τ J_mᵀ u‖ along u = [0, 0, 1] at the stated q0, rhi's Gen3 model (Kinova's published lengths)", (),
             missing="the arm model the thesis used (it names the Kinova Gen3 but prints no kinematic parameters)"),
-    Dossier("sA_4_3.dm_z.1", "§A.4.3 (line 2202)",
-            "DM along z after the experiment's phases (5 s Cartesian, 15 s null-space), the experiment's gains",
-            (Reading("the null-space phase run until DM stops rising", "line 2202 states no duration for the "
-                     "simulation", "appa.dm_enhancement", "largest DM along z within"),)),
-    Dossier("sA_4_3.dm_x.2", "§A.4.3 (line 2212), eq. A.19",
-            "DM along x after the null-space phase (5–20 s), eq. A.19 as printed (weighted J†)",
-            (Reading("the generalized projector", "eq. A.19's weighted pseudoinverse with the (A.11)–(A.12) weights",
-                     "appa.dm_enhancement", "DM along x after the null-space phase (t"),)),
+    *[Dossier(f"sA_4_3.dm_{ax}.{i}", f"§A.4.3 (line {line}), eqs. A.9, A.19",
+              f"DM along {ax} after the experiment's phases (5 s Cartesian, 15 s null space), the stated gains, "
+              "eq. A.19 as printed (weighted J†: the base is still while γ = 0)",
+              (Reading(ORTHO, ORTHO_WHY, "appa.dm_enhancement", f"DM along {ax} after {phase} (t"),
+               *((Reading("the null-space phase run until DM stops rising (orthogonal projector)", "line 2202 "
+                          "states no duration for the simulation", "appa.dm_enhancement", "largest DM along z within"),)
+                 if ax == "z" else ()),
+               Reading("the largest DM the arm's self-motion can reach (base fixed)", "eq. A.19 as printed moves the "
+                       "base only when γ > 0", "appa.dm_enhancement",
+                       f"largest DM along {ax} the arm's self-motion can reach"),
+               Reading("the largest DM with the base free", "eq. A.5: the WMM's joints include the base's",
+                       "appa.dm_enhancement", f"largest DM along {ax} with the base free")),
+              inconsistent=(f"eq. A.19 as printed keeps the base still (γ = 0 while the arm is within its limits), "
+                            f"and the arm's self-motion alone reaches at most DM = {{0}} along {ax} at the held "
+                            f"position, below the printed {thesis}"),
+              evidence=(("appa.dm_enhancement", f"largest DM along {ax} the arm's self-motion can reach"),))
+      for ax, i, line, phase, thesis in (("z", 1, 2202, "enhancement", "4.031"),
+                                         ("x", 2, 2212, "the null-space phase", "5.88"))],
     # ---- appendix B
     Dossier("sB_4_2.singular_t", "§B.4.2, Fig. B.7 (line 2483)",
             "first time σ_min(J_m) < 0.05 without avoidance",
@@ -221,9 +268,12 @@ _D = [
             missing="the wheel-ground slip of the experiment"),
     Dossier("sB_4_3.periods.within", "§B.4.3, Table B.2 (line 2501)",
             "base activation periods within the workspace with σ_m,min = 0.15 (line 2479)", (),
-            inconsistent="σ_m,min = 0.15 (line 2479) and a base that never moves on the R = 0.1 m circle cannot both "
-                         "hold if the arm alone cannot keep σ_min(J_m) ≥ 0.15 at the circle's far point (rhi's best: "
-                         "the row 'best σ_min(J_m) the arm alone', appb.tracking)"),
+            inconsistent="§A.4.2 (line 2172) gives the arm's workspace at q0 as a 0.11 m circle (rhi's Gen3: {0} m), "
+                         "§B.4.2 (line 2479) as 0.2 m; with 0.11 m the R = 0.1 m circle's far point leaves the arm at "
+                         "best σ_min(J_m) = {1} (rhi), below the stated σ_m,min = 0.15, so the base must be enabled",
+            evidence=(("appb.tracking", "largest circle radius within the arm's workspace at q0 (far point reachable, "
+                                        "base fixed; vs §A.4.2)"),
+                      ("appb.tracking", "best σ_min(J_m) the arm alone"))),
     *[Dossier(key, "§B.5 conclusion (line 2555), §B.4.3", literal, (),
               missing="the wheel-ground slip of the experiment")
       for key, literal in (("sB_5.err_reduction.0", "100 (1 − max error x proposed / traditional), beyond"),

@@ -5,7 +5,16 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 
-from rhi.experiments import appa as exa, appb as exb, ch3 as ex3, ch4 as ex4, ch5 as ex5, ch6 as ex6, ch7 as ex7
+from rhi.experiments import (
+    appa as exa,
+    appb as exb,
+    calibration as excal,
+    ch3 as ex3,
+    ch4 as ex4,
+    ch5 as ex5,
+    ch6 as ex6,
+    ch7 as ex7,
+)
 from rhi.experiments.beyond import (
     bilateral as exbi,
     intent as exin,
@@ -129,6 +138,7 @@ STEPS: list[Step] = [
     Step(exb.tracking, {}, {"duration": 24.0, "dt": 0.01},
          {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True,
          plan=exb.tracking_plan),
+    Step(excal.thesis_fit, {}, {"starts": 2}, {}),
     Step(exbi.teleoperation_delay, {}, {"duration": 4.0, "delays": (0.1,), "extra_stiffness": ()},
          {"bilateral_energy": plbi.energy, "bilateral_forces": plbi.forces, "bilateral_drift": plbi.drift},
          progress=True,
