@@ -6,9 +6,9 @@ The data (one `Dossier` per claim, by the claim's key) is in `rhi.report.reading
 row of an experiment's result (by quantity prefix), so an experiment that computes a new reading only adds a
 row; a reading whose row is not in the run reads "not computed in this run". The conclusion follows from
 the numbers, in this order: reproduced under the literal reading (then no dossier is shown); reproduced
-(or close) under a named reading; inconsistent within the thesis (the thesis numbers that contradict each
-other); rests on data the thesis does not publish (named); else not reproduced under any reading. The
-headline verdict stays the literal reading's.
+(or close) under a named reading, where that beats the literal one; inconsistent within the thesis (the
+thesis numbers that contradict each other); rests on data the thesis does not publish (named); else the
+literal verdict, no reading doing better. The headline verdict stays the literal reading's.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 
 from rhi.errors import InvalidInput
 from rhi.report.headline import Lookup, Verdict
-from rhi.report.rules import CLOSE, NOT_RUN, REPRODUCED, judge
+from rhi.report.rules import CLOSE, NOT_RUN, REPRODUCED, VERDICTS, judge
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,7 +126,8 @@ def evaluate(verdicts: Sequence[Verdict], dossiers: dict[str, Dossier], results:
 
 
 def _conclusion(v: Verdict, d: Dossier, rows: list[tuple[Reading, float | None, str]], quoted: list[str]) -> str:
-    for wanted in (REPRODUCED, CLOSE):
+    better = VERDICTS[:VERDICTS.index(v.verdict)] if v.verdict in VERDICTS else ()
+    for wanted in (k for k in (REPRODUCED, CLOSE) if k in better):  # a reading counts where it beats the literal
         hits = [rd.name for rd, _, verdict in rows if verdict == wanted]
         if hits:
             return f"{wanted} under the reading “{hits[0]}” (the literal reading: {v.verdict})"
@@ -134,7 +135,7 @@ def _conclusion(v: Verdict, d: Dossier, rows: list[tuple[Reading, float | None, 
         return f"inconsistent within the thesis: {d.inconsistent.format(*quoted)}"
     if d.missing:
         return f"rests on data the thesis does not publish: {d.missing}"
-    return "not reproduced under any reading the text supports"
+    return f"{v.verdict} under the literal reading; no other reading the text supports does better"
 
 
 def missing_dossiers(verdicts: Sequence[Verdict], dossiers: dict[str, Dossier]) -> list[str]:

@@ -244,16 +244,13 @@ _D = [
               (Reading(ORTHO, ORTHO_WHY, "appa.dm_enhancement", f"DM along {ax} after {phase} (t"),
                *((Reading("the null-space phase run until DM stops rising (orthogonal projector)", "line 2202 "
                           "states no duration for the simulation", "appa.dm_enhancement", "largest DM along z within"),)
-                 if ax == "z" else ()),
-               Reading("the largest DM the arm's self-motion can reach (base fixed)", "eq. A.19 as printed moves the "
-                       "base only when γ > 0", "appa.dm_enhancement",
-                       f"largest DM along {ax} the arm's self-motion can reach"),
-               Reading("the largest DM with the base free", "eq. A.5: the WMM's joints include the base's",
-                       "appa.dm_enhancement", f"largest DM along {ax} with the base free")),
+                 if ax == "z" else ())),
               inconsistent=(f"eq. A.19 as printed keeps the base still (γ = 0 while the arm is within its limits), "
                             f"and the arm's self-motion alone reaches at most DM = {{0}} along {ax} at the held "
-                            f"position, below the printed {thesis}"),
-              evidence=(("appa.dm_enhancement", f"largest DM along {ax} the arm's self-motion can reach"),))
+                            f"position (rhi's Gen3, SLSQP), below the printed {thesis}; with the base free the most is "
+                            "{1}"),
+              evidence=(("appa.dm_enhancement", f"largest DM along {ax} the arm's self-motion can reach"),
+                        ("appa.dm_enhancement", f"largest DM along {ax} with the base free")))
       for ax, i, line, phase, thesis in (("z", 1, 2202, "enhancement", "4.031"),
                                          ("x", 2, 2212, "the null-space phase", "5.88"))],
     # ---- appendix B
