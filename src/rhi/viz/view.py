@@ -21,7 +21,7 @@ import numpy as np
 
 from rhi.device import Device
 from rhi.errors import InvalidInput
-from rhi.sim.environment import from_description
+from rhi.sim.environment import Wall, from_description
 from rhi.sim.hand import DraggableHand
 from rhi.sim.log import Log
 from rhi.viz.commands import ViewCommands
@@ -30,6 +30,7 @@ from rhi.viz.panels import legend, state_panel, status_line, torque_panel
 from rhi.viz.posed import Posed, rest_configuration
 from rhi.viz.replay import SPEEDS, LogPlayer
 from rhi.viz.scene import DeviceScene
+from rhi.viz.timeplots import History, TimePlots
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -54,6 +55,7 @@ class View:
         lp_every: solve the force-capability LP every this many frames (it costs milliseconds).
         commands: the run's `ViewCommands` (`rhi.viz.session.supervise`): pause / resume and reset buttons and the
             run's status line (warming up, live, paused, the fault and its reason), or None.
+        plot_window: the plots over time show the last this many seconds [s].
 
     Attributes:
         server: the `viser.ViserServer`.
@@ -64,7 +66,7 @@ class View:
 
     def __init__(self, device: Device, source=None, *, hand: DraggableHand | None = None, virtual=None, fme=None,
                  q0=None, host: str = "127.0.0.1", port: int = 8080, fps: float = 45.0, lp_every: int = 10,
-                 commands: ViewCommands | None = None) -> None:
+                 commands: ViewCommands | None = None, plot_window: float = 5.0) -> None:
         import viser
 
         if not np.isfinite(fps) or not 1 <= fps <= 240:
@@ -95,6 +97,10 @@ class View:
         self.overlays = Overlays(self.server, device, self.size, virtual=virtual, fme=fme)
         self._camera(blo, bhi)
         self._grip = threading.Lock()  # the gizmo's position vs the hand's target (view thread vs viser's loop)
+        lo, hi = device.torque_limits
+        self.history = History(device.n, lo, hi, window=plot_window)
+        walls = [e for e in getattr(virtual, "parts", (virtual,)) if isinstance(e, Wall)]
+        self.u_plot = walls[0].normal if walls else np.eye(device.m)[min(1, device.m - 1)]
         self._build_gui()
         self.frames = 0
         self.cpu = 0.0
@@ -148,6 +154,8 @@ class View:
         self.state_html = gui.add_html(state_panel(self._rest_snapshot()))
         self.torque_html = gui.add_html("")
         self.legend_html = gui.add_html(legend(None, None))
+        with gui.add_folder("plots over time", expand_by_default=True):
+            self.plots = TimePlots(gui, self.device.joint_names)
         with gui.add_folder("overlays", expand_by_default=False):
             for group, label in GROUPS.items():
                 gui.add_checkbox(label, initial_value=True).on_update(self._toggle(group))
@@ -284,6 +292,13 @@ class View:
                 with self._grip:
                     if self.hand.target is None:  # a free hand: the gizmo follows the handle
                         self.gizmo.position = tuple(handle)
+            if self.player is None:
+                self.history.add(snap, self.u_plot)
+            # about 9 Hz (a chart's redraw costs the browser more than a frame), and every frame of a paused replay
+            if self.frames % 5 == 0 or (self.player is not None and not self.player.playing):
+                if self.player is not None:
+                    self.history.fill(self.player.log, float(snap.t), self.u_plot)
+                self.plots.update(self.history)
             if self.player is not None:
                 self.timeline.value = float(snap.t)  # type: ignore[misc]  # viser's slider has a setter; mypy sees a read-only props field
                 self._replay_state()
