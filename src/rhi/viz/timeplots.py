@@ -81,15 +81,14 @@ class TimePlots:
     def __init__(self, gui, joint_names: list[str]) -> None:
         self.n = len(joint_names)
         e = np.zeros(2)
-        axis = lambda label: ({}, {"label": label})  # noqa: E731  # x axis, y axis
         self.tau = gui.add_uplot(
             (e, *([e] * self.n)), ({"label": "t [s]"}, *({"label": nm, "stroke": _COLORS[i % 10]}
                                                          for i, nm in enumerate(joint_names))),
-            title="τ / limit", scales={"y": {"auto": False, "range": (-1.05, 1.05)}}, axes=axis("τ/limit"),
+            title="τ / limit", scales={"y": {"auto": False, "range": (-1.05, 1.05)}}, axes=({}, {"label": "τ/limit"}),
             aspect=2.0)
         self.force = gui.add_uplot(
             (e, e, e), ({"label": "t [s]"}, {"label": "F_h·u [N]", "stroke": "#c81ea0"},
-                        {"label": "F_env·u [N]", "stroke": "#c82828"}), title="forces along u", axes=axis("N"),
+                        {"label": "F_env·u [N]", "stroke": "#c82828"}), title="forces along u", axes=({}, {"label": "N"}),
             # soft limits ±1 N: an all-zero series (no contact yet) must not give uPlot an empty range
             scales={"y": {"auto": True, "range": {"min": {"pad": 0.1, "soft": -1.0, "mode": 1},
                                                   "max": {"pad": 0.1, "soft": 1.0, "mode": 1}}}},
