@@ -139,7 +139,7 @@ STEPS: list[Step] = [
          {"fig_b8": plb.within, "fig_b10": plb.beyond, "fig_b11": plb.base_paths}, progress=True,
          plan=exb.tracking_plan),
     Step(excal.thesis_fit, {}, {"starts": 2}, {}),
-    Step(exbi.teleoperation_delay, {}, {"duration": 4.0, "delays": (0.1,), "extra_stiffness": ()},
+    Step(exbi.teleoperation_delay, {}, {"duration": 5.0, "delays": (0.1,), "extra_stiffness": ()},
          {"bilateral_energy": plbi.energy, "bilateral_forces": plbi.forces, "bilateral_drift": plbi.drift},
          progress=True,
          plan=exbi.teleoperation_delay_plan),
