@@ -72,6 +72,7 @@ def wall_case(k: float, b: float, method: str, *, duration: float,
     return {"W": float(log.work[-1]), "W_min": float(np.min(log.work)), "peak": float(np.max(F)),
             "peak_ideal": float(np.max(F_ideal)), "mean_error": float(np.mean(err)) if err.size else math.nan,
             "rms_error": float(np.sqrt(np.mean(err**2))) if err.size else math.nan,
+            "active": float(np.mean(log.alpha_pc > 0)) if pas is not None and log.alpha_pc is not None else 0.0,
             "fault": 0.0 if log.fault is None else 1.0}
 
 
@@ -109,8 +110,9 @@ def z_width(*, stiffness: Sequence[float] = STIFFNESS, damping: Sequence[float] 
         progress: callback(done, total) in control ticks.
 
     Returns:
-        Result "beyond.z_width": arrays ``{method}_{W_min, peak, peak_ideal, mean_error}`` of shape
-        (len(stiffness), len(damping)) [J], [N], ``stiffness``, ``damping``.
+        Result "beyond.z_width": arrays ``{method}_{W_min, peak, peak_ideal, mean_error, rms_error, active,
+        fault}`` of shape (len(stiffness), len(damping)) [J], [N], [1] (active: the share of ticks with the
+        damper acting), ``stiffness``, ``damping``.
 
     Raises:
         InvalidInput: an empty or non-finite grid, an unknown method, a grid without "none".
@@ -124,7 +126,7 @@ _LABEL = {"none": "no PC", "damper_bounding": "series damper + energy bounding",
 
 def _merge(outputs: list[dict[str, float]], *, cases, stiffness, damping, methods, duration) -> Result:
     shape = (len(stiffness), len(damping))
-    keys = ("W_min", "peak", "peak_ideal", "mean_error", "rms_error", "fault")
+    keys = ("W_min", "peak", "peak_ideal", "mean_error", "rms_error", "active", "fault")
     arrays: dict[str, np.ndarray] = {f"{m}_{k}": np.full(shape, np.nan) for m in methods for k in keys}
     for (k, b, m), r in zip(cases, outputs):
         i, j = stiffness.index(k), damping.index(b)
@@ -152,6 +154,8 @@ def _merge(outputs: list[dict[str, float]], *, cases, stiffness, damping, method
                 100.0 * float(np.min(keep)) if keep.size else math.nan, "%"),
             Row(f"walls active without PC made passive, {_LABEL[m]}", None, float(np.sum(p & ~ref)), "",
                 f"of {int(np.sum(~ref))}"),
+            Row(f"ticks with the damper acting, walls passive without PC (largest), {_LABEL[m]}", None,
+                100.0 * float(np.max(arrays[f"{m}_active"][ref])) if ref.any() else math.nan, "%"),
         ]
     for m in methods:
         for i, k in enumerate(stiffness):
