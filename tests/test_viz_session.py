@@ -259,3 +259,39 @@ def test_live_view_plots_torques_forces_and_scalings_over_time():
     finally:
         b.close()
         view.close()
+
+
+def test_render_writes_a_video_of_a_log_with_its_forces(tmp_path):
+    """`rhi render --log`: round(T·fps) + 1 frames (the log's duration × the frame rate, ±1), a drawn first frame."""
+    import imageio_ffmpeg
+
+    from rhi.cli import main
+    from rhi.sim import DraggableHand, simulate
+    from rhi.viz.live import demo_setup
+
+    dev = rhi.device("rhi4")
+    plant, ctrl, wall, q0 = demo_setup(dev)
+    hand = DraggableHand()
+    hand.target = dev.fk(q0) + [0.0, 0.03]  # into the wall: hand and wall forces to draw
+    log_path = tmp_path / "run.rhilog"
+    simulate(plant, ctrl, duration=1.0, hand=hand, virtual=wall, log=log_path)
+    out = tmp_path / "run.mp4"
+    assert main(["render", "--log", str(log_path), "-o", str(out), "--fps", "20", "--width", "320",
+                 "--height", "240"]) == 0
+    n, secs = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert abs(n - 1.0 * 20) <= 1, n
+    reader = imageio_ffmpeg.read_frames(str(out))
+    meta = next(reader)
+    assert tuple(meta["size"]) == (320, 240)
+    first = np.frombuffer(next(reader), dtype=np.uint8).reshape(240, 320, 3)
+    assert first.std() > 10  # not blank: the device on its background
+    most = 0
+    for raw in reader:
+        img = np.frombuffer(raw, dtype=np.uint8).reshape(240, 320, 3).astype(int)
+        most = max(most, int(((img[..., 0] > 150) & (img[..., 1] < 90) & (img[..., 2] > 110)).sum()))
+    assert most > 20  # the hand force's arrow (magenta), pushing into the wall
+    with pytest.raises(InvalidInput, match="path"):
+        from rhi.sim.log import Log
+        from rhi.viz.video import render_video
+
+        render_video(dev, Log.load(log_path), tmp_path / "run.gif")

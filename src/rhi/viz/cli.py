@@ -6,8 +6,9 @@ import argparse
 import os
 import sys
 import time
+from pathlib import Path
 
-from rhi.cli_device import add_device_options, device_from_args
+from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.errors import InvalidInput
 
 
@@ -19,6 +20,8 @@ def _pick_gl() -> None:
 
 def _render(args: argparse.Namespace) -> int:
     _pick_gl()
+    if args.log is not None:
+        return _video(args)
     from rhi.viz.posed import rest_configuration
     from rhi.viz.render import render, save_png
 
@@ -26,6 +29,27 @@ def _render(args: argparse.Namespace) -> int:
     q = args.q if args.q is not None else rest_configuration(dev)
     img = render(dev, q, width=args.width, height=args.height, azimuth=args.azimuth, elevation=args.elevation)
     print(save_png(img, args.out))
+    return 0
+
+
+def _video(args: argparse.Namespace) -> int:
+    from rhi.sim.log import Log
+    from rhi.viz.video import render_video
+
+    log = Log.load(args.log)
+    if args.device is None and device_table(args) is None:  # the log's own device
+        args.device = log.meta.get("device")
+    out = args.out if args.out != "device.png" else str(Path(args.log).with_suffix(".mp4"))
+    total = [0]
+
+    def progress(i: int, n: int) -> None:
+        if i == 1 or i == n or i % 30 == 0:
+            print(f"\rrhi render: frame {i}/{n}", end="" if i < n else "\n", file=sys.stderr, flush=True)
+        total[0] = n
+
+    path = render_video(device_from_args(args), log, out, fps=args.fps, width=args.width, height=args.height,
+                        progress=progress)
+    print(f"{path} ({total[0]} frames at {args.fps:g} fps)")
     return 0
 
 
@@ -105,12 +129,17 @@ def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False,
 
 def add_commands(sub, floats) -> None:
     """Add `render` and `view` to the `rhi` argument parser's subcommands."""
-    r = sub.add_parser("render", help="render a device with MuJoCo's offscreen renderer to a PNG (MUJOCO_GL)")
+    r = sub.add_parser("render", help="render a device with MuJoCo's offscreen renderer to a PNG, or a run's log to an "
+                                      "MP4 video (MUJOCO_GL)")
     add_device_options(r)
+    r.add_argument("--log", help="a run's log (.rhilog or .csv): write its video with the forces and the wall drawn, "
+                                 "e.g. rhi render --log run.rhilog -o run.mp4 (device: the log's)")
+    r.add_argument("--fps", type=float, default=30.0, help="video frames per second (default: 30)")
     r.add_argument("--q", type=floats, help="configuration [rad] (default: mid-range)")
-    r.add_argument("-o", "--out", default="device.png", help="output PNG (default: device.png)")
-    r.add_argument("--width", type=int, default=800)
-    r.add_argument("--height", type=int, default=600)
+    r.add_argument("-o", "--out", default="device.png", help="output PNG (default: device.png), or MP4 with --log "
+                                                              "(default: the log's name)")
+    r.add_argument("--width", type=int, default=640)
+    r.add_argument("--height", type=int, default=480)
     r.add_argument("--azimuth", type=float, help="camera azimuth [deg]")
     r.add_argument("--elevation", type=float, help="camera elevation [deg]")
     r.set_defaults(func=_render)

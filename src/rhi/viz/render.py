@@ -9,12 +9,14 @@ imported: ``egl`` (GPU or Mesa's EGL), ``osmesa`` (software, Debian package ``li
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from rhi._gl import has_display
+from rhi._validate import as_array
 from rhi.device import Device
 from rhi.errors import InvalidInput, RhiError
 from rhi.viz.posed import Posed
@@ -24,8 +26,15 @@ class RenderUnavailable(RhiError):
     """No OpenGL backend could be created for offscreen rendering."""
 
 
-def _camera(posed: Posed, azimuth: float | None, elevation: float | None) -> mujoco.MjvCamera:
+def _camera(posed: Posed, azimuth: float | None, elevation: float | None, Q=None) -> mujoco.MjvCamera:
+    """A free camera on the device at its current pose, or framing every pose of Q: (k, n) (then back at Q[0])."""
     lo, hi = posed.bounds()
+    if Q is not None:
+        for q in Q[np.linspace(0, len(Q) - 1, min(20, len(Q))).astype(int)]:
+            posed.set(q)
+            a, b = posed.bounds()
+            lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+        posed.set(Q[0])
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     cam.lookat[:] = 0.5 * (lo + hi)
@@ -43,6 +52,59 @@ def _check_backend() -> None:
         raise RenderUnavailable("no OpenGL backend for offscreen rendering: MuJoCo uses glfw (MUJOCO_GL unset) and "
                                 "there is no display; set MUJOCO_GL=egl (a GPU or Mesa's EGL) or MUJOCO_GL=osmesa "
                                 "(software: apt-get install libosmesa6) before starting Python")
+
+
+def _size(width, height) -> None:
+    for name, v in (("width", width), ("height", height)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 16 <= v <= 8192:
+            raise InvalidInput(f"{name}: expected an integer number of pixels in [16, 8192], got {v!r}")
+
+
+def frames(posed: Posed, Q, *, width: int = 800, height: int = 600, azimuth: float | None = None,
+           elevation: float | None = None, decorate=None) -> Iterator[np.ndarray]:
+    """RGB pictures of the device at each configuration of Q: (k, n), from one renderer and one camera.
+
+    Args:
+        posed: the drawable device.
+        Q: (k, n) motor coordinates [rad or m].
+        width: image width [pixels].
+        height: image height [pixels].
+        azimuth: camera azimuth [deg]; None: a three-quarter view framing every pose of Q.
+        elevation: camera elevation [deg]; None: as for `azimuth`.
+        decorate: called as decorate(scene, i) after the scene of pose i is built, to add geoms (overlays).
+
+    Yields:
+        (height, width, 3) uint8 images.
+
+    Raises:
+        RenderUnavailable: no OpenGL backend (names MUJOCO_GL and how to get one).
+        InvalidInput: a bad Q or image size.
+    """
+    _size(width, height)
+    Q = as_array("Q", Q, shape_tail=(None, posed.device.n))
+    m = posed.model
+    m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), int(width))
+    m.vis.global_.offheight = max(int(m.vis.global_.offheight), int(height))
+    _check_backend()
+    try:
+        renderer = mujoco.Renderer(m, int(height), int(width))
+    except Exception as exc:  # ImportError, RuntimeError or mujoco.FatalError, depending on the backend
+        gl = os.environ.get("MUJOCO_GL", "")
+        raise RenderUnavailable(
+            f"no OpenGL backend for offscreen rendering (MUJOCO_GL={gl!r}: {exc}); set MUJOCO_GL=egl (a GPU or "
+            "Mesa's EGL) or MUJOCO_GL=osmesa (software: apt-get install libosmesa6) before starting Python") from None
+    try:
+        opt = mujoco.MjvOption()
+        opt.geomgroup[:] = 1
+        cam = _camera(posed, azimuth, elevation, Q)
+        for i, q in enumerate(Q):
+            posed.set(q)
+            renderer.update_scene(posed.data, camera=cam, scene_option=opt)
+            if decorate is not None:
+                decorate(renderer.scene, i)
+            yield renderer.render().copy()
+    finally:
+        renderer.close()
 
 
 def render(device: Device | Posed, q, *, width: int = 800, height: int = 600, azimuth: float | None = None,
@@ -64,29 +126,12 @@ def render(device: Device | Posed, q, *, width: int = 800, height: int = 600, az
         RenderUnavailable: no OpenGL backend (names MUJOCO_GL and how to get one).
         InvalidInput: a bad q or image size.
     """
-    for name, v in (("width", width), ("height", height)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 16 <= v <= 8192:
-            raise InvalidInput(f"{name}: expected an integer number of pixels in [16, 8192], got {v!r}")
+    _size(width, height)
     posed = device if isinstance(device, Posed) else Posed(device)
-    posed.set(q)
-    m = posed.model
-    m.vis.global_.offwidth = max(int(m.vis.global_.offwidth), int(width))
-    m.vis.global_.offheight = max(int(m.vis.global_.offheight), int(height))
-    _check_backend()
-    try:
-        renderer = mujoco.Renderer(m, int(height), int(width))
-    except Exception as exc:  # ImportError, RuntimeError or mujoco.FatalError, depending on the backend
-        gl = os.environ.get("MUJOCO_GL", "")
-        raise RenderUnavailable(
-            f"no OpenGL backend for offscreen rendering (MUJOCO_GL={gl!r}: {exc}); set MUJOCO_GL=egl (a GPU or "
-            "Mesa's EGL) or MUJOCO_GL=osmesa (software: apt-get install libosmesa6) before starting Python") from None
-    try:
-        opt = mujoco.MjvOption()
-        opt.geomgroup[:] = 1
-        renderer.update_scene(posed.data, camera=_camera(posed, azimuth, elevation), scene_option=opt)
-        return renderer.render().copy()
-    finally:
-        renderer.close()
+    q = as_array("q", q, shape_tail=(posed.device.n,))
+    if q.ndim != 1:
+        raise InvalidInput(f"q: expected shape ({posed.device.n},), got {q.shape}")
+    return next(frames(posed, q[None], width=width, height=height, azimuth=azimuth, elevation=elevation))
 
 
 def save_png(image: np.ndarray, path) -> Path:
