@@ -3,8 +3,8 @@
 `render_video` samples the log at the video's frame rate (frame k shows the last tick at or before
 t₀ + k/fps, so a log of duration T gives round(T·fps) + 1 frames), poses the device, adds the
 overlays to MuJoCo's scene as extra geoms — the hand force (magenta) and the environment force (red)
-as arrows at the handle, a wall as a thin red slab; a planar device is seen from above — and encodes H.264 MP4 with the ffmpeg binary
-that the `imageio-ffmpeg` wheel bundles (nothing to install on the system).
+as arrows at the handle, a wall as a thin red slab; a planar device is seen from above — and encodes
+H.264 MP4 with the ffmpeg binary that the `imageio-ffmpeg` wheel bundles (nothing to install on the system).
 """
 
 from __future__ import annotations
