@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rhi import __version__
+from rhi import __version__, plugins
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
@@ -51,10 +51,16 @@ def _devices(args: argparse.Namespace) -> int:
             print(f"{name:<60} {path}")
         return 0
     print(f"{'name':<12} {'n':>2} {'task':<5} parameters")
-    for name in available_devices():
-        d = device(name)
+    bundled = available_devices()
+    for name in bundled + [n for n in plugins.names("rhi.devices") if n not in bundled]:  # then the plugins'
+        where = "" if name in bundled else f"plugin: {plugins.provider('rhi.devices', name)}"
+        try:
+            d = device(name)
+        except RhiError as exc:  # a broken plugin is listed, with why
+            print(f"{name:<12} {'?':>2} {'?':<5} {where}: {exc}")
+            continue
         params = ", ".join(f"{k}={v:g}" for k, v in d.params.items())
-        print(f"{name:<12} {d.n:>2} {d.task_axes:<5} {params}")
+        print(f"{name:<12} {d.n:>2} {d.task_axes:<5} {params or where}")
     return 0
 
 
@@ -154,8 +160,8 @@ def _link(url: str, rate: float, cfg, realtime: bool, spin: bool = False):
     """
     if url == "sim":
         return cfg.sim_link(rate=rate)
-    if not url.startswith("udp://"):
-        raise InvalidInput(f"--link: expected sim or udp://HOST:PORT (e.g. udp://127.0.0.1:5005), got {url!r}")
+    if not url.startswith("udp://"):  # a plugin's scheme (rhi.plugins, rhi.links)
+        return plugins.link(url, rate=rate, config=cfg, realtime=realtime)
     from rhi.runtime.udp import UDPLink, parse_url
 
     try:
@@ -318,8 +324,8 @@ def _add_run(sub) -> None:
     shipped = sorted(p.stem for p in (Path(__file__).parent / "runtime" / "configs").glob("*.toml"))  # no heavy import
     r = sub.add_parser("run", help="run a controller described by a configuration file on a device, in real time")
     add_device_options(r)
-    r.add_argument("--link", default="sim", help="sim (the configuration's simulated device) or udp://HOST:PORT "
-                   "(a device server, e.g. `rhi device-server`)")
+    r.add_argument("--link", default="sim", help="sim (the configuration's simulated device), udp://HOST:PORT "
+                   "(a device server, e.g. `rhi device-server`) or an installed plugin's scheme (rhi.links)")
     r.add_argument("--config", required=True,
                    help=f"a TOML file or a shipped configuration: {', '.join(shipped)}")
     r.add_argument("--duration", type=float, help="run time [s] (default: the configuration's, else until Ctrl-C)")

@@ -21,7 +21,7 @@ from typing import Any, cast
 import numpy as np
 import pinocchio as pin
 
-from rhi import batch
+from rhi import batch, plugins
 from rhi._validate import as_array, limits_pair
 from rhi.device_ik import ik as solve_ik
 from rhi.device_spec import (
@@ -439,20 +439,20 @@ class Device:
 
 # ---------------------------------------------------------------------- loading
 def device(name: str, **params: float | str) -> Device:
-    """Load a bundled device by name (see `available_devices()`).
+    """Load a bundled device by name (see `available_devices()`), else an installed plugin's (`rhi.plugins`).
 
     Args:
         name: device name, e.g. "rhi4", "phantom", "rehab", "planar3r", "gen3".
-        **params: design parameters declared in the device's `device.toml`
-            (e.g. `d2=0.1405` for rhi4) [m or rad]; and ``params``: a named parameter variant from
-            the model folder (`rhi.device_variant`), e.g. ``params="thesis-fit"`` for rhi4 and its
-            halves (inertias fitted to the thesis's numbers, models/rhi4/README.md); absent or
-            "default": the default model.
+        **params: design parameters declared in the device's `device.toml` (e.g. `d2=0.1405` for rhi4) [m or rad];
+            ``params``: a named parameter variant from the model folder (`rhi.device_variant`), e.g. "thesis-fit"
+            for rhi4 and its halves (models/rhi4/README.md), absent or "default" the default model (or a plugin's).
 
     Raises:
-        UnknownDevice: no bundled device has that name.
+        UnknownDevice: no bundled device and no installed plugin (``rhi.devices``) has that name.
         InvalidInput: an unknown parameter variant.
     """
+    if isinstance(name, str) and name not in available_devices() and name in plugins.names("rhi.devices"):
+        return plugins.device(name, params, Device)
     return from_spec(bundled_spec(name), **params)
 
 

@@ -17,7 +17,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
   parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...; the rendering
   laws take ``passivity`` = "motors" (default) | "handle" | "off", `rhi.control.passivity`);
   ``[[controller.objectives]]``, each with ``type`` = "vme" | "ellipsoid" | "fme" | "tmi" | "manipulability" |
-  "joint_limits", its parameters and its step ``gain``;
+  "joint_limits" or an installed plugin's type (`rhi.runtime.objective_plugins`), its parameters and its step
+  ``gain``;
   ``[controller.fme]``: the ASO-switched desired-FME schedule (``free_direction``, ``contact_direction``, ``mu``,
   ``home``, ``gain``, ``[controller.fme.transition]`` eps1, eps2, rho, S).
 - ``[[virtual]]``: the rendered environment, each with ``type`` = "wall" | "spring" | "fixture" | "stop".
@@ -65,7 +66,8 @@ from rhi.control.allocation import method_names
 from rhi.device import Device, device
 from rhi.device_source import SOURCES, device_from_table
 from rhi.errors import InvalidInput
-from rhi.runtime import schema as S
+from rhi.runtime import objective_plugins, schema as S
+from rhi.runtime.objective_plugins import ObjectiveSpecs
 from rhi.runtime.safety import SafetyConfig
 from rhi.runtime.simlink import SimLink
 from rhi.sim import Fixture, Hand, HandPath, Plant, PlantFriction, Spring, Wall, compose, stop
@@ -87,7 +89,7 @@ _PRIMARY: dict[str, S.Spec] = {
                "passivity": (_PASSIVITY, "motors")},
 }
 _GAIN = {"gain": (_nonneg, R)}
-_OBJECTIVES: dict[str, S.Spec] = {
+_BUNDLED_OBJECTIVES: dict[str, S.Spec] = {
     "vme": {**_GAIN, "u": (_vec, R), "beta": (_pos, 0.01)},
     "ellipsoid": {**_GAIN, "desired": (S.matrix, R), "H": (S.matrix, None)},
     "fme": {**_GAIN, "desired": (S.matrix, None), "shape": (S.choice("free", "stiff"), None),
@@ -98,6 +100,7 @@ _OBJECTIVES: dict[str, S.Spec] = {
     "joint_limits": {**_GAIN, "margin": (_pos, R), "weight": (_pos, 1.0),
                      "kind": (S.choice("quadratic", "inverse"), "quadratic")},
 }
+_OBJECTIVES = ObjectiveSpecs(_BUNDLED_OBJECTIVES, _GAIN)  # and the installed plugins' types (rhi.objectives)
 _TRANSITION = {"eps1": (_num, 0.7), "eps2": (_num, 0.95), "rho": (_num, 0.003), "S": (_num, 50.0)}
 _FME = {"free_direction": (_vec, R), "contact_direction": (_vec, R), "mu": (_pos, 5.0), "home": (_vec, None),
         "gain": (_nonneg, 20.0), "transition": (S.table(_TRANSITION), {})}
@@ -228,7 +231,9 @@ def _objective(path: str, dev: Device, o: dict, hi: np.ndarray):
         return make(TMIMatching, slave, o["slave_q"], k_q=o["k_q"], penalize_slave=o["penalize_slave"], H=o["H"])
     if kind == "manipulability":
         return make(Manipulability, log=o["log"], k_q=o["k_q"])
-    return make(JointLimitBarrier, o["margin"], o["weight"], kind=o["kind"])
+    if kind == "joint_limits":
+        return make(JointLimitBarrier, o["margin"], o["weight"], kind=o["kind"])
+    return objective_plugins.build(path, kind, dev, o)
 
 
 def _controller(dev: Device, c: dict) -> ControllerConfig:
