@@ -75,3 +75,19 @@ def test_fit_reports_held_out_errors():
     err_fit = np.abs(f["pred_fit"][fit_idx] / th[fit_idx] - 1).mean()
     err_def = np.abs(f["pred_default"][fit_idx] / th[fit_idx] - 1).mean()
     assert err_fit < err_def  # the fit improves on what it was fitted to (held-out: reported, not asserted)
+
+
+@pytest.mark.parametrize("name", ["rhi4", "rehab", "phantom"])
+def test_thesis_fit_plant_has_the_variant_inertia(name):
+    """The MuJoCo plant of the variant holds the variant's M (its physics is the calibrated model's)."""
+    from rhi.sim import Plant
+
+    dev = rhi.device(name, params="thesis-fit")
+    plant = Plant(dev, handle_mass=0.0)  # the plant's own handle mass aside
+    q = np.full(dev.n, 0.3)
+    plant.reset(q)
+    np.testing.assert_allclose(plant.motor_mass_matrix(), dev.mass_matrix(q), rtol=1e-6, atol=1e-8)
+    assert np.abs(plant.motor_mass_matrix() - rhi.device(name).mass_matrix(q)).max() > 1e-4  # not the default's
+    plant.apply(np.full(dev.n, 0.05))
+    plant.step(50)
+    assert np.all(np.isfinite(plant.q))
