@@ -49,6 +49,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -114,7 +115,8 @@ def _held(ctrl: NullSpaceController) -> dict[str, np.ndarray]:
 
 
 def palpation_controller(dev: Device, saturation: Saturation, projector: ProjectorKind = "dynamic", *, gain: float = GAIN,
-                         damping: float = NULL_DAMPING) -> NullSpaceController:
+                         damping: float = NULL_DAMPING,
+                         null_space: Literal["scaled", "clipped"] = "scaled") -> NullSpaceController:
     """Eq. 7.20 rendering + `saturation` allocation + tertiary VME matching to M^des (eqs. 7.16–7.18) + limit barrier.
 
     Args:
@@ -123,11 +125,13 @@ def palpation_controller(dev: Device, saturation: Saturation, projector: Project
         projector: "dynamic" (J#, eq. 7.5) or "pseudoinverse" (J⁺).
         gain: Λ of eq. 7.17 (the thesis does not give it).
         damping: null-space joint damping k_D [N m s/rad].
+        null_space: "scaled" (Algorithm 2, eq. 7.16) or "clipped" (τ_m + N τ_N, each joint clipped at its limit).
     """
     lo = -np.asarray(TORQUE_MAX)
     terms = [ObjectiveTerm(EllipsoidMatching(np.array(M_DES)), gain), ObjectiveTerm(BARRIER, gain)]
     cfg = ControllerConfig(primary=ForceRendering(damping=B_D, passivity=None), objectives=terms, damping=damping,
-                           saturation=saturation, projector=projector, torque_min=lo, torque_max=np.asarray(TORQUE_MAX))
+                           saturation=saturation, projector=projector, torque_min=lo, torque_max=np.asarray(TORQUE_MAX),
+                           null_space=null_space)
     return NullSpaceController(dev, cfg)
 
 
@@ -219,6 +223,7 @@ def palpation(
     cases: Sequence[tuple[Saturation, ProjectorKind]] = CASES,
     gain: float = GAIN,
     damping: float = NULL_DAMPING,
+    null_space: Literal["scaled", "clipped"] = "scaled",
     progress: Callable[[int, int], None] | None = None,
 ) -> Result:
     """§7.5: palpation of K_e = 1000 N/m from X₀ = [0.45, 0] m along u = [0, 1] with and without ASCM (Fig. 7.6).
@@ -237,6 +242,8 @@ def palpation(
             projector in "dynamic", "pseudoinverse". The first case is the reference of the gains.
         gain: Λ of eq. 7.17.
         damping: null-space damping k_D [N m s/rad].
+        null_space: the cases' tertiary torque at the torque box: "scaled" (Algorithm 2, eq. 7.16) or
+            "clipped" (τ_m + N τ_N with each joint clipped, `rhi.control.ControllerConfig.null_space`).
         progress: callback(done, total) over all simulated control ticks.
 
     Returns:
@@ -313,7 +320,7 @@ def palpation(
     for sat, proj in pairs:
         plant = Plant(dev)
         plant.reset(q_c)
-        ctrl = palpation_controller(dev, sat, proj, gain=gain, damping=damping)
+        ctrl = palpation_controller(dev, sat, proj, gain=gain, damping=damping, null_space=null_space)
         hand = Hand(HandPath(np.array([x0, x0 + depth * u]), speed=speed, start=t_start), stiffness=HAND_STIFFNESS,
                     damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
         log = simulate(plant, ctrl, duration=t_start + push + hold, hand=hand, virtual=wall,
