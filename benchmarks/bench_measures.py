@@ -1,21 +1,34 @@
-"""ρ + Λ for 10,000 rhi4 configurations: batch API vs per-configuration loops (ours, Robotics Toolbox).
+"""Batch measures vs per-configuration loops: every device (a plain Pinocchio loop) and rhi4 (ours, RTB).
 
 All timings are taken in the same run and printed as ratios against the baselines.
-The Robotics Toolbox model is the same URDF with the same actuation map applied
-(J_q = J_θ A, M_q = Aᵀ M_θ A), so all three compute the same numbers (checked).
 
-Run: ./run bench   (or: python benchmarks/bench_measures.py [--n 10000])
+* Every bundled device, Panda and UR5 (example-robot-data), --n configurations: the batch API
+  (`Device.jacobian` / `rhi.batch.terms` and `rhi.metrics`) against a plain Pinocchio loop that per
+  configuration computes θ = A q + b, `computeFrameJacobian` (and `crba`), and then with NumPy
+  ρ = (uᵀ(JJᵀ)⁻¹u)^(-1/2) (eq. 3.6), Λ = (uᵀ J M⁻¹ Jᵀ u)⁻¹ (eq. 3.13) and μ = √det(JJᵀ) (eq. 4.7).
+  Both give the same numbers (checked to 1e-10 relative). Columns: J + ρ, and J, M + ρ, Λ, μ.
+* rhi4, ρ + Λ: the same against our own per-configuration loop and the Robotics Toolbox, whose model is
+  the same URDF with the same actuation map applied (J_q = J_θ A, M_q = Aᵀ M_θ A).
+
+BLAS runs on one thread unless OPENBLAS_NUM_THREADS / OMP_NUM_THREADS say otherwise (see bench_kinematics).
+Run: ./run bench   (or: python benchmarks/bench_measures.py [--n 10000] [--loop-n 1000])
 """
 
 from __future__ import annotations
 
-import argparse
-import subprocess
-import sys
-import time
-import warnings
+import os
 
-import numpy as np
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")  # before NumPy loads its BLAS
+
+import argparse  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
 
 
 def best_of(fn, repeat: int = 3) -> float:
@@ -28,11 +41,87 @@ def best_of(fn, repeat: int = 3) -> float:
     return min(times)
 
 
+def devices():
+    """Every bundled device, then Panda and UR5 from example-robot-data (dropped with a note if not installed)."""
+    import rhi
+    from rhi.device import available_devices
+    from rhi.loaders import device_from_description
+
+    out = [rhi.device(name) for name in available_devices()]
+    for name, ee in (("panda", "panda_hand_tcp"), ("ur5", "tool0")):
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out.append(device_from_description(name, ee_frame=ee))
+        except Exception as exc:  # noqa: BLE001 - a missing optional package only drops a row
+            print(f"({name}: {exc})")
+    return out
+
+
+def pinocchio_loop(dev, Q, u, dynamics: bool) -> np.ndarray:
+    """(B, 3) ρ, Λ, μ (Λ, μ NaN unless `dynamics`) per configuration: Pinocchio, then NumPy's dense solvers."""
+    model, data, A, b, rows = dev.model, dev.model.createData(), dev.A, dev.b, dev.task_rows
+    fid, arm = dev.ee_frame_id, np.diag(dev.armature)
+    out = np.full((len(Q), 3), np.nan)
+    for k, q in enumerate(Q):
+        th = A @ q + b
+        J = pin.computeFrameJacobian(model, data, th, fid, pin.LOCAL_WORLD_ALIGNED)[rows] @ A
+        JJ = J @ J.T
+        out[k, 0] = (u @ np.linalg.solve(JJ, u)) ** -0.5
+        if dynamics:
+            M = pin.crba(model, data, th)
+            M = A.T @ (np.triu(M) + np.triu(M, 1).T) @ A + arm
+            Ju = J.T @ u
+            out[k, 1] = 1.0 / (Ju @ np.linalg.solve(M, Ju))
+            out[k, 2] = np.sqrt(np.linalg.det(JJ))
+    return out
+
+
+def batch_measures(dev, Q, u, dynamics: bool) -> np.ndarray:
+    """The same (B, 3) from the batch API."""
+    from rhi import batch, metrics
+
+    out = np.full((len(Q), 3), np.nan)
+    if not dynamics:
+        out[:, 0] = metrics.effective_manipulability(dev.jacobian(Q), u)
+        return out
+    t = batch.terms(dev, Q, ("J", "M"))
+    out[:, 0] = metrics.effective_manipulability(t["J"], u)
+    out[:, 1] = metrics.effective_inertia(t["J"], t["M"], u)
+    out[:, 2] = metrics.manipulability(t["J"])
+    return out
+
+
+def every_device(n: int, loop_n: int) -> None:
+    """Print the batch-vs-Pinocchio-loop table for every device (see the module docstring)."""
+    print(f"Batch measures for {n} configurations vs a plain Pinocchio loop (timed on {loop_n}, scaled); "
+          "ratios are loop / batch")
+    print(f"{'device':<15}{'n':>3}{'m':>3}{'J + rho':>12}{'loop':>12}{'ratio':>8}"
+          f"{'J,M + rho,Lambda,mu':>22}{'loop':>12}{'ratio':>8}")
+    for dev in devices():
+        rng = np.random.default_rng(0)
+        Q = rng.uniform(np.maximum(dev.q_min, -np.pi), np.minimum(dev.q_max, np.pi), size=(n, dev.n))
+        u = np.ones(dev.m) / np.sqrt(dev.m)
+        ref = pinocchio_loop(dev, Q[:200], u, True)
+        got = batch_measures(dev, Q[:200], u, True)
+        ok = np.abs(ref[:, 0]) < np.inf
+        np.testing.assert_allclose(got[ok], ref[ok], rtol=1e-10)  # the same numbers
+        cells = []
+        for dyn in (False, True):
+            t_b = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: batch_measures(dev, Q, u, dyn), 5)
+            t_l = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: pinocchio_loop(dev, Q[:loop_n], u, dyn), 2) * n / loop_n
+            cells.append(f"{t_b * 1e3:9.2f} ms{t_l * 1e3:9.1f} ms{t_l / t_b:7.1f}x")
+        print(f"{dev.name:<15}{dev.n:>3}{dev.m:>3}{cells[0]:>32}{cells[1]:>42}")
+    print()
+
+
 def main() -> None:
     p = argparse.ArgumentParser()
     p.add_argument("--n", type=int, default=10_000)
+    p.add_argument("--loop-n", type=int, default=1_000, help="configurations timed in the Pinocchio loops (scaled)")
     p.add_argument("--rtb-n", type=int, default=2_000, help="configurations timed with RTB (scaled to --n)")
     args = p.parse_args()
+    every_device(args.n, args.loop_n)
 
     t_import = float(subprocess.run(
         [sys.executable, "-c", "import time; t = time.perf_counter(); import rhi; print(time.perf_counter() - t)"],

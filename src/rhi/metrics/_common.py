@@ -101,6 +101,30 @@ def whiten(J: FloatArray, L: FloatArray | None) -> FloatArray:
     return np.linalg.solve(L, J.swapaxes(-1, -2)).swapaxes(-1, -2)
 
 
+def whitened(name: str, J: FloatArray, M: FloatArray) -> FloatArray:
+    """``B = J L^{-T}`` with the Cholesky factor ``M = L L^T`` of the SPD ``M`` (..., n, n); `NotSPD` naming ``name`` otherwise.
+
+    Large batches take the compiled kernel of `rhi.metrics._small` (the same factor and solve, one loop).
+    The batch axes of J (..., m, n) and M must broadcast.
+    """
+    lead = np.broadcast_shapes(J.shape[:-2], M.shape[:-2])
+    if int(np.prod(lead, dtype=np.int64)) < SMALL_BATCH_MIN:
+        return whiten(J, cholesky(name, M))
+    from rhi.metrics._small import whiten as whiten_batch  # Numba: imported on the first large batch
+
+    m, n = J.shape[-2:]
+    Jb = np.ascontiguousarray(np.broadcast_to(J, lead + (m, n)), dtype=float).reshape(-1, m, n)
+    Mb = np.ascontiguousarray(np.broadcast_to(M, lead + (n, n)), dtype=float).reshape(-1, n, n)
+    B = np.empty_like(Jb)
+    bad = np.empty(Jb.shape[0], dtype=np.int8)
+    whiten_batch(Jb, Mb, SYMMETRY_RTOL, B, bad)
+    if (bad == 1).any():
+        raise NotSPD(f"{name}: not symmetric{_first_bad((bad == 1).reshape(lead))}")
+    if bad.any():
+        raise NotSPD(f"{name}: not positive definite")
+    return B.reshape(lead + (m, n))
+
+
 def frobenius_norm(A: FloatArray) -> FloatArray:
     """Frobenius norm over the last two axes of ``A`` (..., m, n)."""
     return np.sqrt((A * A).sum(axis=(-2, -1)))
@@ -130,8 +154,14 @@ def full_row_rank_pinv(name: str, B: FloatArray) -> FloatArray:
 
 
 def inverse_gram(name: str, B: FloatArray) -> FloatArray:
-    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), via its SVD (raises as `_full_row_rank_svd`)."""
-    U, s, _ = _full_row_rank_svd(name, B)
+    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), from `principal_axes_of_map` (raises as `_full_row_rank_svd`)."""
+    m, n = B.shape[-2:]
+    if n < m:
+        raise Singular(f"{name}: {m} rows but only {n} columns, so it cannot have full row rank")
+    s, U = principal_axes_of_map(B)
+    bad = s[..., -1] <= SINGULAR_RTOL * s[..., 0]
+    if bad.any():
+        raise Singular(f"{name}: singular (rank < {m} rows){_first_bad(bad)}")
     out = (U / s[..., None, :] ** 2) @ U.swapaxes(-1, -2)
     return 0.5 * (out + out.swapaxes(-1, -2))
 
@@ -142,20 +172,44 @@ def _pad_axes(s: FloatArray, m: int) -> FloatArray:
     return s if k >= m else np.concatenate([s, np.zeros(s.shape[:-1] + (m - k,))], axis=-1)
 
 
-#: Two-row maps in batches of at least this many take the closed-form SVD (`rhi.metrics._svd2`): its few dozen
-#: array operations cost more than LAPACK for a handful of matrices and less from about 50 on.
-SVD2_MIN_BATCH = 64
+#: Batches of at least this many maps take the closed forms and compiled kernels (`rhi.metrics._svd2`,
+#: `rhi.metrics._small`): below it LAPACK's per-matrix calls cost less than their setup.
+SMALL_BATCH_MIN = 64
+
+
+def _batch_count(A: FloatArray) -> int:
+    """Number of matrices in the batch A (..., k, l)."""
+    return int(np.prod(A.shape[:-2], dtype=np.int64))
 
 
 def _closed_form(B: FloatArray) -> bool:
     """Whether B (..., m, n) is a batch of two-row maps large enough for the closed-form SVD."""
-    return B.shape[-2] == 2 and B.shape[-1] >= 2 and B.size >= SVD2_MIN_BATCH * 2 * B.shape[-1]
+    return B.shape[-2] == 2 and B.shape[-1] >= 2 and _batch_count(B) >= SMALL_BATCH_MIN
+
+
+def _jacobi(B: FloatArray) -> bool:
+    """Whether B (..., m, n) is a batch of maps with 3 <= m <= n large enough for the compiled Jacobi SVD."""
+    return 3 <= B.shape[-2] <= B.shape[-1] and _batch_count(B) >= SMALL_BATCH_MIN
+
+
+def _svd_rows(B: FloatArray, want_u: bool) -> tuple[FloatArray, FloatArray]:
+    """``(s, U)`` of B (..., m, n) from the compiled Jacobi SVD (`rhi.metrics._small.svd_rows`; U empty if not wanted)."""
+    from rhi.metrics._small import svd_rows  # Numba: imported on the first large batch
+
+    m = B.shape[-2]
+    flat = np.ascontiguousarray(B, dtype=float).reshape((-1,) + B.shape[-2:])
+    s = np.empty((flat.shape[0], m))
+    U = np.empty((flat.shape[0], m, m) if want_u else (0, m, m))
+    svd_rows(flat, want_u, s, U)
+    return s.reshape(B.shape[:-1]), U.reshape(B.shape[:-2] + (m, m)) if want_u else U
 
 
 def singular_values(B: FloatArray) -> FloatArray:
     """Descending semi-axis lengths (..., m) of the ellipsoid ``B B^T``, as in `principal_axes_of_map`."""
     if _closed_form(B):
         return singular_values2(B)
+    if _jacobi(B):
+        return _svd_rows(B, False)[0]
     return _pad_axes(np.linalg.svd(B, compute_uv=False), B.shape[-2])
 
 
@@ -165,11 +219,14 @@ def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
     Returns:
         ``(s, U)``: ``s`` (..., m) descending semi-axis lengths (zero-padded when the map
         has fewer columns than rows) and ``U`` (..., m, m) orthonormal directions as columns.
-        Batches of two-row maps (planar tasks) take the closed form of `rhi.metrics._svd2` (LAPACK's
-        values to round-off; each direction up to its sign, as LAPACK's own).
+        Large batches of two-row maps (planar tasks) take the closed form of `rhi.metrics._svd2`, those of
+        maps with 3 <= m <= n rows (spatial tasks) the compiled Jacobi SVD of `rhi.metrics._small`
+        (LAPACK's values to round-off; each direction up to its sign, as LAPACK's own).
     """
     if _closed_form(B):
         return svd2(B)
+    if _jacobi(B):
+        return _svd_rows(B, True)
     U, s, _ = np.linalg.svd(B, full_matrices=True)
     return _pad_axes(s, B.shape[-2]), U
 

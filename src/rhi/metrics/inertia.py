@@ -8,14 +8,13 @@ from numpy.typing import ArrayLike
 from rhi.errors import InvalidInput
 from rhi.metrics._common import (
     FloatArray,
-    cholesky,
     direction,
     frobenius_norm,
     inverse_gram,
     inverse_norm,
     jacobian,
     square,
-    whiten,
+    whitened,
 )
 
 
@@ -29,7 +28,7 @@ def _whitened_jacobian(J: ArrayLike, M: ArrayLike) -> FloatArray:
         np.broadcast_shapes(J.shape[:-2], M.shape[:-2])
     except ValueError:
         raise InvalidInput(f"M: batch shape {M.shape[:-2]} does not broadcast with J's {J.shape[:-2]}") from None
-    return whiten(J, cholesky("M", M))
+    return whitened("M", J, M)
 
 
 def apparent_inertia(J: ArrayLike, M: ArrayLike) -> FloatArray:
