@@ -205,3 +205,23 @@ def test_evaluate_refuses_bad_input():
         with pytest.raises(InvalidInput, match="what"):
             chain.evaluate(good, what)
     assert chain.evaluate(good.astype(int), ("g",))["g"].shape == (BATCH_MIN, 7)  # integers are read as floats
+
+
+@pytest.mark.parametrize("name", available_devices() + ["panda", "ur5"])
+def test_batch_measures_equal_the_per_configuration_loop(name):
+    """ρ, Λ, μ of a batch (compiled closed forms and kernels of rhi.metrics) equal a per-configuration loop to 1e-10."""
+    from rhi import metrics
+    from rhi.metrics._common import SMALL_BATCH_MIN
+
+    dev = _device(name)
+    Q = _configurations(dev, 2 * SMALL_BATCH_MIN)
+    u = np.ones(dev.m) / np.sqrt(dev.m)
+    t = batch.terms(dev, Q, ("J", "M"))
+    got = np.stack([metrics.effective_manipulability(t["J"], u), metrics.effective_inertia(t["J"], t["M"], u),
+                    metrics.manipulability(t["J"])], axis=-1)
+    want = []
+    for q in Q:  # one configuration at a time: Pinocchio's J and M, LAPACK's factorizations
+        J, M = dev.jacobian(q), dev.mass_matrix(q)
+        want.append([metrics.effective_manipulability(J, u), metrics.effective_inertia(J, M, u),
+                     metrics.manipulability(J)])
+    np.testing.assert_allclose(got, want, rtol=1e-10, err_msg=name)

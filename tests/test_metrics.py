@@ -244,6 +244,72 @@ def test_two_row_closed_form_svd_matches_lapack(rng, n):
     np.testing.assert_allclose(principal_axes_of_map(B[2000:2005])[0], s[2000:2005], rtol=1e-14)  # few: LAPACK
 
 
+@pytest.mark.parametrize("m, n", [(3, 3), (3, 4), (3, 7), (3, 10), (4, 6), (6, 7)])
+def test_compiled_jacobi_svd_matches_lapack(rng, m, n):
+    """The compiled Jacobi SVD of spatial (3 <= m <= n) maps gives LAPACK's singular values and directions."""
+    from rhi.metrics._common import SMALL_BATCH_MIN, inverse_gram, principal_axes_of_map, singular_values
+
+    B = rng.normal(size=(3000, m, n))
+    B[:800, -1] = B[:800, 0] * rng.normal(size=(800, 1)) + 1e-9 * rng.normal(size=(800, n))  # nearly singular
+    B[800:850] = 0.0
+    B[850:900, 0] = 0.0  # a zero row: rank m - 1
+    B[900:950, 1] = B[900:950, 0]  # two equal rows: an exactly lost direction
+    B[950:1000] *= 1e200  # no overflow in the squares
+    B[1000:1050] *= 1e-200
+    B[1050:1100] = np.linalg.qr(rng.normal(size=(50, n, n)))[0][:, :m] * 3.0  # equal singular values
+    U0, s0, _ = np.linalg.svd(B)
+    s, U = principal_axes_of_map(B)
+    scale = np.maximum(s0[:, :1], 1e-300)
+    np.testing.assert_allclose(s / scale, s0 / scale, rtol=0, atol=4e-15)
+    np.testing.assert_array_equal(singular_values(B), s)
+    np.testing.assert_allclose(np.swapaxes(U, -1, -2) @ U, np.broadcast_to(np.eye(m), U.shape), atol=1e-14)
+    US, Bn = U * (s / scale)[:, None, :], B / scale[:, :, None]
+    np.testing.assert_allclose(US @ np.swapaxes(US, -1, -2), Bn @ np.swapaxes(Bn, -1, -2), atol=1e-14)  # U S² Uᵀ = B Bᵀ
+    gaps = np.diff(s0, axis=-1) / scale < -1e-6  # each direction is defined (up to sign) between two gaps
+    defined = np.concatenate([gaps[:, :1], gaps[:, 1:] & gaps[:, :-1], gaps[:, -1:]], axis=-1)
+    np.testing.assert_allclose(np.abs(np.einsum("kij,kij->kj", U, U0[:, :, :m]))[defined], 1.0, atol=1e-9)
+    np.testing.assert_array_equal(U[800:850], np.broadcast_to(np.eye(m), (50, m, m)))
+    full = np.flatnonzero(s0[:, -1] > 0.01 * s0[:, 0])[-SMALL_BATCH_MIN:]  # well conditioned
+    np.testing.assert_allclose(inverse_gram("B", B[full]), np.linalg.inv(B[full] @ np.swapaxes(B[full], -1, -2)),
+                               rtol=1e-11)
+    with pytest.raises(Singular, match="at batch index"):
+        inverse_gram("B", B[800:800 + SMALL_BATCH_MIN])
+    u = random_unit(rng, m, (3000,))
+    ref = np.array([rm.effective_manipulability(b, v) for b, v in zip(B[1100:1400], u[1100:1400], strict=True)])
+    np.testing.assert_allclose(rm.effective_manipulability(B[1100:1400], u[1100:1400]), ref, rtol=1e-12)
+    lost = np.eye(m)[0] - np.eye(m)[1]  # Bᵀ(e₀ − e₁) = 0 for two equal rows: no speed along it
+    assert rm.effective_manipulability(np.concatenate([B[900:950]] * 2), lost).max() == 0.0
+
+
+def test_compiled_whitening_matches_lapack(rng):
+    """Λ and M_x of large batches (the compiled Cholesky) equal the per-matrix LAPACK path; bad M raises NotSPD."""
+    from rhi.metrics._common import SMALL_BATCH_MIN
+
+    k = 4 * SMALL_BATCH_MIN
+    J = rng.normal(size=(k, 3, 7))
+    A = rng.normal(size=(k, 7, 7))
+    M = A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(7)
+    u = random_unit(rng, 3, (k,))
+    lam = rm.effective_inertia(J, M, u)
+    ref = np.array([rm.effective_inertia(*a) for a in zip(J, M, u, strict=True)])
+    np.testing.assert_allclose(lam, ref, rtol=1e-12)
+    np.testing.assert_allclose(rm.apparent_inertia(J, M), [rm.apparent_inertia(j, mm) for j, mm in zip(J, M, strict=True)],
+                               rtol=1e-10)
+    np.testing.assert_allclose(rm.effective_inertia(J, M[0], u), [rm.effective_inertia(j, M[0], v) for j, v in
+                                                                  zip(J, u, strict=True)], rtol=1e-12)  # M broadcast
+    Jz = J.copy()
+    Jz[5] = 0.0
+    assert rm.effective_inertia(Jz, M, u)[5] == np.inf
+    bad = M.copy()
+    bad[7, 0, 1] += 1e-3 * np.abs(M[7]).max()
+    with pytest.raises(NotSPD, match=r"M: not symmetric at batch index \(7,\)"):
+        rm.effective_inertia(J, bad, u)
+    bad = M.copy()
+    bad[9] = -bad[9]
+    with pytest.raises(NotSPD, match="M: not positive definite"):
+        rm.effective_inertia(J, bad, u)
+
+
 def test_velocity_transmission_and_reflected_friction(rng):
     """Thesis eqs. 4.4-4.6: sigma * lambda <= 1, with equality along the principal axes."""
     J = rng.normal(size=(2, 3))

@@ -154,7 +154,11 @@ def full_row_rank_pinv(name: str, B: FloatArray) -> FloatArray:
 
 
 def inverse_gram(name: str, B: FloatArray) -> FloatArray:
-    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), from `principal_axes_of_map` (raises as `_full_row_rank_svd`)."""
+    """Return ``(B B^T)^{-1}`` for a full-row-rank ``B`` (..., m, n), from `principal_axes_of_map`.
+
+    Raises:
+        Singular: as `_full_row_rank_svd`.
+    """
     m, n = B.shape[-2:]
     if n < m:
         raise Singular(f"{name}: {m} rows but only {n} columns, so it cannot have full row rank")
