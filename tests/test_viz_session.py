@@ -237,15 +237,17 @@ def test_history_keeps_the_last_window_and_restarts_when_time_goes_back():
 
 
 @pytest.mark.realtime
-def test_live_view_plots_torques_forces_and_scalings_over_time():
+def test_live_view_plots_over_time_and_records_a_video(tmp_path):
     need_browser()
+    import imageio_ffmpeg
+
     from rhi.sim import simulate
     from rhi.viz.live import demo_setup
     from rhi.viz.remote import RemoteView
 
     dev = rhi.device("rhi4")
     plant, ctrl, wall, q0 = demo_setup(dev)
-    view = RemoteView(dev, virtual=wall, fme=ctrl.config.fme, q0=q0, port=0, every=5)
+    view = RemoteView(dev, virtual=wall, fme=ctrl.config.fme, q0=q0, port=0, every=5, record_folder=tmp_path)
     b = browser.Browser(view.url)
     try:
         assert b.wait_for("document.querySelectorAll('.uplot').length === 3", timeout=60)
@@ -253,9 +255,18 @@ def test_live_view_plots_torques_forces_and_scalings_over_time():
                           "document.body.innerText.includes('forces along u')", timeout=20)
         ink = "[...document.querySelectorAll('.uplot canvas')].map(c => c.toDataURL().length)"
         before = b.evaluate(ink)
+        click = "[...document.querySelectorAll('button')].find(e => e.innerText.includes('{}')).click()"
+        b.evaluate(click.format("record a video"))
+        assert b.wait_for("document.getElementById('rhi-record').innerText.startsWith('recording')", timeout=20)
         simulate(plant, ctrl, duration=2.0, virtual=wall, telemetry=view.telemetry)
         # the three charts draw the run's series: their canvases gain ink
         assert b.wait_for(f"{ink}.every((n, i) => n > {before}[i] + 500)", timeout=30), (before, b.evaluate(ink))
+        b.evaluate(click.format("stop and save"))
+        assert b.wait_for("document.getElementById('rhi-record').innerText.startsWith('saved')", timeout=60)
+        videos = list(tmp_path.glob("view-*.mp4"))
+        assert len(videos) == 1
+        frames, _ = imageio_ffmpeg.count_frames_and_secs(str(videos[0]))
+        assert frames >= 2.0 * 30 * 0.8  # the 2 s run (frames drawn at the view's rate, written at 30 fps)
     finally:
         b.close()
         view.close()

@@ -13,6 +13,7 @@ gizmo moves in the task plane).
 
 from __future__ import annotations
 
+import html
 import threading
 import time
 import types
@@ -28,6 +29,7 @@ from rhi.viz.commands import ViewCommands
 from rhi.viz.overlays import GROUPS, HandleMeasures, Overlays, handle_measures
 from rhi.viz.panels import legend, state_panel, status_line, torque_panel
 from rhi.viz.posed import Posed, rest_configuration
+from rhi.viz.recorder import Recorder
 from rhi.viz.replay import SPEEDS, LogPlayer
 from rhi.viz.scene import DeviceScene
 from rhi.viz.timeplots import History, TimePlots
@@ -56,6 +58,7 @@ class View:
         commands: the run's `ViewCommands` (`rhi.viz.session.supervise`): pause / resume and reset buttons and the
             run's status line (warming up, live, paused, the fault and its reason), or None.
         plot_window: the plots over time show the last this many seconds [s].
+        record_folder: where the record button writes its videos (`rhi.viz.recorder.Recorder`).
 
     Attributes:
         server: the `viser.ViserServer`.
@@ -66,7 +69,7 @@ class View:
 
     def __init__(self, device: Device, source=None, *, hand: DraggableHand | None = None, virtual=None, fme=None,
                  q0=None, host: str = "127.0.0.1", port: int = 8080, fps: float = 45.0, lp_every: int = 10,
-                 commands: ViewCommands | None = None, plot_window: float = 5.0) -> None:
+                 commands: ViewCommands | None = None, plot_window: float = 5.0, record_folder="out") -> None:
         import viser
 
         if not np.isfinite(fps) or not 1 <= fps <= 240:
@@ -101,6 +104,7 @@ class View:
         self.history = History(device.n, lo, hi, window=plot_window)
         walls = [e for e in getattr(virtual, "parts", (virtual,)) if isinstance(e, Wall)]
         self.u_plot = walls[0].normal if walls else np.eye(device.m)[min(1, device.m - 1)]
+        self.recorder = Recorder(device, record_folder, virtual=virtual)
         self._build_gui()
         self.frames = 0
         self.cpu = 0.0
@@ -154,6 +158,15 @@ class View:
         self.state_html = gui.add_html(state_panel(self._rest_snapshot()))
         self.torque_html = gui.add_html("")
         self.legend_html = gui.add_html(legend(None, None))
+        self.record_button = gui.add_button("● record a video")
+        self.record_html = gui.add_html("")
+
+        @self.record_button.on_click
+        def _(event) -> None:
+            rec = self.recorder
+            rec.stop() if rec.recording else rec.start()
+            self.record_button.label = "■ stop and save the video" if rec.recording else "● record a video"
+
         with gui.add_folder("plots over time", expand_by_default=True):
             self.plots = TimePlots(gui, self.device.joint_names)
         with gui.add_folder("overlays", expand_by_default=False):
@@ -292,6 +305,7 @@ class View:
                 with self._grip:
                     if self.hand.target is None:  # a free hand: the gizmo follows the handle
                         self.gizmo.position = tuple(handle)
+            self.recorder.add(snap)
             if self.player is None:
                 self.history.add(snap, self.u_plot)
             # about 9 Hz (a chart's redraw costs the browser more than a frame), and every frame of a paused replay
@@ -308,6 +322,9 @@ class View:
         """Draw the newest snapshot if there is a new one; returns whether it drew."""
         if self.player is not None:
             self._replay_state()  # the end of the log pauses the player: the button and the state follow
+        line = f'<div id="rhi-record" style="font:12px monospace">{html.escape(self.recorder.status)}</div>'
+        if self.record_html.content != line:
+            self.record_html.content = line
         if self.commands is not None:
             st = self.commands.status()
             if st[0] != self._status[0]:
