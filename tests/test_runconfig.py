@@ -286,8 +286,7 @@ def test_cli_run_refuses_a_device_server_of_another_device(tmp_path, capsys):
         code = main(["run", "rhi4", "--link", f"udp://127.0.0.1:{port}", "--config", "ch7_ascm_tertiary",
                      "--duration", "0.1", "--fast", "--log", str(tmp_path / "u.rhilog")])
     assert code == 2
-    assert "--link: the device server runs 'planar3r' with 3 motors, the configuration controls 'rhi4' with 4" \
-        in capsys.readouterr().err
+    assert "link: the device has 3 motors, the configuration's 'rhi4' has 4" in capsys.readouterr().err
 
 
 class _Stream:

@@ -27,5 +27,5 @@ def progress(status):  # called from inside the loop: the host is really running
 
 
 res = run(UDPLink("127.0.0.1", int(sys.argv[1]), timeout=4e-4), ctrl, duration=float(sys.argv[2]), virtual=wall,
-          safety=SafetyConfig(stale_ticks=20, silence=0.1, range_margin=0.3), progress=progress)
+          safety=SafetyConfig(stale_ticks=20, silence=0.1, max_age=0.2, range_margin=0.3), progress=progress)
 print("host:", res.fault, flush=True)

@@ -21,7 +21,7 @@ from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
 from rhi.device import available_devices, device
 from rhi.device_measures import all_measures
-from rhi.errors import InvalidInput, LinkError, RhiError
+from rhi.errors import InvalidInput, RhiError
 from rhi.viz.cli import add_commands
 
 
@@ -152,11 +152,12 @@ def _config(args: argparse.Namespace):
 
 
 # ------------------------------------------------------------------------------------------ rhi run
-def _link(url: str, rate: float, cfg, realtime: bool, spin: bool = False):
+def _link(url: str, rate: float, cfg, realtime: bool, spin: bool = False, device_name: str | None = None,
+          takeover: bool = False):
     """The device link of `--link`: "sim" (the configuration's simulated device) or udp://HOST:PORT.
 
-    Without real time (`--fast`, e.g. against a lock-step device server) a reading may take up to 1 s and the
-    device 10 s to answer.
+    In real time a tick waits at most half a period for a reading; without (`--fast`, e.g. against a lock-step
+    device server) a reading may take up to 1 s and the device 10 s to answer.
     """
     if url == "sim":
         return cfg.sim_link(rate=rate)
@@ -168,16 +169,19 @@ def _link(url: str, rate: float, cfg, realtime: bool, spin: bool = False):
         host, port = parse_url(url)
     except InvalidInput as exc:
         raise InvalidInput(f"--link: {exc}") from None
-    link = UDPLink(host, port, rate=rate, spin=spin) if realtime else \
-        UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0, spin=spin)
-    return _SameDevice(link, cfg.device)
+    link = UDPLink(host, port, rate=rate, spin=spin, timeout=0.5 / rate, takeover=takeover) if realtime else \
+        UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0, spin=spin, takeover=takeover)
+    return _SameDevice(link, cfg.device, device_name)
 
 
 class _SameDevice:
-    """A link whose `open` also checks that the device process serves the configuration's device (name, motors)."""
+    """A link whose `open` also checks the device against the configuration's (a refusal says BYE).
 
-    def __init__(self, link, device) -> None:
-        self._link, self._device = link, device
+    Its motors, and its INFO "device" name: the configuration's device, or `name` (`--device-name`).
+    """
+
+    def __init__(self, link, device, name: str | None = None) -> None:
+        self._link, self._device, self._name = link, device, name
 
     def __getattr__(self, name: str):
         return getattr(self._link, name)
@@ -185,11 +189,12 @@ class _SameDevice:
     def open(self) -> None:
         self._link.open()
         info, dev = self._link.info, self._device
-        name = info.get("device")
-        if self._link.n != dev.n or (name is not None and name != dev.name):
-            self._link.close()
-            raise LinkError(f"--link: the device server runs {name!r} with {self._link.n} motors, the configuration "
-                            f"controls {dev.name!r} with {dev.n}")
+        name, want = info.get("device"), self._name or dev.name
+        if self._link.n != dev.n:
+            self._link.refuse(f"the device has {self._link.n} motors, the configuration's {dev.name!r} has {dev.n}")
+        if name != want:
+            self._link.refuse(f"the device calls itself {name!r}, the configuration controls {dev.name!r}; if it is "
+                              f"that device, accept its name with --device-name {name}")
 
 
 class _Status:
@@ -248,7 +253,7 @@ def _run(args: argparse.Namespace) -> int:
     cfg = _config(args)
     rate = args.rate or cfg.rate
     duration = args.duration if args.duration is not None else cfg.duration
-    link = _link(args.link, rate, cfg, args.realtime, args.spin)
+    link = _link(args.link, rate, cfg, args.realtime, args.spin, args.device_name, args.takeover)
     out = Path("out") / time.strftime("run-%Y%m%d-%H%M%S")
     log_path = Path(args.log) if args.log else out / "run.rhilog"
     summary_path = Path(args.summary) if args.summary else (log_path.parent if args.log else out) / "summary.json"
@@ -310,8 +315,11 @@ def _run(args: argparse.Namespace) -> int:
         s["link_stats"] = dict(link.stats)
     summary_path.write_text(json.dumps(s, indent=1, default=float))
     us = lambda d: f"p50 {1e6 * d['p50']:.0f}  p99 {1e6 * d['p99']:.0f}  max {1e6 * d['max']:.0f} µs"  # noqa: E731
-    print(f"{s['ticks']} ticks in {s['duration']:.2f} s; missed deadlines {s['missed']} ({s['missed_pct']:.3f} %); "
-          f"tick {us(s['tick'])}; torques clamped {s['clamped']}")
+    print(f"{s['ticks']} ticks in {s['duration']:.2f} s ({s['rate_reached']:.1f} Hz reached of {rate:g}); "
+          f"missed deadlines {s['missed']} ({s['missed_pct']:.3f} %); device readings skipped {s['skipped_readings']} "
+          f"({s['skipped_readings_pct']:.3f} %); tick {us(s['tick'])}; torques clamped {s['clamped']}")
+    if math.isfinite(s["round_trip"]["max"]):
+        print(f"round-trip age {us(s['round_trip'])}")
     print(f"log: {log_path}\nsummary: {summary_path}")
     if res.fault is not None:
         print(f"rhi run: fault ({s['fault_kind']}): {res.fault}", file=sys.stderr)
@@ -332,6 +340,9 @@ def _add_run(sub) -> None:
     r.add_argument("--rate", type=float, help="control rate [Hz] (default: the configuration's, else 1000)")
     r.add_argument("--log", help="streamed log (.rhilog; default out/run-<timestamp>/run.rhilog)")
     r.add_argument("--summary", help="JSON summary (default: summary.json beside the log)")
+    r.add_argument("--device-name", help="accept a device whose INFO calls it this (default: the configuration's "
+                   "device name)")
+    r.add_argument("--takeover", action="store_true", help="take the device over from another host's active session")
     r.add_argument("--realtime", action=argparse.BooleanOptionalAction, default=True,
                    help="pace ticks on the wall clock (default); --no-realtime runs as fast as possible")
     r.add_argument("--fast", dest="realtime", action="store_false", help="same as --no-realtime")

@@ -81,6 +81,10 @@ def _finite(v: np.ndarray) -> bool:
     return math.isfinite(sum(v.tolist())) or bool(np.isfinite(v).all())
 
 
+DEVICE_SENSOR_WIDTHS = {"ft": 6}
+"""Widths of the device sensors a primary law may read (docs/protocol.md, INFO)."""
+
+
 @dataclasses.dataclass(frozen=True)
 class ObjectiveTerm:
     """A null-space objective with its gradient step size (β of eq. 6.6, Λ of eq. 7.17)."""
@@ -290,6 +294,13 @@ class NullSpaceController:
     def passivity(self) -> PassivityState | None:
         """State of the passivity observer/controller (`rhi.control.passivity`), None without one."""
         return None if self._pc is None else self._pc.state
+
+    def required_sensors(self) -> dict[str, int | None]:
+        """The device sensors the primary law reads, name → width (None: any); `rhi.runtime.run` checks them.
+
+        "force" is not among them: the host renders it from the virtual environment.
+        """
+        return {name: DEVICE_SENSOR_WIDTHS.get(name) for name in self._sensors if name != "force"}
 
     def warmup(self) -> None:
         """Load the compiled kernels now (Numba's disk cache, or a compile), not at a real-time loop's first tick.

@@ -114,6 +114,13 @@ class IntentController:
         """The wrapped controller's state."""
         return self.controller.state
 
+    def required_sensors(self) -> dict[str, int | None]:
+        """The device sensors read, name → width: the wrapped controller's and the estimator's F/T reading."""
+        need = dict(self.controller.required_sensors())
+        if not self._known:
+            need.setdefault(self.sensor, None)
+        return need
+
     def reset(self) -> None:
         """Reset the wrapped controller, the estimator and the history."""
         self.controller.reset()

@@ -10,11 +10,13 @@ res = run(link, controller, realtime=False)                    # → a "frozen" 
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import math
 
 import numpy as np
 
+from rhi._validate import scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Reading
 
@@ -42,10 +44,12 @@ class Inject:
         nan: the F/T sensor reads NaN.
         reorder_at: at this time, return the reading from two samples earlier once (an out-of-order packet).
         silence: read() raises `LinkError` (the device went away).
+        delay: a constant link delay [s]: each reading is the one taken `delay` earlier, its `age` (round trip)
+            that delay plus one period, as a UDP link measures it.
     """
 
     def __init__(self, link: DeviceLink, *, freeze=None, frozen=None, nan=None, reorder_at: float | None = None,
-                 silence=None) -> None:
+                 silence=None, delay: float | None = None) -> None:
         self.link = link
         self.n = link.n
         self.rate = getattr(link, "rate", None)
@@ -54,6 +58,8 @@ class Inject:
         self.frozen = _window("frozen", frozen)
         self._values: Reading | None = None
         self.reorder_at = reorder_at
+        self.delay = None if delay is None else scalar("delay", delay, nonnegative=True)
+        self._past: collections.deque[Reading] = collections.deque()
         self._held: Reading | None = None
         self._hist: list[Reading] = []
         self._reordered = False
@@ -69,6 +75,12 @@ class Inject:
     def read(self) -> Reading:
         """The wrapped link's reading, corrupted as scheduled (silence, freeze, NaN, reorder...)."""
         r = self.link.read()
+        if self.delay is not None:
+            self._past.append(r)
+            while len(self._past) > 1 and self._past[1].t <= r.t - self.delay:
+                self._past.popleft()
+            then = self._past[0]
+            r = dataclasses.replace(then, age=r.t - then.t + 1.0 / (self.rate or 1000.0))
         if self._in(self.silence, r.t):
             raise LinkError(f"no reading (injected silence at t={r.t:.4f} s)")
         old = self._hist[0] if len(self._hist) == 2 else None

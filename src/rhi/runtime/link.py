@@ -41,6 +41,9 @@ class Reading:
         status: `Status` flags.
         cmd_seq: sequence number of the last command the device applied (-1: none yet).
         detail: the device's reason for a FAULT/ESTOP flag, if it gave one.
+        arrival: host monotonic time [s] the reading arrived (None: a local link, read when asked).
+        age: round-trip age [s]: `arrival` minus the host time the command echoed in `cmd_seq` was sent
+            (NaN: not measured, e.g. a local link or no command sent yet).
     """
 
     t: float
@@ -51,6 +54,8 @@ class Reading:
     status: int = 0
     cmd_seq: int = -1
     detail: str = ""
+    arrival: float | None = None
+    age: float = float("nan")
 
 
 class DeviceLink(Protocol):

@@ -9,6 +9,7 @@ the run. Each tick: read → safety check → virtual environment → controller
 
 from __future__ import annotations
 
+import array
 import contextlib
 import ctypes
 import dataclasses
@@ -43,9 +44,10 @@ class RunResult:
 
     Attributes:
         log: the per-tick log (streamed to disk when a path was given).
-        summary: JSON-serialisable statistics: ticks, rate, missed deadlines (count and %), p50/p99/p99.9/max
-            of the tick time and of the read→write latency (reading in hand to command sent) [s], clamp count,
-            fault, every safety event.
+        summary: JSON-serialisable statistics: ticks, rate, the rate reached [Hz], missed deadlines (count and %),
+            skipped device readings (a link's readings superseded before a tick took them), p50/p99/p99.9/max of
+            the tick time, of the read→write latency (reading in hand to command sent) and of the readings'
+            round-trip age (`Reading.age`, where the link measures it) [s], clamp count, fault, every safety event.
     """
 
     log: Log
@@ -235,12 +237,15 @@ def run(
     previous = _estop_on_signals(guard)
     k = slot = 0
     t_dev = 0.0
+    last_seq = None
+    ages = array.array("d")  # round-trip age of each new reading [s]
     warmup = getattr(controller, "warmup", None)
     if warmup is not None:  # compiled kernels loaded before the link opens (its watchdog runs from then on)
         warmup()
     try:
         with _realtime(cpu, priority, spin) as notes:
             link.open()
+            _check_sensors(link, controller)
             for msg in notes:
                 w.event(0.0, "info", msg)
             t0 = time.monotonic()
@@ -254,14 +259,17 @@ def run(
                 try:
                     r = link.read()
                 except LinkError as exc:
-                    guard.trip("link", f"link: {exc}")
+                    guard.trip(getattr(exc, "kind", "link"), f"link: {exc}")
                 tr = time.monotonic()
                 if r is not None:
+                    if r.seq != last_seq:
+                        last_seq = r.seq
+                        ages.append(r.age)
                     t_dev = r.t
                     q, dq = r.q, r.dq
                     if kin is not None and math.isfinite(float(q @ q + dq @ dq)):
                         _, xdot, F_env = kin.render(q, dq)
-                    if guard.check(r, ts if realtime else None, xdot):
+                    if guard.check(r, tr if realtime or r.arrival is not None else None, xdot):
                         sensors = dict(r.sensors)
                         sensors["force"] = F_env
                         try:
@@ -278,7 +286,7 @@ def run(
                 try:
                     link.write(tau, enable=ok)
                 except LinkError as exc:
-                    guard.trip("link", f"link: {exc}")
+                    guard.trip(getattr(exc, "kind", "link"), f"link: {exc}")
                 te = time.monotonic()
                 row = w.row()
                 row[0] = t_dev
@@ -330,8 +338,30 @@ def run(
             w.fault = guard.fault
         w.close()
     stats["ticks"] = k
+    stats["skipped_readings"] = int(getattr(link, "stats", {}).get("skipped", 0))
     result_log = w.to_log()
-    return RunResult(result_log, _summary(result_log, stats, rate, guard, realtime, spin))
+    summary = _summary(result_log, stats, rate, guard, realtime, spin)
+    summary["round_trip"] = nan_stats(np.frombuffer(ages, dtype=float) if len(ages) else np.zeros(0))
+    return RunResult(result_log, summary)
+
+
+def _check_sensors(link: DeviceLink, controller) -> None:
+    """At connect: the device reports every sensor the controller needs (`required_sensors`), at its width.
+
+    Raises:
+        LinkError: a missing sensor or a wrong width, naming both (the link is closed by `run`).
+    """
+    have = getattr(link, "sensors", None)
+    need = getattr(controller, "required_sensors", None)
+    if have is None or need is None:  # a local link (its readings are checked by the controller) or no needs
+        return
+    have = dict(have)
+    for name, width in need().items():
+        if name not in have:
+            raise LinkError(f"sensors: the configuration's controller needs {name!r} ({width} floats) but the device "
+                            f"reports only {sorted(have) or 'none'} (docs/protocol.md, INFO)")
+        if width is not None and have[name] != width:
+            raise LinkError(f"sensors: the device's {name!r} has {have[name]} floats, the controller needs {width}")
 
 
 #: The signals that stop a run as an e-stop (Ctrl-C; `kill`, systemd and Docker; a closed terminal).
@@ -408,7 +438,8 @@ def _summary(log: Log, stats: dict, rate: float, guard: Safety, realtime: bool, 
         "rate": rate, "realtime": realtime, "spin": spin, "ticks": stats["ticks"],
         "duration": float(timing("wall")[-1]) if len(log) else 0.0,
         "missed": stats["missed"], "missed_pct": 100.0 * stats["missed"] / k,
-        "skipped_slots": stats["skipped_slots"],
+        "skipped_slots": stats["skipped_slots"], "skipped_readings": stats["skipped_readings"],
+        "skipped_readings_pct": 100.0 * stats["skipped_readings"] / (stats["skipped_readings"] + k),
         "tick": nan_stats(timing("t_tick")), "read_to_write": nan_stats(lat),
         "late": nan_stats(timing("late")),
         "clamped": guard.clamped, "max_torque_ratio": stats["max_torque_ratio"],
@@ -417,6 +448,7 @@ def _summary(log: Log, stats: dict, rate: float, guard: Safety, realtime: bool, 
     }
     for name in TIMING[1:5]:
         out[name] = nan_stats(getattr(log, name) if len(log) else [])
+    out["rate_reached"] = stats["ticks"] / out["duration"] if out["duration"] > 0 else math.nan
     return out
 
 

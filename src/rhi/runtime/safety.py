@@ -7,9 +7,10 @@ fault); a non-finite torque is a fault.
 
 Checks, each tick: device status flags (e-stop, watchdog, fault), non-finite readings, a
 sequence number that goes backwards (out of order) or does not advance for `stale_ticks`
-ticks (a stalled stream), frozen sensors (below), link silence longer than `silence`, joint
-speed above `max_joint_speed`, a joint beyond its range by more than `range_margin`, handle
-speed above `max_handle_speed`, an external e-stop (`estop`; SIGINT, SIGTERM and SIGHUP in
+ticks (a stalled stream), frozen sensors (below), a device clock that stalls or runs backwards, link
+silence longer than `silence` (on the host's clock, from the newest reading's arrival), a round-trip age
+above `max_age`, joint speed above `max_joint_speed`, a joint beyond its range by more than `range_margin`,
+handle speed above `max_handle_speed`, an external e-stop (`estop`; SIGINT, SIGTERM and SIGHUP in
 `rhi.runtime.run`).
 
 Frozen sensors (sequence numbers advance, values do not), over `frozen_ticks` consecutive new
@@ -55,7 +56,10 @@ class SafetyConfig:
         frozen_ticks: consecutive new readings with identical values before the frozen-sensor rule applies.
         frozen_motion: the displacement the reported joint velocity implies over those readings above which
             unchanged positions count as frozen encoders [rad].
-        silence: longest time without a new reading before the link counts as dead [s].
+        silence: longest time without a new reading before the link counts as dead [s], on the host's
+            monotonic clock from the newest reading's arrival (also between two arrivals).
+        max_age: longest round-trip age of a reading [s] (`Reading.age`: from sending a command to the arrival
+            of the reading that echoes it; a constant link delay shows here, not as silence).
         max_joint_speed: |q̇| limit [rad/s], one value or (n,).
         range_margin: how far beyond a joint limit a joint may be [rad].
         max_handle_speed: |ẋ| limit [m/s].
@@ -65,6 +69,7 @@ class SafetyConfig:
     frozen_ticks: int = 50
     frozen_motion: float = 1e-3
     silence: float = 0.02
+    max_age: float = 0.02
     max_joint_speed: float | tuple[float, ...] = 20.0
     range_margin: float = 0.05
     max_handle_speed: float = 1.5
@@ -72,7 +77,7 @@ class SafetyConfig:
     def __post_init__(self) -> None:
         _positive("stale_ticks", self.stale_ticks, integer=True)
         _positive("frozen_ticks", self.frozen_ticks, integer=True)
-        for f in ("silence", "range_margin", "max_handle_speed", "frozen_motion"):
+        for f in ("silence", "max_age", "range_margin", "max_handle_speed", "frozen_motion"):
             _positive(f, getattr(self, f))
         v = self.max_joint_speed
         vals = v if isinstance(v, (tuple, list)) else (v,)
@@ -140,6 +145,7 @@ class Safety:
         self._last_seq: int | None = None
         self._same = 0
         self._last_new: float | None = None
+        self._last_t: float | None = None
         self._estop: str | None = None
         # the frozen-sensor rule: the last new reading's (q, q̇) and F/T as Python floats, how many new readings
         # repeated them, since when (device time [s]) and from which positions
@@ -165,7 +171,7 @@ class Safety:
         if self.fault is not None:
             self.events.append(("reset", f"fault cleared: {self.fault}"))
         self.fault = self.fault_kind = self._estop = None
-        self._same, self._last_new = 0, None
+        self._same, self._last_new, self._last_t = 0, None, None
         self._joints = self._ft = None
         self._joints_same = self._ft_same = 0
 
@@ -178,8 +184,8 @@ class Safety:
     def check(self, r: Reading, now: float | None, xdot: np.ndarray | None = None) -> bool:
         """Check a reading; return whether the controller may act (no fault latched).
 
-        The reading was taken at wall time `now` [s] (None: not in real time, no silence check);
-        ẋ: (m,) [m/s] if known.
+        `now`: the host's monotonic time of the check [s] (None: no silence check, e.g. a simulation not in
+        real time); the reading's `arrival` (else `now`) times its arrival. ẋ: (m,) [m/s] if known.
         """
         if self._estop is not None:
             self.trip("estop", f"emergency stop: {self._estop}")
@@ -193,7 +199,15 @@ class Safety:
         q, dq = r.q, r.dq
         ql, dql = q.tolist(), dq.tolist()  # sums of Python floats: cheaper than NumPy's reductions on a few values
         if last is None or seq > last:
-            self._same, self._last_new, self._last_seq = 0, now, seq
+            arrival = r.arrival if r.arrival is not None else now  # a local link's reading "arrives" when read
+            if now is not None and r.arrival is not None and self._last_new is not None \
+                    and arrival - self._last_new > self.config.silence:
+                self.trip("silence", f"no reading arrived for {1e3 * (arrival - self._last_new):.1f} ms (limit "
+                          f"{1e3 * self.config.silence:g} ms) before t={r.t:.4f} s")
+            if self._last_t is not None and not r.t > self._last_t:
+                self.trip("clock", f"device clock {'stalled' if r.t == self._last_t else 'ran backwards'}: reading "
+                          f"{seq} at t={r.t!r} s after t={self._last_t!r} s")
+            self._same, self._last_new, self._last_seq, self._last_t = 0, arrival, seq, r.t
             self._check_frozen(r, ql, dql)
         elif seq < last:
             self.trip("order", f"out-of-order reading: sequence {seq} after {last} at t={r.t:.4f} s")
@@ -204,6 +218,9 @@ class Safety:
         if now is not None and self._last_new is not None and now - self._last_new > self.config.silence:
             self.trip("silence", f"link silent for {1e3 * (now - self._last_new):.1f} ms (limit "
                       f"{1e3 * self.config.silence:g} ms) at t={r.t:.4f} s")
+        if r.age > self.config.max_age:
+            self.trip("latency", f"round-trip age {1e3 * r.age:.1f} ms above {1e3 * self.config.max_age:g} ms at "
+                      f"t={r.t:.4f} s (reading {seq} echoes command {r.cmd_seq})")
         if not math.isfinite(sum(ql) + sum(dql)) and not (np.isfinite(q).all() and np.isfinite(dq).all()):
             self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={ql}, dq={dql}")
             return False

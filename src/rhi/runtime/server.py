@@ -1,10 +1,11 @@
 """The device side of the protocol: any local link (the MuJoCo plant) served over UDP, with a watchdog.
 
-`DeviceServer` does what a real device's driver does (docs/protocol.md §5): it answers HELLO
-with INFO, applies the newest valid command (clamped to the device's torque limits), steps the
-device at its own rate, sends a reading every period, and owns a watchdog: no valid command
-for `watchdog` seconds gives zero torque and the WATCHDOG flag until the next valid command.
-An ESTOP command latches zero torque until RESET; a device fault latches FAULT.
+`DeviceServer` does what a real device's driver does (docs/protocol.md §4): it opens, refuses
+or hands over sessions on HELLO and answers INFO, applies the newest valid command of the
+session (clamped to the device's torque limits), steps the device at its own rate, sends a
+reading every period, and owns a watchdog: no valid command for `watchdog` seconds gives zero
+torque and the WATCHDOG flag until the next valid command. An ESTOP command latches zero
+torque until RESET; a device fault latches FAULT.
 
 `lockstep=True` is for tests and studies that must equal `rhi.sim.simulate` bit for bit: after
 each reading the device waits (up to the watchdog time) for the command answering it instead
@@ -42,12 +43,14 @@ class DeviceServer:
         cpu: pin the device loop to this CPU (a clear warning where the OS refuses).
         priority: SCHED_FIFO priority (1–99) of the device loop (a clear warning where the OS refuses).
         spin: the device loop waits on a busy core, never asleep (`rhi.runtime.loop.wait_until`).
+        session_timeout: a session without a valid command for this long [s] ends (another host may then open
+            one without TAKEOVER).
     """
 
     def __init__(self, link: DeviceLink, device, *, host: str = "127.0.0.1", port: int = 0, watchdog: float = 0.02,
                  lockstep: bool = False, drop=None, reorder_at: float | None = None, log=None,
                  exit_on_bye: bool = False, cpu: int | None = None, priority: int | None = None,
-                 spin: bool = False) -> None:
+                 spin: bool = False, session_timeout: float = 1.0) -> None:
         check_realtime(cpu, priority)
         self.cpu, self.priority, self.spin = cpu, priority, bool(spin)
         if not isinstance(port, int) or not 0 <= port < 65536:
@@ -66,8 +69,15 @@ class DeviceServer:
             raise InvalidInput(f"port: cannot listen on {host}:{port}: {exc}") from None
         self.port = self.sock.getsockname()[1]
         self.client: tuple[str, int] | None = None
+        self.session: int | None = None
+        self.session_timeout = scalar("session_timeout", session_timeout, positive=True)
         self.n = device.n
-        self.stats = {"readings": 0, "commands": 0, "invalid": 0, "refused": 0, "dropped": 0, "watchdog_trips": 0}
+        self.stats = {"readings": 0, "commands": 0, "invalid": 0, "foreign": 0, "stale_commands": 0, "refused": 0,
+                      "takeovers": 0, "dropped": 0, "watchdog_trips": 0}
+        self._cmd_seq: int | None = None  # the last command taken in this session
+        self._last_valid = 0.0  # when the session's HELLO or last valid command arrived (monotonic [s])
+        self._new = False  # a session opened since the loop last looked
+        self._events: list[tuple[str, str]] = []
         self._log_path = log
         self._stop = False
         self._enabled = False
@@ -79,7 +89,11 @@ class DeviceServer:
 
     # ---------------------------------------------------------------- receive
     def _poll(self, timeout: float) -> tuple[int, int, int, np.ndarray] | None:
-        """Handle every waiting datagram (waiting up to `timeout` for the first); the newest valid command."""
+        """Handle every waiting datagram (waiting up to `timeout` for the first); the newest valid command.
+
+        HELLOs open, refuse or take over sessions (docs/protocol.md §4); a command counts only when it comes from
+        the session's host with the session's id and a sequence number newer than the last one taken.
+        """
         newest = None
         s = self.sock
         while True:
@@ -95,23 +109,58 @@ class DeviceServer:
                 continue  # ICMP from a client that went away
             kind = P.kind(pkt)
             if kind == P.HELLO:
-                if P.version(pkt) != P.VERSION:
-                    self.stats["refused"] += 1
-                    s.sendto(P.error(f"protocol version {P.version(pkt)} not supported; this device speaks "
-                                     f"{P.VERSION}"), addr)
-                    continue
-                self.client = addr
-                s.sendto(self._info(), addr)
+                self._hello(pkt, addr)
                 continue
-            if kind == P.COMMAND and addr == self.client:
-                v = P.parse_command(pkt, self.n)
-                if v is None:
-                    self.stats["invalid"] += 1
-                    continue
-                self.stats["commands"] += 1
-                newest = (v[0], v[1], v[2], v[4])
-            else:
-                self.stats["invalid"] += 1
+            v = P.parse_command(pkt, self.n) if kind == P.COMMAND else None
+            if v is None or addr != self.client or v[0] != self.session:
+                self.stats["invalid" if v is None else "foreign"] += 1
+                continue
+            _, seq, ack, flags, _, tau = v
+            if self._cmd_seq is not None and not P.newer(seq, self._cmd_seq):
+                self.stats["stale_commands"] += 1  # a duplicate or an older command: ignored
+                continue
+            self._cmd_seq = seq
+            self.stats["commands"] += 1
+            self._last_valid = time.monotonic()
+            newest = (seq, ack, flags, tau)
+            if flags & P.BYE:  # the session ends now: a HELLO in this same drain may open the next one
+                self._end()
+
+    def _hello(self, pkt: bytes, addr) -> None:
+        """Open, repeat, refuse or take over a session (docs/protocol.md §4)."""
+        if P.version(pkt) == P.V1_0:
+            self.stats["refused"] += 1
+            self.sock.sendto(P.error_v1_0(f"protocol v1.0 is not served: this device speaks v{P.NAME} (wire version "
+                                          f"{P.VERSION}, docs/protocol.md); update the host"), addr)
+            return
+        h = P.parse_hello(pkt)
+        if isinstance(h, str):
+            self.stats["refused"] += 1
+            self.sock.sendto(P.error(P.E_VERSION if P.version(pkt) != P.VERSION else P.E_HELLO, 0, h), addr)
+            return
+        session, flags = h
+        if session == self.session and addr == self.client:
+            self.sock.sendto(self._info(), addr)  # a repeated HELLO: INFO again, nothing resets
+            return
+        old = self.client
+        if old is not None and self.session is not None and time.monotonic() - self._last_valid <= self.session_timeout:
+            if not flags & P.TAKEOVER:
+                self.stats["refused"] += 1
+                self.sock.sendto(P.error(P.E_BUSY, session, f"device busy: a session of {old[0]}:{old[1]} is active; "
+                                         "HELLO with TAKEOVER ends it"), addr)
+                return
+            self.stats["takeovers"] += 1
+            self.sock.sendto(P.error(P.E_SESSION_LOST, self.session, f"the device was taken over by {addr[0]}:"
+                                     f"{addr[1]}"), old)
+            self._events.append(("takeover", f"session of {old[0]}:{old[1]} taken over by {addr[0]}:{addr[1]}: "
+                                 "zero torque"))
+        self.client, self.session, self._new = addr, session, True
+        self._cmd_seq, self._last_valid = None, time.monotonic()
+        self.sock.sendto(self._info(), addr)
+
+    def _end(self) -> None:
+        """End the session (BYE, session timeout): no more readings until the next HELLO."""
+        self.client = self.session = None
 
     def _info(self) -> bytes:
         r = self.link.read()
@@ -119,7 +168,8 @@ class DeviceServer:
         self._sensors = [k for k, _ in sensors]
         return P.info(self.n, sensors, self.rate, self.watchdog,
                       {"device": self.device.name, "joint_names": list(self.device.joint_names),
-                       "torque_min": self.lo.tolist(), "torque_max": self.hi.tolist()})
+                       "torque_min": self.lo.tolist(), "torque_max": self.hi.tolist(), "lockstep": self.lockstep},
+                      self.session or 0)
 
     # ------------------------------------------------------------------ serve
     def serve(self, duration: float | None = None) -> dict:
@@ -131,12 +181,12 @@ class DeviceServer:
         lw = LogWriter(layout(self.n, getattr(self.device, "m", 0)), self._log_path,
                        meta={"device": self.device.name, "rate": self.rate, "source": "device-server"})
         c = lw.cols
-        tau, cmd_seq, last_cmd = np.zeros(self.n), -1, None
-        estop = fault = False
-        watchdog = False
+        zero = np.zeros(self.n)
+        tau, last_cmd = zero, None
+        estop = fault = watchdog = False
         held = None
         self._info()  # sensor layout
-        k = 0
+        k = rseq = 0
         end = None if duration is None else int(round(duration * self.rate))
         try:
             with _realtime(self.cpu, self.priority, self.spin):
@@ -146,6 +196,12 @@ class DeviceServer:
                 t0, k0 = time.monotonic(), 0
                 while not self._stop and (end is None or k < end):
                     r = self.link.read()
+                    for kind, detail in self._events:
+                        lw.event(r.t, kind, detail, k)
+                    self._events.clear()
+                    if self._new:  # a new session: readings from 0, nothing echoed, watchdog disarmed, zero torque
+                        self._new, rseq, tau, last_cmd, watchdog, self._enabled = False, 0, zero, None, False, False
+                        lw.event(r.t, "session", f"session {self.session or 0:016x} of {self.client}", k)
                     status = int(r.status) & Status.SIMULATED
                     if r.status & Status.FAULT and not fault:
                         fault = True
@@ -153,7 +209,8 @@ class DeviceServer:
                     enabled = last_cmd is not None and not (watchdog or estop or fault) and self._enabled
                     status |= (Status.ENABLED if enabled else 0) | (Status.WATCHDOG if watchdog else 0) \
                         | (Status.ESTOP if estop else 0) | (Status.FAULT if fault else 0)
-                    pkt = P.reading(r.seq, cmd_seq, status, r.t,
+                    echo = P.NO_SEQ if self._cmd_seq is None else self._cmd_seq
+                    pkt = P.reading(self.session or 0, rseq, echo, status, r.t,
                                     r.q, r.dq, np.concatenate([np.ravel(r.sensors[s]) for s in self._sensors]))
                     if self.drop is not None and self.drop[0] <= r.t < self.drop[1]:
                         self.stats["dropped"] += 1
@@ -169,24 +226,28 @@ class DeviceServer:
                     got = None
                     if self.lockstep:
                         wait_end = time.monotonic() + self.watchdog
-                        while got is None and (time.monotonic() < wait_end or last_cmd is None) and not self._stop:
+                        while got is None and (time.monotonic() < wait_end or last_cmd is None) and not self._stop \
+                                and not self._new:
                             got = self._poll(max(wait_end - time.monotonic(), 0.0))
-                            if got is not None and got[1] != P.NO_SEQ and got[1] < r.seq - 1:
+                            if got is not None and got[1] != P.NO_SEQ and not P.newer(got[1], rseq - 2) \
+                                    and not got[2] & P.BYE:
                                 got = None  # a stale command from before the previous reading
                     else:
                         wait_until(deadline - 2e-4, self.spin)
                         got = self._poll(max(deadline - time.monotonic(), 0.0))
+                    rseq = (rseq + 1) & P.NO_SEQ
                     now = time.monotonic()
+                    if self._new:
+                        got = None  # a takeover in this period: the new session starts at the next one
                     if got is not None:
                         seq, ack, flags, tau_cmd = got
                         last_cmd = now
                         if flags & P.BYE:
                             lw.event(r.t, "bye", "the host closed the link: zero torque", k)
-                            self._enabled, tau, last_cmd = False, np.zeros(self.n), None
+                            self._enabled, tau, last_cmd = False, zero, None
                             self.link.write(tau, enable=False)
                             if self.exit_on_bye:
                                 break
-                            self.client = None
                             while self.client is None and not self._stop:  # idle until the next HELLO
                                 self._poll(0.05)
                             t0, k0 = time.monotonic(), k
@@ -200,29 +261,40 @@ class DeviceServer:
                             lw.event(r.t, "watchdog_clear", "valid command received; watchdog cleared", k)
                         watchdog = False
                         self._enabled = bool(flags & P.ENABLE)
-                        cmd_seq = seq
                         tau = np.minimum(np.maximum(tau_cmd, self.lo), self.hi)
                     elif last_cmd is not None and not watchdog and now - last_cmd > self.watchdog:
                         watchdog = True
                         self.stats["watchdog_trips"] += 1
                         lw.event(r.t, "watchdog", f"no valid command for {1e3 * (now - last_cmd):.1f} ms "
                                  f"(watchdog {1e3 * self.watchdog:g} ms): zero torque", k)
-                    on = last_cmd is not None and self._enabled and not (watchdog or estop or fault)
-                    apply = tau if on else np.zeros(self.n)
+                    on = last_cmd is not None and self._enabled and not (watchdog or estop or fault or self._new)
+                    apply = tau if on else zero
                     ts = time.monotonic()
                     self.link.write(apply, enable=on)
                     row = lw.row()
                     row[c["t"]], row[c["q"]], row[c["dq"]], row[c["tau"]] = r.t, r.q, r.dq, apply
-                    row[c["seq"]], row[c["wall"]], row[c["t_write"]] = cmd_seq, ts - t0, time.monotonic() - ts
+                    row[c["seq"]] = -1 if echo == P.NO_SEQ else echo
+                    row[c["wall"]], row[c["t_write"]] = ts - t0, time.monotonic() - ts
                     row[c["late"]] = max(0.0, now - deadline) if not self.lockstep else 0.0
                     row[c["safety"]] = float(status & ~int(Status.SIMULATED) & ~int(Status.ENABLED))
                     if "ft" in r.sensors:
                         row[c["ft"]] = r.sensors["ft"]
                     k += 1
+                    if self.client is not None and now - self._last_valid > self.session_timeout:
+                        lw.event(r.t, "session_timeout", f"no valid command for {self.session_timeout:g} s: "
+                                 "session ended", k)
+                        self._end()
+                        self._enabled, tau, last_cmd = False, zero, None
+                        while self.client is None and not self._stop:
+                            self._poll(0.05)
+                        t0, k0 = time.monotonic(), k
+                        continue
                     if not self.lockstep:
                         wait_until(t0 + (k - k0) * period, self.spin)
         finally:
-            self.link.write(np.zeros(self.n), enable=False)
+            self.link.write(zero, enable=False)
+            for kind, detail in self._events:
+                lw.event(float("nan"), kind, detail, k)
             lw.close()
             self.sock.close()
         self.stats["ticks"] = k

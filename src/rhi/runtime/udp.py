@@ -1,7 +1,9 @@
-"""`UDPLink`: the control host's side of the rhi device protocol (docs/protocol.md) over UDP."""
+"""`UDPLink`: the control host's side of the rhi device protocol v1.1 (docs/protocol.md) over UDP."""
 
 from __future__ import annotations
 
+import math
+import secrets
 import socket
 import time
 import urllib.parse
@@ -13,6 +15,12 @@ from rhi.errors import InvalidInput, LinkError
 from rhi.runtime import protocol as P
 from rhi.runtime.link import Reading
 from rhi.runtime.loop import wait_readable
+
+
+class SessionLost(LinkError):
+    """The device ended this host's session: another host took it over (ERROR/SESSION_LOST)."""
+
+    kind = "session_lost"
 
 
 def parse_url(url: str) -> tuple[str, int]:
@@ -32,32 +40,39 @@ def parse_url(url: str) -> tuple[str, int]:
 
 
 class UDPLink:
-    """A device process reached over UDP (e.g. `rhi device-server`, or a lab's own driver).
+    """A device process reached over UDP (e.g. `rhi device-server`, kit/c's reference device, a lab's own driver).
 
     Args:
         host, port: the device's address.
         rate: the control rate [Hz]; must equal the device's.
         timeout: longest wait for a new reading in `read` [s]; after it the previous reading is returned
-            again (the safety layer counts it as stale).
+            again (the safety layer counts it as stale). In real time keep it under one period.
         connect_timeout: longest wait for the device's INFO answer in `open` [s].
         spin: wait for readings on a busy core, never asleep (`rhi.runtime.loop.wait_until`).
+        takeover: ask the device to end another host's active session and serve this one (HELLO's TAKEOVER).
 
     Attributes:
         n: motors; sensors: [(name, width)] the device reports; info: the device's description.
+        session: this host's random session id (u64), drawn at `open`.
         stats: datagram counts: sent, received, lost (gaps in the reading sequence), reordered, invalid, skipped
-            (readings superseded before the host read them: device periods the host missed).
+            (readings superseded before the host read them: device periods the host missed), foreign (readings
+            of another session).
 
     Timing: with ``run(..., realtime=False)`` the host is paced by the device — each tick waits (up to
-    `timeout`) for the device's next reading, so host and device clocks cannot drift apart; this is the
-    mode for a free-running device. With ``realtime=True`` the host keeps its own deadlines and takes
-    whatever reading arrived within `timeout`.
+    `timeout`) for the device's next reading; with ``realtime=True`` the host keeps its own deadlines and
+    takes whatever reading arrived within `timeout`. Each reading carries its arrival time and its
+    round-trip age (`Reading.age`: arrival minus the send time of the command it echoes), except from a
+    device whose INFO says ``"lockstep": true`` (a simulation that waits for each command: its time is not
+    the wall clock's).
 
-    A reading that arrives after a newer one (network reordering) raises `LinkError`: the loop
-    stops with zero torque rather than act on a network that reorders a 1 kHz stream.
+    A reading that arrives after a newer one, or repeats one (network reordering or duplication), raises
+    `LinkError`: the loop stops with zero torque rather than act on a network that reorders a 1 kHz stream.
     """
 
+    _RING = 4096  # send times of the last commands, by seq (4 s at 1 kHz)
+
     def __init__(self, host: str, port: int, *, rate: float = 1000.0, timeout: float = 0.05,
-                 connect_timeout: float = 2.0, spin: bool = False) -> None:
+                 connect_timeout: float = 2.0, spin: bool = False, takeover: bool = False) -> None:
         if not isinstance(port, int) or isinstance(port, bool) or not 0 < port < 65536:
             raise InvalidInput(f"port: expected an integer in 1..65535, got {port!r}")
         self.addr = (str(host), port)
@@ -65,14 +80,20 @@ class UDPLink:
         self.timeout = scalar("timeout", timeout, positive=True)
         self.connect_timeout = scalar("connect_timeout", connect_timeout, positive=True)
         self.spin = bool(spin)
+        self.takeover = bool(takeover)
         self.n = 0
+        self.session = 0
         self.sensors: list[tuple[str, int]] = []
         self.info: dict = {}
-        self.stats = {"sent": 0, "received": 0, "lost": 0, "reordered": 0, "invalid": 0, "skipped": 0}
+        self.stats = {"sent": 0, "received": 0, "lost": 0, "reordered": 0, "invalid": 0, "skipped": 0, "foreign": 0}
         self._sock: socket.socket | None = None
         self._last: Reading | None = None
         self._last_seq: int | None = None
         self._seq = 0
+        self._sent_seq = np.full(self._RING, -1, dtype=np.int64)
+        self._sent_t = np.zeros(self._RING)
+        self._first_sent: float | None = None
+        self._wall = True
 
     @classmethod
     def from_url(cls, url: str, **kw) -> UDPLink:
@@ -81,10 +102,11 @@ class UDPLink:
         return cls(host, port, **kw)
 
     def open(self) -> None:
-        """Say HELLO and read the device's INFO.
+        """Draw a session id, say HELLO and read the device's INFO for this session.
 
         Raises:
-            LinkError: no answer, a refusal, another protocol version, another rate.
+            LinkError: no answer, a refusal (another session active, another protocol version), another rate
+                (the device is then told BYE).
         """
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
@@ -93,27 +115,48 @@ class UDPLink:
         except OSError as exc:
             raise LinkError(f"link: cannot reach {self.addr[0]}:{self.addr[1]}: {exc}") from None
         self._sock = s
+        self.session = secrets.randbits(64) or 1
         end = time.monotonic() + self.connect_timeout
-        while True:
-            self._send(P.hello())
-            pkt = self._recv(min(0.2, max(end - time.monotonic(), 0.0)))
-            while pkt is not None and P.kind(pkt) == P.READING:  # readings of a previous session
-                pkt = self._recv(0.0)
-            if pkt is not None:
-                break
-            if time.monotonic() > end:
+        pkt = None
+        while pkt is None:
+            self._send(P.hello(self.session, P.TAKEOVER if self.takeover else 0))
+            until = time.monotonic() + min(0.2, max(end - time.monotonic(), 0.0))
+            while pkt is None and time.monotonic() < until:
+                got = self._recv(max(until - time.monotonic(), 0.0))
+                if got is None:
+                    break
+                if P.kind(got) == P.ERROR or (P.kind(got) == P.INFO and (
+                        P.version(got) != P.VERSION or len(got) < P.INFO_SIZE
+                        or int.from_bytes(got[28:36], "little") == self.session)):
+                    pkt = got  # (readings and INFOs of other sessions are ignored)
+            if pkt is None and time.monotonic() > end:
                 self.close()
                 raise LinkError(f"link: no answer from {self.addr[0]}:{self.addr[1]} within "
                                 f"{self.connect_timeout:g} s (is the device server running?)")
         if P.kind(pkt) == P.ERROR:
             self.close()
-            raise LinkError(f"link: device refused: {pkt[8:].decode(errors='replace')}")
-        self.info = P.parse_info(pkt)
-        if abs(self.info["rate"] - self.rate) > 1e-9 * self.rate:
+            code, _, msg = P.parse_error(pkt)
+            hint = " (pass takeover=True, `rhi run --takeover`, to take it over)" if code == P.E_BUSY else ""
+            raise LinkError(f"link: device refused: {P.ERROR_NAMES.get(code, 'ERROR')}: {msg}{hint}")
+        try:
+            self.info = P.parse_info(pkt)
+        except LinkError:
             self.close()
-            raise LinkError(f"link: the device runs at {self.info['rate']:g} Hz, the loop at {self.rate:g} Hz")
-        self.n, self.sensors = int(self.info["n"]), [(str(a), int(b)) for a, b in self.info["sensors"]]
+            raise
+        self.n, self.sensors = int(self.info["n"]), list(self.info["sensors"])
         self._k = int(self.info["k"])
+        self._wall = not self.info.get("lockstep", False)  # a lock-step simulation's time stops while it waits
+        if abs(self.info["rate"] - self.rate) > 1e-9 * self.rate:
+            self.refuse(f"the device runs at {self.info['rate']:g} Hz, the loop at {self.rate:g} Hz")
+
+    def refuse(self, why: str) -> None:
+        """Refuse the device after its INFO: BYE (zero torque, end of session), close, and raise.
+
+        Raises:
+            LinkError: always, with `why`.
+        """
+        self.close()
+        raise LinkError(f"link: {why}")
 
     def _send(self, pkt: bytes) -> None:
         if self._sock is None:
@@ -141,7 +184,9 @@ class UDPLink:
         """The newest reading that arrived; waits up to `timeout` for one newer than the last returned.
 
         Raises:
-            LinkError: the device is unreachable, or sent no reading at all within `timeout` after `open`.
+            LinkError: the device is unreachable, sent no reading at all within `timeout` after `open`, reordered
+                readings, or reports unknown status bits.
+            SessionLost: another host took the device over.
         """
         if self._sock is None:
             raise LinkError("link: read() before open()")
@@ -153,7 +198,7 @@ class UDPLink:
                 if newest is not None or time.monotonic() >= end:
                     break
                 continue
-            r = self._parse(pkt)
+            r = self._parse(pkt, time.monotonic())
             if r is not None:
                 if newest is not None:
                     self.stats["skipped"] += 1  # the host fell a device period behind
@@ -165,21 +210,31 @@ class UDPLink:
         self._last = newest
         return newest
 
-    def _parse(self, pkt: bytes) -> Reading | None:
+    def _parse(self, pkt: bytes, now: float) -> Reading | None:
         if P.kind(pkt) != P.READING:
             if P.kind(pkt) == P.ERROR:
-                raise LinkError(f"link: device error: {pkt[8:].decode(errors='replace')}")
+                code, session, msg = P.parse_error(pkt)
+                if code == P.E_SESSION_LOST and session == self.session:
+                    raise SessionLost(f"SESSION_LOST: {msg}")
+                if session in (0, self.session):
+                    raise LinkError(f"link: device error: {P.ERROR_NAMES.get(code, 'ERROR')}: {msg}")
             return None  # e.g. a repeated INFO
         v = P.parse_reading(pkt, self.n, self._k)
         if v is None:
             self.stats["invalid"] += 1
             return None
-        seq, cmd_seq, status, t, q, dq, s = v
+        session, seq, cmd_seq, status, t, q, dq, s = v
+        if session != self.session:
+            self.stats["foreign"] += 1
+            return None
+        if status & ~P.STATUS_FLAGS:
+            raise LinkError(f"link: reading {seq} has status bits 0x{status & ~P.STATUS_FLAGS:04x} that protocol "
+                            f"v{P.NAME} does not define")
         self.stats["received"] += 1
         if self._last_seq is not None:
-            if seq > self._last_seq + 1:
-                self.stats["lost"] += seq - self._last_seq - 1
-            elif seq <= self._last_seq:
+            if P.newer(seq, self._last_seq):
+                self.stats["lost"] += ((seq - self._last_seq) & P.NO_SEQ) - 1
+            else:
                 self.stats["reordered"] += 1
                 raise LinkError(f"link: out-of-order datagram: reading {seq} arrived after reading {self._last_seq}")
         self._last_seq = seq
@@ -187,7 +242,17 @@ class UDPLink:
         for name, w in self.sensors:
             sensors[name] = s[i:i + w]
             i += w
-        return Reading(t, seq, q, dq, sensors, status, -1 if cmd_seq == P.NO_SEQ else cmd_seq)
+        if not self._wall:
+            return Reading(t, seq, q, dq, sensors, status, -1 if cmd_seq == P.NO_SEQ else cmd_seq)
+        return Reading(t, seq, q, dq, sensors, status, -1 if cmd_seq == P.NO_SEQ else cmd_seq, "", now,
+                       self._age(cmd_seq, now))
+
+    def _age(self, cmd_seq: int, now: float) -> float:
+        """Arrival time minus the send time of command `cmd_seq` (of the first command while none is echoed)."""
+        if cmd_seq == P.NO_SEQ:
+            return math.nan if self._first_sent is None else now - self._first_sent
+        i = cmd_seq % self._RING
+        return now - self._sent_t[i] if self._sent_seq[i] == cmd_seq else math.inf  # inf: older than the ring
 
     def write(self, tau, *, enable: bool, flags: int = 0) -> None:
         """Send a COMMAND answering the last reading; `flags` adds ESTOP/RESET bits."""
@@ -197,18 +262,23 @@ class UDPLink:
         if tau.shape != (self.n,):
             raise InvalidInput(f"tau: expected shape ({self.n},), got {tau.shape}")
         ack = self._last.seq if self._last is not None else P.NO_SEQ
-        self._seq += 1
-        self._send(P.command(self._seq, ack, flags | (P.ENABLE if enable else 0), time.monotonic(), tau))
+        self._seq = (self._seq + 1) & P.NO_SEQ
+        t = time.monotonic()
+        self._send(P.command(self.session, self._seq, ack, flags | (P.ENABLE if enable else 0), t, tau))
+        i = self._seq % self._RING
+        self._sent_seq[i], self._sent_t[i] = self._seq, t
+        if self._first_sent is None:
+            self._first_sent = t
 
     def close(self) -> None:
-        """Zero torque, motors disabled, BYE; then close the socket (idempotent)."""
+        """Zero torque, motors disabled, BYE (after any refusal too); then close the socket (idempotent)."""
         s, self._sock = self._sock, None
         if s is None:
             return
         if self.n:
             for _ in range(3):
                 try:
-                    s.send(P.command(self._seq + 1, P.NO_SEQ, P.BYE, time.monotonic(), np.zeros(self.n)))
+                    s.send(P.command(self.session, self._seq + 1, P.NO_SEQ, P.BYE, time.monotonic(), np.zeros(self.n)))
                 except OSError:
                     break
         s.close()
