@@ -246,7 +246,7 @@ def test_cli_device_server(tmp_path):
     try:
         line = p.stdout.readline()
         port = int(line.rsplit(":", 1)[1].split(",")[0])
-        link = UDPLink("127.0.0.1", port, timeout=0.1)
+        link = UDPLink("127.0.0.1", port, timeout=0.1, connect_timeout=20.0)  # (the server may still be loading)
         link.open()
         r = link.read()
         assert link.n == 3 and r.q.shape == (3,) and r.sensors["ft"].shape == (6,)

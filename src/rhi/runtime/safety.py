@@ -201,8 +201,8 @@ class Safety:
         if last is None or seq > last:
             arrival = r.arrival if r.arrival is not None else now  # a local link's reading "arrives" when read
             if now is not None and r.arrival is not None and self._last_new is not None \
-                    and arrival - self._last_new > self.config.silence:
-                self.trip("silence", f"no reading arrived for {1e3 * (arrival - self._last_new):.1f} ms (limit "
+                    and r.arrival - self._last_new > self.config.silence:
+                self.trip("silence", f"no reading arrived for {1e3 * (r.arrival - self._last_new):.1f} ms (limit "
                           f"{1e3 * self.config.silence:g} ms) before t={r.t:.4f} s")
             if self._last_t is not None and not r.t > self._last_t:
                 self.trip("clock", f"device clock {'stalled' if r.t == self._last_t else 'ran backwards'}: reading "
