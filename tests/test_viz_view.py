@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import rhi
+from rhi.device_spec import available_devices
 from rhi.errors import InvalidInput
 from rhi.sim import DraggableHand, Plant, simulate
 from rhi.viz.panels import torque_panel
@@ -301,14 +302,12 @@ def test_remote_view_serves_a_running_simulation():
         view.close()
 
 
-@pytest.mark.parametrize("name", ["gen3", "wmm", "planar3r"])
-def test_view_draws_spatial_planar_and_mobile_devices(name):
+@pytest.mark.parametrize("name", available_devices())
+def test_view_draws_every_bundled_device_at_its_start_pose(name):
     from rhi.viz.view import View
 
     dev = rhi.device(name)
-    from rhi.viz.posed import rest_configuration
-
-    v = View(dev, None, port=0, q0=rest_configuration(dev) + 0.3)  # mid-range is a singular straight arm here
+    v = View(dev, None, port=0)  # the default start pose: rest_configuration, bent where mid-range is singular
     try:
         snap = v._rest_snapshot()
         snap.F_hand = np.eye(dev.m)[0] * 2.0
@@ -319,9 +318,12 @@ def test_view_draws_spatial_planar_and_mobile_devices(name):
         np.testing.assert_allclose(v.overlays.vel.position, v.scene.handle_position(), atol=1e-12)
         np.testing.assert_allclose(v.scene.handle_position()[v.rows], dev.fk(snap.q), atol=1e-9)
         assert "F_hand" in v.overlays._arrows and "lp" in v.overlays._arrows
+        assert v.overlays.frc.visible  # a well-conditioned start: the force ellipsoid is defined and drawn
         straight = v._rest_snapshot()
-        straight.q = rest_configuration(dev)  # singular for these arms: what is undefined is not drawn
-        v._draw(straight, force=True)
+        lo, hi = dev.joint_limits
+        ok = np.isfinite(lo) & np.isfinite(hi)
+        straight.q = np.where(ok, 0.5 * (np.where(ok, lo, 0.0) + np.where(ok, hi, 0.0)), 0.0)  # straight for some
+        v._draw(straight, force=True)  # what is undefined at a singularity is not drawn; nothing raises
         np.testing.assert_allclose(v.scene.handle_position()[v.rows], dev.fk(straight.q), atol=1e-9)
     finally:
         v.close()
