@@ -37,6 +37,13 @@ def kit(tmp_path_factory):
     return d
 
 
+def test_selftest_packs_and_parses_every_message(kit):
+    """`make check`: every pack/parse pair round-trips, docs/protocol.md §7's COMMAND byte for byte, invalid ones refused."""
+    out = subprocess.run(["make", "CC=gcc", "CFLAGS=-O2 -Wall -Wextra -Werror -std=c99 -pedantic", "check"], cwd=kit,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip().endswith("ok"), out.stdout + out.stderr
+
+
 @pytest.fixture
 def device(kit):
     p = subprocess.Popen([str(kit / "rhi_ref_device"), "--port", "0", "--q0", Q0, "--tau-max", "3,3,1,1",
