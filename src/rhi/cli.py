@@ -15,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rhi import __version__, plugins
+from rhi import __version__, cli_help, plugins
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
+from rhi.cli_warmup import add_commands as add_warmup_command
 from rhi.device import available_devices, device
 from rhi.device_measures import all_measures
 from rhi.errors import InvalidInput, RhiError
@@ -83,10 +84,11 @@ def _measure(args: argparse.Namespace) -> int:
 
 def _reproduce(args: argparse.Namespace) -> int:
     from rhi.design.executors import configure
-    from rhi.report.reproduce import experiments, reproduce
+    from rhi.report.reproduce import reproduce
+    from rhi.report.steps import describe
 
     if getattr(args, "list", False) or (args.command == "experiment" and not args.name):
-        print("\n".join(experiments()))
+        print("\n".join(f"{name:<34} {what}" for name, what in describe()))
         return 0
     name = getattr(args, "name", None)
     out = args.out or (str(Path("out") / name) if name else "out")
@@ -377,8 +379,10 @@ def _join_negative(argv: list[str]) -> list[str]:
 
 
 _EXTRAS = {"mujoco": "sim", "psignifit": "analysis", "statsmodels": "analysis", "matplotlib": "plots", "viser": "view",
-           "mcap": "logs", "pyarrow": "logs"}
+           "mcap": "logs", "pyarrow": "logs", "PIL": "sim"}
 """The optional dependencies and the extra that installs each (pyproject.toml)."""
+_NEEDS_ALL = ("reproduce", "experiment", "fidelity")
+"""Commands that need every extra: their error names rhi[all] at once, not one missing extra after another."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -434,6 +438,8 @@ def main(argv: list[str] | None = None) -> int:
     add_commands(sub, _floats)
     add_log_commands(sub)
     add_study_commands(sub)
+    add_warmup_command(sub)
+    cli_help.finish(p)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     previous = _interrupt_on_signals()
     try:
@@ -449,7 +455,8 @@ def main(argv: list[str] | None = None) -> int:
         extra = _EXTRAS.get((exc.name or "").split(".")[0])
         if extra is None:
             raise
-        print(f"rhi: error: this command needs {exc.name}: pip install 'rhi[{extra}]' (or 'rhi[all]')", file=sys.stderr)
+        need = "'rhi[all]'" if args.command in _NEEDS_ALL else f"'rhi[{extra}]' (or 'rhi[all]')"  # all at once
+        print(f"rhi: error: this command needs {exc.name}: pip install {need}", file=sys.stderr)
         return 2
     finally:
         for sig, handler in previous.items():

@@ -10,6 +10,8 @@ recompiles every rhi kernel once. Functions outside the rhi package keep Numba's
 
 Uses Numba's cache-locator classes (``numba.core.caching``); `install` runs before the kernel
 modules create their decorators (`rhi.terms_kernel`, `rhi.control.kernels.jit`, `rhi.design.planar`).
+It also listens to Numba's compile events: the first compile of an rhi kernel in a process (a cold
+cache) prints `COLD` once on stderr, so that a first use is not two minutes without a word.
 """
 
 from __future__ import annotations
@@ -17,9 +19,10 @@ from __future__ import annotations
 import functools
 import hashlib
 import re
+import sys
 from pathlib import Path
 
-from numba.core import caching
+from numba.core import caching, event
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
@@ -75,9 +78,39 @@ class _UserWide(_PackageStamp, caching.UserWideCacheLocator):
 _LOCATORS = (_UserProvided, _InTree, _UserWide)
 
 
+#: The line a process prints on stderr at its first compile of an rhi kernel.
+COLD = ("rhi: compiling the Numba kernels (first use of this install or of an updated rhi): up to about 2 min "
+        "in all, once; later runs load them from the cache (`rhi warmup` compiles them all ahead)")
+
+
+class _FirstCompile(event.Listener):
+    """Prints `COLD` at the first compile of a function of the rhi package, once per process."""
+
+    said = False
+
+    def on_start(self, ev) -> None:
+        func = getattr(ev.data.get("dispatcher"), "py_func", None) if isinstance(ev.data, dict) else None
+        if not _FirstCompile.said and str(getattr(func, "__module__", "")).startswith("rhi."):
+            _FirstCompile.said = True
+            print(COLD, file=sys.stderr, flush=True)
+
+    def on_end(self, ev) -> None:
+        pass
+
+
+_LISTENER = _FirstCompile()
+
+
+def announced(value: bool = True) -> None:
+    """Mark `COLD` as said in this process (e.g. by `rhi warmup`'s own progress bar), or not yet."""
+    _FirstCompile.said = value
+
+
 def install() -> None:
-    """Put the package-stamped locators first in Numba's list (idempotent)."""
+    """Put the package-stamped locators first in Numba's list and listen for a first compile (idempotent)."""
     classes = caching.CacheImpl._locator_classes
     if classes[:len(_LOCATORS)] != list(_LOCATORS):
         classes[:] = [*_LOCATORS, *(c for c in classes if c not in _LOCATORS)]
+    if _LISTENER not in event._registered.get("numba:compile", ()):
+        event.register("numba:compile", _LISTENER)
 

@@ -171,6 +171,11 @@ def experiments() -> list[str]:
     return [s.name for s in STEPS]
 
 
+def describe() -> list[tuple[str, str]]:
+    """[(id, one line)] of the experiments: the first line of each experiment function's docstring."""
+    return [(s.name, (s.run.__doc__ or "").strip().splitlines()[0] if s.run.__doc__ else "") for s in STEPS]
+
+
 def step_names(s: Step) -> set[str]:
     """Every name `rhi experiment` accepts for a step: its id (its result's name) and its function's name."""
     return {s.name, s.run.__name__}

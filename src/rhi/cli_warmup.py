@@ -1,0 +1,114 @@
+"""The `rhi warmup` command: compile, or load from Numba's disk cache, every kernel rhi runs, with a progress bar.
+
+On a cold cache (a fresh install, or after an update of any kernel module, `rhi.kernel_cache`) the first
+call of each kernel compiles it (about two minutes in all on two cores); afterwards every process loads
+them from the cache in seconds. `./run` runs this once after installing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+EXAMPLE = "example:\n  rhi warmup            # once after installing or updating rhi\n"
+
+
+def _mid(dev) -> np.ndarray:
+    lo, hi = dev.joint_limits
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    return np.where(finite, 0.5 * (np.where(finite, lo, 0.0) + np.where(finite, hi, 0.0)), 0.3)
+
+
+def _terms() -> None:
+    from rhi.device import available_devices, device
+
+    for name in available_devices():
+        dev = device(name)
+        dev.terms(_mid(dev), np.full(dev.n, 1e-3), check=False)
+
+
+def _batch() -> None:
+    from rhi.batch import terms
+    from rhi.device import device
+
+    dev = device("rhi4")
+    terms(dev, _mid(dev) + np.random.default_rng(0).uniform(-0.1, 0.1, (64, dev.n)), ("x", "J", "dJ", "M", "g"))
+
+
+def _controllers() -> None:
+    from rhi.runtime.config import load_config, shipped_configs
+
+    for name in shipped_configs():
+        load_config(name).controller().warmup()
+
+
+def _simulation() -> None:
+    from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
+    from rhi.device import device
+    from rhi.sim import Hand, HandPath, Plant, Wall, simulate, stop
+
+    dev = device("rhi4")
+    q0 = np.array([-0.63, 0.25, 0.28, 0.09])
+    plant = Plant(dev)
+    plant.reset(q0)
+    x0 = dev.fk(q0)
+    ctrl = NullSpaceController(dev, ControllerConfig(primary=ForceRendering(), saturation="ascm"))
+    up = np.array([0.0, 1.0])
+    simulate(plant, ctrl, duration=0.05, hand=Hand(HandPath(np.array([x0, x0 + 0.05 * up]), speed=0.02)),
+             virtual=Wall(x0 + 0.01 * up, normal=up, stiffness=1000.0), physical=stop(x0 + 0.03 * up, up))
+
+
+def _design() -> None:
+    from rhi.design.planar import planar_indices
+
+    rng = np.random.default_rng(0)
+    planar_indices(rng.normal(size=(8, 2, 4)), rng.normal(size=(8, 2, 3)), np.ones(8, dtype=bool), np.ones(8))
+
+
+STEPS: list[tuple[str, Callable[[], None]]] = [
+    ("device terms (every bundled device)", _terms),
+    ("batch terms", _batch),
+    ("controllers (every shipped configuration)", _controllers),
+    ("simulation loop", _simulation),
+    ("design indices", _design),
+]
+"""What `warmup` runs, in order: each calls the kernels of its part once."""
+
+
+def warmup(progress: bool = True) -> list[tuple[str, float]]:
+    """Run every `STEPS` entry (a rich progress bar when `progress`); returns [(step, seconds)]."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from rhi import kernel_cache
+
+    kernel_cache.announced(True)  # the bar says it; no "compiling ..." line besides
+    out = []
+    with Progress(TextColumn("{task.description:<44}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
+                  TimeElapsedColumn(), disable=not progress) as bar:
+        task = bar.add_task("rhi warmup", total=len(STEPS))
+        for name, step in STEPS:
+            bar.update(task, description=name)
+            t0 = time.perf_counter()
+            step()
+            out.append((name, time.perf_counter() - t0))
+            bar.advance(task)
+    return out
+
+
+def _command(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    for name, s in warmup(progress=not args.quiet):
+        print(f"{name:<44} {s:7.1f} s")
+    print(f"{'kernels ready (cached for every later process)':<44} {time.perf_counter() - t0:7.1f} s")
+    return 0
+
+
+def add_commands(sub) -> None:
+    """Add `warmup` to the `rhi` argument parser's subcommands."""
+    w = sub.add_parser("warmup", help="compile (or load) every kernel now, with a progress bar",
+                       description=__doc__, epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    w.add_argument("--quiet", action="store_true", help="no progress bar")
+    w.set_defaults(func=_command)
