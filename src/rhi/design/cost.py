@@ -15,7 +15,7 @@ height Z_PH; ``J_M^2D = jacobian(q)[:2]`` is eq. 4.26 there, and velocities map 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike
 from rhi._validate import as_array, scalar
 from rhi.design.indices import penalize
 from rhi.design.kinematics import Master, Solution
-from rhi.design.planar import planar_indices
+from rhi.design.planar import planar_indices_many
 from rhi.design.workspace import Workspace
 from rhi.errors import InfeasibleLimits, InvalidInput, Unreachable
 
@@ -151,14 +151,37 @@ def evaluate(problem: DesignProblem, x: ArrayLike) -> dict[str, float]:
         everywhere with coverage 0 (the optimiser must be able to visit it).
     """
     sol = problem.solve(x)
-    ok = sol.ok & problem.slave.ok
-    if not ok.any():
-        return {"GM_M": 0.0, "GC_M": 0.0, "GM_T": 0.0, "coverage": 0.0, "C1": 0.0, "C2": 0.0}
     Jm = penalize(sol.J, sol.q, sol.q_min, sol.q_max, problem.k_q)
-    d = planar_indices(Jm, problem._slave_Jq, ok, problem.workspace.weights)
-    gmt = d["GM_T"]
-    return {"GM_M": d["GM"], "GC_M": d["GC"], "GM_T": gmt, "coverage": d["coverage"],
-            "C1": problem.K1 * d["GC"] + problem.K2 * d["GM"], "C2": problem.K1 * d["GC"] + problem.K2 * gmt}
+    return _scores(problem, Jm[None], (sol.ok & problem.slave.ok)[None])[0]
+
+
+def _scores(problem: DesignProblem, Jm: np.ndarray, ok: np.ndarray) -> list[dict[str, float]]:
+    """`evaluate`'s dicts from the master's penalized Jacobians Jm (P, N, 2, n) and the reached samples ok (P, N)."""
+    out = [{"GM_M": 0.0, "GC_M": 0.0, "GM_T": 0.0, "coverage": 0.0, "C1": 0.0, "C2": 0.0} for _ in ok]
+    reached = np.flatnonzero(ok.any(axis=-1))
+    if reached.size:
+        for i, d in zip(reached, planar_indices_many(Jm[reached], problem._slave_Jq, ok[reached],
+                                                     problem.workspace.weights), strict=True):
+            gmt = d["GM_T"]
+            out[i] = {"GM_M": d["GM"], "GC_M": d["GC"], "GM_T": gmt, "coverage": d["coverage"],
+                      "C1": problem.K1 * d["GC"] + problem.K2 * d["GM"], "C2": problem.K1 * d["GC"] + problem.K2 * gmt}
+    return out
+
+
+def evaluate_many(problem: DesignProblem, xs: Sequence[ArrayLike]) -> list[dict[str, float]]:
+    """`evaluate` at each design vector of xs, the IK and penalty of all of them in one vectorized pass.
+
+    A master with ``solve_many`` (`Phantom3Master`) solves the P designs' targets as one (P, N) batch and
+    the joint-limit penalty runs once over it; the same numbers as `evaluate` design by design (element-wise
+    operations over a leading design axis). Other masters are evaluated one design at a time.
+    """
+    solve_many = getattr(problem.master, "solve_many", None)
+    if solve_many is None or len(xs) < 2:
+        return [evaluate(problem, x) for x in xs]
+    params = [problem.params(x) for x in xs]
+    sol = solve_many(params, np.stack([problem.targets(p) for p in params]))
+    ok = sol.ok & problem.slave.ok
+    return _scores(problem, penalize(sol.J, sol.q, sol.q_min, sol.q_max, problem.k_q), ok)
 
 
 def evaluate_strict(problem: DesignProblem, x: ArrayLike) -> dict[str, float]:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -139,17 +139,26 @@ class Phantom3Master:
 
     def solve(self, params: Mapping[str, float], targets: np.ndarray) -> Solution:
         """IK at world targets (N, 2) [m] on the plane z = z_ph; J: (N, 2, 3) = [[cz, −sz, 0], [sz, cz, 0]] J_PH."""
+        sol = self.solve_many([params], np.asarray(targets, dtype=float)[None])
+        return Solution(sol.q[0], sol.J[0], sol.ok[0], sol.q_min, sol.q_max)
+
+    def solve_many(self, params: Sequence[Mapping[str, float]], targets: np.ndarray) -> Solution:
+        """`solve` for P designs at once: targets (P, N, 2) [m]; q (P, N, 3), J (P, N, 2, 3), ok (P, N).
+
+        Element-wise array operations over a leading design axis: the same numbers as `solve` per design.
+        """
         l1 = self.l1
-        l2 = float(params.get("l2", 0.165))
-        tz = float(params.get("theta_z", 0.0))
-        z = float(params.get("z_ph", 0.0539))
-        if l2 <= 0 or l1 <= 0:
-            raise InvalidInput(f"l2: link lengths must be positive, got l1={l1}, l2={l2}")
+        per = []
+        for p in params:  # the design's scalars, as one design's solve computes them
+            l2, tz, z = float(p.get("l2", 0.165)), float(p.get("theta_z", 0.0)), float(p.get("z_ph", 0.0539))
+            if l2 <= 0 or l1 <= 0:
+                raise InvalidInput(f"l2: link lengths must be positive, got l1={l1}, l2={l2}")
+            per.append((l2, np.cos(tz), np.sin(tz), z))
+        l2, cz, sz, z = (np.array(v, dtype=float)[:, None] for v in zip(*per, strict=True))
         q_min, q_max, lin_lo, lin_hi = self._limits()
-        cz, sz = np.cos(tz), np.sin(tz)
         t = np.asarray(targets, dtype=float)
-        xb = cz * t[:, 0] + sz * t[:, 1]  # world -> HI base frame (inverse yaw)
-        yb = -sz * t[:, 0] + cz * t[:, 1]
+        xb = cz * t[..., 0] + sz * t[..., 1]  # world -> HI base frame (inverse yaw)
+        yb = -sz * t[..., 0] + cz * t[..., 1]
         th1 = np.arctan2(yb, xb)
         r = np.hypot(xb, yb)
         d2 = r**2 + z**2
@@ -166,11 +175,11 @@ class Phantom3Master:
         ok &= (lin >= lin_lo - tol) & (lin <= lin_hi + tol)
         s1, c1, s2, c2, s3, c3 = np.sin(th1), np.cos(th1), np.sin(th2), np.cos(th2), np.sin(th3), np.cos(th3)
         a = l1 * c2 + l2 * s3
-        J = np.empty((len(t), 2, 3))
+        J = np.empty(t.shape[:-1] + (2, 3))
         # eq. 4.25b rows x (j0), y (j1), rotated by θz (eq. 4.26)
         for i, (j0, j1) in enumerate(((-s1 * a, c1 * a), (-l1 * c1 * s2, -l1 * s1 * s2), (l2 * c1 * c3, l2 * c3 * s1))):
-            J[:, 0, i] = cz * j0 - sz * j1
-            J[:, 1, i] = sz * j0 + cz * j1
+            J[..., 0, i] = cz * j0 - sz * j1
+            J[..., 1, i] = sz * j0 + cz * j1
         return Solution(q, J, ok, q_min, q_max)
 
 

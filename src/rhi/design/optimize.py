@@ -16,7 +16,7 @@ from scipy.optimize import differential_evolution, minimize
 
 from rhi._validate import scalar
 from rhi.design.checkpoint import EvalCache
-from rhi.design.cost import DesignProblem, evaluate
+from rhi.design.cost import DesignProblem, evaluate, evaluate_many
 from rhi.design.executors import SerialExecutor
 from rhi.errors import InvalidInput, Unreachable
 
@@ -56,6 +56,18 @@ def _tag(problem: DesignProblem, which: str) -> str:
             f"{problem.fixed}|kq={problem.k_q}|K={problem.K1},{problem.K2}")
 
 
+def _batches(problem: DesignProblem, ex):
+    """A mapper for `EvalCache.map`: each of the executor's workers evaluates one slice of the items as one batch."""
+    many = functools.partial(evaluate_many, problem)
+
+    def mapper(_fn, items):
+        items = list(items)
+        ends = np.linspace(0, len(items), max(1, min(ex.workers, len(items))) + 1).astype(int)
+        return [r for part in ex.map(many, [items[a:b] for a, b in zip(ends[:-1], ends[1:])]) for r in part]
+
+    return mapper
+
+
 def sweep(
     problem: DesignProblem,
     xs: Sequence[Sequence[float]],
@@ -71,7 +83,7 @@ def sweep(
     fn = functools.partial(evaluate, problem)
     out: list[dict[str, float]] = []
     for i in range(0, len(xs), batch):
-        out += cache.map(fn, xs[i:i + batch], ex.map)
+        out += cache.map(fn, xs[i:i + batch], _batches(problem, ex))
         if progress:
             progress(len(out), len(xs))
     return out
@@ -187,10 +199,11 @@ def optimize(
     done = [0]
     seen_x: list[np.ndarray] = []
     seen_f: list[float] = []
+    mapper = _batches(problem, ex)  # a DE generation (updating="deferred") is evaluated as one batch per worker
 
     def batch_map(_func, xs):
         xs = [np.asarray(x, dtype=float) for x in xs]
-        res = cache.map(fn, xs, ex.map)
+        res = cache.map(fn, xs, mapper)
         done[0] += len(xs)
         if progress:
             progress(min(done[0], total), total)

@@ -129,6 +129,13 @@ def _sums(Jm, Js, ok, weights):  # pragma: no cover - compiled
     return gm, gc, gt
 
 
+@njit(cache=True, error_model="numpy")
+def _sums_many(Jm, Js, ok, weights, out):  # pragma: no cover - compiled
+    """`_sums` of each design i of Jm (P, N, 2, n_M), ok (P, N) into out[i] (3,)."""
+    for i in range(Jm.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = _sums(Jm[i], Js, ok[i], weights)
+
+
 def planar_indices(J_master: np.ndarray, J_slave: np.ndarray, ok: np.ndarray, weights: np.ndarray) -> dict[str, float]:
     """GM, GC of the master (eqs. 4.8, 4.10) and GM_T of the pair (eq. 4.18) over the workspace samples.
 
@@ -148,16 +155,41 @@ def planar_indices(J_master: np.ndarray, J_slave: np.ndarray, ok: np.ndarray, we
         Unreachable: no sample was reached.
     """
     Jm = as_array("J_master", J_master, ndim_min=3)
+    if Jm.ndim != 3:
+        raise InvalidInput(f"J_master: expected (N, 2, n), got {Jm.shape}")
+    return planar_indices_many(Jm[None], J_slave, np.asarray(ok)[None], weights)[0]
+
+
+def planar_indices_many(J_master: np.ndarray, J_slave: np.ndarray, ok: np.ndarray,
+                        weights: np.ndarray) -> list[dict[str, float]]:
+    """`planar_indices` of P master designs over the same samples and slave, in one compiled call.
+
+    Args:
+        J_master: (P, N, 2, n_M) (penalized) master Jacobians of each design.
+        J_slave: (N, 2, n_S) (penalized) slave Jacobians.
+        ok: (P, N) whether both robots reached each sample, per design.
+        weights: (N,) area weights [m²], positive sum.
+
+    Returns:
+        One {"GM", "GC", "GM_T", "coverage"} per design.
+
+    Raises:
+        InvalidInput: shapes that do not match, or non-finite Jacobians or weights.
+        Unreachable: a design reached no sample.
+    """
+    Jm = as_array("J_master", J_master, ndim_min=4)
     Js = as_array("J_slave", J_slave, ndim_min=3)
-    n = Jm.shape[0]
-    if Jm.ndim != 3 or Js.ndim != 3 or Jm.shape[1] != 2 or Js.shape[:2] != (n, 2):
-        raise InvalidInput(f"J_master/J_slave: expected (N, 2, n) each with the same N, got {Jm.shape} and {Js.shape}")
+    n = Js.shape[0]
+    if Jm.ndim != 4 or Js.ndim != 3 or Jm.shape[1:3] != (n, 2) or Js.shape[1] != 2:
+        raise InvalidInput(f"J_master/J_slave: expected (N, 2, n) each with the same N, got {Jm.shape[1:]} and {Js.shape}")
     ok = np.ascontiguousarray(ok, dtype=np.bool_)
     w = as_array("weights", weights)
-    if ok.shape != (n,) or w.shape != (n,):
-        raise InvalidInput(f"ok/weights: expected shape ({n},) each, got {ok.shape} and {w.shape}")
-    if not ok.any():
+    if ok.shape != Jm.shape[:2] or w.shape != (n,):
+        raise InvalidInput(f"ok/weights: expected shape ({n},) each, got {ok.shape[1:]} and {w.shape}")
+    if not ok.any(axis=-1).all():
         raise Unreachable("workspace: inverse kinematics failed at every workspace sample")
-    gm, gc, gt = _sums(np.ascontiguousarray(Jm), np.ascontiguousarray(Js), ok, np.ascontiguousarray(w))
+    sums = np.empty((Jm.shape[0], 3))
+    _sums_many(np.ascontiguousarray(Jm), np.ascontiguousarray(Js), ok, np.ascontiguousarray(w), sums)
     total = float(np.sum(w))
-    return {"GM": gm / total, "GC": gc / total, "GM_T": gt / total, "coverage": float(np.sum(w[ok]) / total)}
+    return [{"GM": float(gm / total), "GC": float(gc / total), "GM_T": float(gt / total),
+             "coverage": float(np.sum(w[k]) / total)} for (gm, gc, gt), k in zip(sums, ok, strict=True)]
