@@ -234,3 +234,25 @@ def test_ray_matches_local_pool():
         streamed = parallel_map(functools.partial(evaluate, prob), [np.array(x) for x in xs], executor=ex)
     assert got == ref
     assert streamed == ref
+
+
+@pytest.mark.parametrize("kind", ["theta_z", "full"])
+def test_population_as_one_batch_equals_design_by_design(kind):
+    """evaluate_many (one (P, N) IK pass, one compiled index call) gives evaluate's numbers bit for bit."""
+    from rhi.design.cost import evaluate_many
+    from rhi.design.planar import planar_indices_many
+    from rhi.experiments.ch4.setup import problem
+
+    p = problem(kind, density=40.0)
+    lo, hi = (np.array([b[i] for b in p.bounds.values()]) for i in (0, 1))
+    X = lo + (hi - lo) * np.random.default_rng(3).uniform(size=(40, len(lo)))
+    if kind == "full":
+        X[0] = hi + 10.0  # l2 and Z_PH 10 m beyond their bounds: reaches no sample, scores 0
+    got = evaluate_many(p, X)
+    assert got == [evaluate(p, x) for x in X]
+    assert (got[0]["coverage"] == 0.0) == (kind == "full") and got[1]["coverage"] > 0.0
+    Jm = np.zeros((2, 4, 2, 3))
+    with pytest.raises(Unreachable, match="workspace"):
+        planar_indices_many(Jm, np.zeros((4, 2, 2)), np.array([[True] * 4, [False] * 4]), np.ones(4))
+    with pytest.raises(InvalidInput, match="ok/weights"):
+        planar_indices_many(Jm, np.zeros((4, 2, 2)), np.ones((2, 3), bool), np.ones(4))

@@ -150,10 +150,10 @@ class Phantom3Master:
         l1 = self.l1
         per = []
         for p in params:  # the design's scalars, as one design's solve computes them
-            l2, tz, z = float(p.get("l2", 0.165)), float(p.get("theta_z", 0.0)), float(p.get("z_ph", 0.0539))
-            if l2 <= 0 or l1 <= 0:
-                raise InvalidInput(f"l2: link lengths must be positive, got l1={l1}, l2={l2}")
-            per.append((l2, np.cos(tz), np.sin(tz), z))
+            l2_i, tz_i, z_i = float(p.get("l2", 0.165)), float(p.get("theta_z", 0.0)), float(p.get("z_ph", 0.0539))
+            if l2_i <= 0 or l1 <= 0:
+                raise InvalidInput(f"l2: link lengths must be positive, got l1={l1}, l2={l2_i}")
+            per.append((l2_i, np.cos(tz_i), np.sin(tz_i), z_i))
         l2, cz, sz, z = (np.array(v, dtype=float)[:, None] for v in zip(*per, strict=True))
         q_min, q_max, lin_lo, lin_hi = self._limits()
         t = np.asarray(targets, dtype=float)
