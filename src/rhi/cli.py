@@ -158,7 +158,7 @@ def _link(url: str, rate: float, cfg, realtime: bool, spin: bool = False, device
           takeover: bool = False):
     """The device link of `--link`: "sim" (the configuration's simulated device) or udp://HOST:PORT.
 
-    In real time a tick waits at most half a period for a reading; without (`--fast`, e.g. against a lock-step
+    In real time a tick waits at most one period for a reading; without (`--fast`, e.g. against a lock-step
     device server) a reading may take up to 1 s and the device 10 s to answer.
     """
     if url == "sim":
@@ -171,7 +171,7 @@ def _link(url: str, rate: float, cfg, realtime: bool, spin: bool = False, device
         host, port = parse_url(url)
     except InvalidInput as exc:
         raise InvalidInput(f"--link: {exc}") from None
-    link = UDPLink(host, port, rate=rate, spin=spin, timeout=0.5 / rate, takeover=takeover) if realtime else \
+    link = UDPLink(host, port, rate=rate, spin=spin, timeout=1.0 / rate, takeover=takeover) if realtime else \
         UDPLink(host, port, rate=rate, timeout=1.0, connect_timeout=10.0, spin=spin, takeover=takeover)
     return _SameDevice(link, cfg.device, device_name)
 
