@@ -119,7 +119,7 @@ def evaluate(verdicts: Sequence[Verdict], dossiers: dict[str, Dossier], results:
         rows = []
         for rd in d.readings:
             x = rd.value(look)
-            rows.append((rd, x, "—" if x is None else judge(v.claim.thesis, x)))
+            rows.append((rd, x, "—" if x is None else judge(v.claim.thesis, x, effect=v.claim.effect)))
         quoted = [f"{look(e, q):.4g}" if look.has(e, q) else "(not computed in this run)" for e, q in d.evidence]
         out.append(Case(v, d, tuple(rows), _conclusion(v, d, rows, quoted)))
     return out

@@ -131,11 +131,11 @@ _D = [
                      "the TMI the controller maximises", "ch5.fixed_point", "penalised TMI"),),
             missing="the penalty's k_q (eq. 4.20 gives only its form)"),
     Dossier("s5_4_1.s2_below_s1", "§5.4.1 (line 1134), Fig. 5.5, eq. 5.14",
-            "100 (1 − mean TME area of scenario 2 / scenario 1) along rhi's W; rhi's scenario 2 ascends −log μ of the "
-            "joint-limit-penalised J^q (k_q = 10), not eq. 5.14's plain μ",
-            (Reading("eq. 5.14 as printed: τ_N = α ∂μ/∂q, μ = √det(J Jᵀ)", "line 1134: 'The RHI with its "
-                     "manipulability optimizer', eq. 5.14", "ch5.w_trajectory",
-                     "reading 'literal eq. 5.14': scenario 2's mean TME area below scenario 1's"),
+            "100 (1 − mean TME area of scenario 2 / scenario 1) along rhi's W, scenario 2 by eq. 5.14 as printed: "
+            "τ_N = α ∂μ/∂q, μ = √det(J Jᵀ)",
+            (Reading("scenario 2 ascending −log μ of the joint-limit-penalised J^q (k_q = 10)", "line 847: eq. 4.20's "
+                     "penalty keeps the joints off their limits (eq. 5.14 as printed drives q3 into its −55° limit)",
+                     "ch5.w_trajectory", "scenario 2's mean TME area below"),
              Reading("both scenarios on the plain J (k_q = None in eqs. 5.11, 5.14)", "eq. 4.20's penalty is a "
                      "design-chapter device; eqs. 5.11 and 5.14 print the plain J", "ch5.w_trajectory",
                      "reading 'plain J': scenario 2's mean TME area below scenario 1's")),
