@@ -229,3 +229,33 @@ def test_a_discrimination_task_needs_its_fixture():
         parse_protocol(tomllib.loads(text[:a] + text[text.index("[obstacle]"):]))
     with pytest.raises(InvalidInput, match="^fixture: a discrimination task"):
         parse_protocol(tomllib.loads(text[:a] + text[b:]))
+
+
+def test_cli_simulate_then_analyze_reproduces_ch3_psychophysics_quick(tmp_path):
+    """`rhi study simulate` (MuJoCo lookup, observers) + `rhi study analyze` = `ch3.psychophysics` --quick, same seed."""
+    import json
+
+    from rhi.experiments.ch3.discrimination import psychophysics
+
+    text = load_protocol("ch3_stiffness_2afc").text.replace(
+        "[-35.0, -25.0, -15.0, -5.0, 0.0, 5.0, 15.0, 25.0, 35.0]", "[-35.0, -15.0, 0.0, 15.0, 35.0]").replace(
+        "repetitions = 10", "repetitions = 6").replace("seed = 0", "seed = 2")
+    proto = tmp_path / "quick.toml"
+    proto.write_text(text)
+    env = {**os.environ, "PYTHONPATH": SRC, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
+    rhi = [sys.executable, "-m", "rhi", "study"]
+    r = subprocess.run([*rhi, "simulate", str(proto), "--participants", "4", "--fast", "--durations", "0.7,1.4",
+                        "--out", str(tmp_path / "sim")], capture_output=True, text=True, env=env, timeout=900)
+    assert r.returncode == 0, r.stderr
+    assert "power of the one-way ANOVA" in r.stdout
+    r = subprocess.run([*rhi, "analyze", str(tmp_path / "sim"), "--fast", "--out", str(tmp_path / "an")],
+                       capture_output=True, text=True, env=env, timeout=900)
+    assert r.returncode == 0, r.stderr
+    got = {row["quantity"]: row["rhi"] for t in json.loads((tmp_path / "an" / "results.json").read_text())["results"][0]
+           ["tables"] for row in t["rows"]}
+    ref = psychophysics(subjects=4, repetitions=6, comparison_percent=(-35.0, -15.0, 0.0, 15.0, 35.0),
+                        durations=(0.7, 1.4), overdispersion=False, seed=2)
+    theirs = {row.quantity: row.ours for t in ref.tables[:2] for row in t.rows}
+    assert len(theirs) == 24
+    for k, v in theirs.items():
+        assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-15), k

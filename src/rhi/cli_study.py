@@ -25,6 +25,16 @@ def _protocol(name: str, seed: int | None = None):
     return parse_protocol(tomllib.loads(text), name=p.name, source=p.source, text=text)
 
 
+def _durations(text: str) -> tuple[float, ...]:
+    try:
+        vals = tuple(float(v) for v in text.replace(",", " ").split())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected durations in seconds separated by commas, got {text!r}") from None
+    if not vals or not all(v > 0 for v in vals):
+        raise argparse.ArgumentTypeError(f"expected positive durations [s], got {text!r}")
+    return vals
+
+
 def _print_analysis(res) -> None:
     for table in res.tables:
         print(f"\n{table.title}")
@@ -41,8 +51,9 @@ def _simulate(args: argparse.Namespace) -> int:
     p = _protocol(args.protocol, args.seed)
     if args.out and Path(args.out).exists() and any(Path(args.out).iterdir()):
         raise InvalidInput(f"--out: {args.out} is not empty")
+    kw = {} if args.durations is None else {"durations": args.durations}
     s = simulated_study(p, args.participants, out=args.out, weber_mean=args.weber_mean, weber_sd=args.weber_sd,
-                        lapse=args.lapse, overdispersion=not args.fast)
+                        lapse=args.lapse, overdispersion=not args.fast, **kw)
     a = s.analysis
     print(f"rhi study simulate: {p.name}, {args.participants} simulated participants, seed {p.seed}, "
           f"{len(s.rows)} trials")
@@ -117,6 +128,8 @@ def add_commands(sub) -> None:
     s.add_argument("--weber-mean", type=float, default=0.08, help="mean intrinsic Weber fraction (default 0.08)")
     s.add_argument("--weber-sd", type=float, default=0.02, help="its s.d. (default 0.02)")
     s.add_argument("--lapse", type=float, default=0.0, help="lapse rate of the answers (default 0)")
+    s.add_argument("--durations", type=_durations, help="stroke durations of the simulated hand's lookup [s], "
+                   "e.g. 0.7,1.4 (default: ch3.psychophysics's 0.6,0.9,1.3,2.0)")
     s.add_argument("--executor", choices=("local", "serial", "ray"), default="local",
                    help="where simulations and fits run (default: the local process pool)")
     s.add_argument("--workers", type=int, help="processes of the local pool")

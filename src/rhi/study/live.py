@@ -49,6 +49,7 @@ class StudyRun:
         self._t_start = self._t_second = 0.0
         self._segments: dict[str, int] = {}
         self.notes = 0
+        self.fault: str | None = None  # the last fault that paused the session
         self.adaptive = self.protocol.stimulus["method"] in ("staircase", "quest")
         self._procs = {c: replay(procedure(self.protocol.stimulus), session.history(c))
                        for c in self.protocol.condition_names} if self.adaptive else {}
@@ -109,6 +110,7 @@ class StudyRun:
             InvalidInput: "next" has no meaning now (e.g. during the second sample, or paused).
         """
         with self._lock:
+            self._check_fault()
             if self.phase == "ready":
                 self._begin_trial()
             elif self.phase == "rest":
@@ -136,6 +138,7 @@ class StudyRun:
             InvalidInput: not during the second sample, or not "first"/"second".
         """
         with self._lock:
+            self._check_fault()
             if self.phase != "probe_2":
                 raise InvalidInput(f"answer: only after the second sample, not while {self.phase}")
             t_end = time.time()
@@ -178,7 +181,7 @@ class StudyRun:
                 self._rested = True
                 self._begin_trial()
             elif self.phase == "paused":
-                self.phase, self._resume_phase = self._resume_phase or "ready", None
+                self.phase, self._resume_phase, self.fault = self._resume_phase or "ready", None, None
                 if self.phase in ("probe_1", "probe_2", "running"):
                     self._start_probe({"probe_1": "a", "probe_2": "b", "running": "run"}[self.phase])
 
@@ -198,10 +201,19 @@ class StudyRun:
             self.session.note(text)
             self.notes += 1
 
+    def _check_fault(self) -> None:
+        """A probe the device loop ended on a fault (zero torque, logged) pauses the session until resumed."""
+        if self.phase in ("probe_1", "probe_2", "running") and not self.haptics.running:
+            fault = (self.haptics.last or {}).get("fault")
+            if fault:
+                self.fault = str(fault)
+                self._resume_phase, self.phase = self.phase, "paused"
+
     # ------------------------------------------------------------------ views
     def participant_view(self) -> dict[str, Any]:
         """What the participant's page shows: only the elements the protocol allows."""
         with self._lock:
+            self._check_fault()
             show = self.protocol.display
             ph = self.phase
             v: dict[str, Any] = {"phase": ph, "message": _MESSAGES.get(ph, ""),
@@ -220,6 +232,7 @@ class StudyRun:
     def experimenter_view(self) -> dict[str, Any]:
         """Everything the experimenter's page shows: progress, the trial, the device's state and safety."""
         with self._lock:
+            self._check_fault()
             t = self.trial
             trial = None if t is None else {
                 "index": t.index, "block": t.block, "condition": t.condition, "training": t.training,
@@ -233,7 +246,7 @@ class StudyRun:
                     "device": {k: st.get(k) for k in keys},
                     "state": self.haptics.state(), "running": self.haptics.running, "link": self.haptics.link,
                     "mouse": self.haptics.mouse,
-                    "notes": self.notes,
+                    "notes": self.notes, "paused_by_fault": self.fault,
                     "last_fault": (self.haptics.last or {}).get("fault")}
 
 
