@@ -51,6 +51,8 @@ def _simulate(args: argparse.Namespace) -> int:
     p = _protocol(args.protocol, args.seed)
     if args.out and Path(args.out).exists() and any(Path(args.out).iterdir()):
         raise InvalidInput(f"--out: {args.out} is not empty")
+    if p.kind == "path_following":
+        return _simulate_task(args, p)
     kw = {} if args.durations is None else {"durations": args.durations}
     s = simulated_study(p, args.participants, out=args.out, weber_mean=args.weber_mean, weber_sd=args.weber_sd,
                         lapse=args.lapse, overdispersion=not args.fast, **kw)
@@ -70,6 +72,26 @@ def _simulate(args: argparse.Namespace) -> int:
         print(f"  paired t-test on WF {t.a} vs {t.b}: Holm-adjusted p = {t.p_adjusted:.4g}")
     print(f"  power of the one-way ANOVA at Table 3.3's WF effect with {args.participants} per condition "
           f"(alpha 0.05): {s.power:.3f}")
+    if args.out:
+        print(f"study folder: {args.out} (rhi study analyze {args.out})")
+    return 0
+
+
+def _simulate_task(args: argparse.Namespace, p) -> int:
+    from rhi.experiments.participants import simulated_path_study
+
+    s = simulated_path_study(p, args.participants, out=args.out)
+    a = s.analysis
+    print(f"rhi study simulate: {p.name}, {args.participants} simulated users (speeds "
+          f"{s.speed.min():.4f}–{s.speed.max():.4f} m/s), seed {p.seed}, {len(s.rows)} runs")
+    for m, summ in a.summary.items():
+        for sm in summ:
+            print(f"  {m} {sm.name:<6} mean {sm.mean:.4g}  std {sm.std:.4g}")
+        an = a.anova[m]
+        print(f"  one-way ANOVA on {m}: F({an.df_between:g}, {an.df_within:g}) = {an.statistic:.4g}, "
+              f"p = {an.p_value:.4g}")
+    print(f"  power of the one-way ANOVA at §5.5's effect on the execution time (F(2, 21) = 3.57) with "
+          f"{args.participants} per condition (alpha 0.05): {s.power:.3f}")
     if args.out:
         print(f"study folder: {args.out} (rhi study analyze {args.out})")
     return 0

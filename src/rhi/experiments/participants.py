@@ -26,7 +26,7 @@ from rhi.experiments.ch3.measures import DEVICE_NAMES
 from rhi.experiments.setups import Progress
 from rhi.study.protocol import Protocol
 from rhi.study.results import fit_conditions, responses_of
-from rhi.study.simulate import anova_power, simulate
+from rhi.study.simulate import anova_power, cohens_f, f_from_anova, simulate
 
 #: the controller each simulated device runs (`rhi.experiments.ch3.discrimination.palpate`): its run configuration.
 _CH3_CONFIG = {"RHI": "ch3_vme", "PHANToM": None, "Rehab": None}
@@ -123,9 +123,99 @@ def simulated_study(
     rows_text = [{k: "" if v is None else str(v) for k, v in r.items()} | {"completion_time": ""} for r in rows]
     analysis = fit_conditions(responses_of(rows_text), conditions=conds, overdispersion=overdispersion)
     wf = T.TABLE_3_3["wf"]
-    power = anova_power({d: (float(v[0]), float(v[1])) for d, v in wf.items()}, participants) \
-        if participants >= 2 else float("nan")
+    f = cohens_f([float(v[0]) for v in wf.values()], [float(v[1]) for v in wf.values()])
+    power = anova_power(f, len(wf), participants) if participants >= 2 else float("nan")
     return SimulatedStudy(rows=rows, analysis=analysis, weber=obs.weber, table=table, power=power)
 
 
-__all__ = ["SimulatedStudy", "simulated_study", "stimulus_grid"]
+#: the ch. 5 scenario (`rhi.experiments.ch5.tracking.w_scenario`) of a condition: by its run configuration and device.
+_CH5_SCENARIO = {("rhi4", "ch5_tmi"): "s1", ("rhi4", "ch5_manipulability"): "s2", ("rehab", None): "s3"}
+
+
+def _path_run(item: tuple) -> dict[str, float]:
+    """§5.5 measures of one simulated path-following run: (scenario key, speed [m/s], task table)."""
+    from rhi.experiments.ch5.setup import w_reference
+    from rhi.experiments.ch5.tracking import w_trajectory_plan
+
+    key, speed, task = item
+    kw = {"center": tuple(task["center"][:2]), "width": task["width"], "height": task["height"]}
+    plan = w_trajectory_plan(speed=speed, settle=1.0, readings=False, ellipses=2, **kw)
+    stats, _ = next(p for p in plan.parts if p.label == key).run(progress=None)
+    return {"tracking_error": stats["path_rms"], "effort": stats["work"],
+            "completion_time": w_reference(speed=speed, **kw).duration}
+
+
+@dataclasses.dataclass(frozen=True)
+class SimulatedTaskStudy:
+    """A simulated path-following study: rows, the §5.5 analysis, the users' speeds, the power at §5.5's effect.
+
+    Attributes:
+        rows: responses.csv rows of every run.
+        analysis: `rhi.study.results.TaskAnalysis`.
+        speed: (participants,) each simulated user's path speed [m/s].
+        power: power of the one-way ANOVA at the effect of §5.5's F(2, 21) = 3.57 on the execution time.
+    """
+
+    rows: list[dict[str, Any]]
+    analysis: Any
+    speed: np.ndarray
+    power: float
+
+
+class _Runs:
+    """A `Performer` answering from precomputed runs {(participant, trial): measures}."""
+
+    def __init__(self, runs: dict[tuple[int, int], dict[str, float]]) -> None:
+        self.runs = runs
+
+    def perform(self, subject: int, condition: str, trial: int) -> dict[str, float]:
+        return self.runs[(subject, trial)]
+
+
+def simulated_path_study(protocol: Protocol, participants: int = 8, *, out: str | Path | None = None,
+                         speed_sd: float = 0.2, run_sd: float = 0.05,
+                         progress: Progress | None = None) -> SimulatedTaskStudy:
+    """Simulate a path-following protocol with the §5.4 teleoperation simulation as the users.
+
+    Each simulated user follows the W at a speed of their own, ``task.speed · (1 + speed_sd ε)`` (ε ~ N(0, 1),
+    clipped to ≥ 0.5 · task.speed), varied per run by ``run_sd``; every run is one `w_scenario` of chapter 5
+    (the master driven by the simulated hand, the slave following by teleoperation) for the condition's
+    scenario; its measures: the slave's RMS distance to the path, the user's work (eq. 5.15) and the path's
+    duration. The runs are independent and run on the default executor.
+
+    Raises:
+        InvalidInput: conditions that are not the ch. 5 scenarios (rhi4 with ch5_tmi or ch5_manipulability,
+            rehab without a configuration).
+    """
+    from rhi.design.executors import parallel_map
+    from rhi.study.results import analyse_task
+    from rhi.study.sequence import plan
+
+    if protocol.kind != "path_following":
+        raise InvalidInput(f"protocol: {protocol.name} is not a path-following task")
+    keys = {}
+    for i, c in enumerate(protocol.conditions):
+        key = _CH5_SCENARIO.get((c.device, c.config))
+        if key is None:
+            raise InvalidInput(f"conditions[{i}]: the simulated users run the ch. 5 scenarios only (rhi4 with config "
+                               f"ch5_tmi or ch5_manipulability, rehab without), got {c.device!r}, {c.config!r}")
+        keys[c.name] = key
+    rng = np.random.default_rng([protocol.seed, 2])
+    base = protocol.task["speed"]
+    speed = np.maximum(base * (1.0 + speed_sd * rng.standard_normal(int(participants))), 0.5 * base)
+    items, where = [], []
+    for i in range(int(participants)):
+        for t in plan(protocol, i):
+            v = float(speed[i] * max(1.0 + run_sd * rng.standard_normal(), 0.5))
+            items.append((keys[t.condition], v, protocol.task))
+            where.append((i, t.index))
+    runs = dict(zip(where, parallel_map(_path_run, items, progress=progress)))
+    rows = simulate(protocol, participants, _Runs(runs), out=out)
+    text = [{k: "" if r.get(k) is None else str(r[k]) for k in r} | {"response": ""} for r in rows]
+    analysis = analyse_task(text, protocol.condition_names)
+    F = T.ANOVA_5["time"][0]
+    power = anova_power(f_from_anova(float(F), 2, 21), len(protocol.conditions), participants)
+    return SimulatedTaskStudy(rows=rows, analysis=analysis, speed=speed, power=power)
+
+
+__all__ = ["SimulatedStudy", "SimulatedTaskStudy", "simulated_path_study", "simulated_study", "stimulus_grid"]

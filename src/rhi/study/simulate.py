@@ -7,13 +7,13 @@ that `rhi study analyze` reads like any other study. The simulated participants 
 an `Observer` for discrimination tasks (the §3.5 observer through the simulated devices lives in
 `rhi.experiments.ch3`), a `Performer` for path following.
 
-`anova_power`: the power of the one-way ANOVA at an effect size given as group means and standard deviations
-(Cohen's f from them; statsmodels' noncentral F), e.g. at Table 3.3's WF.
+`anova_power`: the power of the one-way ANOVA at Cohen's f (statsmodels' noncentral F), f from group means
+and standard deviations (`cohens_f`, e.g. Table 3.3's WF) or from a published F (`f_from_anova`, e.g. §5.5's).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Protocol as Interface
 
@@ -104,15 +104,23 @@ def cohens_f(means: Sequence[float], stds: Sequence[float]) -> float:
     return float(np.sqrt(np.mean((m - m.mean()) ** 2)) / np.sqrt(np.mean(s ** 2)))
 
 
-def anova_power(effect: Mapping[str, tuple[float, float]], per_group: int, *, alpha: float = 0.05) -> float:
-    """Power of the between-subjects one-way ANOVA at the effect {group: (mean, s.d.)} with `per_group` each."""
+def anova_power(f: float, groups: int, per_group: int, *, alpha: float = 0.05) -> float:
+    """Power of the between-subjects one-way ANOVA at Cohen's f with `groups` groups of `per_group` each."""
     from statsmodels.stats.power import FTestAnovaPower
 
-    if int(per_group) != per_group or per_group < 2:
-        raise InvalidInput(f"per_group: need an integer >= 2, got {per_group!r}")
-    f = cohens_f([v[0] for v in effect.values()], [v[1] for v in effect.values()])
-    k = len(effect)
-    return float(FTestAnovaPower().power(effect_size=f, nobs=k * int(per_group), alpha=alpha, k_groups=k))
+    if int(per_group) != per_group or per_group < 2 or int(groups) != groups or groups < 2:
+        raise InvalidInput(f"groups/per_group: need integers >= 2, got {groups!r}, {per_group!r}")
+    if not (np.isfinite(f) and f > 0):
+        raise InvalidInput(f"f: need a positive effect size, got {f!r}")
+    return float(FTestAnovaPower().power(effect_size=f, nobs=int(groups) * int(per_group), alpha=alpha,
+                                         k_groups=int(groups)))
 
 
-__all__ = ["Observer", "Performer", "anova_power", "cohens_f", "simulate", "subject_name"]
+def f_from_anova(F: float, df_between: float, df_within: float) -> float:
+    """Cohen's f of a published one-way ANOVA: f² = F df_between / df_within (η² / (1 − η²))."""
+    if not (F > 0 and df_between > 0 and df_within > 0):
+        raise InvalidInput(f"F/df: need positive values, got {F}, {df_between}, {df_within}")
+    return float(np.sqrt(F * df_between / df_within))
+
+
+__all__ = ["Observer", "Performer", "anova_power", "cohens_f", "f_from_anova", "simulate", "subject_name"]
