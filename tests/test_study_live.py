@@ -154,7 +154,8 @@ def test_path_following_run_measures(tmp_path):
         run.next()  # the first trial: wait for "next" to start
         assert run.phase == "between"
         run.next()
-        wait(lambda: run.haptics.status.get("ticks", 0) > 600)
+        wait(lambda: run.haptics.status.get("ticks", 0) > 600, why=lambda: (run.phase, run.haptics.status,
+                                                                             run.haptics.last))
         assert run.participant_view()["slave"] is not None
         run.next()
         row = s.rows[0]

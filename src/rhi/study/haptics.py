@@ -94,7 +94,8 @@ class Haptics:
         dev, s, task = cfg.device, cfg.sim, self.protocol.task
         plant = Plant(dev, friction=s["friction"], timestep=s["timestep"], handle_mass=s["handle_mass"])
         q0 = np.asarray(s["q0"], float)
-        goal = self.start_point if self.start_point is not None else np.asarray(task.get("center"), float)[:dev.m]
+        goal = self.start_point if self.start_point is not None else \
+            w_path(task["center"][:dev.m], width=task["width"], height=task["height"], speed=task["speed"]).points[0]
         if np.linalg.norm(dev.fk(q0) - goal) > 1e-3:
             q0 = dev.ik(goal, np.full(dev.n, 0.3))
         plant.reset(q0)
@@ -152,7 +153,7 @@ class Haptics:
         else:
             from rhi.runtime.udp import UDPLink
 
-            link = UDPLink(*self._address, rate=self.rate)
+            link = UDPLink(*self._address, rate=self.rate, connect_timeout=10.0)  # the device process may be starting
         limit = self.protocol.task.get("probe_time") or self.protocol.task.get("time_limit")
         from rhi.sim.telemetry import Telemetry
 
