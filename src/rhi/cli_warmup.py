@@ -31,11 +31,16 @@ def _terms() -> None:
 
 
 def _batch() -> None:
+    from rhi import metrics
     from rhi.batch import terms
     from rhi.device import device
 
     dev = device("rhi4")
     terms(dev, _mid(dev) + np.random.default_rng(0).uniform(-0.1, 0.1, (64, dev.n)), ("x", "J", "dJ", "M", "g"))
+    dev = device("gen3")  # a spatial task: the compiled measures of rhi.metrics._small
+    t = terms(dev, _mid(dev) + np.random.default_rng(0).uniform(-0.1, 0.1, (64, dev.n)), ("J", "M"))
+    metrics.effective_manipulability(t["J"], [0.0, 0.0, 1.0])
+    metrics.effective_inertia(t["J"], t["M"], [0.0, 0.0, 1.0])
 
 
 def _controllers() -> None:
@@ -70,7 +75,7 @@ def _design() -> None:
 
 STEPS: list[tuple[str, Callable[[], None]]] = [
     ("device terms (every bundled device)", _terms),
-    ("batch terms", _batch),
+    ("batch terms and measures", _batch),
     ("controllers (every shipped configuration)", _controllers),
     ("simulation loop", _simulation),
     ("design indices", _design),
