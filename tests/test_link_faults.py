@@ -84,7 +84,7 @@ def test_constant_delay_over_simlink(dev, tmp_path):
 
 def test_late_reading_counts_as_silence(dev, tmp_path):
     """Readings held 30 ms by the proxy, then delivered: silence on the host's clock, even with a 50 ms read wait."""
-    p, port = _server(tmp_path)
+    p, port = _server(tmp_path, "--watchdog", "0.2")  # (the host waits in read: the device's own watchdog is not tested)
     px, pport = _proxy(port, "--hold", "0.8", "0.83")
     try:
         plant, ctrl, hand, wall, phys = _scenario(dev)
