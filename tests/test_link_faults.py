@@ -206,3 +206,28 @@ def test_sessions_on_the_device_server(dev, tmp_path):
     finally:
         out = _stop(p)
     assert "'takeovers': 1" in out and "'refused': 1" in out
+
+
+def test_the_host_says_bye_after_refusing_an_info():
+    """A v1.1 INFO the host refuses (here: its description is not JSON; likewise a wrong rate, name or sensor)."""
+    import threading
+
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    s.settimeout(5)
+    got = []
+
+    def device():
+        pkt, addr = s.recvfrom(1000)
+        session, _ = P.parse_hello(pkt)
+        s.sendto(P.info(4, [], 1000.0, 0.02, {}, session)[:36] + b"not json", addr)
+        got.append((session, P.parse_command(s.recvfrom(1000)[0], 4)))
+
+    th = threading.Thread(target=device)
+    th.start()
+    with pytest.raises(LinkError, match="not a JSON object"):
+        UDPLink("127.0.0.1", s.getsockname()[1]).open()
+    th.join()
+    s.close()
+    (session, cmd), = got
+    assert cmd is not None and cmd[0] == session and cmd[3] == P.BYE

@@ -141,6 +141,8 @@ class UDPLink:
         try:
             self.info = P.parse_info(pkt)
         except LinkError:
+            if P.version(pkt) == P.VERSION and len(pkt) >= P.INFO_SIZE:  # a v1.1 device: told BYE (`close`)
+                self.n = int.from_bytes(pkt[6:8], "little")
             self.close()
             raise
         self.n, self.sensors = int(self.info["n"]), list(self.info["sensors"])
