@@ -107,9 +107,9 @@ def every_device(n: int, loop_n: int) -> None:
         ok = np.abs(ref[:, 0]) < np.inf
         np.testing.assert_allclose(got[ok], ref[ok], rtol=1e-10)  # the same numbers
         cells = []
-        for dyn in (False, True):
-            t_b = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: batch_measures(dev, Q, u, dyn), 5)
-            t_l = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: pinocchio_loop(dev, Q[:loop_n], u, dyn), 2) * n / loop_n
+        for dyn in (False, True):  # best of many short batch runs: one preemption on a busy machine is ~10 ms
+            t_b = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: batch_measures(dev, Q, u, dyn), 20)
+            t_l = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: pinocchio_loop(dev, Q[:loop_n], u, dyn), 3) * n / loop_n
             cells.append(f"{t_b * 1e3:9.2f} ms{t_l * 1e3:9.1f} ms{t_l / t_b:7.1f}x")
         print(f"{dev.name:<15}{dev.n:>3}{dev.m:>3}{cells[0]:>32}{cells[1]:>42}")
     print()
