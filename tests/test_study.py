@@ -259,3 +259,5 @@ def test_cli_simulate_then_analyze_reproduces_ch3_psychophysics_quick(tmp_path):
     assert len(theirs) == 24
     for k, v in theirs.items():
         assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-15), k
+    page = (tmp_path / "an" / "report.html").read_text()  # a study report judges no thesis claim
+    assert "Headline claims" not in page and not (tmp_path / "an" / "fidelity.md").exists()

@@ -50,6 +50,7 @@ def write_report(
     *,
     title: str = "rhi reproduction of Torabiparizi (2020)",
     meta: dict | None = None,
+    thesis: bool = True,
 ) -> Path:
     """Write out/report.html, results.json, results.npz, fidelity.md (dossiers), a CSV per table and a PNG per figure.
 
@@ -59,6 +60,8 @@ def write_report(
         out: output directory (created).
         title: the report's title.
         meta: run information, printed in a collapsed block at the end and stored in the JSON.
+        thesis: judge the thesis's headline claims (with their dossiers and fidelity.md); False for a report
+            that is not a reproduction (e.g. `rhi study analyze`).
 
     Returns:
         Path of report.html.
@@ -97,7 +100,7 @@ def write_report(
         payload["results"].append({"chapter": chapter, **res.to_json(arrays=False)})
         arrays.update({f"{res.name}/{k}": np.asarray(v) for k, v in res.arrays.items()})
     done = [r for _, r, _ in results]
-    verdicts = headline.evaluate(CLAIMS, done)
+    verdicts = headline.evaluate(CLAIMS, done) if thesis else []
     cases = dossiers.evaluate(verdicts, DOSSIERS, done)
     problems = audit(done) + [f"no dossier for the claim not reproduced {m}"
                               for m in dossiers.missing_dossiers(verdicts, DOSSIERS)] + [
@@ -116,12 +119,14 @@ def write_report(
     page = (
         f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
         f"<style>{STYLE}</style></head><body><h1>{html.escape(title)}</h1>"
-        f"<h2 id='headline'>Headline claims</h2>{headline.tally_html(verdicts)}"
-        f"<details open><summary>Verdict rules</summary>{rules_html()}</details>"
-        + headline.to_html(verdicts, frozenset(c.verdict.claim.key for c in cases))
-        + f"<h2 id='dossiers'>Dossiers of the claims not reproduced</h2>{dossiers.to_html(cases)}"
-        + f"<h2>Contents</h2><nav><ol><li><a href='#headline'>Headline claims</a></li>"
-        f"<li><a href='#dossiers'>Dossiers</a></li>{''.join(toc)}<li><a href='#meta'>Run metadata</a></li></ol></nav>"
+        + (f"<h2 id='headline'>Headline claims</h2>{headline.tally_html(verdicts)}"
+           f"<details open><summary>Verdict rules</summary>{rules_html()}</details>"
+           + headline.to_html(verdicts, frozenset(c.verdict.claim.key for c in cases))
+           + f"<h2 id='dossiers'>Dossiers of the claims not reproduced</h2>{dossiers.to_html(cases)}"
+           if thesis else "")
+        + "<h2>Contents</h2><nav><ol>"
+        + ("<li><a href='#headline'>Headline claims</a></li><li><a href='#dossiers'>Dossiers</a></li>" if thesis else "")
+        + f"{''.join(toc)}<li><a href='#meta'>Run metadata</a></li></ol></nav>"
         f"<p class='note'>Rows: {html.escape(count_line)}. Green: within the thesis's rounding (the thesis column "
         "prints the number as the thesis printed it); amber: outside it, the note says why; red: an acceptance bound "
         "not met. Relative differences only where they mean something (not on p-values, angles, counts or values "
@@ -133,7 +138,8 @@ def write_report(
     )
     (out / "results.json").write_text(json.dumps(payload, indent=1, allow_nan=False))
     np.savez_compressed(out / "results.npz", **arrays)
-    (out / "fidelity.md").write_text(dossiers.to_markdown(cases, fidelity_header(verdicts, meta)))
+    if thesis:
+        (out / "fidelity.md").write_text(dossiers.to_markdown(cases, fidelity_header(verdicts, meta)))
     path = out / "report.html"
     path.write_text(page)
     return path

@@ -126,7 +126,7 @@ def write_study_report(study_dir: str | Path, out: str | Path, *, overdispersion
     if any(k.startswith("curve/") for k in res.arrays):
         figs["psychometric_curves"] = lambda: plots.psychometric_curves(res)
     path = write_report([("study", res, figs)], out, title=f"rhi study: {res.title}",
-                        meta={"study": str(study_dir)})
+                        meta={"study": str(study_dir)}, thesis=False)
     return path, res
 
 
