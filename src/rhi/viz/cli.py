@@ -56,6 +56,8 @@ def _video(args: argparse.Namespace) -> int:
 def _view(args: argparse.Namespace) -> int:
     from rhi.viz.view import View
 
+    if args.compare is not None:
+        return _compare(args)
     dev = device_from_args(args)
     if args.log is not None:
         from rhi.sim.log import Log
@@ -92,6 +94,26 @@ def _view(args: argparse.Namespace) -> int:
     missed = sum(r.summary["missed"] for r in results)
     print(f"rhi view: {len(results)} run(s), {ticks} ticks, missed deadlines {missed} "
           f"({100.0 * missed / max(ticks, 1):.3f} %)")
+    return 0
+
+
+def _compare(args: argparse.Namespace) -> int:
+    import rhi
+    from rhi.viz.compare import compare
+
+    if args.log is not None or len(args.compare) < 2:
+        raise InvalidInput("--compare: expected two or more device names and no log, e.g. --compare rhi4 phantom")
+    devices = [rhi.device(name) for name in args.compare]
+
+    def hello(page) -> None:
+        print(f"rhi view: {', '.join(d.name for d in devices)} side by side at {page.url} (the gizmo is the hand "
+              f"of all of them; Ctrl-C to stop)", flush=True)
+
+    results = compare(devices, duration=args.duration, host=args.host, port=args.port, on_start=hello,
+                      say=lambda line: print(line, flush=True))
+    for dev, runs in zip(devices, results):
+        print(f"rhi view: {dev.name}: {len(runs)} run(s), {sum(r.summary['ticks'] for r in runs)} ticks, missed "
+              f"deadlines {sum(r.summary['missed'] for r in runs)}")
     return 0
 
 
@@ -154,4 +176,6 @@ def add_commands(sub, floats) -> None:
                                     "(default: the environment stored in the log)")
     v.add_argument("--q0", type=floats, help="start configuration [rad] (default: mid-range, bent where that is "
                                              "singular: rhi.viz.posed.rest_configuration)")
+    v.add_argument("--compare", nargs="+", metavar="DEVICE", help="devices side by side in one page under the same "
+                   "hand, e.g. --compare rhi4 phantom (the RHI and its locked NHI)")
     v.set_defaults(func=_view)

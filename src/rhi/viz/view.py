@@ -41,6 +41,18 @@ def _play_state(p: LogPlayer) -> str:
     return f'<div id="rhi-play" style="font:12px monospace">{p.state}</div>'
 
 
+def aim_camera(server, lo: np.ndarray, hi: np.ndarray, *, planar: bool) -> None:
+    """Point `server`'s initial camera at the box lo..hi: (3,) [m] (from above for planar devices)."""
+    c = 0.5 * (lo + hi)
+    size = float(np.max(hi - lo))
+    back = np.array([0.35, -0.6, 1.0]) if planar else np.array([1.0, -0.9, 0.6])
+    right = np.cross(-back, [0.0, 0.0, 1.0])
+    shift = 0.25 * size * right / np.linalg.norm(right)  # the panel covers the right of the page
+    server.initial_camera.position = tuple(c + back * 1.5 * size + shift)
+    server.initial_camera.look_at = tuple(c + shift)
+    server.initial_camera.up = (0.0, 0.0, 1.0)
+
+
 class View:
     """A browser view of a device.
 
@@ -59,6 +71,10 @@ class View:
             run's status line (warming up, live, paused, the fault and its reason), or None.
         plot_window: the plots over time show the last this many seconds [s].
         record_folder: where the record button writes its videos (`rhi.viz.recorder.Recorder`).
+        server: a `viser.ViserServer` shared with other views (`rhi.viz.compare`): the view's controls go in a
+            folder named after the device and the server's camera is left to the caller; None: the view's own.
+        root: scene node under which the device, its overlays and the gizmo are drawn ("" : the scene's root).
+        offset: (3,) where the `root` frame sits [m]: the device's MuJoCo coordinates are shifted by it.
 
     Attributes:
         server: the `viser.ViserServer`.
@@ -69,7 +85,8 @@ class View:
 
     def __init__(self, device: Device, source=None, *, hand: DraggableHand | None = None, virtual=None, fme=None,
                  q0=None, host: str = "127.0.0.1", port: int = 8080, fps: float = 45.0, lp_every: int = 10,
-                 commands: ViewCommands | None = None, plot_window: float = 5.0, record_folder="out") -> None:
+                 commands: ViewCommands | None = None, plot_window: float = 5.0, record_folder="out", server=None,
+                 root: str = "", offset=(0.0, 0.0, 0.0)) -> None:
         import viser
 
         if not np.isfinite(fps) or not 1 <= fps <= 240:
@@ -90,15 +107,21 @@ class View:
             virtual = virtual if virtual is not None else from_description(self.player.log.meta.get("environment"))
         self.q0 = rest_configuration(device) if q0 is None else np.asarray(q0, dtype=float)
         self.rows = [_AXES[a] for a in device.task_axes]
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        self.server.gui.configure_theme(control_width="medium", show_logo=False)
+        self._own_server = server is None
+        self.server = viser.ViserServer(host=host, port=port, verbose=False) if server is None else server
+        if self._own_server:
+            self.server.gui.configure_theme(control_width="medium", show_logo=False)
+        self.root = root
+        if root:
+            self.server.scene.add_frame(root, show_axes=False, position=tuple(np.asarray(offset, dtype=float)))
         self.posed = Posed(device)
         self.posed.set(self.q0)
-        self.scene = DeviceScene(self.server, self.posed)
+        self.scene = DeviceScene(self.server, self.posed, root=f"{root}/device")
         blo, bhi = self._motion_bounds()
         self.size = float(np.max(bhi - blo))
-        self.overlays = Overlays(self.server, device, self.size, virtual=virtual, fme=fme)
-        self._camera(blo, bhi)
+        self.overlays = Overlays(self.server, device, self.size, virtual=virtual, fme=fme, root=f"{root}/overlays")
+        if self._own_server:
+            aim_camera(self.server, blo, bhi, planar=set(device.task_axes) <= {"x", "y"})
         self._grip = threading.Lock()  # the gizmo's position vs the hand's target (view thread vs viser's loop)
         lo, hi = device.torque_limits
         self.history = History(device.n, lo, hi, window=plot_window)
@@ -137,18 +160,14 @@ class View:
             self.posed.set(self.q0)
         return lo, hi
 
-    def _camera(self, lo: np.ndarray, hi: np.ndarray) -> None:
-        c = 0.5 * (lo + hi)
-        d = 1.5 * self.size
-        planar = set(self.device.task_axes) <= {"x", "y"}
-        back = np.array([0.35, -0.6, 1.0]) if planar else np.array([1.0, -0.9, 0.6])
-        right = np.cross(-back, [0.0, 0.0, 1.0])
-        shift = 0.25 * self.size * right / np.linalg.norm(right)  # the panel covers the right of the page
-        self.server.initial_camera.position = tuple(c + back * d + shift)
-        self.server.initial_camera.look_at = tuple(c + shift)
-        self.server.initial_camera.up = (0.0, 0.0, 1.0)
-
     def _build_gui(self) -> None:
+        if self._own_server:
+            self._build_controls()
+        else:
+            with self.server.gui.add_folder(self.device.name, expand_by_default=True):
+                self._build_controls()
+
+    def _build_controls(self) -> None:
         gui = self.server.gui
         gui.add_markdown(f"**rhi** · `{self.device.name}` (n = {self.device.n}, task {self.device.task_axes})")
         if self.player is not None:
@@ -178,7 +197,7 @@ class View:
             active = [a in self.device.task_axes for a in "xyz"]
             axes = (active[0], active[1], active[2])
             gizmo = self.gizmo = self.server.scene.add_transform_controls(
-                "/hand", scale=0.35 * self.size, active_axes=axes, disable_rotations=True,
+                f"{self.root}/hand", scale=0.35 * self.size, active_axes=axes, disable_rotations=True,
                 position=tuple(self.scene.handle_position()))
             self.release = gui.add_button("let go of the handle")
 
@@ -362,7 +381,8 @@ class View:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
-        self.server.stop()
+        if self._own_server:
+            self.server.stop()
 
     def __enter__(self) -> View:
         return self.start()
