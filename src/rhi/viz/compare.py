@@ -29,6 +29,8 @@ from rhi.viz.remote import SharedDraggableHand, SharedTelemetry
 
 #: free space between two devices in the page, as a fraction of the larger one's size
 GAP = 0.3
+#: browser updates per second of each device's view (the page's one process draws them all)
+FPS = 20.0
 
 
 class FollowingHand(DraggableHand):
@@ -195,7 +197,7 @@ def compare(devices: list[Device], *, duration: float | None = 3600.0, host: str
     lead = SharedDraggableHand(devices[0].m)
     hands: list[DraggableHand] = [lead] + [FollowingHand(lead, x0[0], x) for x in x0[1:]]
     page = RemoteCompare(devices, [s[3] for s in setups], hand=lead, host=host, port=port,
-                         kws=[dict(virtual=wall, fme=ctrl.config.fme) for _, ctrl, wall, _ in setups])
+                         kws=[dict(virtual=wall, fme=ctrl.config.fme, fps=FPS) for _, ctrl, wall, _ in setups])
     results: list[list] = [[] for _ in devices]
 
     def session(i: int) -> None:
