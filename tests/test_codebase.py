@@ -140,3 +140,31 @@ def test_design_names_every_module() -> None:
     named = set(re.findall(r"`(rhi(?:\.\w+)*)`", text))
     stale = sorted(m for m in named if m not in mods and not any(m.startswith(k + ".") for k in mods))
     assert not stale, f"docs/design.md names modules that do not exist: {stale}"
+
+
+#: the layers of docs/design.md, bottom to top; modules directly under rhi (the device, errors, thesis, ...)
+#: are the foundations below them all, the ``rhi.cli*`` modules the top.
+LAYERS = ("metrics", "control", "sim", "runtime", "viz", "analysis", "design", "study", "experiments", "plots",
+          "report", "cli")
+#: edges upwards that are known and accepted (the package's re-exports, entry points, a helper of the top).
+UPWARD_OK = {("rhi", "rhi.metrics"), ("rhi.__main__", "rhi.cli"), ("rhi.device_measures", "rhi.metrics"),
+             ("rhi.viz.cli", "rhi.cli_device")}
+
+
+def layer(module: str) -> int:
+    """Position of `module`'s layer in `LAYERS` (-1: a foundation module directly under rhi)."""
+    parts = module.split(".")
+    if len(parts) < 2:
+        return -1
+    if parts[1].startswith("cli"):
+        return LAYERS.index("cli")
+    return LAYERS.index(parts[1]) if parts[1] in LAYERS else -1
+
+
+def test_layers_import_downwards_only() -> None:
+    """A lower layer never imports a higher one (docs/design.md), e.g. rhi.study never imports rhi.experiments."""
+    up = sorted((a, b) for a, bs in import_graph().items() for b in bs
+                if layer(b) > layer(a) and (a, b) not in UPWARD_OK)
+    assert not up, f"imports from a lower layer into a higher one: {up}"
+    assert layer("rhi.study.live") < layer("rhi.experiments.participants") < layer("rhi.cli_study")
+    assert layer("rhi.analysis.stats") < layer("rhi.study.results") and layer("rhi.runtime.loop") < layer("rhi.study")
