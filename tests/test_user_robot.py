@@ -130,7 +130,8 @@ def test_device_server_serves_a_user_urdf_to_rhi_run(arm, tmp_path):
     env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
     server = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", "--urdf", str(arm), *OPTS, "--config",
                                str(arm.parent / "bare.toml"), "--port",
-                               str(port), "--lockstep", "--duration", "5"], env=env, stdout=subprocess.PIPE, text=True)
+                               str(port), "--lockstep", "--watchdog-ms", "2000", "--duration", "5"],  # a loaded machine
+                              env=env, stdout=subprocess.PIPE, text=True)
     try:
         assert "arm3 (simulated" in server.stdout.readline()  # listening
         log = tmp_path / "udp.rhilog"
