@@ -77,19 +77,19 @@ def test_cli_bad_inputs_exit_2_naming_the_argument(capsys):
 
     cases = [
         (["measure", "rhi4", "--q", "1,2"], "q: expected shape"),
-        (["measure", "rhi4", "--q", "nan,0,0,0"], "q: contains NaN"),
         (["measure", "rhi4", "--q", "0,0,0,0", "--u", "0,0"], "u: zero-length"),
         (["measure", "rhi4", "--q", "0,0,0,0", "--param", "d9=0.1"], "params: unknown parameter"),
         (["measure", "rhi4", "--q", "0,0,0,0", "--param", "d2=-1"], "d2: -1.0 outside"),
         (["reproduce", "--only", "ch99"], "only: unknown chapter"),
-        (["reproduce", "--only", "ch3", "--workers", "0"], "workers: expected an integer >= 1"),
     ]
     for argv, message in cases:
         assert main(argv) == 2, argv
         err = capsys.readouterr().err
         assert message in err and "Traceback" not in err, (argv, err)
     for argv, option in [(["measure", "rhi4", "--q", "abc"], "--q"), (["measure", "rhi4", "--q", "1j,0,0,0"], "--q"),
-                         (["measure", "rhi4", "--q", "0,0,0,0", "--param", "d2=abc"], "--param")]:
+                         (["measure", "rhi4", "--q", "0,0,0,0", "--param", "d2=abc"], "--param"),
+                         (["measure", "rhi4", "--q", "nan,0,0,0"], "--q"),
+                         (["reproduce", "--only", "ch3", "--workers", "0"], "--workers")]:
         with pytest.raises(SystemExit) as exc:  # argparse's own usage error
             main(argv)
         assert exc.value.code == 2 and f"argument {option}" in capsys.readouterr().err

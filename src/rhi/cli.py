@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rhi import __version__, cli_help, plugins
+from rhi import __version__, cli_args as A, cli_help, plugins
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
@@ -24,13 +24,6 @@ from rhi.device import available_devices, device
 from rhi.device_measures import all_measures
 from rhi.errors import InvalidInput, RhiError
 from rhi.viz.cli import add_commands
-
-
-def _floats(text: str) -> list[float]:
-    try:
-        return [float(v) for v in text.replace(",", " ").split()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected numbers separated by commas or spaces, got {text!r}") from None
 
 
 def _param(text: str) -> tuple[str, float]:
@@ -247,9 +240,6 @@ def _run(args: argparse.Namespace) -> int:
     from rhi.runtime import run
     from rhi.runtime.loop import ESTOP_SIGNALS
 
-    for name, v in (("--duration", args.duration), ("--rate", args.rate)):
-        if v is not None and (not math.isfinite(v) or v <= 0):
-            raise InvalidInput(f"{name}: must be a finite number > 0, got {v!r}")
     if args.mouse and not args.view:
         raise InvalidInput("--mouse: the mouse moves the hand in the browser view; add --view")
     cfg = _config(args)
@@ -338,8 +328,8 @@ def _add_run(sub) -> None:
                    "(a device server, e.g. `rhi device-server`) or an installed plugin's scheme (rhi.links)")
     r.add_argument("--config", required=True,
                    help=f"a TOML file or a shipped configuration: {', '.join(shipped)}")
-    r.add_argument("--duration", type=float, help="run time [s] (default: the configuration's, else until Ctrl-C)")
-    r.add_argument("--rate", type=float, help="control rate [Hz] (default: the configuration's, else 1000)")
+    r.add_argument("--duration", type=A.positive, help="run time [s] (default: the configuration's, else until Ctrl-C)")
+    r.add_argument("--rate", type=A.positive, help="control rate [Hz] (default: the configuration's, else 1000)")
     r.add_argument("--log", help="streamed log (.rhilog; default out/run-<timestamp>/run.rhilog)")
     r.add_argument("--summary", help="JSON summary (default: summary.json beside the log)")
     r.add_argument("--device-name", help="accept a device whose INFO calls it this (default: the configuration's "
@@ -349,7 +339,7 @@ def _add_run(sub) -> None:
                    help="pace ticks on the wall clock (default); --no-realtime runs as fast as possible")
     r.add_argument("--fast", dest="realtime", action="store_false", help="same as --no-realtime")
     r.add_argument("--view", action="store_true", help="watch the run live in the browser (viser)")
-    r.add_argument("--view-port", type=int, default=8080, help="port of the browser view (default: 8080)")
+    r.add_argument("--view-port", type=A.port, default=8080, help="port of the browser view (default: 8080)")
     r.add_argument("--mouse", action="store_true", help="with --view and the sim link: the mouse is the hand "
                    "(drag the gizmo at the handle) instead of the configuration's hand")
     _add_realtime(r, "the control loop")
@@ -357,8 +347,8 @@ def _add_run(sub) -> None:
 
 
 def _add_realtime(p, what: str) -> None:
-    p.add_argument("--cpu", type=int, help=f"pin {what} to this CPU (e.g. one no other busy process uses)")
-    p.add_argument("--priority", type=int, help=f"SCHED_FIFO priority 1..99 of {what} (needs CAP_SYS_NICE "
+    p.add_argument("--cpu", type=A.cpu, help=f"pin {what} to this CPU (e.g. one no other busy process uses)")
+    p.add_argument("--priority", type=A.priority, help=f"SCHED_FIFO priority 1..99 of {what} (needs CAP_SYS_NICE "
                    "or an rtprio limit; a warning otherwise)")
     p.add_argument("--spin", action="store_true", help=f"{what} waits for each tick on a busy core instead of "
                    "asleep: steadier, shorter ticks for one core at 100 %% (use with --cpu)")
@@ -388,7 +378,7 @@ _NEEDS_ALL = ("reproduce", "experiment", "fidelity")
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `rhi` command."""
     os.environ.setdefault("MPLBACKEND", "Agg")  # this process only writes figures to files
-    p = argparse.ArgumentParser(prog="rhi", description=__doc__)
+    p = A.Parser(prog="rhi", description=__doc__)
     p.add_argument("--version", action="version", version=f"rhi {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     ds = sub.add_parser("devices", help="list the bundled devices")
@@ -397,14 +387,14 @@ def main(argv: list[str] | None = None) -> int:
     ds.set_defaults(func=_devices)
     m = sub.add_parser("measure", help="print every measure of a device at a configuration")
     add_device_options(m)
-    m.add_argument("--q", type=_floats, required=True, help="configuration [rad], e.g. 0.125,0.022,0.298,0.175")
-    m.add_argument("--u", type=_floats, help="direction for directional measures, e.g. 0,1")
+    m.add_argument("--q", type=A.floats, required=True, help="configuration [rad], e.g. 0.125,0.022,0.298,0.175")
+    m.add_argument("--u", type=A.floats, help="direction for directional measures, e.g. 0,1")
     m.add_argument("--param", type=_param, action="append", help="design parameter NAME=VALUE, e.g. d2=0.1405")
     m.add_argument("--json", action="store_true", help="print JSON")
     m.set_defaults(func=_measure)
     r = sub.add_parser("reproduce", help="reproduce the thesis's computational tables and figures into a report")
     r.add_argument("--only", help="one chapter, e.g. ch3")
-    r.add_argument("--jobs", type=int, help="experiments run at once, each in its own process (default: CPU count; "
+    r.add_argument("--jobs", type=A.count, help="experiments run at once, each in its own process (default: CPU count; "
                    "1: one after the other, with per-experiment progress bars)")
     e = sub.add_parser("experiment", help="run one experiment: PNG figures, CSV/JSON numbers, thesis beside ours")
     e.add_argument("name", nargs="?", help="experiment id (its result's name), e.g. ch7.example_3dof (none: list them)")
@@ -415,7 +405,7 @@ def main(argv: list[str] | None = None) -> int:
         q.add_argument("--executor", choices=("local", "serial", "ray"), default="local",
                        help="where design evaluations run: local process pool (default), this process, or Ray")
         q.add_argument("--address", help="Ray cluster address for --executor ray (default: start a local instance)")
-        q.add_argument("--workers", type=int, help="processes of the local pool (default: CPU count)")
+        q.add_argument("--workers", type=A.count, help="processes of the local pool (default: CPU count)")
         q.set_defaults(func=_reproduce)
     f = sub.add_parser("fidelity", help="judge the headline claims of reproduction runs again and write their dossiers")
     f.add_argument("runs", nargs="+", help="output folders of `rhi reproduce` (their results.json; later ones win)")
@@ -423,19 +413,19 @@ def main(argv: list[str] | None = None) -> int:
     f.set_defaults(func=_fidelity)
     d = sub.add_parser("device-server", help="serve a simulated device over UDP (the protocol of docs/protocol.md)")
     add_device_options(d)
-    d.add_argument("--port", type=int, default=5005, help="UDP port (0: any free port; default 5005)")
-    d.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    d.add_argument("--rate", type=float, default=1000.0, help="device rate [Hz] (default 1000)")
-    d.add_argument("--watchdog-ms", type=float, default=20.0, help="zero torque after this long without a command")
+    d.add_argument("--port", type=A.port, default=5005, help="UDP port (0: any free port; default 5005)")
+    d.add_argument("--host", type=A.host, default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    d.add_argument("--rate", type=A.positive, default=1000.0, help="device rate [Hz] (default 1000)")
+    d.add_argument("--watchdog-ms", type=A.positive, default=20.0, help="zero torque after this long without a command")
     d.add_argument("--lockstep", action="store_true", help="wait for each command (bit-exact simulation)")
     d.add_argument("--config", help="a run configuration whose [sim] start, hand and physical world the device uses")
-    d.add_argument("--q0", type=_floats, help="start configuration [rad] (default: the configuration's, else mid-range)")
+    d.add_argument("--q0", type=A.floats, help="start configuration [rad] (default: the configuration's, else mid-range)")
     d.add_argument("--log", help="device-side log (.rhilog)")
-    d.add_argument("--duration", type=float, help="stop after this much device time [s]")
+    d.add_argument("--duration", type=A.positive, help="stop after this much device time [s]")
     _add_realtime(d, "the device loop")
     d.set_defaults(func=_device_server)
     _add_run(sub)
-    add_commands(sub, _floats)
+    add_commands(sub, A.floats)
     add_log_commands(sub)
     add_study_commands(sub)
     add_warmup_command(sub)

@@ -236,7 +236,8 @@ def run(
     stats = {"ticks": 0, "missed": 0, "skipped_slots": 0, "max_torque_ratio": 0.0}
     previous = _estop_on_signals(guard)
     k = slot = 0
-    t_dev = 0.0
+    t_dev = 0.0  # device time of the last reading [s] (0 before the first)
+    t_last = -math.inf
     last_seq = None
     ages = array.array("d")  # round-trip age of each new reading [s]
     warmup = getattr(controller, "warmup", None)
@@ -265,7 +266,8 @@ def run(
                     if r.seq != last_seq:
                         last_seq = r.seq
                         ages.append(r.age)
-                    t_dev = r.t
+                    if t_last <= r.t < math.inf:  # the log's time never runs backwards (`Safety.check` trips)
+                        t_dev = t_last = r.t
                     q, dq = r.q, r.dq
                     if kin is not None and math.isfinite(float(q @ q + dq @ dq)):
                         _, xdot, F_env = kin.render(q, dq)

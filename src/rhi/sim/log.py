@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import struct
 from pathlib import Path
 from typing import Any
@@ -162,6 +161,10 @@ class Log:
         return _load_csv(p)
 
 
+#: The widest column a log header may declare (a bound against damaged headers).
+MAX_WIDTH = 4096
+
+
 def events_path(path: Path) -> Path:
     """The events file beside the `.rhilog` at `path`."""
     return path.with_name(path.name + ".events.jsonl")
@@ -173,39 +176,58 @@ def read_header(path: Path) -> tuple[list[tuple[str, int]], dict, int]:
     Raises:
         InvalidInput: the file is not a `.rhilog` or its header is damaged (naming the path).
     """
+    size = path.stat().st_size
     with path.open("rb") as fh:
         if fh.read(len(MAGIC)) != MAGIC:
             raise InvalidInput(f"path: {str(path)!r} is not an rhi log (.rhilog)")
+        raw = fh.read(8)
+        if len(raw) < 8:
+            raise InvalidInput(f"path: {str(path)!r} is cut inside its header ({size} bytes)")
+        (L,) = struct.unpack("<Q", raw)
+        if L > size - len(MAGIC) - 8:
+            raise InvalidInput(f"path: {str(path)!r} has a damaged log header (length {L} beyond the file's "
+                               f"{size} bytes)")
         try:
-            (L,) = struct.unpack("<Q", fh.read(8))
             hdr = json.loads(fh.read(L).decode())
-            columns = [(str(c), int(w)) for c, w in hdr["columns"]]
-            meta = dict(hdr.get("meta") or {})
-        except (ValueError, KeyError, TypeError, struct.error) as exc:
+            columns = [(c, w) for c, w in hdr["columns"]]
+            meta = hdr.get("meta") or {}
+        except (ValueError, KeyError, TypeError) as exc:
             raise InvalidInput(f"path: {str(path)!r} has a damaged log header: {exc}") from None
-    return columns, meta, len(MAGIC) + 8 + L
+    names = [c for c, _ in columns]
+    if (not columns or names[0] != "t" or len(set(names)) != len(names) or not isinstance(meta, dict)
+            or not all(isinstance(c, str) and type(w) is int and 1 <= w <= MAX_WIDTH for c, w in columns)):
+        raise InvalidInput(f"path: {str(path)!r} has a damaged log header (columns must be distinct [name, width "
+                           f"1..{MAX_WIDTH}] pairs starting with t, meta a table)")
+    return columns, dict(meta), len(MAGIC) + 8 + L
 
 
 def parse_events(lines) -> tuple[list[Event], str | None, bool]:
     """(events, the fault line's reason or None, whether the writer closed) from lines of an events file.
 
-    Lines cut by a crash and blank lines are skipped.
+    Lines cut by a crash (not JSON) and blank lines are skipped.
+
+    Raises:
+        InvalidInput: a JSON line that is not an event (naming its line number).
     """
     events: list[Event] = []
     fault, closed = None, False
-    for line in lines:
+    fields = {f.name: f.type for f in dataclasses.fields(Event)}
+    for i, line in enumerate(lines, 1):
         if not line.strip():
             continue
         try:
             d = json.loads(line)
         except ValueError:
             continue  # a line cut by a crash
-        if "fault" in d and len(d) == 1:
+        if isinstance(d, dict) and set(d) == {"fault"} and isinstance(d["fault"], (str, type(None))):
             fault = d["fault"]
-        elif "closed" in d and len(d) == 1:
+        elif isinstance(d, dict) and set(d) == {"closed"}:
             closed = True
-        else:
+        elif (isinstance(d, dict) and set(d) == set(fields) and isinstance(d["kind"], str)
+              and isinstance(d["detail"], str) and type(d["tick"]) is int and type(d["t"]) in (int, float)):
             events.append(Event(**d))
+        else:
+            raise InvalidInput(f"events: line {i} is not an event ({line.strip()[:80]!r})")
     return events, fault, closed
 
 
@@ -350,11 +372,19 @@ def _load_binary(path: Path) -> Log:
     rows = (path.stat().st_size - offset) // (8 * width)
     data = (np.memmap(path, dtype="<f8", mode="r", offset=offset, shape=(rows, width)) if rows
             else np.zeros((0, width)))
+    t = data[:, 0]
+    if rows and not (np.isfinite(t).all() and (np.diff(t) >= 0).all()):
+        k = int(np.argmax(~np.isfinite(t))) if not np.isfinite(t).all() else int(np.argmax(np.diff(t) < 0)) + 1
+        raise InvalidInput(f"path: {str(path)!r} is damaged: its time t is {t[k]!r} at row {k} "
+                           f"(after {t[k - 1] if k else None!r}); it must be finite and never run backwards")
     log = _from_array(data, columns)
     log.meta = meta
     ev = events_path(path)
     if ev.is_file():
-        log.events, log.fault, _ = parse_events(ev.read_text().splitlines())
+        try:
+            log.events, log.fault, _ = parse_events(ev.read_text(errors="replace").splitlines())
+        except InvalidInput as exc:
+            raise InvalidInput(f"path: {str(ev)!r}: {exc}") from None
         if log.fault is None:
             faults = [e for e in log.events if e.kind not in ("clamp", "reset", "info")]
             log.fault = faults[0].detail if faults else None

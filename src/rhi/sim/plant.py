@@ -9,6 +9,8 @@ simulation's ground truth for logging and tests.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
 
@@ -126,11 +128,20 @@ class Plant:
 
     # ------------------------------------------------------------------ state
     def reset(self, q, dq=None) -> None:
-        """Place the device at motor angles q: (n,) [rad] with velocities dq: (n,) [rad/s]."""
+        """Place the device at motor angles q: (n,) [rad] with velocities dq: (n,) [rad/s].
+
+        Raises:
+            InvalidInput: a wrong shape, a non-finite value, or a joint outside its range (`Device.joint_limits`).
+        """
         q = as_array("q", q)
         dq = np.zeros(self.n) if dq is None else as_array("dq", dq)
         if q.shape != (self.n,) or dq.shape != (self.n,):
             raise InvalidInput(f"q/dq: expected {self.n} values each, got shapes {q.shape} and {dq.shape}")
+        lo, hi = self.device.joint_limits
+        out = (q < lo - 1e-9) | (q > hi + 1e-9)
+        if out.any():
+            j = int(np.flatnonzero(out)[0])
+            raise InvalidInput(f"q: joint {j + 1} at {q[j]:.6g} is outside its range [{lo[j]:.6g}, {hi[j]:.6g}]")
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:] = self._A @ q + self._b
         self.data.qvel[:] = self._A @ dq
@@ -216,7 +227,13 @@ class Plant:
         Args:
             tau: (n,) motor torques [N m] (MuJoCo clips them to the torque limits).
             force: (m,) force on the handle along the task axes [N]; None: zero.
+
+        Raises:
+            InvalidInput: a wrong shape or a non-finite value (named).
         """
+        tau = _finite_vector("tau", tau, self.n)
+        if force is not None:
+            force = _finite_vector("force", force, len(self._task))
         self._ctrl[:] = tau
         f = self._xfrc
         f[:] = 0.0
@@ -234,6 +251,8 @@ class Plant:
             PlantUnstable: MuJoCo flagged the state as diverged (it then resets the data, time included);
                 the error carries the time of the step that diverged.
         """
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
+            raise InvalidInput(f"steps: expected an integer >= 0, got {steps!r:.60}")
         m, d, wn = self.model, self.data, self._wnum
         i, j, k = self._bad
         for _ in range(steps):
@@ -242,3 +261,14 @@ class Plant:
             mujoco.mj_step1(m, d)
             if wn[i] or wn[j] or wn[k]:
                 raise unstable(t)
+
+
+def _finite_vector(name: str, v, n: int) -> np.ndarray:
+    """`v` as a finite (n,) float array (one cheap check for the usual float64 array)."""
+    if not (type(v) is np.ndarray and v.dtype == np.float64):
+        v = as_array(name, v)
+    if v.shape != (n,):
+        raise InvalidInput(f"{name}: expected shape ({n},), got {v.shape}")
+    if not math.isfinite(float(v @ v)) and not np.isfinite(v).all():
+        raise InvalidInput(f"{name}: contains NaN or inf: {v.tolist()}")
+    return v

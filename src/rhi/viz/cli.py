@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from rhi import cli_args as A
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.errors import InvalidInput
 
@@ -160,18 +161,18 @@ def add_commands(sub, floats) -> None:
     r.add_argument("--q", type=floats, help="configuration [rad] (default: mid-range)")
     r.add_argument("-o", "--out", default="device.png", help="output PNG (default: device.png), or MP4 with --log "
                                                               "(default: the log's name)")
-    r.add_argument("--width", type=int, default=640)
-    r.add_argument("--height", type=int, default=480)
-    r.add_argument("--azimuth", type=float, help="camera azimuth [deg]")
-    r.add_argument("--elevation", type=float, help="camera elevation [deg]")
+    r.add_argument("--width", type=A.pixels, default=640)
+    r.add_argument("--height", type=A.pixels, default=480)
+    r.add_argument("--azimuth", type=A.finite, help="camera azimuth [deg]")
+    r.add_argument("--elevation", type=A.finite, help="camera elevation [deg]")
     r.set_defaults(func=_render)
     v = sub.add_parser("view", help="the device live in the browser (viser): replay a log, or simulate it with the "
                                     "mouse as the hand")
     v.add_argument("log", nargs="?", help="a saved log (.rhilog or .csv) to replay; none: a live simulation")
     add_device_options(v, positional=False, default="rhi4")
-    v.add_argument("--host", default="127.0.0.1")
-    v.add_argument("--port", type=int, default=8080)
-    v.add_argument("--duration", type=float, default=3600.0, help="live simulation length [s]")
+    v.add_argument("--host", type=A.host, default="127.0.0.1")
+    v.add_argument("--port", type=A.port, default=8080)
+    v.add_argument("--duration", type=A.positive, default=3600.0, help="live simulation length [s]")
     v.add_argument("--config", help="replay: the run configuration whose environment and desired FME to draw "
                                     "(default: the environment stored in the log)")
     v.add_argument("--q0", type=floats, help="start configuration [rad] (default: mid-range, bent where that is "

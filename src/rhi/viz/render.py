@@ -135,10 +135,33 @@ def render(device: Device | Posed, q, *, width: int = 800, height: int = 600, az
 
 
 def save_png(image: np.ndarray, path) -> Path:
-    """Write an RGB image (H, W, 3) uint8 as PNG; returns the path."""
+    """Write an RGB image (H, W, 3) uint8 as PNG; returns the path.
+
+    Raises:
+        InvalidInput: `path` does not end in .png, is a folder, or cannot be written.
+    """
     from PIL import Image
 
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
+    p = png_path(path)
     Image.fromarray(np.asarray(image, dtype=np.uint8)).save(p)
+    return p
+
+
+def png_path(path) -> Path:
+    """`path` checked as a PNG file to write (its folder created): a .png name, not a folder, writable.
+
+    Raises:
+        InvalidInput: naming `out`.
+    """
+    p = Path(path)
+    if p.suffix.lower() != ".png":
+        raise InvalidInput(f"out: expected a .png file name, got {str(path)!r}")
+    if p.is_dir():
+        raise InvalidInput(f"out: {p} is a folder")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidInput(f"out: cannot create the folder {p.parent} ({exc.strerror or exc})") from None
+    if not os.access(p if p.exists() else p.parent, os.W_OK):
+        raise InvalidInput(f"out: cannot write {p} (permission denied)")
     return p

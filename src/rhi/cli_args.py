@@ -1,0 +1,115 @@
+"""Types of the `rhi` command's flags: each refuses a bad value with argparse's clean one-line error (exit 2).
+
+Ports, hosts, durations, rates, angles, counts and lists of numbers are checked when the command line is read,
+before any work starts; `Parser` prints one line (no usage block) for every error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import math
+import re
+from typing import NoReturn
+
+
+class Parser(argparse.ArgumentParser):
+    """An `argparse.ArgumentParser` whose errors are one line: ``prog: error: message`` (exit status 2)."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print the error on one line and exit with status 2."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def finite(text: str) -> float:
+    """A finite real number."""
+    v = _number(text)
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return v
+
+
+def positive(text: str) -> float:
+    """A finite number > 0 (a duration [s], a rate [Hz])."""
+    v = finite(text)
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return v
+
+
+def nonnegative(text: str) -> float:
+    """A finite number >= 0."""
+    v = finite(text)
+    if not v >= 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text!r}")
+    return v
+
+
+def _integer(text: str, least: int, most: int | None = None) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if v < least or (most is not None and v > most):
+        raise argparse.ArgumentTypeError(f"must be in {least}..{most if most is not None else ''}, got {v}")
+    return v
+
+
+def count(text: str) -> int:
+    """An integer >= 1 (jobs, workers)."""
+    return _integer(text, 1)
+
+
+def cpu(text: str) -> int:
+    """A CPU number (>= 0)."""
+    return _integer(text, 0)
+
+
+def priority(text: str) -> int:
+    """A SCHED_FIFO priority, 1..99."""
+    return _integer(text, 1, 99)
+
+
+def pixels(text: str) -> int:
+    """An image size [px], 1..8192."""
+    return _integer(text, 1, 8192)
+
+
+def port(text: str) -> int:
+    """A TCP/UDP port, 0..65535 (0: any free port)."""
+    return _integer(text, 0, 65535)
+
+
+_LABEL = re.compile(r"^(?!-)[A-Za-z0-9-]{1,63}(?<!-)$")
+
+
+def host(text: str) -> str:
+    """An IPv4 or IPv6 address or a host name (RFC 1123); a dotted quad must be a valid IPv4 address."""
+    try:
+        ipaddress.ip_address(text)
+        return text
+    except ValueError:
+        pass
+    labels = text.rstrip(".").split(".")
+    if (len(text) > 253 or not all(_LABEL.match(x) for x in labels)
+            or all(x.isdigit() for x in labels)):  # 256.0.0.1: a malformed address, not a name
+        raise argparse.ArgumentTypeError(f"expected an IP address or a host name, got {text!r}")
+    return text
+
+
+def floats(text: str) -> list[float]:
+    """Finite numbers separated by commas or spaces, e.g. ``0.1,-0.2``."""
+    try:
+        vals = [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by commas or spaces, got {text!r}") from None
+    if not vals or not all(map(math.isfinite, vals)):
+        raise argparse.ArgumentTypeError(f"expected finite numbers separated by commas or spaces, got {text!r}")
+    return vals
