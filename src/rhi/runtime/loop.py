@@ -201,12 +201,15 @@ def run(
     Raises:
         InvalidInput: a bad rate or duration (named), a controller without a device and no `Safety`.
     """
+    _check_run_arguments(link, controller, safety, log, virtual, telemetry, progress,
+                         realtime=realtime, stop_on_fault=stop_on_fault, spin=spin)
     rate = scalar("rate", rate, positive=True)
     link_rate = getattr(link, "rate", None)
     if link_rate is not None and abs(link_rate - rate) > 1e-9 * rate:
         raise InvalidInput(f"rate: {rate!r} Hz differs from the link's {link_rate!r} Hz")
-    if duration is not None and scalar("duration", duration) < 1.0 / rate:
-        raise InvalidInput(f"duration: must be at least one period ({1.0 / rate} s) or None, got {duration!r}")
+    if duration is not None and not 1.0 / rate <= scalar("duration", duration) <= MAX_DURATION:
+        raise InvalidInput(f"duration: must be between one period ({1.0 / rate} s) and {MAX_DURATION:g} s, or None "
+                           f"(until a fault or an e-stop), got {duration!r}")
     check_realtime(cpu, priority)
     dev = getattr(controller, "device", None)
     if isinstance(safety, Safety):
@@ -216,6 +219,8 @@ def run(
     else:
         guard = Safety(dev, safety)
     n = guard.n
+    if getattr(link, "n", n) != n:
+        raise InvalidInput(f"link: the device has {link.n} motors, the controller's model {n}")
     m = dev.m if dev is not None else 0
     period = 1.0 / rate
     N = None if duration is None else int(round(duration * rate))
@@ -246,6 +251,8 @@ def run(
     try:
         with _realtime(cpu, priority, spin) as notes:
             link.open()
+            if link.n != n:  # a device process tells its motors once connected
+                raise InvalidInput(f"link: the device has {link.n} motors, the controller's model {n}")
             _check_sensors(link, controller)
             for msg in notes:
                 w.event(0.0, "info", msg)
@@ -364,6 +371,29 @@ def _check_sensors(link: DeviceLink, controller) -> None:
                             f"reports only {sorted(have) or 'none'} (docs/protocol.md, INFO)")
         if width is not None and have[name] != width:
             raise LinkError(f"sensors: the device's {name!r} has {have[name]} floats, the controller needs {width}")
+
+
+#: The longest `duration` of a run [s] (11.6 days); None runs until a fault or an e-stop.
+MAX_DURATION = 1e6
+
+
+def _check_run_arguments(link, controller, safety, log, virtual, telemetry, progress, **flags: bool) -> None:
+    """The objects `run` is given must be what it uses (InvalidInput naming the argument)."""
+    for name, obj, methods in (("link", link, ("open", "read", "write", "close")), ("controller", controller, ("step",)),
+                               ("virtual", virtual, ("force",)), ("telemetry", telemetry, ("publish",))):
+        if (obj is not None or name in ("link", "controller")) and not all(
+                callable(getattr(obj, mth, None)) for mth in methods):
+            raise InvalidInput(f"{name}: expected an object with {', '.join(f'`{mth}`' for mth in methods)}, "
+                               f"got {obj!r:.60}")
+    if safety is not None and not isinstance(safety, (SafetyConfig, Safety)):
+        raise InvalidInput(f"safety: expected a SafetyConfig, a Safety or None, got {safety!r:.60}")
+    if log is not None and not isinstance(log, (str, os.PathLike)):
+        raise InvalidInput(f"log: expected a .rhilog path or None, got {log!r:.60}")
+    if progress is not None and not callable(progress):
+        raise InvalidInput(f"progress: expected a callable or None, got {progress!r:.60}")
+    for name, v in flags.items():
+        if not isinstance(v, bool):
+            raise InvalidInput(f"{name}: expected True or False, got {v!r:.60}")
 
 
 #: The signals that stop a run as an e-stop (Ctrl-C; `kill`, systemd and Docker; a closed terminal).

@@ -78,6 +78,11 @@ class Session:
     """
 
     def __init__(self, plant: Plant, *, rate: float = 1000.0, hand=None, physical=None, teleop=None) -> None:
+        if not isinstance(plant, Plant):
+            raise InvalidInput(f"plant: expected an rhi.sim.Plant, got {type(plant).__name__}")
+        for name, v, method in (("hand", hand, "force"), ("physical", physical, "force"), ("teleop", teleop, "follow")):
+            if v is not None and not callable(getattr(v, method, None)):
+                raise InvalidInput(f"{name}: expected None or an object with a `{method}` method, got {v!r:.60}")
         self.plant, self.hand, self.physical, self.teleop = plant, hand, physical, teleop
         self.sub = substeps(rate, plant.timestep)
         self.dt = self.sub * plant.timestep
