@@ -50,7 +50,7 @@ from typing import Literal
 
 import numpy as np
 
-from rhi._validate import scalar
+from rhi._validate import as_array, scalar
 from rhi.control.allocation import Allocation, AllocationMethod, Saturation, allocation_method
 from rhi.control.barrier import JointLimitBarrier
 from rhi.control.objectives import FMEMatching, Objective
@@ -431,7 +431,13 @@ class NullSpaceController:
 
 
 def output_force(J: np.ndarray, tau: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
-    """Task-space force produced by joint torques, J#ᵀ τ (dynamic) or J⁺ᵀ τ (pseudoinverse) [N]: (m,)."""
+    """Task-space force produced by joint torques, J#ᵀ τ (dynamic) or J⁺ᵀ τ (pseudoinverse) [N]: (m,).
+
+    Raises:
+        InvalidInput: a non-finite or misshapen J, τ or M (named).
+    """
+    J = as_array("J", J, shape_tail=(None, None))
+    tau = as_array("tau", tau, shape_tail=(J.shape[-1],))
     return (weighted_pinv(J) if M is None else dynamic_pinv(J, M)).T @ tau
 
 

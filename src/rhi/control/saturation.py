@@ -61,13 +61,55 @@ def check_torque_limits(*, torque_min, torque_max, n: int | None = None) -> tupl
     return lo, hi
 
 
+def check_allocation(a, b, Z=None, *, torque_min, torque_max, basis: bool = False):
+    """Validate an allocation problem (the arguments of every strategy).
+
+    Args:
+        a: (n,) scaled torque [N m], finite.
+        b: (n,) unscaled torque [N m], finite.
+        Z: (n, r) null-space basis, finite, or None.
+        torque_min: (n,) lower limits [N m] (`check_torque_limits`).
+        torque_max: (n,) upper limits [N m].
+        basis: Z is required.
+
+    Returns:
+        (a, b, Z, torque_min, torque_max) as float arrays.
+
+    Raises:
+        InvalidInput, InfeasibleLimits: naming the argument.
+    """
+    lo, hi = check_torque_limits(torque_min=torque_min, torque_max=torque_max)
+    n = lo.shape[0]
+    a = as_array("a", a, shape_tail=(n,))
+    b = as_array("b", b, shape_tail=(n,))
+    if a.ndim != 1 or b.ndim != 1:
+        raise InvalidInput(f"a/b: expected ({n},) vectors, got {a.shape} and {b.shape}")
+    if Z is None and basis:
+        raise InvalidInput(f"Z: expected an ({n}, r) basis of the null-space torques, got None")
+    if Z is not None:
+        Z = as_array("Z", Z, shape_tail=(n, None))
+        if Z.ndim != 2:
+            raise InvalidInput(f"Z: expected an ({n}, r) basis, got shape {Z.shape}")
+    return a, b, Z, lo, hi
+
+
 def null_basis(J: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
     """Orthonormal basis Z (n, n−m) of range(I − Jᵀ J#ᵀ) = null(J M⁻¹) (pseudoinverse: null(J)).
 
     Args:
         J: (m, n) Jacobian, full row rank.
         M: (n, n) joint-space inertia [kg m²] for the dynamically consistent J#, or None.
+
+    Raises:
+        InvalidInput: a non-finite or misshapen J or M (named).
     """
+    J = as_array("J", J, shape_tail=(None, None))
+    if J.ndim != 2 or J.shape[0] > J.shape[1]:
+        raise InvalidInput(f"J: expected an (m, n) Jacobian with m <= n, got shape {J.shape}")
+    if M is not None:
+        M = as_array("M", M, shape_tail=(J.shape[1], J.shape[1]))
+        if M.ndim != 2:
+            raise InvalidInput(f"M: expected shape ({J.shape[1]}, {J.shape[1]}), got {M.shape}")
     A = J if M is None else np.linalg.solve(M, J.T).T  # J M⁻¹ (M symmetric)
     m = J.shape[0]
     _, _, Vt = np.linalg.svd(A)

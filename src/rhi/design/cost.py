@@ -97,9 +97,15 @@ class DesignProblem:
                 unknown = sorted(set(keys) - known)
                 if unknown:
                     raise InvalidInput(f"{arg}: unknown design parameter(s) {unknown}; known: {sorted(known)}")
+        if not isinstance(self.fixed, dict):
+            raise InvalidInput(f"fixed: expected {{parameter: value}}, got {self.fixed!r:.60}")
         for k, v in self.fixed.items():
+            v = scalar(f"fixed[{k!r}]", v)
             if k in LENGTHS and not v > 0:
                 raise InvalidInput(f"fixed[{k!r}]: a link length must be > 0, got {v}")
+        c = as_array("center", self.center, shape_tail=(2,))
+        if c.shape != (2,):
+            raise InvalidInput(f"center: expected (x, y) [m], got shape {c.shape}")
         if self.r0 != "auto" and not (isinstance(self.r0, (int, float)) and np.isfinite(self.r0)):
             raise InvalidInput(f"r0: expected a distance [m] or 'auto', got {self.r0!r}")
         if not self.slave.ok.any():

@@ -77,7 +77,13 @@ def sweep(
     progress: Progress | None = None,
     batch: int = 64,
 ) -> list[dict[str, float]]:
-    """`evaluate` at each design vector of xs (in order), in batches, resumable from `checkpoint`."""
+    """`evaluate` at each design vector of xs (in order), in batches, resumable from `checkpoint`.
+
+    Raises:
+        InvalidInput: `batch` not an integer >= 1.
+    """
+    if isinstance(batch, bool) or not isinstance(batch, (int, np.integer)) or batch < 1:
+        raise InvalidInput(f"batch: expected an integer >= 1, got {batch!r:.60}")
     ex = executor or SerialExecutor()
     cache = EvalCache(checkpoint, "sweep|" + _tag(problem, ""))
     fn = functools.partial(evaluate, problem)

@@ -28,7 +28,15 @@ A file holds these tables (every key optional unless marked; the shipped files i
   ``[[sim.physical]]`` (environments acting on the plant's handle).
 - ``[safety]``: the fields of `rhi.runtime.SafetyConfig`.
 
-Unknown keys and values of the wrong type raise `InvalidInput` naming the key path.
+Unknown keys and values of the wrong type raise `InvalidInput` naming the key path, and so do values
+outside these plausibility bounds, checked against the device and physics when the file is read:
+``[run]`` rate 10 Hz–100 kHz, duration ≤ 10⁶ s; ``[controller]`` torque limits within the device's, damping
+≤ 100 N m s/rad, objective gains ≤ 10⁶, ``ellipsoid`` and ``fme`` desired matrices (m, m);
+``[sim]`` q0 inside the joint ranges, |dq0| ≤ 10 rad/s, timestep ≤ 10 ms, hand repeat ≤ 1000, speed ≤ 5 m/s,
+stiffness ≤ 10⁵ N/m, damping ≤ 10³ N s/m, max_force ≤ 1000 N; environments' stiffness ≤ 10⁶ N/m, damping ≤
+10⁴ N s/m; ``[safety]`` stale_ticks ≤ 1000, frozen_ticks ≤ 10⁵, frozen_motion ≤ 0.1 rad, silence ≤ 1 s,
+max_joint_speed ≤ 100 rad/s, range_margin ≤ 0.5 rad, max_handle_speed ≤ 10 m/s (a limit above these does
+not guard anything). A document nested too deeply is refused as well.
 """
 
 from __future__ import annotations
@@ -73,6 +81,7 @@ from rhi.runtime.simlink import SimLink
 from rhi.sim import Fixture, Hand, HandPath, Plant, PlantFriction, Spring, Wall, compose, stop
 
 _num, _pos, _nonneg = S.number(), S.number(low=0.0, strict=True), S.number(low=0.0)
+_stiff, _damp = S.number(low=0.0, high=1e6), S.number(low=0.0, high=1e4)  # of a rendered environment [N/m, N s/m]
 _vec = S.vector()
 _num_or_vec = S.either(_num, _vec, want="a number or a list of numbers")
 _num_or_mat = S.either(_num, S.matrix, want="a number or a matrix (a list of equally long lists of numbers)")
@@ -88,7 +97,7 @@ _PRIMARY: dict[str, S.Spec] = {
     "spring": {**_COMPENSATED, "stiffness": (_nonneg, R), "x0": (_vec, R), "normal": (_vec, None),
                "passivity": (_PASSIVITY, "motors")},
 }
-_GAIN = {"gain": (_nonneg, R)}
+_GAIN = {"gain": (S.number(low=0.0, high=1e6), R)}
 _BUNDLED_OBJECTIVES: dict[str, S.Spec] = {
     "vme": {**_GAIN, "u": (_vec, R), "beta": (_pos, 0.01)},
     "ellipsoid": {**_GAIN, "desired": (S.matrix, R), "H": (S.matrix, None)},
@@ -108,7 +117,7 @@ _CONTROLLER = {
     "primary": (S.tagged("law", _PRIMARY), R),
     "objectives": (S.tables(S.tagged("type", _OBJECTIVES)), []),
     "fme": (S.table(_FME), None),
-    "damping": (_nonneg, 0.1),
+    "damping": (S.number(low=0.0, high=100.0), 0.1),
     "saturation": (S.one_of(lambda: tuple(sorted(method_names()))), "ascm"),  # every registered strategy
     "projector": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["projector"])), "dynamic"),
     "torque_min": (_vec, None),
@@ -118,23 +127,30 @@ _CONTROLLER = {
     "implementation": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["implementation"])), "fast"),
 }
 _ENV = S.tagged("type", {
-    "wall": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_nonneg, R), "damping": (_nonneg, 0.0)},
-    "spring": {"point": (_vec, R), "stiffness": (_nonneg, R), "damping": (_nonneg, 0.0), "direction": (_vec, None)},
-    "fixture": {"point": (_vec, R), "direction": (_vec, R), "stiffness": (_nonneg, 1000.0), "damping": (_nonneg, 5.0)},
-    "stop": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_nonneg, 2.0e4), "damping": (_nonneg, 50.0)},
+    "wall": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_stiff, R), "damping": (_damp, 0.0)},
+    "spring": {"point": (_vec, R), "stiffness": (_stiff, R), "damping": (_damp, 0.0), "direction": (_vec, None)},
+    "fixture": {"point": (_vec, R), "direction": (_vec, R), "stiffness": (_stiff, 1000.0), "damping": (_damp, 5.0)},
+    "stop": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_stiff, 2.0e4), "damping": (_damp, 50.0)},
 })
-_HAND = {"path": (S.either(S.matrix, _vec, want="a point or a list of points"), R), "speed": (_nonneg, 0.0),
-         "repeat": (S.integer(low=0), 0), "start": (_nonneg, 0.0), "stiffness": (_nonneg, 300.0),
-         "damping": (_nonneg, 10.0),
-         "max_force": (S.either(_pos, S.choice("none"), want='a number > 0 or "none"'), 20.0)}
+_HAND = {"path": (S.either(S.matrix, _vec, want="a point or a list of points"), R),
+         "speed": (S.number(low=0.0, high=5.0), 0.0), "repeat": (S.integer(low=0, high=1000), 0),
+         "start": (_nonneg, 0.0), "stiffness": (S.number(low=0.0, high=1e5), 300.0),
+         "damping": (S.number(low=0.0, high=1e3), 10.0),
+         "max_force": (S.either(S.number(low=0.0, strict=True, high=1e3), S.choice("none"),
+                                want='a number > 0 and <= 1000 or "none"'), 20.0)}
 _PLANT_FRICTION = {"damping": (_num_or_vec, 0.0), "frictionloss": (_num_or_vec, 0.0)}
 _SIM: S.Spec = {
     "q0": (_vec, None), "dq0": (_vec, None),
     "friction": (S.either(S.choice("device", "none"), S.table(_PLANT_FRICTION),
                           want='"device", "none" or a table with damping and frictionloss'), "device"),
-    "timestep": (_pos, 5e-4), "handle_mass": (_pos, 1e-3),
+    "timestep": (S.number(low=0.0, strict=True, high=0.01), 5e-4), "handle_mass": (_pos, 1e-3),
     "hand": (S.table(_HAND), None), "physical": (S.tables(_ENV), []),
 }
+
+
+#: The plausibility bounds of `[safety]` (module docstring): a limit above them guards nothing.
+_SAFETY_MAX = {"stale_ticks": 1000, "frozen_ticks": 100000, "frozen_motion": 0.1, "silence": 1.0,
+               "max_joint_speed": 100.0, "range_margin": 0.5, "max_handle_speed": 10.0}
 
 
 def _safety(path: str, v) -> SafetyConfig:
@@ -142,6 +158,8 @@ def _safety(path: str, v) -> SafetyConfig:
         raise InvalidInput(f"{path}: expected a table of settings, got {v!r}")
     for k, x in v.items():
         _num_or_vec(f"{path}.{k}", x)
+        if k in _SAFETY_MAX and np.any(np.asarray(x, dtype=float) > _SAFETY_MAX[k]):
+            raise InvalidInput(f"{path}.{k}: expected <= {_SAFETY_MAX[k]:g} (plausibility bound), got {x!r}")
     try:
         return SafetyConfig.from_dict(v)
     except InvalidInput as exc:
@@ -151,7 +169,8 @@ def _safety(path: str, v) -> SafetyConfig:
 
 _ROOT = {
     "description": (S.string, ""),
-    "run": (S.table({"rate": (_pos, 1000.0), "duration": (_pos, None)}), {}),
+    "run": (S.table({"rate": (S.number(low=10.0, high=1e5), 1000.0),
+                     "duration": (S.number(low=0.0, strict=True, high=1e6), None)}), {}),
     "device": (S.table({"name": (S.string, None), "params": (S.numbers_table, {}), "urdf": (S.string, None),
                         "mjcf": (S.string, None), "description": (S.string, None), "ee_frame": (S.string, None),
                         "task": (S.string, None), "ee_offset": (_vec, None), "lock": (S.numbers_table, None),
@@ -215,6 +234,7 @@ def _objective(path: str, dev: Device, o: dict, hi: np.ndarray):
         _dim(f"{path}.u", o["u"], (m,))
         return make(VMEMatching, tuple(o["u"]), o["beta"])
     if kind == "ellipsoid":
+        _dim(f"{path}.desired", o["desired"], (m, m))
         return make(EllipsoidMatching, o["desired"], o["H"])
     if kind == "fme":
         if (o["desired"] is None) == (o["shape"] is None) or (o["shape"] is not None and o["direction"] is None):
@@ -242,6 +262,11 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
     _dim("controller.torque_min", lo, (dev.n,))
     if hi is not None and lo is None:
         lo = -hi
+    for key, v, inside in (("torque_max", hi, lambda v: v <= dev.torque_max), ("torque_min", lo,
+                                                                                lambda v: v >= dev.torque_min)):
+        if v is not None and not inside(v).all():
+            raise InvalidInput(f"controller.{key}: {v.tolist()} exceeds the device's limits {dev.torque_min.tolist()} "
+                               f"to {dev.torque_max.tolist()} [N m]")
     t_hi = dev.torque_max if hi is None else hi
     terms = []
     for i, o in enumerate(c["objectives"]):
@@ -255,8 +280,9 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
         _dim("controller.fme.contact_direction", f["contact_direction"], (dev.m,))
         K, z = _desired_fmes("controller.fme", dev, f["mu"], f["home"], t_hi)
         tc = S.prefixed("controller.fme.transition", TransitionConfig, **f["transition"])
-        fme = S.prefixed("controller.fme", FMESchedule, desired_fme_free(f["free_direction"], K, z),
-                         desired_fme_stiff(f["contact_direction"], K, z), gain=f["gain"], transition=tc)
+        free = S.prefixed("controller.fme.free_direction", desired_fme_free, f["free_direction"], K, z)
+        stiff = S.prefixed("controller.fme.contact_direction", desired_fme_stiff, f["contact_direction"], K, z)
+        fme = S.prefixed("controller.fme", FMESchedule, free, stiff, gain=f["gain"], transition=tc)
     cfg = ControllerConfig(primary=_primary(dev, c["primary"]), objectives=tuple(terms), fme=fme, damping=c["damping"],
                            saturation=c["saturation"], projector=c["projector"], torque_min=lo, torque_max=hi,
                            gravity_compensation=c["gravity_compensation"], aso_shape=c["aso_shape"],
@@ -311,6 +337,12 @@ def _sim(dev: Device, s: dict) -> dict:
         s["q0"] = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), 0.0)
     _dim("sim.q0", s["q0"], (dev.n,))
     _dim("sim.dq0", s["dq0"], (dev.n,))
+    out = (s["q0"] < lo - 1e-9) | (s["q0"] > hi + 1e-9)
+    if out.any():
+        j = int(np.flatnonzero(out)[0])
+        raise InvalidInput(f"sim.q0: joint {j + 1} at {s['q0'][j]:g} is outside its range [{lo[j]:g}, {hi[j]:g}]")
+    if s["dq0"] is not None and np.abs(s["dq0"]).max() > 10.0:
+        raise InvalidInput(f"sim.dq0: expected |dq0| <= 10 rad/s (plausibility bound), got {s['dq0'].tolist()}")
     fr = s["friction"]
     s["friction"] = None if fr == "none" else fr if fr == "device" else \
         S.prefixed("sim.friction", PlantFriction(fr["damping"], fr["frictionloss"]).check, dev.n)
@@ -344,7 +376,10 @@ def parse_config(data: dict, *, name: str = "config", source: str = "<dict>", de
         InvalidInput: an unknown key or a value of the wrong type (naming its key path), a device mismatch,
             a parameter the controller refuses.
     """
-    d = S.parse("", data, _ROOT)
+    try:
+        d = S.parse("", data, _ROOT)
+    except RecursionError:
+        raise InvalidInput(f"config: {name} is nested too deeply") from None
     table = {k: v for k, v in d["device"].items() if v is not None and v != {}}
     if device is not None:
         if table:
@@ -395,6 +430,8 @@ def load_config(config: str | Path, *, device_name: str | None = None, device: d
         data = tomllib.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InvalidInput(f"config: cannot read {str(p)!r} as TOML ({exc})") from None
+    except RecursionError:
+        raise InvalidInput(f"config: {str(p)!r} is nested too deeply") from None
     return parse_config(data, name=p.stem, source=str(p), device_name=device_name, device=device, base=p.parent)
 
 

@@ -219,7 +219,7 @@ def run(
     else:
         guard = Safety(dev, safety)
     n = guard.n
-    if getattr(link, "n", n) != n:
+    if (getattr(link, "n", 0) or n) != n:  # a device process (UDPLink) tells its motors once connected
         raise InvalidInput(f"link: the device has {link.n} motors, the controller's model {n}")
     m = dev.m if dev is not None else 0
     period = 1.0 / rate
@@ -251,7 +251,7 @@ def run(
     try:
         with _realtime(cpu, priority, spin) as notes:
             link.open()
-            if link.n != n:  # a device process tells its motors once connected
+            if link.n != n:
                 raise InvalidInput(f"link: the device has {link.n} motors, the controller's model {n}")
             _check_sensors(link, controller)
             for msg in notes:

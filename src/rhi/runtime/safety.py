@@ -81,6 +81,8 @@ class SafetyConfig:
             _positive(f, getattr(self, f))
         v = self.max_joint_speed
         vals = v if isinstance(v, (tuple, list)) else (v,)
+        if not vals:
+            raise InvalidInput("max_joint_speed: expected one value or one per motor, got none")
         for x in vals:
             _positive("max_joint_speed", x)
 

@@ -30,26 +30,29 @@ def _fail(path: str, want: str, v) -> InvalidInput:
     return InvalidInput(f"{path}: expected {want}, got {v!r}")
 
 
-def number(*, low: float | None = None, strict: bool = False) -> Check:
-    """A finite number (int or float), optionally ≥ `low` (> `low` with `strict`), as a float."""
-    bound = "" if low is None else f" {'>' if strict else '>='} {low:g}"
+def number(*, low: float | None = None, strict: bool = False, high: float | None = None) -> Check:
+    """A finite number (int or float), optionally ≥ `low` (> `low` with `strict`) and ≤ `high`, as a float."""
+    bound = ("" if low is None else f" {'>' if strict else '>='} {low:g}") + ("" if high is None else
+                                                                            f" and <= {high:g} (plausibility bound)")
 
     def check(path: str, v) -> float:
         if not _is_num(v) or not math.isfinite(v):
             raise _fail(path, "a number" + bound, v)
-        if low is not None and (v < low or (strict and v == low)):
+        if (low is not None and (v < low or (strict and v == low))) or (high is not None and v > high):
             raise _fail(path, "a number" + bound, v)
         return float(v)
 
     return check
 
 
-def integer(*, low: int | None = None) -> Check:
-    """An integer, optionally ≥ `low`."""
+def integer(*, low: int | None = None, high: int | None = None) -> Check:
+    """An integer, optionally ≥ `low` and ≤ `high`."""
 
     def check(path: str, v) -> int:
-        if not isinstance(v, int) or isinstance(v, bool) or (low is not None and v < low):
-            raise _fail(path, "an integer" + ("" if low is None else f" >= {low}"), v)
+        if not isinstance(v, int) or isinstance(v, bool) or (low is not None and v < low) or (
+                high is not None and v > high):
+            raise _fail(path, "an integer" + ("" if low is None else f" >= {low}")
+                        + ("" if high is None else f" and <= {high} (plausibility bound)"), v)
         return v
 
     return check

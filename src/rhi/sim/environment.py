@@ -13,6 +13,7 @@ ch. 6); the palpation experiments use K_e = 1000 N/m.
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -22,6 +23,14 @@ from rhi.errors import InvalidInput
 
 def _gain(name: str, v: float) -> float:
     return scalar(name, v, nonnegative=True)
+
+
+def _finite(name: str, v: np.ndarray) -> list[float]:
+    """The values of v as Python floats; InvalidInput naming `name` if one is NaN or infinite."""
+    values = v.tolist()
+    if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
+        raise InvalidInput(f"{name}: contains NaN or inf: {values}")
+    return values
 
 
 def _point(name: str, v) -> np.ndarray:
@@ -65,7 +74,7 @@ class Wall:
         if x.shape == self.point.shape:  # one point: the simulation loop's case, on plain floats
             n = self._n
             d = 0.0
-            for a, b, c in zip(x.tolist(), self._p, n):
+            for a, b, c in zip(_finite("x", x), self._p, n):
                 d += (a - b) * c
             push = 0.0
             if d > 0:
@@ -73,12 +82,13 @@ class Wall:
                 if v.shape != x.shape:
                     raise InvalidInput(f"xdot: expected shape {x.shape} like x, got {v.shape}")
                 dd = 0.0
-                for a, c in zip(v.tolist(), n):
+                for a, c in zip(_finite("xdot", v), n):
                     dd += a * c
                 push = max(self.stiffness * d + self.damping * dd, 0.0)
             return np.array([-push * c for c in n])
+        x = as_array("x", x, shape_tail=self.point.shape)
         depth = (x - self.point) @ self.normal
-        rate = np.asarray(xdot) @ self.normal
+        rate = as_array("xdot", xdot, shape_tail=self.point.shape) @ self.normal
         pushes = np.where(depth > 0, self.stiffness * depth + self.damping * rate, 0.0)
         return -np.maximum(pushes, 0.0)[..., None] * self.normal
 

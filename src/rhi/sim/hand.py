@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from rhi._validate import as_array, scalar, unit_vector
+from rhi._validate import as_array, float_array, scalar, unit_vector
 from rhi.errors import InvalidInput, Unreachable
 
 
@@ -217,10 +217,13 @@ def _vector(name: str, v, m: int) -> list[float]:
     Raises:
         InvalidInput: v is not of shape (m,) (named).
     """
-    a = v if type(v) is np.ndarray else np.asarray(v, dtype=float)
+    a = v if type(v) is np.ndarray else float_array(name, v)
     if a.shape != (m,):
         raise InvalidInput(f"{name}: expected shape ({m},) (the path's dimension), got {a.shape}")
-    return a.tolist()
+    values = a.tolist()
+    if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
+        raise InvalidInput(f"{name}: contains NaN or inf: {values}")
+    return values
 
 
 @dataclasses.dataclass(frozen=True)

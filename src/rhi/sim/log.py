@@ -369,6 +369,11 @@ def _from_array(data: np.ndarray, columns: list[tuple[str, int]]) -> Log:
 
 def _load_binary(path: Path) -> Log:
     columns, meta, offset = read_header(path)
+    required = {f.name for f in dataclasses.fields(Log)
+                if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING} - {"slave_x"}
+    missing = sorted(required - {c for c, _ in columns})
+    if missing:
+        raise InvalidInput(f"path: {str(path)!r} has a damaged log header (no column {', '.join(missing)})")
     width = sum(w for _, w in columns)
     rows = (path.stat().st_size - offset) // (8 * width)
     data = (np.memmap(path, dtype="<f8", mode="r", offset=offset, shape=(rows, width)) if rows

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from rhi._validate import as_array
+from rhi._validate import as_array, scalar
 from rhi.errors import InvalidInput
 from rhi.sim.plant import Plant
 
@@ -46,7 +46,12 @@ class Teleoperation:
         """Track the master's position x_m (m,) [m] for one control period dt [s].
 
         Returns the slave's true position (m,) [m].
+
+        Raises:
+            InvalidInput: a non-finite or misshapen x_master, or dt not > 0 (named).
         """
+        x_master = as_array("x_master", x_master, shape_tail=(self.R.shape[1],))
+        scalar("dt", dt, positive=True)
         s, dev = self.slave, self.slave.device
         q, dq = s.q, s.dq
         # what dev.jacobian(q), dev.fk(q) and dev.gravity(q) compute, without their checks (q is the plant's

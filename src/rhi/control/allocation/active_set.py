@@ -23,6 +23,7 @@ import numpy as np
 from rhi.control import kernels
 from rhi.control.allocation.base import Allocation, Allocator, register
 from rhi.control.allocation.lp import allocate_lp
+from rhi.control.saturation import check_allocation
 
 
 def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | None = None, max_iter: int = 50) -> Allocation:
@@ -48,7 +49,8 @@ def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | 
         Allocation with method "active_set"; ``saturated`` marks the joints at a limit, and
         ``J#ᵀ τ = J#ᵀ(α a + b)`` (or J⁺ᵀ with the pseudoinverse basis).
     """
-    a, b, Z, lo, hi = (np.ascontiguousarray(v, dtype=float) for v in (a, b, Z, torque_min, torque_max))
+    a, b, Z, lo, hi = (np.ascontiguousarray(v) for v in check_allocation(a, b, Z, torque_min=torque_min,
+                                                                          torque_max=torque_max, basis=True))
     n, r = Z.shape
     tau0 = a + b
     if np.all(tau0 <= hi) and np.all(tau0 >= lo):

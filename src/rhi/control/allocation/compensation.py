@@ -14,7 +14,8 @@ import numpy as np
 from rhi.control import kernels
 from rhi.control.allocation.base import Allocation, Allocator, register
 from rhi.control.allocation.scaling import allocate_scaling
-from rhi.control.saturation import RANK_TOL, basis_from_projector, scaling_alpha
+from rhi.control.saturation import RANK_TOL, basis_from_projector, check_allocation, scaling_alpha
+from rhi.errors import InvalidInput
 
 
 def _fixed_solution(a, b, Z, S, ts, alpha):
@@ -53,7 +54,9 @@ def ascm(a, b, Z, *, torque_min, torque_max, max_iter: int | None = None) -> All
     Returns:
         The allocation; ``J#ᵀ τ = J#ᵀ(α a + b)``.
     """
-    lo, hi = torque_min, torque_max
+    a, b, Z, lo, hi = check_allocation(a, b, Z, torque_min=torque_min, torque_max=torque_max, basis=True)
+    if max_iter is not None and (isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1):
+        raise InvalidInput(f"max_iter: expected an integer >= 1 or None, got {max_iter!r:.60}")
     n, r = Z.shape
     S = np.zeros(n, bool)
     ts = np.zeros(n)

@@ -12,6 +12,7 @@ from scipy.optimize import linprog
 
 from rhi.control.allocation.base import Allocation, Allocator, register
 from rhi.control.allocation.scaling import allocate_scaling
+from rhi.control.saturation import check_allocation
 
 
 def allocate_lp(a, b, Z, *, torque_min, torque_max) -> Allocation:
@@ -21,7 +22,7 @@ def allocate_lp(a, b, Z, *, torque_min, torque_max) -> Allocation:
     ``b = 0`` and a request at or above the capability, ``α |F|`` equals the optimum of
     `rhi.metrics.max_force`. Falls back to simple scaling if the LP fails.
     """
-    lo, hi = torque_min, torque_max
+    a, b, Z, lo, hi = check_allocation(a, b, Z, torque_min=torque_min, torque_max=torque_max, basis=True)
     n, r = Z.shape
     tau0 = a + b
     if np.all(tau0 <= hi) and np.all(tau0 >= lo):

@@ -10,12 +10,12 @@ import numpy as np
 
 from rhi.control import kernels
 from rhi.control.allocation.base import Allocation, Allocator, register
-from rhi.control.saturation import scaling_alpha
+from rhi.control.saturation import check_allocation, scaling_alpha
 
 
 def allocate_scaling(a, b, *, torque_min, torque_max) -> Allocation:
     """Simple scaling: the largest α <= 1 with torque_min <= α a + b <= torque_max [N m] (Fig. 7.1b, direction preserved)."""
-    lo, hi = torque_min, torque_max
+    a, b, _, lo, hi = check_allocation(a, b, torque_min=torque_min, torque_max=torque_max)
     alpha = scaling_alpha(a, b, lo=lo, hi=hi)
     n = a.size
     if alpha is None:  # b alone is infeasible
