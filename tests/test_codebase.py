@@ -148,7 +148,7 @@ LAYERS = ("metrics", "control", "sim", "runtime", "viz", "analysis", "design", "
           "report", "cli")
 #: edges upwards that are known and accepted (the package's re-exports, entry points, a helper of the top).
 UPWARD_OK = {("rhi", "rhi.metrics"), ("rhi.__main__", "rhi.cli"), ("rhi.device_measures", "rhi.metrics"),
-             ("rhi.viz.cli", "rhi.cli_device")}
+             ("rhi.viz.cli", "rhi.cli_device"), ("rhi.viz.cli", "rhi.cli_args")}
 
 
 def layer(module: str) -> int:
