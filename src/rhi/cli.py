@@ -238,7 +238,6 @@ def _writable(option: str, path: Path) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from rhi.runtime import run
-    from rhi.runtime.loop import ESTOP_SIGNALS
 
     if args.mouse and not args.view:
         raise InvalidInput("--mouse: the mouse moves the hand in the browser view; add --view")
@@ -315,9 +314,7 @@ def _run(args: argparse.Namespace) -> int:
     print(f"log: {log_path}\nsummary: {summary_path}")
     if res.fault is not None:
         print(f"rhi run: fault ({s['fault_kind']}): {res.fault}", file=sys.stderr)
-        signals = [sig for sig in ESTOP_SIGNALS if s["fault_kind"] == "estop" and res.fault.endswith(sig.name)]
-        return 128 + int(signals[0]) if signals else 1  # the shell's code for a command ended by that signal
-    return 0
+    return res.exit_code
 
 
 def _add_run(sub) -> None:

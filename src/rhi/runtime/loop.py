@@ -58,6 +58,15 @@ class RunResult:
         """Why the run stopped (the log's fault), or None."""
         return self.log.fault
 
+    @property
+    def exit_code(self) -> int:
+        """A command's exit status for this run: 0, 128 + the signal that e-stopped it (the shell's code), else 1."""
+        if self.fault is None:
+            return 0
+        signals = [sig for sig in ESTOP_SIGNALS if self.summary.get("fault_kind") == "estop"
+                   and self.fault.endswith(sig.name)]
+        return 128 + int(signals[0]) if signals else 1
+
 
 def check_realtime(cpu: int | None, priority: int | None) -> None:
     """Validate the real-time options of `run` and `DeviceServer`.

@@ -95,7 +95,8 @@ def _view(args: argparse.Namespace) -> int:
     missed = sum(r.summary["missed"] for r in results)
     print(f"rhi view: {len(results)} run(s), {ticks} ticks, missed deadlines {missed} "
           f"({100.0 * missed / max(ticks, 1):.3f} %)")
-    return 0
+    code = results[-1].exit_code
+    return code if code > 1 else 0  # a signal's e-stop (Ctrl-C, kill) is the shell's code; a shown fault is not
 
 
 def _compare(args: argparse.Namespace) -> int:
