@@ -71,7 +71,8 @@ def test_constant_link_delay_trips_the_round_trip_age(dev, tmp_path):
         _stop(p)
     _safe_stop(res, tmp_path / "d.rhilog", "latency")
     age = float(res.fault.split("round-trip age ")[1].split(" ms")[0])
-    assert 20.0 < age < 200.0 and res.summary["round_trip"]["max"] >= 0.02
+    assert 20.0 <= age < 200.0  # trips at the first age above 20 ms (printed to 0.01 ms)
+    assert res.summary["round_trip"]["max"] >= 0.02
     assert res.summary["ticks"] < 1000  # stopped within the first second, not after a joint left its range
 
 

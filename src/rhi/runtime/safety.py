@@ -221,7 +221,7 @@ class Safety:
             self.trip("silence", f"link silent for {1e3 * (now - self._last_new):.1f} ms (limit "
                       f"{1e3 * self.config.silence:g} ms) at t={r.t:.4f} s")
         if r.age > self.config.max_age:
-            self.trip("latency", f"round-trip age {1e3 * r.age:.1f} ms above {1e3 * self.config.max_age:g} ms at "
+            self.trip("latency", f"round-trip age {1e3 * r.age:.2f} ms above {1e3 * self.config.max_age:g} ms at "
                       f"t={r.t:.4f} s (reading {seq} echoes command {r.cmd_seq})")
         if not math.isfinite(sum(ql) + sum(dql)) and not (np.isfinite(q).all() and np.isfinite(dq).all()):
             self.trip("nan", f"non-finite joint reading at t={r.t:.4f} s: q={ql}, dq={dql}")
