@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rhi._description_checks import check_finite_numbers, check_mesh_files, check_urdf_tree
 from rhi.errors import InvalidInput, ModelError
 
 UNBOUNDED = 1e12  # |limit| >= this in a joint range means "no limit" (continuous joints)
@@ -110,7 +111,26 @@ def _expand_xacro(text: str, path: Path | None, near: Path | None, package_dirs)
     except ModelError:
         raise
     except Exception as exc:  # xacro raises XacroException, XML errors, NameError ... with its own text
-        raise ModelError(f"path: xacro expansion failed: {exc}") from None
+        raise ModelError(f"path: {path if path is not None else 'XML text'}: xacro expansion failed: {exc}") from None
+
+
+@contextlib.contextmanager
+def stderr_captured(into: list[str]) -> Iterator[None]:
+    """Capture what C++ code (urdfdom, MuJoCo) prints on file descriptor 2 into `into` (one string)."""
+    import sys
+    import tempfile
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            into.append(tmp.read().decode(errors="replace"))
 
 
 def _package_url(m: re.Match, near: Path | None, package_dirs) -> str:
@@ -152,8 +172,13 @@ def _floats(elem: ET.Element, attr: str, what: str, count: int, default: str | N
     return vals
 
 
-def check_urdf(text: str, *, inertia: str = "strict") -> tuple[str, JointInfo]:
-    """Validate URDF text and normalise it for Pinocchio.
+def check_urdf(text: str, *, inertia: str = "strict", where: str = "path",
+               near: Path | None = None) -> tuple[str, JointInfo]:
+    """Validate URDF text and normalise it for Pinocchio; every error names `where` (the file), the element
+    and the attribute.
+
+    The checks of `rhi._description_checks` come first (finite numbers, one kinematic tree of at most
+    `MAX_JOINTS` joints, mesh files that exist relative to `near`).
 
     Continuous joints become revolute joints with an unbounded range; revolute/prismatic
     joints without `<limit>` get an unbounded range and no effort limit (recorded in
@@ -165,20 +190,23 @@ def check_urdf(text: str, *, inertia: str = "strict") -> tuple[str, JointInfo]:
     Returns:
         (normalised URDF text, joint information).
     """
+    if inertia not in ("strict", "fill"):
+        raise InvalidInput(f'inertia: expected "strict" or "fill", got {inertia!r}')
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:
-        raise ModelError(f"path: malformed URDF XML ({exc})") from None
+        raise ModelError(f"{where}: malformed URDF XML ({exc})") from None
     if root.tag != "robot":
-        raise ModelError(f"path: a URDF's root element is <robot>, got <{root.tag}>")
+        raise ModelError(f"{where}: a URDF's root element is <robot>, got <{root.tag}>")
     links = root.findall("link")
     if not links:
-        raise ModelError("path: no <link> elements in the URDF")
-    if inertia not in ("strict", "fill"):
-        raise InvalidInput(f'inertia: expected "strict" or "fill", got {inertia!r}')
+        raise ModelError(f"{where}: no <link> elements in the URDF")
+    check_finite_numbers(root, where)
+    check_urdf_tree(root, where)
+    check_mesh_files(root, where, near)
     filled = {}
     for link in links:
-        moment = _check_link(link, inertia == "fill")
+        moment = _check_link(link, inertia == "fill", where)
         if moment is not None:
             filled[str(link.get("name"))] = moment
     names = {n for j in root.findall("joint") if (n := j.get("name")) is not None}
@@ -186,10 +214,8 @@ def check_urdf(text: str, *, inertia: str = "strict") -> tuple[str, JointInfo]:
     continuous: set[str] = set()
     no_effort: set[str] = set()
     for joint in root.findall("joint"):
-        name, kind = joint.get("name"), joint.get("type")
-        if name is None:
-            raise ModelError("path: a <joint> without a name attribute")
-        what = f"joint {name!r}"
+        name, kind = str(joint.get("name")), joint.get("type")
+        what = f"{where}: joint {name!r}"
         if kind not in _KNOWN_TYPES:
             raise ModelError(f"{what}: type {kind!r} not supported (revolute, continuous, prismatic, fixed)")
         origin = joint.find("origin")
@@ -207,7 +233,10 @@ def check_urdf(text: str, *, inertia: str = "strict") -> tuple[str, JointInfo]:
             limit = ET.SubElement(joint, "limit", {"effort": "0", "velocity": "0"})
             limit.set("lower", str(-UNBOUNDED))
             limit.set("upper", str(UNBOUNDED))
+        for attr in ("effort", "velocity"):  # urdfdom requires both; rhi reads no velocity limit
+            limit.set(attr, limit.get(attr, "0"))
         effort = float(_floats(limit, "effort", f"{what} <limit>", 1, "0")[0])
+        _floats(limit, "velocity", f"{what} <limit>", 1, "0")
         if effort < 0:
             raise ModelError(f"{what} <limit>: effort must be >= 0, got {effort}")
         if effort == 0:
@@ -234,9 +263,9 @@ def check_urdf(text: str, *, inertia: str = "strict") -> tuple[str, JointInfo]:
     return ET.tostring(root, encoding="unicode"), JointInfo(mimic, continuous, no_effort, filled)
 
 
-def _check_link(link: ET.Element, fill: bool) -> float | None:
+def _check_link(link: ET.Element, fill: bool, where: str) -> float | None:
     """Check a link's <inertial>; with `fill`, a point mass's moment of inertia given (returned), else None."""
-    what = f"link {link.get('name')!r}"
+    what = f"{where}: link {link.get('name')!r}"
     inertial = link.find("inertial")
     if inertial is None:
         return None

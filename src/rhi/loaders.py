@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import math
 import warnings
+import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from rhi._urdf import UNBOUNDED, JointInfo, check_urdf, description_roots, read_description
+from rhi._description_checks import MAX_JOINTS, check_finite_numbers
+from rhi._urdf import UNBOUNDED, JointInfo, check_urdf, description_roots, read_description, stderr_captured
 from rhi._validate import as_array
 from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError, UnknownDevice
@@ -83,15 +85,19 @@ def device_from_urdf(
         InvalidInput: a bad argument (named).
     """
     text, near, stem = read_description(path, package_dirs)
-    text, info = check_urdf(text, inertia=inertia)
+    where = "path" if isinstance(path, str) and path.lstrip().startswith("<") else f"path: {path}"
+    text, info = check_urdf(text, inertia=inertia, where=where, near=near)
     if info.filled:
         warnings.warn(f"{name or stem}: inertia='fill' gave point-mass links the inertia of a solid sphere of water "
                       "of their mass: " + ", ".join(f"{k} ({v:.3g} kg m²)" for k, v in info.filled.items()),
                       stacklevel=2)
+    said: list[str] = []
     try:
-        model = pin.buildModelFromXML(text)
-    except Exception as exc:  # Pinocchio/urdfdom raise RuntimeError/ValueError with their own text
-        raise ModelError(f"path: malformed URDF: {exc}") from None
+        with stderr_captured(said):
+            model = pin.buildModelFromXML(text)
+    except Exception as exc:  # Pinocchio/urdfdom raise RuntimeError/ValueError; urdfdom's reason is on stderr
+        reason = " ".join(ln.strip() for ln in said[0].splitlines() if ln.strip().startswith("Error:"))
+        raise ModelError(f"{where}: malformed URDF: {reason or exc}") from None
     own = {
         "effort": {n: float(model.effortLimit[model.joints[model.getJointId(n)].idx_v]) for n in _movable(model)},
         "damping": {n: float(model.damping[model.joints[model.getJointId(n)].idx_v]) for n in _movable(model)},
@@ -131,21 +137,31 @@ def device_from_mjcf(
     if not isinstance(path, (str, Path)):
         raise InvalidInput(f"path: expected an MJCF file path, got {type(path).__name__}")
     path = Path(path)
+    where = f"path: {path}"
     if not path.is_file():
-        raise ModelError(f"path: file {str(path)!r} does not exist")
+        raise ModelError(f"{where}: file does not exist")
+    try:
+        check_finite_numbers(ET.parse(path).getroot(), where)
+    except ET.ParseError as exc:
+        raise ModelError(f"{where}: malformed MJCF XML ({exc})") from None
+    except OSError as exc:
+        raise ModelError(f"{where}: cannot read ({exc})") from None
     try:
         mj = mujoco.MjModel.from_xml_path(str(path))
     except ValueError as exc:
-        raise ModelError(f"path: malformed MJCF: {exc}") from None
+        raise ModelError(f"{where}: malformed MJCF: {' '.join(str(exc).split())}") from None
+    if mj.njnt > MAX_JOINTS:
+        raise ModelError(f"{where}: {mj.njnt} joints; at most {MAX_JOINTS} are supported "
+                         "(rhi._description_checks.MAX_JOINTS)")
     for j in range(mj.njnt):
         if mj.jnt_type[j] in (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_BALL):
-            raise ModelError(f"joint {mj.joint(j).name!r}: free/ball joints are not supported (hinge, slide)")
-        if np.linalg.norm(mj.jnt_axis[j]) < 1e-9:
-            raise ModelError(f"joint {mj.joint(j).name!r}: axis must be non-zero")
+            raise ModelError(f"{where}: joint {mj.joint(j).name!r}: free/ball joints are not supported (hinge, slide)")
+        if not np.linalg.norm(mj.jnt_axis[j]) >= 1e-9:
+            raise ModelError(f"{where}: joint {mj.joint(j).name!r}: axis must be non-zero and finite")
     try:
         model = pin.buildModelFromMJCF(str(path))
     except Exception as exc:
-        raise ModelError(f"path: Pinocchio cannot read the MJCF: {exc}") from None
+        raise ModelError(f"{where}: Pinocchio cannot read the MJCF: {exc}") from None
     model.armature = np.zeros(model.nv)  # Device adds the motors' armature itself
     own: dict[str, dict[str, float]] = {"effort": {}, "damping": {}, "frictionloss": {}, "armature": {}}
     for j in range(mj.njnt):
@@ -300,6 +316,10 @@ def _check_ee(model: pin.Model, ee_frame) -> None:
     bodies = [f.name for f in model.frames if f.type in (pin.FrameType.BODY, pin.FrameType.OP_FRAME)]
     if not model.existFrame(ee_frame):
         raise ModelError(f"ee_frame: no link or frame named {ee_frame!r}; valid frames: {', '.join(bodies)}")
+    same = [str(f.type).split(".")[-1].lower() for f in model.frames if f.name == ee_frame]
+    if len(same) > 1:
+        raise ModelError(f"ee_frame: {ee_frame!r} names {len(same)} frames ({', '.join(same)}): a link and a joint "
+                         "share the name; rename one in the description")
     f = model.frames[model.getFrameId(ee_frame)]
     if f.type == pin.FrameType.JOINT:
         child = [g.name for g in model.frames if g.type == pin.FrameType.BODY and g.parentJoint == f.parentJoint]
