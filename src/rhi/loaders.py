@@ -106,7 +106,7 @@ def device_from_urdf(
     }
     for n in info.no_effort:
         own["effort"][n] = 0.0
-    dev = _finish(model, info, own, name or stem, ee_frame=ee_frame, task=task, ee_offset=ee_offset, lock=lock,
+    dev = _finish(model, info, own, name or stem, where, ee_frame=ee_frame, task=task, ee_offset=ee_offset, lock=lock,
                   armature=armature, torque_min=torque_min, torque_max=torque_max, friction=friction)
     dirs = ([str(near)] if near is not None else []) + [str(d) for d in package_dirs]
     dev.visual_description = (text, tuple(dirs))
@@ -182,7 +182,7 @@ def device_from_mjcf(
         if lim:
             own["effort"][jn] = min(lim) if own["effort"][jn] == 0 else min(lim + [own["effort"][jn]])
     info = JointInfo(mimic={}, continuous=set(), no_effort=set())
-    return _finish(model, info, own, name or path.stem, ee_frame=ee_frame, task=task, ee_offset=ee_offset,
+    return _finish(model, info, own, name or path.stem, where, ee_frame=ee_frame, task=task, ee_offset=ee_offset,
                    lock=lock, armature=armature, torque_min=torque_min, torque_max=torque_max, friction=friction)
 
 
@@ -239,11 +239,11 @@ def _movable(model: pin.Model) -> list[str]:
     return [model.names[j] for j in range(1, model.njoints) if model.joints[j].nv > 0]
 
 
-def _finish(model: pin.Model, info: JointInfo, own: dict, name: str, *, ee_frame, task, ee_offset, lock,
+def _finish(model: pin.Model, info: JointInfo, own: dict, name: str, where: str, *, ee_frame, task, ee_offset, lock,
             armature, torque_min, torque_max, friction) -> Device:
     """Lock, reduce, build the actuation map and limits, and check the dynamics of a loaded model."""
     if model.nq != model.nv:
-        raise ModelError(f"path: {name} has a joint with nq != nv (free, spherical, planar); not supported")
+        raise ModelError(f"{where}: {name} has a joint with nq != nv (free, spherical, planar); not supported")
     _check_ee(model, ee_frame)
     movable = _movable(model)
     mimic = info.mimic
@@ -306,7 +306,7 @@ def _finish(model: pin.Model, info: JointInfo, own: dict, name: str, *, ee_frame
                  torque_min=tmin, torque_max=tmax, joint_names=motors, armature=arm,
                  damping=damping, frictionloss=floss)
     dev.locked_joints = dict(values)
-    _check_inertia(dev)
+    _check_inertia(dev, where)
     return dev
 
 
@@ -383,7 +383,7 @@ def _torque_limits(motors: list[str], effort: Mapping[str, float], torque_min, t
     return lo, hi
 
 
-def _check_inertia(dev: Device) -> None:
+def _check_inertia(dev: Device, where: str) -> None:
     """The mass matrix must be positive definite: every motor moves some mass or armature."""
     finite = np.isfinite(dev.q_min) & np.isfinite(dev.q_max)
     mid = 0.5 * (np.where(finite, dev.q_min, 0.0) + np.where(finite, dev.q_max, 0.0))
@@ -391,6 +391,6 @@ def _check_inertia(dev: Device) -> None:
     M = dev.mass_matrix(q)
     weak = [dev.joint_names[i] for i in range(dev.n) if not M[i, i] > 1e-12]
     if weak or np.linalg.eigvalsh(M)[0] <= 0:
-        raise ModelError(f"path: the mass matrix of {dev.name} is not positive definite"
+        raise ModelError(f"{where}: the mass matrix of {dev.name} is not positive definite"
                          + (f": joint(s) {', '.join(weak)} move no mass" if weak else "")
                          + "; give the links <inertial> masses and inertias (or pass armature=)")
