@@ -77,16 +77,18 @@ def _measure(args: argparse.Namespace) -> int:
 
 def _reproduce(args: argparse.Namespace) -> int:
     from rhi.design.executors import configure
+
+    name = getattr(args, "name", None)
+    out = args.out or (str(Path("out") / name) if name else "out")
+    # first: a bad executor argument (a Ray address where nothing answers) fails before the experiments load
+    configure(executor=args.executor, address=args.address, workers=args.workers,
+              checkpoint_dir=str(Path(out) / "checkpoints" / ("quick" if args.quick else "full")))  # one problem per file
     from rhi.report.reproduce import reproduce
     from rhi.report.steps import describe
 
     if getattr(args, "list", False) or (args.command == "experiment" and not args.name):
         print("\n".join(f"{name:<34} {what}" for name, what in describe()))
         return 0
-    name = getattr(args, "name", None)
-    out = args.out or (str(Path("out") / name) if name else "out")
-    configure(executor=args.executor, address=args.address, workers=args.workers,
-              checkpoint_dir=str(Path(out) / "checkpoints" / ("quick" if args.quick else "full")))  # one problem per file
     path, results = reproduce(out, only=getattr(args, "only", None), quick=args.quick, experiment=name,
                               jobs=getattr(args, "jobs", None))
     for res in results:

@@ -26,7 +26,10 @@ from multiprocessing import get_context
 from typing import Any
 
 from rhi._lifetime import die_with_parent
-from rhi.errors import InvalidInput
+from rhi.errors import InvalidInput, LinkError
+
+RAY_CONNECT_TIMEOUT = 5.0
+"""[s] How long `check_ray_address` waits for a Ray cluster's port to accept a connection."""
 
 
 class SerialExecutor:
@@ -111,6 +114,32 @@ class PoolExecutor(SerialExecutor):
             self._pool = None
 
 
+def check_ray_address(address: str | None) -> None:
+    """Refuse, within `RAY_CONNECT_TIMEOUT`, a Ray address that is malformed or where nothing listens.
+
+    Accepted: None (start a local instance), "auto" and "local", or ``host:port`` / ``ray://host:port`` whose
+    TCP port accepts a connection (Ray's own client retries for minutes).
+
+    Raises:
+        InvalidInput: a malformed address. LinkError: nothing answers there.
+    """
+    import socket
+
+    if address is None or address in ("auto", "local"):
+        return
+    if not isinstance(address, str):
+        raise InvalidInput(f"address: expected a Ray address string, got {type(address).__name__}")
+    hostport = address.removeprefix("ray://")
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536 or "/" in hostport:
+        raise InvalidInput(f"address: expected 'auto', 'host:port' or 'ray://host:port' (port 1-65535), got {address!r}")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_TIMEOUT):
+            pass
+    except OSError as exc:
+        raise LinkError(f"address: no Ray cluster answers at {address!r} ({exc.strerror or exc})") from None
+
+
 def _ray_apply(fn, chunk):
     return [fn(x) for x in chunk]
 
@@ -128,10 +157,15 @@ class RayExecutor(SerialExecutor):
             raise InvalidInput("executor: 'ray' needs the optional dependency ray (pip install ray)") from None
         self._ray = ray
         if not ray.is_initialized():
+            check_ray_address(address)
             kw: dict[str, Any] = {"address": address, "include_dashboard": False, "log_to_driver": False}
             if address is None:
                 kw["num_cpus"] = workers or os.cpu_count() or 1
-            ray.init(**kw)
+            try:
+                ray.init(**kw)
+            except (ConnectionError, ValueError, RuntimeError) as exc:  # "auto" with no cluster, a refused client
+                raise LinkError(f"address: Ray cannot start or join {address or 'a local instance'!r}: "
+                                f"{' '.join(str(exc).split())[:300]}") from None
             self._owner = True
         else:
             self._owner = False
@@ -180,12 +214,20 @@ DEFAULTS: dict[str, Any] = {"executor": "local", "address": None, "workers": Non
 
 def configure(*, executor: str | None = None, address: str | None = None, workers: int | None = None,
               checkpoint_dir: str | None = None) -> None:
-    """Set the default executor ("serial", "local", "ray"), Ray address, workers and checkpoint folder."""
+    """Set the default executor ("serial", "local", "ray"), Ray address, workers and checkpoint folder.
+
+    Raises:
+        InvalidInput: an unknown executor, an address without executor "ray" or a malformed one, bad workers.
+        LinkError: nothing answers at the Ray address (`check_ray_address`).
+    """
     if executor is not None:
         if executor not in ("serial", "local", "ray"):
             raise InvalidInput(f"executor: expected 'serial', 'local' or 'ray', got {executor!r}")
         DEFAULTS["executor"] = executor
     if address is not None:
+        if DEFAULTS["executor"] != "ray":
+            raise InvalidInput(f"address: a Ray cluster address is for executor 'ray', not {DEFAULTS['executor']!r}")
+        check_ray_address(address)  # before any work, not at the first map
         DEFAULTS["address"] = address
     if workers is not None:
         _check_workers(workers)
