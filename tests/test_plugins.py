@@ -66,6 +66,24 @@ class Centering:
         return self.weight * (np.asarray(q) - self.center)
 
 
+class FrameNearBase:
+    """nu(q) = 1/2 w |p_frame(q)|^2, the frame looked up by name when it runs (as plugins do)."""
+
+    def __init__(self, device, frame, weight=1.0):
+        self.frame, self.weight = frame, float(weight)
+
+    def value(self, device, q):
+        import pinocchio as pin
+
+        data = device.model.createData()  # this arm has no locked joints: its model's q is the motors' q
+        pin.framesForwardKinematics(device.model, data, np.asarray(q, dtype=float))
+        p = data.oMf[device.model.getFrameId(self.frame)].translation
+        return 0.5 * self.weight * float(p @ p)
+
+    def gradient(self, device, q):
+        return np.array([(self.value(device, q + h) - self.value(device, q - h)) / 2e-6 for h in 1e-6 * np.eye(len(q))])
+
+
 class CountingLink:
     def __init__(self, link):
         self._link, self.stats = link, {"reads": 0, "writes": 0}
@@ -99,6 +117,7 @@ brokenarm = rhi_labkit_missing:arm
 
 [rhi.objectives]
 centering = rhi_labkit:Centering
+near_base = rhi_labkit:FrameNearBase
 
 [rhi.links]
 lab = rhi_labkit:open_link
@@ -141,7 +160,7 @@ def installed(tmp_path_factory):
 
 def test_the_plugins_are_found(installed):
     assert plugins.names("rhi.devices") == ["brokenarm", "labarm"]
-    assert plugins.names("rhi.objectives") == ["centering"] and plugins.names("rhi.links") == ["lab"]
+    assert plugins.names("rhi.objectives") == ["centering", "near_base"] and plugins.names("rhi.links") == ["lab"]
     assert plugins.provider("rhi.links", "lab") == "rhi-labkit 0.1"
     dev = rhi.device("labarm", l1=0.35)
     np.testing.assert_allclose(dev.fk([0.0, 0.0, 0.0]), [0.6, 0.0], atol=1e-12)  # l1 + 0.25 m along x
@@ -195,6 +214,22 @@ def test_plugin_errors_name_the_key_and_scheme(installed, tmp_path, capsys):
     assert main(["run", "labarm", "--config", str(installed / "lab.toml"), "--link", "lab://elsewhere", "--fast",
                  "--duration", "0.1", "--log", str(tmp_path / "y.rhilog")]) == 2
     assert "--link: expected lab://sim" in capsys.readouterr().err
+
+
+def test_a_misspelt_frame_in_an_objective_is_found_when_the_file_is_read(installed, tmp_path, capsys):
+    """A plugin looks its frame up only when it runs: load_config evaluates each objective at sim.q0."""
+    text = CONFIG.format(extra="").replace('type = "centering"\ncenter = [0.3, 0.8, 0.6]', 'type = "near_base"\n'
+                                           'frame = "FRAME"')
+    good, bad = tmp_path / "good.toml", tmp_path / "bad.toml"
+    good.write_text(text.replace("FRAME", "tip"))
+    bad.write_text(text.replace("FRAME", "tipp"))
+    assert load_config(good).controller_config.objectives[0].objective.frame == "tip"
+    with pytest.raises(InvalidInput, match=r"^controller.objectives\[0\]: the objective fails at sim.q0"):
+        load_config(bad)
+    log = tmp_path / "bad.rhilog"
+    assert main(["run", "labarm", "--config", str(bad), "--fast", "--duration", "0.1", "--log", str(log)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "controller.objectives[0]" in err[0] and not log.exists()  # no run started
 
 
 def test_another_process_finds_the_installed_plugin(installed):

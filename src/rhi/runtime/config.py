@@ -73,7 +73,7 @@ from rhi.control import (
 from rhi.control.allocation import method_names
 from rhi.device import Device, device
 from rhi.device_source import SOURCES, device_from_table
-from rhi.errors import InvalidInput
+from rhi.errors import InvalidInput, RhiError
 from rhi.runtime import objective_plugins, schema as S
 from rhi.runtime.objective_plugins import ObjectiveSpecs
 from rhi.runtime.safety import SafetyConfig
@@ -291,6 +291,24 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
     return cfg
 
 
+def _objectives_at_start(dev: Device, cfg: ControllerConfig, q0: np.ndarray) -> None:
+    """Evaluate each objective's value and gradient once at ``sim.q0``, so that what an objective finds only when
+    it runs (a misspelt frame or joint name a plugin looks up, a value it cannot use) is an error of its key path
+    when the file is read, not at the first tick."""
+    for i, term in enumerate(cfg.objectives):
+        path = f"controller.objectives[{i}]"
+        try:
+            v = float(term.objective.value(dev, q0))
+            g = np.asarray(term.objective.gradient(dev, q0), dtype=float)
+        except RhiError as exc:
+            raise type(exc)(f"{path}: {exc}") from None
+        except Exception as exc:  # noqa: BLE001 - a plugin's own failure, named by its key path
+            raise InvalidInput(f"{path}: the objective fails at sim.q0 ({type(exc).__name__}: {exc})") from None
+        if not np.isfinite(v) or g.shape != (dev.n,) or not np.isfinite(g).all():
+            raise InvalidInput(f"{path}: at sim.q0 the objective gives value {v:g} and a gradient of shape {g.shape} "
+                               f"(expected a finite value and {dev.n} finite values)")
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class RunConfig:
     """A loaded run configuration.
@@ -396,10 +414,11 @@ def parse_config(data: dict, *, name: str = "config", source: str = "<dict>", de
     dev = device_from_table(table, base=base, path="device")
     if device_name is not None and dev.name != device_name:
         raise InvalidInput(f"device: {name} describes {dev.name!r} ([device]), got {device_name!r}")
-    return RunConfig(name=name, source=source, description=d["description"], device=dev,
-                     controller_config=_controller(dev, d["controller"]),
+    cfg, sim = _controller(dev, d["controller"]), _sim(dev, d["sim"])
+    _objectives_at_start(dev, cfg, sim["q0"])
+    return RunConfig(name=name, source=source, description=d["description"], device=dev, controller_config=cfg,
                      virtual=_environments("virtual", d["virtual"], dev.m), safety=d["safety"],
-                     rate=d["run"]["rate"], duration=d["run"]["duration"], sim=_sim(dev, d["sim"]))
+                     rate=d["run"]["rate"], duration=d["run"]["duration"], sim=sim)
 
 
 def shipped_configs() -> list[str]:
