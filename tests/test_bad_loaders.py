@@ -60,8 +60,10 @@ def _alarm(signum, frame):
 
 
 def _mutate(draw, text: str) -> str:
-    """One generated mutation of XML `text`: an attribute's value, a removed or doubled element, a renamed
-    reference, or the text cut short."""
+    """One generated mutation of XML `text`.
+
+    An attribute's value, a removed or doubled element, a renamed reference, or the text cut short.
+    """
     root = ET.fromstring(text)
     elems = list(root.iter())
     kind = draw(st.sampled_from(["attribute", "name", "remove", "double", "cut", "extra_chain"]), label="mutation")

@@ -55,8 +55,11 @@ def check_finite_numbers(root: ET.Element, where: str) -> None:
 
 
 def check_urdf_tree(root: ET.Element, where: str) -> None:
-    """The URDF's links and joints form one tree: unique non-empty names, existing parent and child links,
-    each link the child of at most one joint, one root link, no cycle, at most `MAX_JOINTS` joints."""
+    """Check that the URDF's links and joints form one tree.
+
+    Unique non-empty names, existing parent and child links, each link the child of at most one joint,
+    one root link, no cycle, at most `MAX_JOINTS` joints.
+    """
     links: dict[str, ET.Element] = {}
     for link in root.findall("link"):
         name = link.get("name")

@@ -174,9 +174,9 @@ def _floats(elem: ET.Element, attr: str, what: str, count: int, default: str | N
 
 def check_urdf(text: str, *, inertia: str = "strict", where: str = "path",
                near: Path | None = None) -> tuple[str, JointInfo]:
-    """Validate URDF text and normalise it for Pinocchio; every error names `where` (the file), the element
-    and the attribute.
+    """Validate URDF text and normalise it for Pinocchio.
 
+    Every error names `where` (the file), the element and the attribute.
     The checks of `rhi._description_checks` come first (finite numbers, one kinematic tree of at most
     `MAX_JOINTS` joints, mesh files that exist relative to `near`).
 

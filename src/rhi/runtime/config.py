@@ -292,9 +292,11 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
 
 
 def _objectives_at_start(dev: Device, cfg: ControllerConfig, q0: np.ndarray) -> None:
-    """Evaluate each objective's value and gradient once at ``sim.q0``, so that what an objective finds only when
-    it runs (a misspelt frame or joint name a plugin looks up, a value it cannot use) is an error of its key path
-    when the file is read, not at the first tick."""
+    """Evaluate each objective's value and gradient once at ``sim.q0``.
+
+    What an objective finds only when it runs (a misspelt frame or joint name a plugin looks up, a value it
+    cannot use) is then an error of its key path when the file is read, not at the first tick.
+    """
     for i, term in enumerate(cfg.objectives):
         path = f"controller.objectives[{i}]"
         try:
