@@ -841,3 +841,17 @@ def test_no_function_returns_nan_at_singular_configurations():
     for out in outputs:
         assert not np.any(np.isnan(out))
     assert issubclass(Singular, RhiError)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e-150, 1e150, 1e200])
+def test_radius_along_is_scale_invariant(rng, scale):
+    """ρ(cJ, u) = c ρ(J, u): semi-axes of 1e-200 m/s neither underflow to 0 nor overflow (radius_along)."""
+    J = rng.normal(size=(5, 2, 4))
+    u = rng.normal(size=(5, 2))
+    ref = rm.effective_manipulability(J, u)
+    assert np.all(ref > 0)
+    np.testing.assert_allclose(rm.effective_manipulability(scale * J, u), scale * ref, rtol=1e-12)
+    flat = J.copy()
+    flat[:, 1] = 1e-9 * flat[:, 0]  # rank 1: lost along the second axis, the rule unchanged by the scale
+    np.testing.assert_array_equal(rm.effective_manipulability(scale * flat, u) == 0,
+                                  rm.effective_manipulability(flat, u) == 0)

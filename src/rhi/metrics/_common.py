@@ -260,15 +260,17 @@ def radius_along(s: FloatArray, U: FloatArray, u: FloatArray) -> FloatArray:
     times the longest are *lost* (the ellipsoid is flat along them): the radius is 0
     when ``u`` has a component larger than ``DIRECTION_ATOL`` along a lost axis (the
     limit from nearby non-singular matrices) and that component is ignored otherwise.
-    A zero ellipsoid has radius 0 everywhere.
+    A zero ellipsoid has radius 0 everywhere. Scale-invariant: the semi-axes are divided by the longest
+    before squaring, so semi-axes of 1e-200 or 1e200 neither underflow nor overflow.
     """
     c = np.einsum("...ij,...i->...j", U, u)
-    lost = s <= SINGULAR_RTOL * s[..., :1]  # every axis of a zero ellipsoid: q = 0, radius 0
+    top = s[..., :1]
+    lost = s <= SINGULAR_RTOL * top  # every axis of a zero ellipsoid: q = 0, radius 0
     blocked = (lost & (abs(c) > DIRECTION_ATOL)).any(axis=-1)
-    w = c / np.where(lost, np.inf, s)  # 0 along lost axes
-    q = (w * w).sum(axis=-1)
+    w = c * np.where(lost, 0.0, top / np.where(lost, 1.0, s))  # c_i s_max / s_i, 0 along lost axes
+    q = (w * w).sum(axis=-1)  # s_max² uᵀA⁻¹u, in [|c|², |c|² / SINGULAR_RTOL²]
     nonzero = (q > 0) & ~blocked
-    return np.where(nonzero, 1.0 / np.sqrt(np.where(nonzero, q, 1.0)), 0.0)
+    return np.where(nonzero, top[..., 0] / np.sqrt(np.where(nonzero, q, 1.0)), 0.0)
 
 
 def inverse_norm(v: FloatArray, scale: FloatArray) -> FloatArray:
