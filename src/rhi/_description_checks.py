@@ -72,7 +72,8 @@ def check_urdf_tree(root: ET.Element, where: str) -> None:
     if len(joints) > MAX_JOINTS:
         raise ModelError(f"{where}: {len(joints)} joints; at most {MAX_JOINTS} are supported "
                          "(rhi._description_checks.MAX_JOINTS)")
-    parent_of: dict[str, str] = {}
+    parent_of: dict[str, str] = {}  # link: the joint it is the child of
+    child_to_parent: dict[str, str] = {}  # link: its parent link
     seen: set[str] = set()
     for joint in joints:
         name = joint.get("name")
@@ -97,19 +98,18 @@ def check_urdf_tree(root: ET.Element, where: str) -> None:
         if ends["child"] == ends["parent"]:
             raise ModelError(f"{what}: parent and child are both {ends['child']!r}")
         parent_of[ends["child"]] = name
-    child_to_parent = {j.find("child").get("link"): j.find("parent").get("link") for j in joints}  # type: ignore[union-attr]
+        child_to_parent[ends["child"]] = ends["parent"]
     roots = [n for n in links if n not in child_to_parent]
     if len(roots) != 1:
         # no root: every link has a parent, so the joints close a loop
         raise ModelError(f"{where}: the joints form a cycle (no root link)" if not roots else
                          f"{where}: {len(roots)} root links ({', '.join(map(repr, roots[:5]))}); a URDF has one root")
     for start in links:  # with one root and one parent per link, a cycle is a loop not reaching the root
-        path, link = [start], start
-        while link in child_to_parent:
-            link = child_to_parent[link]
-            if link == start or len(path) > len(links):
+        steps, at = 0, start
+        while at in child_to_parent:
+            at, steps = child_to_parent[at], steps + 1
+            if at == start or steps > len(links):
                 raise ModelError(f"{where}: the joints form a cycle through link {start!r}")
-            path.append(link)
 
 
 def check_mesh_files(root: ET.Element, where: str, near: Path | None) -> None:
