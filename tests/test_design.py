@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import socket
 
 import numpy as np
 import pytest
@@ -256,3 +257,23 @@ def test_population_as_one_batch_equals_design_by_design(kind):
         planar_indices_many(Jm, np.zeros((4, 2, 2)), np.array([[True] * 4, [False] * 4]), np.ones(4))
     with pytest.raises(InvalidInput, match="ok/weights"):
         planar_indices_many(Jm, np.zeros((4, 2, 2)), np.ones((2, 3), bool), np.ones(4))
+
+
+def test_a_bad_ray_address_fails_at_once_with_one_line(monkeypatch, tmp_path, capsys):
+    """`--executor ray --address` is checked before any work: malformed, nothing listening, or without ray."""
+    from rhi.cli import main
+    from rhi.design import executors as ex
+
+    monkeypatch.setattr(ex, "DEFAULTS", dict(ex.DEFAULTS))  # configure() must not leak into other tests
+    with socket.socket() as s:  # a port where nothing listens (bound, then closed)
+        s.bind(("127.0.0.1", 0))
+        closed = f"127.0.0.1:{s.getsockname()[1]}"
+    for extra, want in ((["--executor", "ray", "--address", "bogus"], "address: expected 'auto', 'host:port'"),
+                        (["--executor", "ray", "--address", closed], f"address: no Ray cluster answers at {closed!r}"),
+                        (["--executor", "ray", "--address", f"ray://{closed}"], "no Ray cluster answers"),
+                        (["--address", closed], "address: a Ray cluster address is for executor 'ray', not 'local'")):
+        assert main(["reproduce", "--only", "ch3", "--quick", "--out", str(tmp_path / "r"), *extra]) == 2, extra
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and want in err[0], (extra, err)
+    assert not (tmp_path / "r").exists()  # nothing started
+    assert ex.DEFAULTS["executor"] == "local"  # a refused configure() sets nothing

@@ -220,20 +220,17 @@ def configure(*, executor: str | None = None, address: str | None = None, worker
         InvalidInput: an unknown executor, an address without executor "ray" or a malformed one, bad workers.
         LinkError: nothing answers at the Ray address (`check_ray_address`).
     """
-    if executor is not None:
-        if executor not in ("serial", "local", "ray"):
-            raise InvalidInput(f"executor: expected 'serial', 'local' or 'ray', got {executor!r}")
-        DEFAULTS["executor"] = executor
+    if executor is not None and executor not in ("serial", "local", "ray"):
+        raise InvalidInput(f"executor: expected 'serial', 'local' or 'ray', got {executor!r}")
+    kind = executor or DEFAULTS["executor"]
     if address is not None:
-        if DEFAULTS["executor"] != "ray":
-            raise InvalidInput(f"address: a Ray cluster address is for executor 'ray', not {DEFAULTS['executor']!r}")
+        if kind != "ray":
+            raise InvalidInput(f"address: a Ray cluster address is for executor 'ray', not {kind!r}")
         check_ray_address(address)  # before any work, not at the first map
-        DEFAULTS["address"] = address
     if workers is not None:
         _check_workers(workers)
-        DEFAULTS["workers"] = workers
-    if checkpoint_dir is not None:
-        DEFAULTS["checkpoint_dir"] = checkpoint_dir
+    new = {"executor": executor, "address": address, "workers": workers, "checkpoint_dir": checkpoint_dir}
+    DEFAULTS.update({k: v for k, v in new.items() if v is not None})  # all checked first: nothing half set
 
 
 def default_executor() -> SerialExecutor:
