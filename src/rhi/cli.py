@@ -17,6 +17,7 @@ import numpy as np
 
 from rhi import __version__, cli_args as A, cli_help, plugins
 from rhi.cli_device import add_device_options, device_from_args, device_table
+from rhi.cli_identify import add_commands as add_identify_command
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
 from rhi.cli_warmup import add_commands as add_warmup_command
@@ -428,6 +429,7 @@ def main(argv: list[str] | None = None) -> int:
     add_log_commands(sub)
     add_study_commands(sub)
     add_warmup_command(sub)
+    add_identify_command(sub)
     cli_help.finish(p)
     args = p.parse_args(_join_negative(sys.argv[1:] if argv is None else list(argv)))
     previous = _interrupt_on_signals()
