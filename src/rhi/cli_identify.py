@@ -15,6 +15,7 @@ from pathlib import Path
 
 from rhi import cli_args as A
 from rhi.cli_device import add_device_options, device_table
+from rhi.cli_link import Status, add_realtime, link as link_from, writable
 from rhi.errors import InvalidInput
 
 _EXAMPLE = """example:
@@ -24,23 +25,27 @@ _EXAMPLE = """example:
 """
 
 
+#: a configuration for `rhi identify` needs no [controller]: the identification programme is the controller
+_NO_CONTROLLER = {"controller": {"primary": {"law": "force_rendering"}}}
+
+
 def _identify(args: argparse.Namespace) -> int:
     import numpy as np
 
     from rhi.analysis.sysid.excitation import Programme
     from rhi.analysis.sysid.on_device import identify_device
-    from rhi.cli import _link, _Status, _writable
     from rhi.runtime.config import load_config, parse_config
     from rhi.runtime.simlink import SimLink
     from rhi.sim import Plant
 
     table = device_table(args)
+    name = args.device if table is None else None
     if args.config is not None:
-        cfg = load_config(args.config, device_name=args.device if table is None else None, device=table)
+        cfg = load_config(args.config, device_name=name, device=table, defaults=_NO_CONTROLLER)
     elif table is None and args.device is None:
         raise InvalidInput("device: give a bundled device (rhi devices) or --urdf, --mjcf or --description")
     else:
-        cfg = parse_config({}, name="identify", device_name=args.device if table is None else None, device=table)
+        cfg = parse_config(_NO_CONTROLLER, name="identify", device_name=name, device=table)
     dev = cfg.device
     u = np.asarray(args.direction, dtype=float).reshape(-1)
     if u.shape != (dev.m,) or not np.linalg.norm(u) > 0:
@@ -58,17 +63,17 @@ def _identify(args: argparse.Namespace) -> int:
     rate = args.rate or cfg.rate
     out = Path(args.out) if args.out else Path("out") / time.strftime("identify-%Y%m%d-%H%M%S")
     for name in ("identify.rhilog", "identification.json", "friction.toml"):
-        _writable("--out", out / name)
+        writable("--out", out / name)
     if args.link == "sim":  # the configuration's plant (its friction, start), without its hand or world
         s = cfg.sim
         plant = Plant(dev, friction=s["friction"], timestep=s["timestep"], handle_mass=s["handle_mass"])
         plant.reset(s["q0"], s["dq0"])
         link = SimLink(plant, rate=rate)
     else:
-        link = _link(args.link, rate, cfg, args.realtime, args.spin, args.device_name, args.takeover)
+        link = link_from(args.link, rate, cfg, args.realtime, args.spin, args.device_name, args.takeover)
     print(f"rhi identify: {dev.name} over {args.link} at {rate:g} Hz: joint friction (each motor in turn), then "
           f"{args.trials} pushes along u = {u.tolist()}", flush=True)
-    status = _Status(sys.stderr, None)
+    status = Status(sys.stderr, None)
     try:
         res = identify_device(link, dev, u=u, q0=q0, programme=programme, rate=rate, safety=cfg.safety,
                               realtime=args.realtime, log=out / "identify.rhilog", progress=status, cpu=args.cpu,
@@ -92,8 +97,6 @@ def _identify(args: argparse.Namespace) -> int:
 
 def add_commands(sub) -> None:
     """Add `identify` to the `rhi` argument parser's subcommands."""
-    from rhi.cli import _add_realtime
-
     p = sub.add_parser("identify", help="identify joint friction and the apparent inertia M_x of a device through the "
                        "runtime and its safety layer",
                        description="Run the thesis's identification experiments on a real or simulated device, behind "
@@ -121,5 +124,5 @@ def add_commands(sub) -> None:
     p.add_argument("--realtime", action=argparse.BooleanOptionalAction, default=True,
                    help="pace ticks on the wall clock (default); --no-realtime: as fast as the link answers "
                         "(a lock-step device server)")
-    _add_realtime(p, "the control loop")
+    add_realtime(p, "the control loop")
     p.set_defaults(func=_identify)

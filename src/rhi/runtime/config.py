@@ -444,8 +444,13 @@ def config_path(config: str | Path) -> Path:
                        f"(shipped: {', '.join(shipped_configs())})")
 
 
-def load_config(config: str | Path, *, device_name: str | None = None, device: dict | None = None) -> RunConfig:
-    """Load a run configuration from a TOML file or by the name of a shipped one (see `parse_config`)."""
+def load_config(config: str | Path, *, device_name: str | None = None, device: dict | None = None,
+                defaults: dict | None = None) -> RunConfig:
+    """Load a run configuration from a TOML file or by the name of a shipped one (see `parse_config`).
+
+    `defaults`: top-level tables the file may leave out (e.g. ``controller`` for `rhi identify`, whose programme
+    is the controller).
+    """
     p = config_path(config)
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
@@ -453,7 +458,8 @@ def load_config(config: str | Path, *, device_name: str | None = None, device: d
         raise InvalidInput(f"config: cannot read {str(p)!r} as TOML ({exc})") from None
     except RecursionError:
         raise InvalidInput(f"config: {str(p)!r} is nested too deeply") from None
-    return parse_config(data, name=p.stem, source=str(p), device_name=device_name, device=device, base=p.parent)
+    return parse_config({**(defaults or {}), **data}, name=p.stem, source=str(p), device_name=device_name,
+                        device=device, base=p.parent)
 
 
 __all__ = ["RunConfig", "config_path", "load_config", "parse_config", "shipped_configs"]

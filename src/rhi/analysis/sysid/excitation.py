@@ -13,8 +13,8 @@ The programme is planned at the first reading, from wherever the device is, in t
    velocity-product force μ = Λ(J M⁻¹ C q̇ − J̇ q̇) and gravity compensated, so uᵀẍ = F/M_x minus the
    reflected joint friction (eq. 3.24) without the Coriolis bias of an external push; a null-space
    hold keeps the posture. A push ends at `push_time`, `push_speed`, `push_distance` or when it has used
-   half its room to a joint or linear limit (at most half the margin), whichever comes first (`Push`); a quintic from its end state brings the device
-   back to q0 and it rests there before the next.
+   half its room to a joint or linear limit (at most half the margin), whichever comes first (`Push`); a
+   quintic from its end state brings the device back to q0 and it rests there before the next.
 
 Between and around them every motor tracks its reference by computed torque,
 τ = M(q̈_ref + k_p e + k_d ė) + C q̇ + g (critically damped at `bandwidth`). `windows` and `pushes` are
@@ -285,8 +285,11 @@ class Excitation:
         return make
 
     def _returner(self) -> Callable:
+        q0 = self.q0
+        assert q0 is not None
+
         def make(t, q, dq):
-            return self.p.back, ("track", _quintic(q.copy(), dq.copy(), self.q0, self.p.back))
+            return self.p.back, ("track", _quintic(q.copy(), dq.copy(), q0, self.p.back))
         return make
 
     # ------------------------------------------------------------------ control
@@ -353,8 +356,8 @@ class Excitation:
         if L is not None:
             s = L.C @ q
             d += [s - L.lower, L.upper - s]
-        d = np.concatenate(d)
-        return np.where(np.isfinite(d), d, np.inf)
+        out = np.concatenate(d)
+        return np.where(np.isfinite(out), out, np.inf)
 
     def _near_limit(self, q: np.ndarray) -> bool:
         """Whether q has used half the room to a limit that the push began with (or came within half the margin)."""

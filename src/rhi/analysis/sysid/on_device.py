@@ -112,6 +112,13 @@ class Identification:
                 f"frictionloss = [{fmt(f.frictionloss)}]     # Coulomb joint friction [N m]\n")
 
 
+def _fresh(log, *names: str) -> list[np.ndarray]:
+    """The log's columns `names` at the ticks that took a new reading (device time t increasing)."""
+    t = np.asarray(log.t, dtype=float)
+    keep = np.flatnonzero(np.diff(t, prepend=-np.inf) > 0)
+    return [np.asarray(getattr(log, k), dtype=float)[keep] for k in names]
+
+
 def joint_friction(device, log, windows: list[Window]) -> JointFriction:
     """Fit d, f, b per motor over its cruise windows of `log` (module docstring).
 
@@ -121,7 +128,7 @@ def joint_friction(device, log, windows: list[Window]) -> JointFriction:
     from scipy import stats
     from statsmodels.regression.linear_model import OLS
 
-    t, q, dq, tau = (np.asarray(a, dtype=float) for a in (log.t, log.q, log.dq, log.tau))
+    t, q, dq, tau = _fresh(log, "t", "q", "dq", "tau")
     n = q.shape[1]
     out: dict[str, list] = {k: [] for k in ("damping", "frictionloss", "offset", "damping_ci", "frictionloss_ci",
                                             "offset_ci", "r2", "residual_rms", "samples", "windows")}
@@ -165,7 +172,7 @@ def apparent_inertia(device, log, pushes: list[Push], u, rate: float) -> tuple[S
 
     Records sampled unevenly (readings skipped over a network) are resampled to `rate` [Hz] first.
     """
-    t, q = np.asarray(log.t, dtype=float), np.asarray(log.q, dtype=float)
+    t, q = _fresh(log, "t", "q")
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     records, lams = [], []
     for p in pushes:
@@ -195,7 +202,13 @@ def identify_device(link, device, *, u=(0.0, 1.0), q0=None, programme: Programme
         q0: (n,) hold configuration [rad or m]; None: where the device is at the first reading.
         programme: the excitation's settings.
         rate: control rate [Hz].
-        safety, realtime, log, progress, cpu, priority, spin: as in `rhi.runtime.run`.
+        safety: the safety layer's limits (`rhi.runtime.run`).
+        realtime: pace ticks on the wall clock; False: as fast as the link answers.
+        log: a ``.rhilog`` path for the run, or None.
+        progress: `rhi.runtime.run`'s status callback.
+        cpu: pin the loop to this CPU (`rhi.runtime.run`).
+        priority: SCHED_FIFO priority of the loop (`rhi.runtime.run`).
+        spin: wait for each tick on a busy core (`rhi.runtime.run`).
 
     Raises:
         IdentificationFailed: the run stopped on a fault before the programme ended (its reason; the log is kept).
