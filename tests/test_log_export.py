@@ -104,6 +104,86 @@ def test_mcap_read_back_equals_the_rhilog(logged, tmp_path, capsys):
     _assert_mcap_equals(tmp_path / "again.mcap", log)
 
 
+#: Foxglove's message schemas of the names the export uses (docs.foxglove.dev, "Message schemas": Log, PoseInFrame),
+#: transcribed with every field required: Foxglove's panels read all of them.
+_TIME = {"type": "object", "required": ["sec", "nsec"], "properties": {
+    "sec": {"type": "integer", "minimum": 0}, "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999}}}
+_XYZ = {"type": "object", "required": list("xyz"), "properties": {k: {"type": "number"} for k in "xyz"}}
+FOXGLOVE = {
+    "foxglove.Log": {"type": "object", "required": ["timestamp", "level", "message", "name", "file", "line"],
+                     "properties": {"timestamp": _TIME, "level": {"oneOf": [{"const": k} for k in range(6)]},
+                                    "message": {"type": "string"}, "name": {"type": "string"},
+                                    "file": {"type": "string"}, "line": {"type": "integer", "minimum": 0}}},
+    "foxglove.PoseInFrame": {"type": "object", "required": ["timestamp", "frame_id", "pose"], "properties": {
+        "timestamp": _TIME, "frame_id": {"type": "string"},
+        "pose": {"type": "object", "required": ["position", "orientation"], "properties": {
+            "position": _XYZ, "orientation": {"type": "object", "required": list("xyzw"),
+                                              "properties": {k: {"type": "number"} for k in "xyzw"}}}}}},
+}
+
+
+def _strict(text):
+    """JSON as Foxglove's and PlotJuggler's parsers take it: NaN and ±Infinity are not JSON."""
+    def refuse(name):
+        raise ValueError(f"not JSON: {name}")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_mcap_messages_validate_against_their_schemas_and_foxglove(logged, tmp_path):
+    """Each message is strict JSON valid against its channel's declared JSON schema, and the foxglove.* ones
+    against Foxglove's schemas of those names; log times ascend per channel and equal each message's timestamp."""
+    jsonschema = pytest.importorskip("jsonschema")
+    _, log = logged
+    out = log.to_mcap(tmp_path / "run.mcap")
+    counts: dict = {}
+    with open(out, "rb") as fh:
+        reader = mcap_reader.make_reader(fh)
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics.message_count > 0
+        validators = {}
+        for sid, schema in summary.schemas.items():
+            assert schema.encoding == "jsonschema"
+            declared = _strict(schema.data)
+            jsonschema.Draft202012Validator.check_schema(declared)
+            validators[sid] = [jsonschema.Draft202012Validator(declared)]
+            if schema.name.startswith("foxglove."):
+                validators[sid].append(jsonschema.Draft202012Validator(FOXGLOVE[schema.name]))
+        last: dict = {}
+        for schema, channel, msg in reader.iter_messages(log_time_order=False):
+            assert channel.message_encoding == "json"
+            body = _strict(msg.data)
+            for v in validators[schema.id]:
+                v.validate(body)
+            stamp = body["timestamp"]
+            assert stamp["sec"] * 1_000_000_000 + stamp["nsec"] == msg.log_time == msg.publish_time
+            assert msg.log_time >= last.get(channel.topic, 0)
+            last[channel.topic] = msg.log_time
+            counts[schema.name] = counts.get(schema.name, 0) + 1
+    assert counts["foxglove.PoseInFrame"] == len(log) and counts["foxglove.Log"] == len(log.events)
+    assert counts["rhi.JointState"] == len(log)
+    # a non-finite device time is null, never NaN (a NaN would make the message unreadable in Foxglove)
+    bad = Log.load(logged[0])
+    bad.t = bad.t.copy()
+    bad.t[3] = np.nan
+    topics, _ = _mcap(bad.to_mcap(tmp_path / "nan_t.mcap"))
+    assert [m["t"] for m in topics["/rhi/joint_state"][2]].count(None) == 1  # (its log time is 0: read first)
+
+
+def test_parquet_and_csv_load_in_pandas_as_float64_with_units(logged, tmp_path):
+    pd = pytest.importorskip("pandas")
+    path, log = logged
+    frame = pd.read_parquet(log.to_parquet(tmp_path / "run.parquet"))
+    assert all(str(d) == "float64" for d in frame.dtypes)
+    units = frame.attrs["units"]
+    assert list(units) == list(frame.columns)
+    assert (units["t"], units["q1"], units["dq4"], units["tau2"], units["x1"], units["ft1"], units["ft6"]) == \
+        ("s", "rad", "rad/s", "N m", "m", "N", "N m")
+    assert main(["log", "export", str(path), "--to", "csv", "-o", str(tmp_path / "run.csv")]) == 0
+    csv = pd.read_csv(tmp_path / "run.csv")
+    assert list(csv.columns) == list(frame.columns) and all(str(d) == "float64" for d in csv.dtypes)
+    np.testing.assert_array_equal(csv["tau3"].to_numpy(), log.tau[:, 2])
+
+
 def test_parquet_read_back_equals_the_rhilog(logged, tmp_path):
     path, log = logged
     out = log.to_parquet(tmp_path / "run.parquet")

@@ -16,12 +16,16 @@ exactly. One channel per group of columns, one message per tick:
 - ``/rhi/events`` (``foxglove.Log``, Foxglove's Log panel): one message per event, ``name`` its kind,
   ``message`` its sentence, ``line`` its tick, level ERROR for a fault, WARNING for a clamp, INFO otherwise.
 
-Vector columns are JSON arrays, scalar columns numbers; NaN and ±inf are ``null``. The header's run
+Vector columns are JSON arrays, scalar columns numbers; NaN and ±inf are ``null`` (``t`` too), so every message is
+strict JSON and validates against its channel's schema; the ``foxglove.*`` channels also against Foxglove's own
+schemas of those names (tests/test_log_export.py). The header's run
 description is the MCAP metadata record ``rhi`` (``meta``, ``fault`` as JSON).
 
 Parquet (`pyarrow`, zstd): one float64 column per scalar, named as `Log.to_csv` names them (``q1`` … ``qn``,
 ``x1``, ``ft6``, ``t``), each field's metadata ``unit`` and ``description``; the file's key-value metadata
-(`pyarrow.parquet.read_metadata(path).metadata`) holds ``rhi.meta``, ``rhi.events`` and ``rhi.fault`` (JSON).
+(`pyarrow.parquet.read_metadata(path).metadata`) holds ``rhi.meta``, ``rhi.events`` and ``rhi.fault`` (JSON), and
+``PANDAS_ATTRS``, so that ``pandas.read_parquet(path).attrs["units"]`` maps each column to its unit (pandas keeps
+no field metadata). polars reads the same float64 columns (its schema has no units).
 
 The writers take blocks of rows as they come (`rhi.sim.log_export` follows a log still being written).
 """
@@ -89,7 +93,8 @@ _GROUPS = {
 _TIME = {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
          "description": "log time: the device time t"}
 _NUMBER = {"type": ["number", "null"]}
-_dumps = json.JSONEncoder(separators=(",", ":"), check_circular=False).encode  # compact: an MCAP message per tick
+#: compact (an MCAP message per tick) and strict: NaN or ±inf would make a message that JSON readers (Foxglove) refuse
+_dumps = json.JSONEncoder(separators=(",", ":"), check_circular=False, allow_nan=False).encode
 _LEVEL = {"clamp": 3, "info": 2, "reset": 2}  # foxglove.Log levels: 2 INFO, 3 WARNING, 4 ERROR (the rest: faults)
 
 
@@ -171,7 +176,7 @@ class _McapSink(_Sink):
         return cid
 
     def _channel(self, topic: str, schema_name: str, cols: list[str]) -> int:
-        props: dict = {"timestamp": _TIME, "t": {"type": "number", "description": "device time [s]"}}
+        props: dict = {"timestamp": _TIME, "t": {**_NUMBER, "description": "device time [s]"}}
         for c in cols:
             u, what = COLUMNS.get(c, ("", f"column {c}"))
             desc = f"{what} [{', '.join(u) if isinstance(u, tuple) else u}]" if u else what
@@ -198,8 +203,9 @@ class _McapSink(_Sink):
             t = row[t_at]
             ns = _ns(t)
             stamp = {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+            t_json = t if math.isfinite(t) else None
             for cid, fields in self._channels:
-                msg: dict = {"timestamp": stamp, "t": t}
+                msg: dict = {"timestamp": stamp, "t": t_json}
                 for c, sl, vec in fields:
                     v = _finite(row[sl])
                     msg[c] = v if vec else v[0]
@@ -215,7 +221,8 @@ class _McapSink(_Sink):
             ns = _ns(e.t)
             self._add(self._events, ns, {"timestamp": {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000},
                                          "level": _LEVEL.get(e.kind, 4), "message": e.detail, "name": e.kind,
-                                         "file": "", "line": max(e.tick, 0), "t": e.t, "tick": e.tick})
+                                         "file": "", "line": max(e.tick, 0), "t": e.t if math.isfinite(e.t) else None,
+                                         "tick": e.tick})
 
     def close(self, fault: str | None) -> None:
         self._w.add_metadata("rhi", {"meta": json.dumps(self.meta), "fault": json.dumps(fault)})
@@ -227,7 +234,7 @@ _FOXGLOVE_LOG = {"title": "foxglove.Log", "type": "object", "properties": {
     "timestamp": _TIME, "level": {"type": "integer", "description": "2 INFO, 3 WARNING, 4 ERROR"},
     "message": {"type": "string"}, "name": {"type": "string", "description": "event kind"},
     "file": {"type": "string"}, "line": {"type": "integer", "description": "tick"},
-    "t": {"type": "number", "description": "device time [s]"}, "tick": {"type": "integer"}}}
+    "t": {**_NUMBER, "description": "device time [s]"}, "tick": {"type": "integer"}}}
 
 
 class _ParquetSink(_Sink):
@@ -236,13 +243,16 @@ class _ParquetSink(_Sink):
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        fields = []
+        fields, units = [], {}
         for c, w in columns:
             what = COLUMNS.get(c, ("", f"column {c}"))[1]
             for i, name in enumerate(scalar_names(c, w)):
                 fields.append(pa.field(name, pa.float64(), metadata={"unit": unit(c, i), "description": what}))
+                units[name] = unit(c, i)
         self._pa = pa
-        self.schema = pa.schema(fields, metadata={"rhi.meta": json.dumps(meta)})
+        # pandas drops the fields' metadata but reads PANDAS_ATTRS into DataFrame.attrs: the units reach it there
+        self.schema = pa.schema(fields, metadata={"rhi.meta": json.dumps(meta),
+                                                  "PANDAS_ATTRS": json.dumps({"units": units})})
         self._w = pq.ParquetWriter(str(path), self.schema, compression="zstd")
         self._rows: list[np.ndarray] = []
         self._n, self._batch = 0, batch
