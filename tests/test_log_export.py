@@ -130,8 +130,10 @@ def _strict(text):
 
 
 def test_mcap_messages_validate_against_their_schemas_and_foxglove(logged, tmp_path):
-    """Each message is strict JSON valid against its channel's declared JSON schema, and the foxglove.* ones
-    against Foxglove's schemas of those names; log times ascend per channel and equal each message's timestamp."""
+    """Every message is strict JSON, valid against its channel's schema (foxglove.* ones against Foxglove's too).
+
+    Log times ascend per channel and equal each message's timestamp.
+    """
     jsonschema = pytest.importorskip("jsonschema")
     _, log = logged
     out = log.to_mcap(tmp_path / "run.mcap")
