@@ -207,15 +207,17 @@ _D = [
             "peak force of simple scaling below ASCM's, J# null-space projector (the text's) with rhi's planar3r masses",
             (Reading(J_PLUS, J_PLUS_WHY, "ch7.example_3dof", "peak force deficit of scaling vs ASCM (pseudoinverse"),),
             missing="the 3-DoF example's link masses, which J# needs (line 1627 gives lengths and torque bounds only)"),
-    Dossier("s7_5.gain", "§7.5, Fig. 7.6 (line 1714)",
+    Dossier("s7_5.gain", "§7.5, Fig. 7.6 (line 1714); J# of §7.2 (line 1510) in eq. 7.5 and Algorithm 1 (line 1564)",
             "peak force before a joint range limit, ASCM over no compensation, J#",
-            (Reading("the static capability at the contact configuration, J#", "line 1714: 'the maximum force "
-                     "feedback of the RHI is enhanced'", "ch7.palpation", "static gain of ASCM over scaling (dynamic J#)"),
+            (Reading("the static capability at the contact configuration, J# (Algorithm 1 as printed reaches the same "
+                     "peak: tests/test_transcription_ch7.py)", "line 1714: 'the maximum force feedback of the RHI is "
+                     "enhanced'", "ch7.palpation", "static gain of ASCM over scaling (dynamic J#)"),
              Reading("the static capability at the contact configuration, " + J_PLUS, J_PLUS_WHY, "ch7.palpation",
                      "static gain of ASCM over scaling (pseudoinverse J⁺)"),
              Reading("the LP allocation", "§7.2 eq. 7.4 (the capability ASCM approaches)", "ch7.palpation",
                      "peak force before a joint range limit, lp (dynamic) vs none")),
-            missing="the hardware's friction and the human hand's stiffness"),
+            missing="the RHI's configuration at contact (the static gain changes across the workspace, Fig. 7.5), the "
+                    "hardware's friction and the hand's stiffness"),
     # ---- appendix A
     *[Dossier(f"sA_4_2.rms_ratio.{c}", "§A.4.2, Table A.1 (line 2161), line 2194",
               f"RMS {name} commanded, proposed / traditional, on the 0.25 m circle with K_x = 10 I, ε = 0.2, "
