@@ -242,3 +242,19 @@ def test_ch6_figures_draw(ex3, palp, trans, small_map):
                                       "friction and inertias are estimates: the gain is not 51 %")
 def test_palpation_gain_value(palp):
     assert T.GAIN_6_4.within(_row(palp, "force gain M_Stiff vs M_Free, simulated").ours)
+
+
+def test_chapter_6_controllers_run_the_law_as_written(rhi4):
+    """Chapter 6's law (eqs. 6.2–6.6: τ_m + (I − JᵀJ#ᵀ)τ_S, each joint clipped) wherever chapter 6's controller runs.
+
+    Palpation with force scaling, the spatial and intent experiments built on it, and Table 6.1's identification;
+    with ASCM the controller is chapter 7's (Algorithm 2). The old default ran Algorithm 2 everywhere.
+    """
+    from rhi.experiments.ch6.identification import _ch6_controller
+
+    _, _, Mf, _ = S6.desired_fmes(rhi4, np.array(S6.U), S6.Q_HOME)
+    assert S6.palpation_controller(rhi4, Mf).config.null_space == "clipped"
+    assert S6.palpation_controller(rhi4, Mf, saturation="ascm").config.null_space == "scaled"
+    assert S6.palpation_controller(rhi4, Mf, null_space="scaled").config.null_space == "scaled"
+    ctrl = _ch6_controller(rhi4, Mf)()
+    assert ctrl.config.null_space == "clipped" and ctrl._kernel is not None  # compiled, not the reference tick

@@ -140,6 +140,22 @@ def test_whole_tick_equals_reference(name, kind, saturation, projector, objectiv
         assert held > len(cases) // 5  # saturation exercised
 
 
+@pytest.mark.parametrize("saturation,objectives", [("scaling", "static"), ("ascm", "vme"), ("none", "static")])
+def test_clipped_null_space_runs_compiled_and_equals_reference(rhi4, saturation, objectives, rng):
+    """``null_space="clipped"`` (chapter 6's law as written) runs the compiled tick and equals the reference to 1e-10.
+
+    The null-space torque pushes joints past their limits on a good share of the ticks (then clipped).
+    """
+    kw = _config(rhi4, "spring", saturation, "dynamic", objectives, null_space="clipped")
+    fast, ref = _pair(rhi4, **kw)
+    cases = _tick_cases(rhi4, rng, 150)
+    _compare(fast, ref, rhi4, cases)
+    scaled = NullSpaceController(rhi4, ControllerConfig(**{**kw, "null_space": "scaled"}))
+    differ = sum(not np.allclose(fast.step(k * 1e-3, q, dq, {"force": F}), scaled.step(k * 1e-3, q, dq, {"force": F}))
+                 for k, (q, dq, F) in enumerate(cases))
+    assert differ > len(cases) // 10  # the two readings differ where the box binds
+
+
 def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
     """A continuous path (the passivity layer damping), a reset halfway, and the reference fallback all agree.
 

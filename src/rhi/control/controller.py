@@ -181,7 +181,7 @@ class ControllerConfig:
         null_space: how the objectives' null-space torque meets the torque box: "scaled" (Algorithm 2,
             eq. 7.16: scaled by the largest β <= 1 that keeps the box, projected off ASCM's held joints)
             or "clipped" (chapter 6 as written, eqs. 6.2–6.6: τ = α τ_m + (I − JᵀJ#ᵀ)τ_S, then the
-            programmed limits clip each joint; runs the reference tick).
+            programmed limits clip each joint).
     """
 
     primary: PrimaryLaw
@@ -288,7 +288,7 @@ class NullSpaceController:
         self._pc = None if pas is None else PassivityController(pas, reference=config.implementation == "reference")
         self._n = device.n
         self._kernel = (None if config.implementation == "reference" or allocation.kernel is None
-                        or config.null_space == "clipped" else KernelTick(self))
+                        else KernelTick(self))
 
     @property
     def passivity(self) -> PassivityState | None:

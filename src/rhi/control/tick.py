@@ -116,6 +116,7 @@ class KernelTick:
         prm[kernels.P_DYNAMIC] = float(cfg.projector == "dynamic")
         prm[kernels.P_SATURATION] = ctrl.allocation.kernel
         prm[kernels.P_SAFE] = float(ctrl.allocation.safe)
+        prm[kernels.P_CLIPPED] = float(cfg.null_space == "clipped")
         self._free = self._stiff = np.eye(m)
         if fme is not None:
             prm[kernels.P_FME] = 1.0

@@ -12,7 +12,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
 - ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp",
   "active_set", or a strategy registered with `rhi.control.allocation.register`),
   ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
-  ``gravity_compensation``, ``aso_shape``, ``implementation`` — the fields of `rhi.control.ControllerConfig`;
+  ``gravity_compensation``, ``aso_shape``, ``implementation``, ``null_space`` ("scaled", "clipped") — the fields
+  of `rhi.control.ControllerConfig`;
   ``[controller.primary]`` (required) with ``law`` = "impedance" | "force_rendering" | "spring" and that law's
   parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...; the rendering
   laws take ``passivity`` = "motors" (default) | "handle" | "off", `rhi.control.passivity`);
@@ -125,6 +126,7 @@ _CONTROLLER = {
     "gravity_compensation": (S.boolean, True),
     "aso_shape": (_pos, 50.0),
     "implementation": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["implementation"])), "fast"),
+    "null_space": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["null_space"])), "scaled"),
 }
 _ENV = S.tagged("type", {
     "wall": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_stiff, R), "damping": (_damp, 0.0)},
@@ -286,7 +288,7 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
     cfg = ControllerConfig(primary=_primary(dev, c["primary"]), objectives=tuple(terms), fme=fme, damping=c["damping"],
                            saturation=c["saturation"], projector=c["projector"], torque_min=lo, torque_max=hi,
                            gravity_compensation=c["gravity_compensation"], aso_shape=c["aso_shape"],
-                           implementation=c["implementation"])
+                           implementation=c["implementation"], null_space=c["null_space"])
     S.prefixed("controller", NullSpaceController, dev, cfg)  # every check the controller makes, now
     return cfg
 

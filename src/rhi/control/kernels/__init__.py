@@ -15,6 +15,7 @@ from rhi.control.kernels.step import (
     NONE,
     OK,
     P_ASO_S,
+    P_CLIPPED,
     P_DAMPING,
     P_DYNAMIC,
     P_EPS1,
@@ -33,7 +34,7 @@ from rhi.control.kernels.step import (
 )
 
 __all__ = [
-    "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_DAMPING", "P_DYNAMIC", "P_EPS1",
+    "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_CLIPPED", "P_DAMPING", "P_DYNAMIC", "P_EPS1",
     "P_EPS2", "P_FME", "P_FME_DIST", "P_FME_GAIN", "P_GRAVITY", "P_RHO", "P_SAFE", "P_SATURATION", "SCALING", "SINGULAR",
     "active_set", "active_set_result", "active_set_start", "ascm", "aso_volume", "tertiary", "tick",
 ]

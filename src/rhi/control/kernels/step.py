@@ -50,8 +50,8 @@ OK, FALLBACK, SINGULAR = 0, 1, 2
 NONE, SCALING, ASCM, ACTIVE_SET = 0, 1, 2, 3
 #: Indices of the parameter vector of `tick`.
 (P_DAMPING, P_ASO_S, P_GRAVITY, P_DYNAMIC, P_SATURATION, P_SAFE, P_FME, P_FME_GAIN, P_FME_DIST, P_EPS1, P_EPS2,
- P_RHO) = range(12)
-N_PARAMS = 12
+ P_RHO, P_CLIPPED) = range(13)
+N_PARAMS = 13
 
 
 @jit
@@ -271,6 +271,9 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
             held = held_torque(P, S, k, rr)
         if not clipped:
             tau, gamma = safety_room(tau, b, held, lo, hi)
+    if prm[P_CLIPPED] != 0.0:  # null_space="clipped": τ + N τ_to, each joint clipped at its limit (eqs. 6.2–6.6)
+        assign(tau_out, clip(add(tau, Ntau), lo, hi))
+        return OK, gamma * alpha, 1.0, V, omega, clipped
     if not have_P and any_true(sat):
         P, ok = null_projector(JMinv)
         if not ok:

@@ -1,10 +1,11 @@
 """Table 6.1: M_x, Φ and F_max identified on the simulated rhi4 at the FME-matched configurations (§6.4).
 
 The protocol is `rhi.experiments.identification` (the §3.5 one with a 5 cm run-up): the
-ch. 6 null-space controller keeps matching the FME during the push (zero primary force),
-and null-space torques satisfy J M⁻¹ Nᵀ τ = 0, so they do not change uᵀẍ: the identified
-M_x still estimates Λ of eq. 3.13, while Φ includes the null-space damping's effect on the
-joint velocities.
+ch. 6 null-space controller keeps matching the FME during the push (zero primary force). Null-space
+torques satisfy J M⁻¹ Nᵀ τ = 0, so they do not change uᵀẍ and the identified M_x estimates Λ of
+eq. 3.13, while Φ includes the null-space damping's effect on the joint velocities — as long as no
+joint's torque is clipped: chapter 6's law as written (``null_space="clipped"``, the default) clips
+each joint at its programmed limit, and a clipped null-space torque pushes the handle too.
 """
 
 from __future__ import annotations
@@ -17,7 +18,16 @@ from rhi import thesis as T
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController, WeightedSum
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
-from rhi.experiments.ch6.setup import CASES, K_D, Q_HOME, best_match, controller_terms, desired_fmes, match_fme
+from rhi.experiments.ch6.setup import (
+    CASES,
+    K_D,
+    Q_HOME,
+    NullSpace,
+    best_match,
+    controller_terms,
+    desired_fmes,
+    match_fme,
+)
 from rhi.experiments.identification import TRIALS, U, case_arrays, fit_rows, identify_case, trial_forces
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress, projector_names
@@ -52,16 +62,18 @@ def ch6_configurations(starts: int = 3) -> dict[str, np.ndarray]:
     return out
 
 
-def _ch6_controller(dev: Device, desired: np.ndarray,
-                    projector: ProjectorKind = "dynamic") -> Callable[[], NullSpaceController]:
+def _ch6_controller(dev: Device, desired: np.ndarray, projector: ProjectorKind = "dynamic",
+                    null_space: NullSpace = "clipped") -> Callable[[], NullSpaceController]:
     """Factory of the ch. 6 null-space controller with a zero primary force (sysid: nothing rendered).
 
     projector: "dynamic" (J#, eq. 5.9 as the thesis writes it) or "pseudoinverse" (J⁺).
+    null_space: "clipped" (chapter 6's law as written, eqs. 6.2–6.6, like `rhi.experiments.ch6.palpation`) or
+        "scaled" (chapter 7's Algorithm 2).
     """
     def make() -> NullSpaceController:
         cfg = ControllerConfig(primary=ForceRendering(damping=0.0, coriolis=False, gravity=False, passivity=None),
                                objectives=controller_terms(desired, dev.torque_max), damping=K_D,
-                               saturation="scaling", projector=projector)
+                               saturation="scaling", projector=projector, null_space=null_space)
         return NullSpaceController(dev, cfg)
 
     return make
@@ -76,6 +88,7 @@ def sysid_table_6_1(
     starts: int = 3,
     cutoff_hz: float = 20.0,
     projectors: Sequence[ProjectorKind] = ("dynamic", "pseudoinverse"),
+    null_space: NullSpace = "clipped",
     progress: Progress | None = None,
 ) -> Result:
     """Table 6.1: M_x, Φ and F_max along u at [0.5, 0.1] m for the FME-matched configurations of rhi4.
@@ -99,10 +112,15 @@ def sysid_table_6_1(
             "dynamic" (J#, the thesis's text) and/or "pseudoinverse" (J⁺). The first gives the
             array keys ``free_*``/``stiff_*``, the others ``free_pinv_*``/``stiff_pinv_*``. With
             ``controller="off"`` the projector only changes the F_max LP.
+        null_space: the controller's law at the torque box: "clipped" (chapter 6 as written: each joint of
+            τ_m + (I − JᵀJ#ᵀ)τ_S clipped at its limit, so a clipped null-space torque pushes the handle too) or
+            "scaled" (chapter 7's Algorithm 2: the null-space torque stays in the null space).
         progress: callback(done, total) in trials.
     """
     if controller not in ("nullspace", "off"):
         raise InvalidInput(f"controller: expected 'nullspace' or 'off', got {controller!r}")
+    if null_space not in ("clipped", "scaled"):
+        raise InvalidInput(f"null_space: expected 'clipped' or 'scaled', got {null_space!r}")
     projectors = projector_names(projectors)
     dev = device("rhi4")
     u, x = np.array(U), np.array(X_CH6)
@@ -120,7 +138,7 @@ def sysid_table_6_1(
         for k, case in enumerate(CASES):
             obj = WeightedSum(controller_terms(desired[case], hi))
             q_start = match_fme(dev, x_start, obj, q_point[case])
-            factory = _ch6_controller(dev, desired[case], proj) if controller == "nullspace" else None
+            factory = _ch6_controller(dev, desired[case], proj, null_space) if controller == "nullspace" else None
             done = (2 * j + k) * len(forces)
             cb = None if progress is None else (lambda i, n, done=done: progress(done + i, total))
             lab = ("M_Free^des" if case == "free" else "M_Stiff^des") + f" ({tag})"
@@ -161,7 +179,8 @@ def sysid_table_6_1(
          Table("M_Stiff^des vs M_Free^des", rows_cmp)],
         arrays,
         [
-            f"MuJoCo rhi4 plant, controller {controller!r}, {len(forces)} trials per case, forces "
+            f"MuJoCo rhi4 plant, controller {controller!r} (null space {null_space!r}), {len(forces)} trials per case, "
+            "forces "
             f"{np.round(forces, 3).tolist()} N along u from [0.5, 0.05] m; fit on ±{1000 * window:g} mm around "
             "[0.5, 0.1] m (eq. 6.22 plus a constant c for Coulomb friction).",
             "Configurations: FME matching to M_Free^des / M_Stiff^des within the §5.4 joint limits "

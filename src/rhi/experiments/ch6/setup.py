@@ -59,8 +59,6 @@ MAP_Y = (-0.5, 0.3)
 
 CASES = ("free", "stiff")
 NullSpace = Literal["scaled", "clipped"]
-#: How the §6.4 controller's null-space torque meets the torque box (`palpation_controller`).
-NULL_SPACE: NullSpace = "scaled"
 
 
 # --------------------------------------------------------------------------- objectives
@@ -185,7 +183,7 @@ def reflected_damping(J: np.ndarray, M: np.ndarray, D: np.ndarray, u, k_d: float
 def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMESchedule | None = None,
                          *, limits: bool = True, beta: float = BETA, projector: ProjectorKind = "dynamic",
                          objectives: tuple[ObjectiveTerm, ...] = (), x0=X0, u=U, gravity: bool = False,
-                         saturation: Saturation = "scaling", null_space: NullSpace = NULL_SPACE) -> NullSpaceController:
+                         saturation: Saturation = "scaling", null_space: NullSpace | None = None) -> NullSpaceController:
     """Spring palpation (eq. 6.21) with force scaling; FME matching to `desired` or by the ASO `schedule`.
 
     Args:
@@ -201,8 +199,12 @@ def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMES
         gravity: compensate G_x in the primary law (eq. 6.21 has none: rhi4 moves in a horizontal plane).
         saturation: allocation under the torque limits ("scaling", §6.3.1; or "ascm", ch. 7).
         null_space: "clipped" (eqs. 6.2–6.6 as written: τ_m + (I − JᵀJ#ᵀ)τ_S, each joint clipped at its
-            programmed limit) or "scaled" (chapter 7's Algorithm 2 scales τ_S into the box).
+            programmed limit) or "scaled" (chapter 7's Algorithm 2 scales τ_S into the box); None: the law
+            that goes with `saturation`, "clipped" with force scaling (chapter 6), "scaled" otherwise (ASCM's
+            chapter 7).
     """
+    if null_space is None:
+        null_space = "clipped" if saturation == "scaling" else "scaled"
     law = SpringPalpation(K_E, tuple(x0), normal=tuple(u), damping=0.0, coriolis=False, gravity=gravity,
                           passivity=None)
     terms = list(objectives)
