@@ -82,6 +82,22 @@ def test_excitation_keeps_every_stroke_inside_the_limits(rhi4):
             assert np.all(s >= L.lower[rows] + 0.1 - 1e-9) and np.all(s <= L.upper[rows] - 0.1 + 1e-9)
 
 
+def test_default_hold_configuration_is_the_nearest_inside_the_limits(rhi4):
+    """Without q0 the hold is the configuration nearest the first reading that is the margin inside every limit.
+
+    rhi4's mid-range start lies on its first linear limit (q1 − q2 = −55°).
+    """
+    ex = Excitation(rhi4, (0.0, 1.0))
+    lo, hi = rhi4.joint_limits
+    mid = 0.5 * (lo + hi)
+    q = ex.inside(mid)
+    assert ex._distances(q).min() >= 0.1 - 1e-9 and ex._distances(mid).min() < 1e-9
+    assert np.linalg.norm(q - mid) < 0.1  # moved only as far as needed (0.1 along the row, split over q1 and q2)
+    np.testing.assert_array_equal(ex.inside(Q0 + [-0.2, 0.0, 0.0, -0.2]), Q0 + [-0.2, 0.0, 0.0, -0.2])
+    with pytest.raises(InvalidInput, match="^q0: no configuration"):
+        Excitation(rhi4, (0.0, 1.0), programme=Programme(margin=1.5)).inside(mid)
+
+
 def test_bad_arguments_name_what_is_wrong(rhi4, tmp_path, capsys):
     with pytest.raises(InvalidInput, match="^u:"):
         Excitation(rhi4, (0.0, 0.0))

@@ -11,6 +11,7 @@ import argparse
 import json
 import sys
 import time
+import tomllib
 from pathlib import Path
 
 from rhi import cli_args as A
@@ -52,7 +53,7 @@ def _identify(args: argparse.Namespace) -> int:
         raise InvalidInput(f"--direction: expected {dev.m} numbers, not all zero, for {dev.name}'s task "
                            f"({''.join(dev.task_axes)}), got {args.direction}")
     q0 = args.q0
-    if q0 is None and args.config is not None:
+    if q0 is None and args.config is not None and "q0" in tomllib.loads(Path(cfg.source).read_text()).get("sim", {}):
         q0 = cfg.sim["q0"]  # the configuration's start is the hold configuration
     if q0 is not None and np.asarray(q0, dtype=float).reshape(-1).shape != (dev.n,):
         raise InvalidInput(f"--q0: expected {dev.n} numbers for {dev.name}, got {q0}")
@@ -112,7 +113,7 @@ def add_commands(sub) -> None:
     p.add_argument("--config", help="a run configuration (TOML file or shipped name): its device, rate, [safety] "
                    "and [sim] (plant friction; its q0 is the hold configuration)")
     p.add_argument("--q0", type=A.floats, help="hold configuration [rad] (default: the configuration's [sim] q0, "
-                   "else where the device is)")
+                   "else the nearest to where the device is that is 0.1 rad inside every limit)")
     p.add_argument("--direction", type=A.floats, default=[0.0, 1.0], help="push direction u in the task's axes "
                    "(default 0,1: the thesis's)")
     p.add_argument("--trials", type=A.count, default=10, help="pushes pooled for M_x (default 10, the thesis's)")

@@ -2,7 +2,8 @@
 
 The programme is planned at the first reading, from wherever the device is, in three parts:
 
-1. a quintic move to the hold configuration q0;
+1. a quintic move to the hold configuration q0 (by default the configuration nearest the device's first reading
+   that is `margin` inside every limit);
 2. joint friction, one motor at a time: the others are held at q0 while motor i sweeps a stroke
    [a, b] of its room (its joint range and every linear joint limit with the others at q0, less a
    margin; the stroke need not contain q0) at three cruise speeds, both ways, with cosine ramps.
@@ -151,7 +152,8 @@ class Excitation:
     Args:
         device: the device model (its limits, M, C, g, J).
         u: (m,) push direction (normalised here).
-        q0: (n,) hold configuration [rad or m]; None: where the device is at the first reading.
+        q0: (n,) hold configuration [rad or m]; None: the configuration nearest the first reading that is `margin`
+            inside every joint and linear limit (`inside`).
         programme: the settings.
 
     Attributes:
@@ -236,9 +238,32 @@ class Excitation:
             out.append((c - half, c + half, top))
         return out
 
+    def inside(self, q: np.ndarray) -> np.ndarray:
+        """The configuration nearest q, by alternating projections, that is `margin` inside every joint and linear limit.
+
+        Raises:
+            InvalidInput: the limits leave no such configuration (a margin wider than the room between them).
+        """
+        lo, hi = self.device.joint_limits
+        m, L = self.p.margin, self.device.linear_limits
+        a, b = np.where(np.isfinite(lo), lo + m, -np.inf), np.where(np.isfinite(hi), hi - m, np.inf)
+        x = np.clip(np.asarray(q, dtype=float), a, b)
+        for _ in range(200):
+            if L is None:
+                return x
+            for c, low, up in zip(L.C, L.lower + m, L.upper - m, strict=True):
+                s = float(c @ x)
+                if s < low or s > up:
+                    x = x + c * ((low if s < low else up) - s) / float(c @ c)
+            x = np.clip(x, a, b)
+            s = L.C @ x
+            if np.all(s >= L.lower + m - 1e-9) and np.all(s <= L.upper - m + 1e-9):
+                return x
+        raise InvalidInput(f"q0: no configuration is {m:g} inside every joint and linear limit of {self.device.name}")
+
     def _start(self, t: float, q: np.ndarray) -> None:
         dev, p = self.device, self.p
-        q0 = q.copy() if self.q0 is None else self.q0
+        q0 = self.inside(q) if self.q0 is None else self.q0
         self._check_inside(q0)
         self.q0 = q0
         J, M = dev.jacobian(q0), dev.mass_matrix(q0)

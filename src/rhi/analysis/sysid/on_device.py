@@ -199,7 +199,8 @@ def identify_device(link, device, *, u=(0.0, 1.0), q0=None, programme: Programme
         link: the device link, not yet opened (`SimLink`, `UDPLink`, a plugin's).
         device: the device model (its M, C, g, J and limits).
         u: (m,) push direction (thesis: [0, 1]).
-        q0: (n,) hold configuration [rad or m]; None: where the device is at the first reading.
+        q0: (n,) hold configuration [rad or m]; None: the nearest one to the first reading that is the programme's
+            margin inside every joint and linear limit.
         programme: the excitation's settings.
         rate: control rate [Hz].
         safety: the safety layer's limits (`rhi.runtime.run`).
