@@ -215,7 +215,13 @@ _D = [
              Reading("the static capability at the contact configuration, " + J_PLUS, J_PLUS_WHY, "ch7.palpation",
                      "static gain of ASCM over scaling (pseudoinverse J⁺)"),
              Reading("the LP allocation", "§7.2 eq. 7.4 (the capability ASCM approaches)", "ch7.palpation",
-                     "peak force before a joint range limit, lp (dynamic) vs none")),
+                     "peak force before a joint range limit, lp (dynamic) vs none"),
+             Reading("the peak force over the whole run, joint range stops included", "line 1714: 'the maximum force "
+                     "feedback of the RHI is enhanced by 73% (Fig. 7.6(b))' — the figure's peak measured force, with the "
+                     "hardware's joint stops", "ch7.palpation", "",
+                     measure=lambda r: 100.0 * (r("ch7.palpation", "max force over the run (joint stops included), ascm "
+                                                  "(dynamic") / r("ch7.palpation", "max force over the run (joint stops "
+                                                                  "included), none (dynamic") - 1.0))),
             missing="the RHI's configuration at contact (the static gain changes across the workspace, Fig. 7.5), the "
                     "hardware's friction and the hand's stiffness"),
     # ---- appendix A
