@@ -537,3 +537,24 @@ def test_short_experiments_report_thesis_beside_ours():
     assert not rows["with avoidance: base first enabled"].ours <= 1.0
     assert rows["with avoidance: min σ_min(J_m)"].ours > 0.2  # 1 s into the circle the arm is far from singular
     assert r.arrays["with_sigma"].shape == r.arrays["t"].shape == (51,)
+
+
+def test_box_push_static_rows(wmm):
+    """Fig. A.8 read statically: at the push force the weighted torque norm at q0 is the thesis's 40 N m.
+
+    The rows are recomputed as τ = J_mᵀ F e_x at q0 and at a configuration with the shoulder turned.
+    """
+    from rhi.control.mobile import W_TAU_LIMITS
+    from rhi.experiments import appa
+
+    w_tau = np.diag(1.0 / np.asarray(W_TAU_LIMITS))
+    q1 = appa.Q0.copy()
+    q1[4] += 0.3
+    rows = appa._push_rows(wmm, w_tau, (("q0", {"q_end": appa.Q0}), ("turned", {"q_end": q1})))
+    F = rows[0].ours
+    t0 = wmm.jacobian(appa.Q0)[:, 3:].T @ np.array([F, 0.0, 0.0])
+    assert np.linalg.norm(w_tau @ t0) == pytest.approx(40.0)
+    assert rows[1].ours == 1 + np.argmax(np.abs(t0) / appa.PUSH_LIMITS) and rows[1].thesis == T.PUSH_JOINT
+    assert rows[2].ours == pytest.approx(np.abs(t0).max()) and rows[2].bound == "max"
+    t1 = wmm.jacobian(q1)[:, 3:].T @ np.array([F, 0.0, 0.0])
+    assert rows[3].ours == pytest.approx(np.abs(t1).max()) and rows[3].ours != pytest.approx(rows[2].ours)

@@ -304,6 +304,9 @@ DM_X = tuple(_v(f"sA_4_3.dm_x.{i}", t, "N", _A43) for i, t in enumerate(("3.825"
 Z_AFTER_CARTESIAN = _v("sA_4_3.z_cart", "0.456", "m", _A43)
 #: §A.4.3: ‖W_τ τ‖ during the push, ≈ 40 N m without and ≈ 30 N m with DM enhancement: their ratio.
 TAU_RATIO_PUSH = _derived("sA_4_3.tau_ratio", 40 / 30, 40 / 30 * (5 / 40 + 5 / 30), "", "“almost 40” / “about 30” N m, §A.4.3")
+#: Fig. A.8: without DM enhancement joint four saturated (at 23 s); with it the largest joint torque stayed ≤ 20 N m.
+PUSH_JOINT = _v("sA_4_3.push_joint", "4", "", "§A.4.3, Fig. A.8 (line 2210)", tol=0.0, relative=False)
+PUSH_MAX_TORQUE = _v("sA_4_3.push_max_torque", "20", "N m", "§A.4.3, Fig. A.8 (line 2210)")
 
 # ---------------------------------------------------------------- appendix B
 #: §B.4.2: without singularity avoidance the arm becomes singular at about 8.35 s.
