@@ -1,8 +1,10 @@
-"""Shared fixtures: bundled devices (loaded once per session) and a seeded generator."""
+"""Shared fixtures and helpers: bundled devices, a seeded generator, a 3R arm's URDF, a child's env, a free UDP port."""
 
 from __future__ import annotations
 
 import os
+import socket
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -47,3 +49,42 @@ def fd_jacobian(f, q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
     """Central finite differences of f: (n,) -> (...) stacked on a last axis of size n."""
     cols = [(f(q + eps * e) - f(q - eps * e)) / (2 * eps) for e in np.eye(len(q))]
     return np.stack(cols, axis=-1)
+
+
+def arm3_urdf(name: str = "arm3", *, l1: str = "0.3", tip_com: float = 0.0, tip_inertia: float = 0.0) -> str:
+    """A planar 3R arm (links l1, 0.25, 0.15 m; 1.0, 0.6, 0.2 kg), as a user's robot or a lab plugin's.
+
+    Args:
+        name: the robot's name.
+        l1: the first link's length [m], as URDF text (a plugin puts a placeholder here and fills it in).
+        tip_com: the tip's centre of mass along its link [m].
+        tip_inertia: the tip's moments of inertia [kg m²]; 0 makes it a point mass, as exported URDFs often have.
+    """
+    i = repr(float(tip_inertia))
+    return f"""<robot name="{name}">
+  <link name="base"/>
+  <link name="l1"><inertial><origin xyz="0.15 0 0"/><mass value="1.0"/>
+    <inertia ixx="1e-4" ixy="0" ixz="0" iyy="0.008" iyz="0" izz="0.008"/></inertial></link>
+  <link name="l2"><inertial><origin xyz="0.125 0 0"/><mass value="0.6"/>
+    <inertia ixx="1e-4" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="0.003"/></inertial></link>
+  <link name="tip"><inertial><origin xyz="{tip_com!r} 0 0"/><mass value="0.2"/>
+    <inertia ixx="{"1e-4" if tip_inertia else "0"}" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{i}"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-2.5" upper="2.5" effort="5" velocity="5"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="{l1} 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2.5" upper="2.5" effort="4" velocity="5"/></joint>
+  <joint name="j3" type="revolute"><parent link="l2"/><child link="tip"/><origin xyz="0.25 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-2.5" upper="2.5" effort="2" velocity="5"/></joint>
+</robot>"""
+
+
+def child_env(*paths) -> dict[str, str]:
+    """This process's environment for a child Python process that imports this rhi (after `paths` on its path)."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([*map(str, paths), str(Path(rhi.__file__).parents[1])])}
+
+
+def free_udp_port() -> int:
+    """A UDP port on 127.0.0.1 that no socket holds now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]

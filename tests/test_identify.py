@@ -8,15 +8,13 @@ as docs/runtime.md states it: 10 % on every motor's viscous and Coulomb friction
 from __future__ import annotations
 
 import json
-import os
-import socket
 import subprocess
 import sys
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import child_env, free_udp_port
 
 import rhi
 from rhi.analysis.sysid.excitation import Excitation, Programme
@@ -147,13 +145,10 @@ max_age = 1.0
 q0 = {Q0.tolist()}
 friction = {{ damping = {DAMPING.tolist()}, frictionloss = {FRICTIONLOSS.tolist()} }}
 """)
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    port = free_udp_port()
     server = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", "rhi4", "--config", str(cfg), "--port",
                                str(port), "--lockstep", "--watchdog-ms", "2000", "--duration", "600"],
-                              env=env, stdout=subprocess.PIPE, text=True)
+                              env=child_env(), stdout=subprocess.PIPE, text=True)
     out = tmp_path / "ident"
     try:
         assert "rhi4 (simulated" in server.stdout.readline()  # listening

@@ -7,13 +7,12 @@ in a folder on the path, which `importlib.metadata` reads (this process: sys.pat
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import arm3_urdf, child_env
 
 import rhi
 from rhi import plugins
@@ -29,21 +28,7 @@ import numpy as np
 
 import rhi
 
-ARM = """<robot name="labarm">
-  <link name="base"/>
-  <link name="l1"><inertial><origin xyz="0.15 0 0"/><mass value="1.0"/>
-    <inertia ixx="1e-4" ixy="0" ixz="0" iyy="0.008" iyz="0" izz="0.008"/></inertial></link>
-  <link name="l2"><inertial><origin xyz="0.12 0 0"/><mass value="0.6"/>
-    <inertia ixx="1e-4" ixy="0" ixz="0" iyy="0.003" iyz="0" izz="0.003"/></inertial></link>
-  <link name="tip"><inertial><origin xyz="0.05 0 0"/><mass value="0.2"/>
-    <inertia ixx="1e-4" ixy="0" ixz="0" iyy="2e-3" iyz="0" izz="2e-3"/></inertial></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
-    <limit lower="-2.5" upper="2.5" effort="5" velocity="5"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="L1 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-2.5" upper="2.5" effort="4" velocity="5"/></joint>
-  <joint name="j3" type="revolute"><parent link="l2"/><child link="tip"/><origin xyz="0.25 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-2.5" upper="2.5" effort="2" velocity="5"/></joint>
-</robot>"""
+ARM = """@ARM@"""
 
 
 def lab_arm(l1=0.3):
@@ -111,6 +96,7 @@ def open_link(url, *, rate, config, realtime):
         raise rhi.errors.InvalidInput(f"expected lab://sim, got {url!r}")
     return CountingLink(config.sim_link(rate=rate))
 '''
+PLUGIN = PLUGIN.replace("@ARM@", arm3_urdf("labarm", l1="L1", tip_com=0.05, tip_inertia=2e-3))
 ENTRY_POINTS = """[rhi.devices]
 labarm = rhi_labkit:lab_arm
 brokenarm = rhi_labkit_missing:arm
@@ -233,8 +219,8 @@ def test_a_misspelt_frame_in_an_objective_is_found_when_the_file_is_read(install
 
 
 def test_another_process_finds_the_installed_plugin(installed):
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(installed), str(Path(rhi.__file__).parents[1])])}
-    out = subprocess.run([sys.executable, "-m", "rhi", "devices"], env=env, capture_output=True, text=True, timeout=120)
+    out = subprocess.run([sys.executable, "-m", "rhi", "devices"], env=child_env(installed), capture_output=True,
+                         text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     line = next(ln for ln in out.stdout.splitlines() if ln.startswith("labarm"))
     assert line.split()[1:3] == ["3", "xy"] and "plugin: rhi-labkit 0.1" in line

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import json
 import os
-import socket
 import subprocess
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import arm3_urdf, child_env, free_udp_port
 
 import rhi
 from rhi._urdf import fill_inertia
@@ -22,20 +21,6 @@ from rhi.loaders import available_descriptions
 from rhi.runtime.config import load_config
 from rhi.sim import Log
 
-# A planar 3R arm (links 0.3, 0.25, 0.15 m) whose last link is a point mass, as exported URDFs often have
-ARM = """<robot name="arm3">
-  <link name="base"/>
-  {links}
-  <link name="tip"><inertial><mass value="0.2"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
-    <limit lower="-2.5" upper="2.5" effort="5" velocity="5"/></joint>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.3 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-2.5" upper="2.5" effort="4" velocity="5"/></joint>
-  <joint name="j3" type="revolute"><parent link="l2"/><child link="tip"/><origin xyz="0.25 0 0"/><axis xyz="0 0 1"/>
-    <limit lower="-2.5" upper="2.5" effort="2" velocity="5"/></joint>
-</robot>"""
-LINK = ('<link name="{n}"><inertial><origin xyz="{c} 0 0"/><mass value="{m}"/>'
-        '<inertia ixx="1e-4" ixy="0" ixz="0" iyy="{i}" iyz="0" izz="{i}"/></inertial></link>')
 Q = "0.3,0.8,0.6"
 OPTS = ["--ee-frame", "tip", "--task", "xy", "--inertia", "fill", "--damping", "0.01"]
 CONFIG = """description = "a user's 3R arm rendering a wall"
@@ -70,10 +55,8 @@ friction = { damping = 0.01 }
 @pytest.fixture(scope="module")
 def arm(tmp_path_factory):
     folder = tmp_path_factory.mktemp("arm")
-    links = "\n  ".join(LINK.format(n=n, c=c, m=m, i=i) for n, c, m, i in (("l1", 0.15, 1.0, 0.008),
-                                                                       ("l2", 0.125, 0.6, 0.003)))
     path = folder / "arm3.urdf"
-    path.write_text(ARM.format(links=links))
+    path.write_text(arm3_urdf())  # the tip a point mass, as exported URDFs often have
     (folder / "bare.toml").write_text(CONFIG.format(device=""))
     (folder / "arm3.toml").write_text(CONFIG.format(device=DEVICE))
     return path
@@ -124,14 +107,11 @@ def test_run_a_user_urdf_from_flags_and_from_a_toml(arm, tmp_path):
 
 def test_device_server_serves_a_user_urdf_to_rhi_run(arm, tmp_path):
     """`rhi device-server --urdf` in its own process, `rhi run --urdf --link udp://` against it (lock step)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    port = free_udp_port()
     server = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", "--urdf", str(arm), *OPTS, "--config",
                                str(arm.parent / "bare.toml"), "--port",
                                str(port), "--lockstep", "--watchdog-ms", "2000", "--duration", "5"],  # a loaded machine
-                              env=env, stdout=subprocess.PIPE, text=True)
+                              env=child_env(), stdout=subprocess.PIPE, text=True)
     try:
         assert "arm3 (simulated" in server.stdout.readline()  # listening
         log = tmp_path / "udp.rhilog"
