@@ -55,7 +55,8 @@ class Browser:
                 raise RuntimeError("chromium did not start its DevTools endpoint")
             pages = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list"))
             page = next(p for p in pages if p.get("type") == "page")
-            self.ws = connect(page["webSocketDebuggerUrl"], max_size=64 << 20)
+            # no keepalive pings: a busy machine delays the answer past the ping timeout and the connection drops
+            self.ws = connect(page["webSocketDebuggerUrl"], max_size=64 << 20, ping_interval=None)
         except BaseException:
             self.close()
             raise

@@ -111,6 +111,7 @@ def test_mouse_dry_run_pause_resume_and_what_each_page_sees(tmp_path):
         Haptics(p, "udp://127.0.0.1:9", mouse=True)
 
 
+@pytest.mark.realtime  # a device process at 1 kHz on wall clocks: run alone
 def test_a_device_over_udp(tmp_path):
     """The probes run against `rhi device-server` over UDP; every probe's log holds its ticks."""
     from rhi.sim.log import Log
