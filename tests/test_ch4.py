@@ -79,6 +79,11 @@ def test_table_4_1_qualitative_result(full):
     gmt_l2 = full.arrays["l2_scan_GM_T"]
     assert np.all(np.diff(gmt_l2) > 0) and gmt_l2[-1] > 1.5 * gmt_l2[0]
     assert all(np.isfinite(full.arrays[f"energy_{i}"]).all() for i in range(4))
+    # Fig. 4.7's second reading (eq. 4.21's (J_T J_Tᵀ)⁻¹, Λ_T = diag(σ²)): a row per design, its own number
+    every = [r for t in full.tables for r in t.rows]
+    sq = [r for r in every if r.quantity.startswith("mean ‖q̇‖² A→B with Λ_T = diag(σ²)")]
+    lit = [r for r in every if r.quantity.startswith("mean ‖q̇‖² A→B, ")]
+    assert len(sq) == len(lit) == 4 and all(a.ours > 0 and a.ours != b.ours for a, b in zip(sq, lit))
 
 
 def test_with_equal_weights_c2_shortens_l2_but_loses_gm_t():

@@ -40,6 +40,13 @@ def _fit_order(table: str) -> Callable[[Lookup], float]:
     return order
 
 
+def _energy_order_squared(r: Lookup) -> float:
+    """Rounds (of 2) where C2's mean ‖q̇‖² is below C1's with Λ_T = diag(σ²)."""
+    e = {(d, c): r("ch4.full_design", f"mean ‖q̇‖² A→B with Λ_T = diag(σ²) (eq. 4.21's (J_T J_Tᵀ)⁻¹), {d}, {c}")
+         for d in ("θz only", "l2, θz, Z_PH") for c in ("C1", "C2")}
+    return float(sum(e[d, "C2"] < e[d, "C1"] for d in ("θz only", "l2, θz, Z_PH")))
+
+
 P1, P2 = "(0.49, -0.22)", "(0.49, -0.14)"
 J_SHARP = ("J# = M_q⁻¹Jᵀ[JM_q⁻¹Jᵀ]⁻¹, 'generalized inverse of the Jacobian' (§3.4 line 565, §6.3 line 1260, "
            "§7.2 line 1510)")
@@ -122,7 +129,11 @@ _D = [
             "GM_T of eq. 4.18 at the thesis's printed C2 design in rhi's set-up", (),
             missing="the slave workspace W over which the global index is averaged"),
     Dossier("fig4_7.energy_order", "§4.4, Fig. 4.7 (line 968), eq. 4.22",
-            "mean ‖q̇‖² along A → B at 0.01 m/s (eq. 4.22 with Λ_T = diag(σ_I)), C2's below C1's in both rounds", (),
+            "mean ‖q̇‖² along A → B at 0.01 m/s (eq. 4.22 with Λ_T = diag(σ_I)), C2's below C1's in both rounds",
+            (Reading("Λ_T = diag(σ²): eq. 4.21's ẋᵀ(J_T J_Tᵀ)⁻¹ẋ",
+                     "line 953: 'joints kinetic energy, defined as ‖q̇‖² by using (4.21)'; eq. 4.21 (line 857) is "
+                     "ẋᵀ(J_T J_Tᵀ)⁻¹ẋ, whose eigenvalues are the squared semi-axes where eq. 4.22 prints diag(σ)",
+                     "ch4.full_design", "", measure=_energy_order_squared),),
             missing="the designs' energies are drawn only; Fig. 4.7 prints no number"),
     # ---- chapter 5
     Dossier("s5_4_1.tme_increase", "§5.4.1, Fig. 5.3 (line 1121)",

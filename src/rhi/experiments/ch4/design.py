@@ -184,6 +184,9 @@ def _full_design(ex, density, checkpoint_dir, progress, maxiter, popsize, k2) ->
         arrays["energy_t"] = t_task
         arrays[f"energy_{i}"] = en
         energy_rows.append(Row(f"mean ‖q̇‖² A→B, {name}", None, float(np.nanmean(en)), "(rad/s)²·s/rad"))
+        sq = energy_along_task(p, x, axes_squared=True)[1]
+        energy_rows.append(Row(f"mean ‖q̇‖² A→B with Λ_T = diag(σ²) (eq. 4.21's (J_T J_Tᵀ)⁻¹), {name}", None,
+                               float(np.nanmean(sq)), "(rad/s)²"))
     if progress:
         progress(2000, 2000)
     o1, o2 = opts["C1"], opts["C2"]

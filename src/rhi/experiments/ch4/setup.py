@@ -116,13 +116,16 @@ def tmi_map(prob: DesignProblem, x) -> np.ndarray:
     return np.where(ok, tmi(np.where(ok[:, None, None], Jm, 0), np.where(ok[:, None, None], Js, 0)), 0.0)
 
 
-def energy_along_task(prob: DesignProblem, x, n: int = 41) -> tuple[np.ndarray, np.ndarray]:
-    """‖q̇‖² (eq. 4.21–4.22) moving the slave from A to B at ẏ = 0.01 m/s: (t [s], energy), each (n,)."""
+def energy_along_task(prob: DesignProblem, x, n: int = 41, *, axes_squared: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """‖q̇‖² (eq. 4.21–4.22) moving the slave from A to B at ẏ = 0.01 m/s: (t [s], energy), each (n,).
+
+    axes_squared: Λ_T = diag(σ²) (eq. 4.21's (J_T J_Tᵀ)⁻¹) instead of eq. 4.22's printed diag(σ) (`joint_energy`).
+    """
     y = np.linspace(A[1], B[1], n)
     pts = np.column_stack([np.full(n, A[0]), y])
     e = ellipses(prob, x, pts)
     xdot = np.tile([0.0, SPEED], (n, 1))
-    en = np.where(e["ok"], _joint_energy(e["tme"], xdot), np.nan)
+    en = np.where(e["ok"], _joint_energy(e["tme"], xdot, axes_squared=axes_squared), np.nan)
     return (y - A[1]) / SPEED, en
 
 
