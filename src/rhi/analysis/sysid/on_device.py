@@ -170,18 +170,25 @@ def joint_friction(device, log, windows: list[Window]) -> JointFriction:
 def apparent_inertia(device, log, pushes: list[Push], u, rate: float) -> tuple[SysidResult, float]:
     """(the eq. 3.24 fit with a constant c over the pushes, the model's Λ along u at their starts [kg]).
 
-    Records sampled unevenly (readings skipped over a network) are resampled to `rate` [Hz] first.
+    Records sampled unevenly (readings skipped by a host that fell behind) are interpolated linearly onto a grid
+    of `rate` [Hz] first.
     """
     t, q = _fresh(log, "t", "q")
     u = np.asarray(u, dtype=float) / np.linalg.norm(u)
     records, lams = [], []
     for p in pushes:
         sel = (t >= p.t0) & (t <= p.t1)
-        if sel.sum() < 40:
-            raise InvalidInput(f"log: push {p.trial + 1} has {int(sel.sum())} samples (need 40: a lighter push "
-                               "direction, lower Programme.accel or a larger push_speed)")
-        r = Record(t[sel], device.fk(q[sel]) @ u, np.full(int(sel.sum()), p.force), label=f"push {p.trial + 1}")
-        records.append(r if r.is_uniform() else r.resampled(rate))
+        ts = t[sel]
+        if ts.size < 8 or ts[-1] - ts[0] < 39.5 / rate:
+            raise InvalidInput(f"log: push {p.trial + 1} lasted {1e3 * (p.t1 - p.t0):.0f} ms with {ts.size} readings "
+                               f"(need {40 / rate * 1e3:.0f} ms and 8: a lighter push direction, a lower "
+                               "Programme.accel or a larger push_speed)")
+        x = device.fk(q[sel]) @ u
+        if not np.allclose(np.diff(ts), 1.0 / rate, rtol=0.05):  # readings skipped: linear onto the rate's grid
+            grid = np.arange(ts[0], ts[-1] + 0.5 / rate, 1.0 / rate)
+            grid = grid[grid <= ts[-1]]
+            x, ts = np.interp(grid, ts, x), grid
+        records.append(Record(ts, x, np.full(ts.size, p.force), label=f"push {p.trial + 1}"))
         q0 = q[np.flatnonzero(sel)[0]]
         J, M = device.jacobian(q0), device.mass_matrix(q0)
         lams.append(1.0 / float(u @ J @ np.linalg.solve(M, J.T @ u)))
