@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -85,6 +87,30 @@ def unit_vector(name: str, u, m: int | None = None) -> np.ndarray:
     if (norm < 1e-12).any():
         raise InvalidInput(f"{name}: zero-length direction vector")
     return u / norm
+
+
+def writable_file(name: str, path, *, suffix: str | None = None) -> Path:
+    """`path` as an output file that can be written: not a folder, its folder created, write permission.
+
+    Checked before the work that produces the file starts. `suffix` (e.g. ".png") is required when given.
+
+    Raises:
+        InvalidInput: naming `name` (an argument or a flag such as "--log").
+    """
+    if path is None or not isinstance(path, (str, os.PathLike)) or not str(path):
+        raise InvalidInput(f"{name}: expected a file path, got {path!r}")
+    p = Path(path)
+    if suffix is not None and p.suffix.lower() != suffix:
+        raise InvalidInput(f"{name}: expected a {suffix} file name, got {str(path)!r}")
+    if p.is_dir():
+        raise InvalidInput(f"{name}: {p} is a folder, not a file")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidInput(f"{name}: cannot create the folder {p.parent} ({exc.strerror or exc})") from None
+    if not os.access(p if p.exists() else p.parent, os.W_OK):
+        raise InvalidInput(f"{name}: cannot write {p} (permission denied)")
+    return p
 
 
 def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, allow_inf: bool = False) -> float:

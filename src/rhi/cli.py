@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from rhi import __version__, cli_args as A, cli_help, plugins
+from rhi._validate import writable_file
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_identify import add_commands as add_identify_command
-from rhi.cli_link import Status as _Status, add_realtime as _add_realtime, link as _link, writable as _writable
+from rhi.cli_link import Status as _Status, add_realtime as _add_realtime, link as _link
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
 from rhi.cli_warmup import add_commands as add_warmup_command
@@ -163,8 +164,8 @@ def _run(args: argparse.Namespace) -> int:
     out = Path("out") / time.strftime("run-%Y%m%d-%H%M%S")
     log_path = Path(args.log) if args.log else out / "run.rhilog"
     summary_path = Path(args.summary) if args.summary else (log_path.parent if args.log else out) / "summary.json"
-    _writable("--log", log_path)
-    _writable("--summary", summary_path)
+    writable_file("--log", log_path)  # before the run, not at its end
+    writable_file("--summary", summary_path)
     about = {"name": cfg.name, "source": cfg.source, "device": cfg.device.name, "link": args.link}
     summary_path.write_text(json.dumps({"config": about, "log": str(log_path), "running": True}, indent=1))
     print(f"rhi run: {cfg.name} on {cfg.device.name} over {args.link} at {rate:g} Hz, "

@@ -15,8 +15,9 @@ import tomllib
 from pathlib import Path
 
 from rhi import cli_args as A
+from rhi._validate import writable_file
 from rhi.cli_device import add_device_options, device_table
-from rhi.cli_link import Status, add_realtime, link as link_from, writable
+from rhi.cli_link import Status, add_realtime, link as link_from
 from rhi.errors import InvalidInput
 
 _EXAMPLE = """example:
@@ -64,7 +65,7 @@ def _identify(args: argparse.Namespace) -> int:
     rate = args.rate or cfg.rate
     out = Path(args.out) if args.out else Path("out") / time.strftime("identify-%Y%m%d-%H%M%S")
     for name in ("identify.rhilog", "identification.json", "friction.toml"):
-        writable("--out", out / name)
+        writable_file("--out", out / name)
     if args.link == "sim":  # the configuration's plant (its friction, start), without its hand or world
         s = cfg.sim
         plant = Plant(dev, friction=s["friction"], timestep=s["timestep"], handle_mass=s["handle_mass"])

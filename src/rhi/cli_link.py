@@ -5,9 +5,7 @@ Used by `rhi run` and `rhi device-server` (`rhi.cli`) and `rhi identify` (`rhi.c
 
 from __future__ import annotations
 
-import os
 import time
-from pathlib import Path
 
 from rhi import cli_args as A, plugins
 from rhi.errors import InvalidInput
@@ -91,18 +89,6 @@ class Status:
         if self.tty and self.width:
             self.stream.write("\n")
             self.stream.flush()
-
-
-def writable(option: str, path: Path) -> None:
-    """Check before a run that the output file `path` can be written (creating its folder, not the file)."""
-    if path.is_dir():
-        raise InvalidInput(f"{option}: {path} is a directory, not a file")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(f"{option}: cannot create the folder {path.parent} ({exc.strerror or exc})") from None
-    if not os.access(path if path.exists() else path.parent, os.W_OK):
-        raise InvalidInput(f"{option}: cannot write {path} (permission denied)")
 
 
 def add_realtime(p, what: str) -> None:

@@ -21,6 +21,7 @@ import dataclasses
 import json
 import math
 import struct
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -399,8 +400,11 @@ def _load_binary(path: Path) -> Log:
 
 def _load_csv(path: Path) -> Log:
     try:
-        names = path.open().readline().strip().split(",")
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+        with path.open() as fh:
+            names = fh.readline().strip().split(",")
+        with warnings.catch_warnings():  # "input contained no data": the check below names the file instead
+            warnings.simplefilter("ignore", UserWarning)
+            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     except (ValueError, OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"path: {str(path)!r} is neither an rhi log nor a CSV log: {exc}") from None
     if not names or names[0] != "t" or (data.size and data.shape[1] != len(names)):

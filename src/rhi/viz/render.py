@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from rhi._gl import has_display
-from rhi._validate import as_array
+from rhi._validate import as_array, writable_file
 from rhi.device import Device
 from rhi.errors import InvalidInput, RhiError
 from rhi.viz.posed import Posed
@@ -142,26 +142,9 @@ def save_png(image: np.ndarray, path) -> Path:
     """
     from PIL import Image
 
-    p = png_path(path)
+    p = writable_file("out", path, suffix=".png")
     Image.fromarray(np.asarray(image, dtype=np.uint8)).save(p)
     return p
 
 
-def png_path(path) -> Path:
-    """`path` checked as a PNG file to write (its folder created): a .png name, not a folder, writable.
 
-    Raises:
-        InvalidInput: naming `out`.
-    """
-    p = Path(path)
-    if p.suffix.lower() != ".png":
-        raise InvalidInput(f"out: expected a .png file name, got {str(path)!r}")
-    if p.is_dir():
-        raise InvalidInput(f"out: {p} is a folder")
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(f"out: cannot create the folder {p.parent} ({exc.strerror or exc})") from None
-    if not os.access(p if p.exists() else p.parent, os.W_OK):
-        raise InvalidInput(f"out: cannot write {p} (permission denied)")
-    return p

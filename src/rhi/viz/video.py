@@ -14,6 +14,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from rhi._validate import writable_file
 from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.sim.environment import Wall, from_description
@@ -94,9 +95,7 @@ def render_video(device: Device, log: Log, path, *, fps: float = 30.0, width: in
     Raises:
         InvalidInput: a log of another device, an fps outside (0, 240], an odd frame size, a path not ending .mp4.
     """
-    p = Path(path)
-    if p.suffix.lower() != ".mp4":
-        raise InvalidInput(f"path: a video is written as .mp4, got {str(path)!r}")
+    p = writable_file("path", path, suffix=".mp4")  # before any frame is drawn
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not 0 < fps <= 240:
         raise InvalidInput(f"fps: expected frames per second in (0, 240], got {fps!r}")
     if width % 2 or height % 2:
@@ -112,7 +111,6 @@ def render_video(device: Device, log: Log, path, *, fps: float = 30.0, width: in
     posed.set(log.q[0])
     lo, hi = posed.bounds()
     overlay = _Overlay(posed, log, float(np.max(hi - lo)), virtual)
-    p.parent.mkdir(parents=True, exist_ok=True)
     writer = imageio_ffmpeg.write_frames(str(p), (int(width), int(height)), fps=float(fps), quality=7,
                                          macro_block_size=2, ffmpeg_log_level="error")
     writer.send(None)
