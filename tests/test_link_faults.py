@@ -113,6 +113,28 @@ def _sim_run_realtime(dev, log, wrap, **kw):
     return run(link, ctrl, duration=1.0, virtual=wall, log=log, safety=SafetyConfig(stale_ticks=1000))
 
 
+def test_frozen_sensors_over_udp(dev, tmp_path):
+    """The proxy freezes the values from a moving reading on, sequence numbers and device time advancing: the
+    frozen-sensor rule (encoders unchanged while their velocities imply motion) stops the run."""
+    p, port = _server(tmp_path, "--watchdog", "0.2")
+    px, pport = _proxy(port, "--freeze", "0.3", "600")  # frozen until the run ends
+    try:
+        plant, ctrl, hand, wall, phys = _scenario(dev)
+        link = UDPLink("127.0.0.1", pport, timeout=0.05)
+        res = run(link, ctrl, duration=60.0, virtual=wall, log=tmp_path / "z.rhilog",
+                  safety=SafetyConfig(stale_ticks=1000, silence=1.0, max_age=1.0))  # only the frozen rule applies
+    finally:
+        px.kill()
+        _stop(p)
+    t = _safe_stop(res, tmp_path / "z.rhilog", "frozen")
+    assert "encoders frozen" in res.fault and f"t={t:.4f} s" in res.fault
+    run_log = Log.load(tmp_path / "z.rhilog")
+    k = int(np.flatnonzero(run_log.safety)[0])
+    n = SafetyConfig().frozen_ticks
+    assert k >= n and np.all(run_log.q[k - n:k + 1] == run_log.q[k])  # the last frozen_ticks readings identical
+    assert np.any(run_log.q[:k - n] != run_log.q[k])  # and it moved before the freeze
+
+
 def test_skipped_readings_and_rate_reached_are_reported(dev, tmp_path):
     """--no-realtime against a free-running 1 kHz device, with a host that takes 3 ms a tick."""
     p, port = _server(tmp_path, "--watchdog", "0.2")  # (a shared machine may pause the host longer than 20 ms)
