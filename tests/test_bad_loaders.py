@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from bad_values import examples
+from hypothesis import given, strategies as st
 
 import rhi
 from rhi._description_checks import MAX_JOINTS
@@ -44,11 +45,6 @@ MJCF = ('<mujoco model="arm"><compiler angle="radian"/><worldbody>'
 
 BAD_NUMBERS = st.sampled_from(["nan", "inf", "-inf", "", "abc", "1e400", "-1", "0", "1 2", "NaN 0 0", "1e308 1e308 1e308"])
 NAMES = st.sampled_from(["l0", "l1", "l2", "l3", "j1", "j2", "nope", "", "b1", "b2", "tip", "inf"])
-
-
-def _settings(n: int):
-    return settings(max_examples=n, derandomize=True, deadline=None, database=None,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 
 
 class _Hang(Exception):
@@ -131,7 +127,7 @@ def test_the_valid_descriptions_load(fn, text, suffix, ee, tmp_path):
     assert _load(fn, path, ee).n == 3
 
 
-@_settings(150)
+@examples(150)
 @given(data=st.data())
 def test_urdf_loader_on_generated_damage(data, tmp_path_factory):
     path = tmp_path_factory.mktemp("urdf") / "arm.urdf"
@@ -139,7 +135,7 @@ def test_urdf_loader_on_generated_damage(data, tmp_path_factory):
     _check(_load(rhi.device_from_urdf, path, data.draw(st.one_of(st.just("l3"), NAMES), label="ee_frame")), path)
 
 
-@_settings(100)
+@examples(100)
 @given(data=st.data())
 def test_mjcf_loader_on_generated_damage(data, tmp_path_factory):
     path = tmp_path_factory.mktemp("mjcf") / "arm.xml"

@@ -11,12 +11,12 @@ from __future__ import annotations
 import json
 import math
 import tomllib
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from bad_values import NON_FINITE, NOT_A_NUMBER, bad_matrix, bad_object, bad_scalar, bad_vector, examples, expect_error
+from hypothesis import given, strategies as st
 
 import rhi
 from rhi import control as ctl
@@ -27,69 +27,8 @@ from rhi.runtime.config import config_path, parse_config
 from rhi.sim import Hand, HandPath, Log, Plant, Wall
 from rhi.sim.log import LogWriter, layout
 
-
-def _settings(n: int):
-    return settings(max_examples=n, derandomize=True, deadline=None, database=None,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                           HealthCheck.function_scoped_fixture])
-
-
 RHI4 = rhi.device("rhi4")
 Q4 = np.array([-0.63, 0.25, 0.28, 0.09])
-
-# ------------------------------------------------------------------ generated invalid values
-NOT_A_NUMBER = st.one_of(st.text(max_size=5), st.none(), st.just(1j), st.lists(st.floats(), max_size=2),
-                         st.just({"a": 1}))
-NON_FINITE = st.sampled_from([math.nan, math.inf, -math.inf])
-
-
-def bad_scalar(*, low_ok: float | None = None, high_ok: float | None = None):
-    """Values that are not a finite number inside [low_ok, high_ok]."""
-    parts = [NOT_A_NUMBER, NON_FINITE]
-    if low_ok is not None:
-        parts.append(st.floats(max_value=low_ok, exclude_max=True, allow_nan=False, allow_infinity=False,
-                               min_value=-1e300))
-    if high_ok is not None:
-        parts.append(st.floats(min_value=high_ok, exclude_min=True, allow_nan=False, max_value=1e300))
-    return st.one_of(*parts)
-
-
-def bad_vector(n: int, *, none_is_valid: bool = False):
-    """(n,) vectors with a NaN/inf entry, a wrong length, or not numbers (None too unless it is valid)."""
-    finite = st.floats(-10, 10)
-    with_bad = st.tuples(st.lists(finite, min_size=n, max_size=n), st.integers(0, n - 1), NON_FINITE).map(
-        lambda t: np.array(t[0][:t[1]] + [t[2]] + t[0][t[1] + 1:]))
-    wrong = st.integers(0, 2 * n + 1).filter(lambda k: k != n).map(lambda k: np.ones(k))
-    return st.one_of(with_bad, wrong, st.text(max_size=3), st.just(np.ones((n, 2))),
-                     *([] if none_is_valid else [st.none()]))
-
-
-def bad_matrix(rows: int, cols: int, *, none_is_valid: bool = False):
-    """(rows, cols) matrices with a NaN/inf entry, or a vector, or not numbers (None too unless it is valid)."""
-    nan_at = st.tuples(st.integers(0, rows * cols - 1), NON_FINITE).map(
-        lambda t: np.where(np.arange(rows * cols) == t[0], t[1], 1.0).reshape(rows, cols))
-    parts = [nan_at, st.just(np.ones(cols)), st.text(max_size=3)] + ([] if none_is_valid else [st.none()])
-    return st.one_of(*parts)
-
-
-def bad_object():
-    """Objects of the wrong kind for an argument that takes an object with methods."""
-    return st.one_of(st.text(max_size=4), st.integers(), st.floats(), st.just([1, 2]), st.just({"x": 1}))
-
-
-def expect_error(fn, name: str, **kwargs) -> None:
-    """fn(**kwargs) must raise an rhi.errors error naming `name`."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", RuntimeWarning)
-        try:
-            out = fn(**kwargs)
-        except RhiError as exc:
-            assert name in str(exc), f"error does not name {name!r}: {exc}"
-            return
-        except Exception as exc:  # noqa: BLE001 - the point of the suite
-            pytest.fail(f"{name}={kwargs.get(name)!r:.80}: foreign {type(exc).__name__}: {exc}")
-    pytest.fail(f"{name}={kwargs.get(name)!r:.80}: accepted, returned {out!r:.120}")
-
 
 # ------------------------------------------------------------------ the runtime API
 def _controller():
@@ -121,7 +60,7 @@ RUN_ARGS = {
 }
 
 
-@_settings(120)
+@examples(120)
 @given(data=st.data())
 def test_run_refuses_generated_bad_arguments(data):
     name = data.draw(st.sampled_from(sorted(RUN_ARGS)), label="argument")
@@ -139,7 +78,7 @@ SIMLINK_ARGS = {"plant": bad_object(), "hand": bad_object(), "physical": bad_obj
                 "rate": bad_scalar(low_ok=0.0)}
 
 
-@_settings(40)
+@examples(40)
 @given(data=st.data())
 def test_simlink_refuses_generated_bad_arguments(data):
     name = data.draw(st.sampled_from(sorted(SIMLINK_ARGS)), label="argument")
@@ -155,7 +94,7 @@ SAFETY_FIELDS = {"stale_ticks": st.one_of(st.integers(max_value=0), st.floats(0.
                                               st.just([]), st.just([math.nan, 1.0]), st.just({"a": 1}))}
 
 
-@_settings(60)
+@examples(60)
 @given(data=st.data())
 def test_safety_config_refuses_generated_bad_fields(data):
     name = data.draw(st.sampled_from(sorted(SAFETY_FIELDS)), label="field")
@@ -198,7 +137,7 @@ def _leftovers():
 LEFTOVERS = _leftovers()
 
 
-@_settings(200)
+@examples(200)
 @given(data=st.data())
 def test_library_leftovers_refuse_generated_bad_inputs(data):
     label, fn, valid, bad = data.draw(st.sampled_from(LEFTOVERS), label="function")
@@ -229,6 +168,65 @@ def test_teleoperation_design_and_sweep_leftovers(tmp_path):
     expect_error(lambda **kw: dataclasses.replace(prob, **kw), "center", center=(math.nan, 0.0))
     for batch in (-1, 0, 1.5, "2"):
         expect_error(sweep, "batch", problem=prob, xs=[[0.0]], batch=batch)
+
+
+# ------------------------------------------------------------------ the experiments (rhi.experiments.arguments)
+def _bad_for(default, optional: bool):
+    """Invalid values for a parameter whose default is `default` (None passing when `optional`)."""
+    none = [] if optional else [st.none()]
+    if isinstance(default, bool):
+        return st.one_of(st.integers(), st.text(max_size=3), *none)
+    if isinstance(default, int):
+        low = 1 if default >= 1 else 0
+        return st.one_of(st.integers(max_value=low - 1), st.integers(min_value=int(100 * default) + 1).filter(
+            lambda v: default > 0), st.floats(0.5, 3.5), st.booleans(), st.text(max_size=3), NON_FINITE, *none)
+    if isinstance(default, float):
+        parts = [NON_FINITE, st.text(max_size=3), st.booleans(), *none]
+        if default > 0:
+            parts += [st.floats(max_value=0.0, min_value=-1e300), st.floats(min_value=100 * default, exclude_min=True,
+                                                                            max_value=1e300)]
+        elif default == 0:
+            parts.append(st.floats(max_value=0.0, exclude_max=True, min_value=-1e300))
+        return st.one_of(*parts)
+    if isinstance(default, str):
+        return st.one_of(st.integers(), st.just(["a"]), *none)
+    if isinstance(default, tuple):
+        entry = NON_FINITE if isinstance(default[0], float) else st.integers() if isinstance(default[0], str) else \
+            st.just(1.5)
+        return st.one_of(st.text(min_size=1, max_size=3), st.integers(), st.just({"a": 1}),
+                         entry.map(lambda e: (*default[:-1], e)), *none)
+    return None
+
+
+def _experiment_arguments():
+    """[(id, function, {argument: strategy of invalid values})] for every experiment and plan of the reproduction."""
+    import inspect
+
+    from rhi.report.steps import STEPS
+
+    out = []
+    for step in STEPS:
+        for fn in (step.run, step.plan):
+            params = inspect.signature(fn).parameters.values() if fn is not None else ()
+            bad = {p.name: b for p in params if p.default is not p.empty and p.default is not None
+                   and (b := _bad_for(p.default, "None" in str(p.annotation))) is not None}
+            bad.update({"progress": st.one_of(st.text(max_size=2), st.integers())} if "progress" in
+                       {p.name for p in params} else {})
+            if bad:
+                out.append((f"{step.name} ({fn.__name__})", fn, bad))
+    return out
+
+
+@examples(300)
+@given(data=st.data())
+def test_experiments_refuse_generated_bad_arguments(data):
+    """ch7.example_3dof(steps=-1) and the like: an rhi error naming the argument before any work (the plans too)."""
+    label, fn, bad = data.draw(st.sampled_from(_EXPERIMENTS), label="experiment")
+    name = data.draw(st.sampled_from(sorted(bad)), label="argument")
+    expect_error(fn, name, **{name: data.draw(bad[name], label="value")})
+
+
+_EXPERIMENTS = _experiment_arguments()
 
 
 # ------------------------------------------------------------------ CLI flags
@@ -275,7 +273,7 @@ def _exit(argv: list[str]) -> int:
         return int(exc.code or 0)
 
 
-@_settings(150)
+@examples(150)
 @given(data=st.data())
 def test_cli_flags_refuse_generated_bad_values(data, capsys):
     before, flag, values = data.draw(st.sampled_from(FLAGS), label="flag")
@@ -285,7 +283,7 @@ def test_cli_flags_refuse_generated_bad_values(data, capsys):
     assert len(err) == 1 and flag in err[0] and "Traceback" not in err[0], (flag, value, err)
 
 
-@_settings(12)
+@examples(12)
 @given(which=st.sampled_from(["--log", "--summary"]), where=st.sampled_from(["dir", "proc", "file_parent"]))
 def test_cli_run_checks_its_outputs_before_the_run(which, where, tmp_path_factory, capsys):
     tmp = tmp_path_factory.mktemp("out")
@@ -339,7 +337,7 @@ def _edit(doc, path, value):
     return doc
 
 
-@_settings(200)
+@examples(200)
 @given(data=st.data())
 def test_run_configuration_keys_with_generated_values(data):
     """Any value at any key path: a RunConfig or an rhi.errors error naming the key path; absurd sizes refused."""
@@ -396,7 +394,7 @@ def _log_file(path: Path) -> bytes:
     return path.read_bytes()
 
 
-@_settings(150)
+@examples(150)
 @given(data=st.data())
 def test_rhilog_reader_on_generated_damage(data, tmp_path_factory):
     tmp = tmp_path_factory.mktemp("log")
@@ -450,7 +448,7 @@ def _score(x):
     return {"C2": float(x[0]) * 2.0, "coverage": 1.0}
 
 
-@_settings(80)
+@examples(80)
 @given(data=st.data())
 def test_checkpoint_reader_on_generated_edits(data, tmp_path_factory):
     """Edits with a recomputed checksum: refused (InvalidInput) on load or when a recomputed entry differs."""

@@ -114,8 +114,11 @@ def _sim_run_realtime(dev, log, wrap, **kw):
 
 
 def test_frozen_sensors_over_udp(dev, tmp_path):
-    """The proxy freezes the values from a moving reading on, sequence numbers and device time advancing: the
-    frozen-sensor rule (encoders unchanged while their velocities imply motion) stops the run."""
+    """Frozen sensors over UDP: the frozen-sensor rule stops the run.
+
+    The proxy freezes the values from a moving reading on, sequence numbers and device time advancing; the
+    encoders are unchanged while their velocities imply motion.
+    """
     p, port = _server(tmp_path, "--watchdog", "0.2")
     px, pport = _proxy(port, "--freeze", "0.3", "600")  # frozen until the run ends
     try:

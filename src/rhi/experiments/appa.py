@@ -23,6 +23,7 @@ from scipy.optimize import minimize
 from rhi import thesis as T
 from rhi.control.mobile import W_TAU_LIMITS, DMConfig, WeightedConfig, WeightedDistributionController
 from rhi.device import device
+from rhi.experiments.arguments import checked
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain
@@ -48,6 +49,7 @@ def slip_note(slip: SlipModel) -> str:
             "(the motion-capture role). Tracking errors scale with this model, not with the thesis's robot.")
 
 
+@checked
 def tracking(
     duration: float = 40.0,
     dt: float = 0.01,
@@ -218,6 +220,7 @@ def _dm_phase(ctl: WeightedDistributionController, q0: np.ndarray, t_cart: float
     }
 
 
+@checked
 def dm_enhancement(
     dt: float = 0.01,
     t_cartesian: float = 5.0,
@@ -241,6 +244,7 @@ def dm_enhancement(
     return run_plan(dm_enhancement_plan(dt, t_cartesian, t_null, t_long), progress)
 
 
+@checked
 def dm_enhancement_plan(dt: float = 0.01, t_cartesian: float = 5.0, t_null: float = 15.0,
                         t_long: float = 100.0) -> Plan:
     """`dm_enhancement` as independent parts, one per run (arguments as `dm_enhancement`)."""

@@ -24,6 +24,7 @@ from rhi import thesis as T
 from rhi.control.mobile import AMDConfig, AMDController, PinvAccelConfig, PinvAccelController
 from rhi.device import device
 from rhi.experiments.appa import CM, DEG, Q0, slip_note
+from rhi.experiments.arguments import checked
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain
@@ -96,6 +97,7 @@ def _run(controller, radius: float, duration: float, dt: float, slip: SlipModel,
     return simulate_mobile(controller, traj, Q0, plant=MobilePlant(dev, slip=slip), progress=progress)
 
 
+@checked
 def singularity(
     duration: float = 40.0,
     dt: float = 0.005,
@@ -163,6 +165,7 @@ def singularity(
     )
 
 
+@checked
 def tracking(
     duration: float = 80.0,
     dt: float = 0.005,
@@ -191,6 +194,7 @@ def tracking(
     return run_plan(tracking_plan(duration, dt, radii, slip, sigma_min), progress)
 
 
+@checked
 def tracking_plan(duration: float = 80.0, dt: float = 0.005, radii: tuple[float, float] = (0.1, 0.25),
                   slip: SlipModel | None = None, sigma_min: float = 0.15) -> Plan:
     """`tracking` as independent parts, one per run (arguments as `tracking`)."""

@@ -27,6 +27,7 @@ from rhi import thesis as T
 from rhi.device import Device, device
 from rhi.device_spec import bundled_spec
 from rhi.device_variant import model_with_links
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import POINTS
 from rhi.experiments.ch6.identification import ch6_configurations
 from rhi.experiments.result import Result, Row, Table
@@ -152,6 +153,7 @@ def fit(items: list[dict] | None = None, starts: int = 8, seed: int = 23) -> dic
     return {"p": p, "default": p0, "items": items, "pred_fit": predict(p, items), "pred_default": predict(p0, items)}
 
 
+@checked
 def thesis_fit(starts: int = 8) -> Result:
     """The thesis-fit model: fitted parameters, and per claim thesis / default / thesis-fit, fit or held out."""
     f = fit(starts=starts)

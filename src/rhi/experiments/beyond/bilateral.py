@@ -21,6 +21,7 @@ import numpy as np
 
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
 from rhi.device import device
+from rhi.experiments.arguments import checked
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.runtime.bilateral import BilateralLog, simulate_bilateral
@@ -107,6 +108,7 @@ def metrics(log: BilateralLog) -> dict[str, float]:
 DELAYS = (0.0, 0.01, 0.05, 0.1, 0.2)
 
 
+@checked
 def teleoperation_delay(*, delays=DELAYS, stiffness: float = 1000.0, duration: float = 5.0, jitter: float = 0.01,
                         loss: float = 0.1, extra_stiffness=(50.0, 2000.0),
                         progress: Callable[[int, int], None] | None = None) -> Result:
@@ -131,6 +133,7 @@ def _key(d: float, pc: bool, k: float) -> str:
     return f"{1e3 * d:.0f}ms_{k:.0f}_{'tdpa' if pc else 'none'}"
 
 
+@checked
 def teleoperation_delay_plan(*, delays=DELAYS, stiffness: float = 1000.0, duration: float = 5.0, jitter: float = 0.01,
                              loss: float = 0.1, extra_stiffness=(50.0, 2000.0)) -> Plan:
     """`teleoperation_delay` as independent parts, one per run (arguments as `teleoperation_delay`)."""

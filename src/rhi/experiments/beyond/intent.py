@@ -33,6 +33,7 @@ from rhi.control.intent import FilteredIntent, HMMIntent, KnownIntent, axial_err
 from rhi.control.intent_control import IntentController, IntentFME, IntentVME
 from rhi.device import device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch5 import setup as ch5
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.parts import Part, Plan, run_plan
@@ -73,6 +74,7 @@ def error_and_lag(t: np.ndarray, u_est: np.ndarray, u_true: np.ndarray, mask: np
             "lag": float(np.median(lags)) if lags else float("nan")}
 
 
+@checked
 def intent_strokes(train: int = 80, test: int = 40, progress: Progress | None = None) -> Result:
     """The estimators on seeded synthetic strokes in 2-D and 3-D (trained on seed 101, tested on seed 202)."""
     for nm, v in (("train", train), ("test", test)):
@@ -137,6 +139,7 @@ def _true_w(path, t: np.ndarray, u0: np.ndarray) -> np.ndarray:
 W_SOURCES = ("known", "filtered", "hmm", "fixed")
 
 
+@checked
 def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: float = 2.0,
                         progress: Progress | None = None) -> Result:
     """The ch. 5 W trajectory with VME matching along u known / estimated (filtered, HMM) / fixed.
@@ -152,6 +155,7 @@ def intent_w_trajectory(scale: float = 1.0, speed: float = ch5.SPEED, settle: fl
     return run_plan(intent_w_trajectory_plan(scale, speed, settle), progress)
 
 
+@checked
 def intent_w_trajectory_plan(scale: float = 1.0, speed: float = ch5.SPEED, settle: float = 2.0) -> Plan:
     """`intent_w_trajectory` as independent parts, one per source of u (arguments as `intent_w_trajectory`)."""
     scale = positive("scale", scale)
@@ -250,6 +254,7 @@ def _intent_w_merge(outputs: list[tuple[dict, dict]], *, scale: float, speed: fl
                    "Known u: the reference's stroke direction at each instant; fixed u: [0, 1] (ch. 3)."])
 
 
+@checked
 def intent_palpation(settle: float = 0.5, depth: float = 0.015, speed: float = 0.01, hold: float = 0.3,
                      *, starts: int = 3, progress: Progress | None = None) -> Result:
     """The ch. 6 palpation with FME matching to M_Stiff^des(u): u known [0, 1] / estimated / fixed [1, 0].

@@ -44,6 +44,7 @@ from rhi.control.controller import Saturation
 from rhi.control.passivity import Method, Port
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
@@ -182,6 +183,7 @@ def case(*, q0: tuple[float, ...], name: str, stiffness: float, duration: float,
                 speed=speed, progress=progress)
 
 
+@checked
 def passivity_plan(
     *,
     duration: float = 60.0,
@@ -249,6 +251,7 @@ def _merge(outputs: list[tuple[dict, dict]], *, q0, cases, stiff_cases, duration
                   _notes(res, stiff_res, duration, stiffness, depth, speed))
 
 
+@checked
 def passivity(
     *,
     duration: float = 60.0,

@@ -35,6 +35,7 @@ from rhi.control.configuration import optimal_configuration
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress, capabilities
 from rhi.metrics import effective_inertia, effective_manipulability, force_ellipsoid, velocity_ellipsoid
@@ -104,6 +105,7 @@ def _remark_point(q_sub: np.ndarray, *, name: str, u: tuple[float, ...]) -> tupl
     return (*x, r1, r0, l1, l0, *q)
 
 
+@checked
 def spatial_remarks(
     resolution: int = 7,
     u: tuple[float, float, float] = U,
@@ -180,6 +182,7 @@ def _remark_item(item: tuple[str, tuple[float, ...], tuple[float, ...]]) -> tupl
     return _remark_point(np.array(q_sub), name=name, u=u)
 
 
+@checked
 def spatial_force_capability(
     configurations: int = 20,
     directions: int = 50,
@@ -246,6 +249,7 @@ def spatial_force_capability(
     )
 
 
+@checked
 def spatial_ellipsoids(name: str = "srhi5", x=None, u: tuple[float, float, float] = U) -> Result:
     """A configuration of a spatial RHI and its sub-chain at one point with their velocity and force ellipsoids.
 

@@ -37,6 +37,7 @@ from rhi.control import (
 from rhi.control.configuration import optimal_configuration
 from rhi.device import device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.beyond.spatial import chain_points
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.result import Result, Row, Table
@@ -59,6 +60,7 @@ def _controller(dev, x0, u, case: str, Mf, Ms) -> NullSpaceController:
                                     saturation="ascm" if case == "stiff_ascm" else "scaling")
 
 
+@checked
 def spatial_palpation(
     settle: float = 0.3,
     depth: float = 0.02,
@@ -154,6 +156,7 @@ def spatial_palpation(
                   [Table("3-D palpation of K_e = 1000 N/m on srhi5", rows)], arrays, notes)
 
 
+@checked
 def spatial_vme(duration: float = 2.0, u: tuple[float, float, float] = (0.0, 1.0, 0.0),
                         gain: float = 10.0, progress: Progress | None = None) -> Result:
     """VME matching along a 3-D u (eqs. 3.20–3.23) on the srhi5 plant while the hand holds the handle.

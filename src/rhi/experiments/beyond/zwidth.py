@@ -24,6 +24,7 @@ import numpy as np
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController, Passivity
 from rhi.device import device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.beyond.passivity import B_D, HAND, TARGET_W
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
@@ -76,6 +77,7 @@ def wall_case(k: float, b: float, method: str, *, duration: float,
             "fault": 0.0 if log.fault is None else 1.0}
 
 
+@checked
 def z_width_plan(*, stiffness: Sequence[float] = STIFFNESS, damping: Sequence[float] = DAMPING,
                  methods: Sequence[str] = METHODS, duration: float = 1.0) -> Plan:
     """`z_width` as independent parts, one per wall and method (arguments as `z_width`)."""
@@ -97,6 +99,7 @@ def z_width_plan(*, stiffness: Sequence[float] = STIFFNESS, damping: Sequence[fl
                                   methods=tuple(methods), duration=duration))
 
 
+@checked
 def z_width(*, stiffness: Sequence[float] = STIFFNESS, damping: Sequence[float] = DAMPING,
             methods: Sequence[str] = METHODS, duration: float = 1.0,
             progress: Callable[[int, int], None] | None = None) -> Result:

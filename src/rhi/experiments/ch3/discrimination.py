@@ -50,6 +50,7 @@ from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import DEVICE_NAMES
 from rhi.experiments.ch3.nullspace import controller, start_configuration
 from rhi.experiments.identification import U
@@ -312,6 +313,7 @@ def _summary_of(analysis, measure: str) -> dict[str, tuple[float, float, float]]
     return {s.name: (s.mean, s.std, s.median) for s in analysis.summary[measure]}
 
 
+@checked
 def psychophysics(
     *,
     subjects: int = 10,

@@ -16,6 +16,7 @@ from rhi.control import VMEMatching
 from rhi.control.configuration import optimal_configuration
 from rhi.device import device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import BETA, DEVICE_NAMES, POINTS, THESIS_Q
 from rhi.experiments.identification import TRIALS, WINDOW, U, case_arrays, fit_rows, identify_case, trial_forces
 from rhi.experiments.result import Result, Row, Table
@@ -27,6 +28,7 @@ THESIS_TABLE_3_2 = T.TABLE_3_2
 BEFORE_CH3 = 0.01
 
 
+@checked
 def sysid_table_3_2(
     trials: int = TRIALS,
     *,

@@ -29,6 +29,7 @@ from rhi.control.configuration import optimal_configuration
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput, Unreachable
+from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table
 from rhi.metrics import effective_inertia, effective_manipulability
 
@@ -52,6 +53,7 @@ def measures(dev: Device, q: np.ndarray, u: np.ndarray = U) -> tuple[float, floa
     return float(effective_manipulability(J, u)), float(effective_inertia(J, dev.mass_matrix(q), u))
 
 
+@checked
 def table_3_1() -> Result:
     """Table 3.1: Λ and ρ along u = [0, 1] at the two points, RHI vs PHANToM vs Rehab."""
     devs = devices()
@@ -177,6 +179,7 @@ def _devices_cached() -> dict[str, Device]:
     return _DEVICES
 
 
+@checked
 def ratio_maps(
     resolution: int = 41,
     progress: Callable[[int, int], None] | None = None,

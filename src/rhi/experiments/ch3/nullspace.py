@@ -69,6 +69,7 @@ from rhi.control import (
 from rhi.control.configuration import optimal_configuration
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import BETA, POINTS, THESIS_LAMBDA, THESIS_Q, THESIS_RHO, U, measures
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import FreeSpace, vme_values
@@ -178,6 +179,7 @@ def _run_summary(dev: Device, x, log: Log, vme: VMEMatching, objective, gain: fl
     }
 
 
+@checked
 def nullspace_configurations(
     duration: float = 12.0,
     *,

@@ -18,6 +18,7 @@ import mujoco
 import numpy as np
 
 from rhi import thesis as T
+from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table
 
 #: The grid of M1, M2 [kg], B1, B2 [N s/m] and ω [rad/s] (the thesis gives no values).
@@ -77,6 +78,7 @@ def simulated_a(m1: float, b1: float, m2: float | None, b2: float, omega: float,
     return complex(1.0 / ((1j * omega) ** 2 * x_jw))
 
 
+@checked
 def apparent_inertia_example() -> Result:
     """§3.3 eqs. 3.16–3.19: A2 vs A1 over a grid of masses, dampings and frequencies; eqs. 3.17/3.19 vs MuJoCo."""
     s = 1j * OMEGAS

@@ -6,6 +6,7 @@ import numpy as np
 
 from rhi.design import evaluate, optimize, sweep
 from rhi.design.executors import using
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch4.setup import (
     ELLIPSE_POINTS,
     ENERGY_LABELS,
@@ -27,6 +28,7 @@ from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress
 
 
+@checked
 def theta_z_design(
     *, density: float = 100.0, step_deg: float = 1.0, executor=None, checkpoint_dir=None,
     progress: Progress | None = None, maxiter: int = 60, K2: float = K2,
@@ -108,6 +110,7 @@ def _theta_z_design(ex, density, step_deg, checkpoint_dir, progress, maxiter, k2
                   notes)
 
 
+@checked
 def full_design(
     *, density: float = 100.0, executor=None, checkpoint_dir=None, progress: Progress | None = None,
     maxiter: int = 60, popsize: int = 15, K2: float = K2,

@@ -7,6 +7,7 @@ import numpy as np
 from rhi.design import evaluate, optimize
 from rhi.design.executors import using
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch4.setup import K2_MIN_TABLE_4_1, THESIS_TABLE, THESIS_THETA, mirror, problem
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress
@@ -30,6 +31,7 @@ VARIANTS: dict[str, dict] = {
 }
 
 
+@checked
 def sensitivity(*, density: float = 100.0, densities=(25.0, 50.0, 100.0, 200.0), maxiter: int = 40,
                 k2_values=(10.0, 11.0, 20.0, 30.0), variants=None, executor=None,
                 progress: Progress | None = None) -> Result:

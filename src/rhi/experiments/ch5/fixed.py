@@ -6,6 +6,7 @@ import numpy as np
 
 from rhi.control import Manipulability, Objective, TMIMatching
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch5.setup import (
     B_D,
     GAIN,
@@ -26,6 +27,7 @@ from rhi.metrics import ellipsoid_axes, penalized_jacobian, teleoperation_ellips
 from rhi.sim import Hand, HandPath, Plant, simulate
 
 
+@checked
 def fixed_point(
     duration: float = 10.0,
     *,

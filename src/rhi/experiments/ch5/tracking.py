@@ -9,6 +9,7 @@ import numpy as np
 from rhi import thesis as T
 from rhi.control import Manipulability, TMIMatching
 from rhi.errors import Unreachable
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch5.setup import (
     B_D,
     GAIN,
@@ -45,6 +46,7 @@ READINGS = (("plain", "s1", {"k_q": None}), ("plain", "s2", {"k_q": None}),
             ("literal", "s2", {"k_q": None, "literal": True}))
 
 
+@checked
 def w_trajectory(
     *,
     scale: float = 1.0,
@@ -101,6 +103,7 @@ def w_trajectory(
                                       ellipses=ellipses, readings=readings), progress)
 
 
+@checked
 def w_trajectory_plan(
     *,
     scale: float = 1.0,

@@ -6,6 +6,7 @@ import numpy as np
 
 from rhi import thesis as T
 from rhi.errors import InvalidInput, Unreachable
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import workspaces as sample
 from rhi.experiments.ch5.setup import Q_FIXED, REHAB_SEED, SLAVE_SEED, devices, w_reference
 from rhi.experiments.result import Result, Row, Table
@@ -13,6 +14,7 @@ from rhi.experiments.setups import positive
 from rhi.sim import check_path_in_workspace
 
 
+@checked
 def workspaces(samples: int = 20000, seed: int = 0, cell: float = 0.02, area_samples: int = 300000) -> Result:
     """Fig. 5.4: workspaces of the RHI, the 2-DoF Rehab and the slave, and the W.
 

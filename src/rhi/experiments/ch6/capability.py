@@ -10,6 +10,7 @@ from rhi.control import WeightedSum
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput, Unreachable
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (
     MAP_X,
     MAP_Y,
@@ -73,6 +74,7 @@ def _desired_rhi4() -> tuple[float, float, np.ndarray, np.ndarray]:
     return desired_fmes(_rhi4(), np.array(U), Q_HOME)
 
 
+@checked
 def fmax_ratio_map(
     resolution: int = 25,
     progress: Progress | None = None,

@@ -10,6 +10,7 @@ from rhi import thesis as T
 from rhi.control import FMEMatching, WeightedSum
 from rhi.device import device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (
     BETA,
     CASES,
@@ -38,6 +39,7 @@ from rhi.metrics import effective_inertia, force_ellipsoid, max_force, max_force
 from rhi.metrics.force import ProjectorKind
 
 
+@checked
 def palpation(
     settle: float = 0.5,
     depth: float = 0.015,

@@ -8,12 +8,14 @@ from rhi import thesis as T
 from rhi.control import FMEMatching
 from rhi.control.allocation import allocate_scaling
 from rhi.device import device
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import F_3DOF, MU, Q_3DOF, THESIS_3DOF_EIG, U_3DOF, desired_fmes, match_fme
 from rhi.experiments.result import Result, Row, Table
 from rhi.metrics import force_ellipsoid, max_force, max_force_scaling, weighted_pinv
 
 
 # ------------------------------------------------------------------------- 3-DoF example
+@checked
 def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = F_3DOF, mu: float = MU) -> Result:
     """Figs 6.3–6.4: the 3-DoF planar RHI rendering F_e = [3.5 sin(πt/2), 0] N at three configurations.
 

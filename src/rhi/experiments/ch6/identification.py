@@ -18,6 +18,7 @@ from rhi import thesis as T
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController, WeightedSum
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (
     CASES,
     K_D,
@@ -79,6 +80,7 @@ def _ch6_controller(dev: Device, desired: np.ndarray, projector: ProjectorKind =
     return make
 
 
+@checked
 def sysid_table_6_1(
     trials: int = TRIALS,
     *,

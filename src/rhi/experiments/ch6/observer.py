@@ -12,6 +12,7 @@ import numpy as np
 
 from rhi import thesis as T
 from rhi.control.transition import aso_volume
+from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table
 
 #: Fig. 6.6: the torque bounds [N m] and the shape factor S.
@@ -19,6 +20,7 @@ LIMITS = np.array([0.5, 2.0])
 S_6_6 = 50.0
 
 
+@checked
 def aso_example(resolution: int = 81) -> Result:
     """Fig. 6.6: V(τ1, τ2) over the torque box (and 10 % beyond it) of the thesis's two-DoF example."""
     t1 = np.linspace(-1.1, 1.1, resolution) * LIMITS[0]

@@ -9,6 +9,7 @@ import numpy as np
 from rhi.control import FMEMatching, FMESchedule, TransitionConfig, WeightedSum
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (
     ASO_S,
     BETA,
@@ -32,6 +33,7 @@ from rhi.metrics import nullspace_projector
 from rhi.sim import Hand
 
 
+@checked
 def transition(
     settle: float = 0.5,
     depth: float = 0.02,

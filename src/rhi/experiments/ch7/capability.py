@@ -23,6 +23,7 @@ from rhi.control.saturation import null_basis
 from rhi.design.executors import parallel_map
 from rhi.device import Device, device
 from rhi.errors import InvalidInput, Unreachable
+from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import capabilities, projector_names
 from rhi.metrics import max_force
@@ -58,6 +59,7 @@ def force_run(dev, q, t, Fe, *, projector: str = "pseudoinverse") -> dict[str, d
     return out
 
 
+@checked
 def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = 4.0) -> Result:
     """Fig. 7.1: planar 3R at q = [π/4, −π/3, −π/6], F_e = [4 sin(πt/2), 0] N, end-effector held.
 
@@ -161,6 +163,7 @@ def _deficiency_row(y: float, xs: np.ndarray, projectors: tuple[ProjectorKind, .
     return out
 
 
+@checked
 def deficiency_map(
     resolution: int = 25,
     progress: Callable[[int, int], None] | None = None,

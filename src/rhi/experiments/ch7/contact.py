@@ -68,6 +68,7 @@ from rhi.control.configuration import optimal_configuration
 from rhi.control.controller import Saturation
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
+from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.nullspace import (
     BARRIER,
     GAIN,
@@ -212,6 +213,7 @@ def _explanation(results: dict, cap: dict, ref: tuple[str, str]) -> list[str]:
     return out
 
 
+@checked
 def palpation(
     *,
     start: str = "rehab",
