@@ -14,6 +14,11 @@ read→write latency, how late ticks started, and the host's RSS at start and en
 streams to disk). Targets (issue 10, 2 cores): < 0.1 % missed, p99 tick ≤ 300 µs, RSS growth
 ≤ 50 MB per hour. The period (1000 µs) is the baseline the tick times are divided by.
 
+Baseline measured in the same run (issue 29): the same set-up over SimLink with `realtime=False`, i.e. the
+same loop body (link read, rendering, safety check, controller step, filter, write, log row) ticking back to
+back, never asleep. The last table divides each link's in-loop step (`t_step`: read → command, the
+controller's part) by that baseline's median (target ≤ 1.5×) and its p99.9 by its own median (target < 3×).
+
     PYTHONPATH=src python benchmarks/bench_runtime.py [--duration 600] [--link udp|sim|both] [--config NAME]
         [--pin] [--priority 50] [--spin]
 
@@ -102,7 +107,8 @@ def _device(port_q, duration: float, config: str | None = None, cpu: int | None 
 
 
 def bench(link_kind: str, duration: float, log_dir: str, config: str | None = None, pin: bool = False,
-          priority: int | None = None, spin: bool = False) -> dict:
+          priority: int | None = None, spin: bool = False, paced: bool = True) -> dict:
+    """One run over `link_kind` ("udp" or "sim"); `paced=False`: SimLink back to back (the baseline), its summary."""
     cfg = None if config is None else load_config(config)
     dev = rhi.device("rhi4") if cfg is None else cfg.device
     ctrl = controller(dev) if cfg is None else cfg.controller()
@@ -135,8 +141,8 @@ def bench(link_kind: str, duration: float, log_dir: str, config: str | None = No
             print(f"  [{link_kind}] t={s['t']:7.1f} s  ticks={s['ticks']}  missed={s['missed']}  "
                   f"max|τ|/limit={s['max_torque_ratio']:.2f}  V={s['V']:.2f}  fault={s['fault']}", flush=True)
 
-    res = run(link, ctrl, duration=duration, virtual=wall, log=Path(log_dir) / f"{link_kind}.rhilog",
-              safety=safety, progress=progress, realtime=link_kind != "udp", cpu=0 if pin else None,
+    res = run(link, ctrl, duration=duration, virtual=wall, log=Path(log_dir) / f"{link_kind}{int(paced)}.rhilog",
+              safety=safety, progress=progress, realtime=link_kind != "udp" and paced, cpu=0 if pin else None,
               priority=priority, spin=spin)
     if proc is not None:
         proc.join(15)
@@ -155,7 +161,7 @@ def report(kind: str, s: dict) -> None:
     print(f"\n{kind}: {s['ticks']} ticks in {s['duration']:.1f} s, fault: {s['fault']}")
     print(f"  missed deadlines   {s['missed']} ({s['missed_pct']:.3f} %; target < 0.1 %), "
           f"slots skipped {s['skipped_slots']}, readings lost {s['lost']}")
-    paced = not s["realtime"]  # device-paced (UDP): each tick waits in read() for the device's next reading
+    paced = not s["realtime"] and kind.startswith("udp")  # device-paced: each tick waits in read() for a reading
     print(f"  tick [µs]          {us(s['tick'])}   (p99 / period = {1e6 * s['tick']['p99'] / PERIOD_US:.2f}"
           + ("; includes the wait for the device's reading)" if paced else "; target p99 ≤ 300 µs)"))
     print(f"  read→write [µs]    {us(s['read_to_write'])}"
@@ -176,11 +182,24 @@ def main() -> None:
     ap.add_argument("--priority", type=int, help="SCHED_FIFO priority of both loops (root or CAP_SYS_NICE)")
     ap.add_argument("--spin", action="store_true", help="both loops wait for their deadlines on a busy core")
     a = ap.parse_args()
+    steps = {}
     with tempfile.TemporaryDirectory() as tmp:
+        base = bench("sim", a.duration, tmp, a.config, a.pin, a.priority, a.spin, paced=False)
+        report("sim back to back (baseline)" + (f" ({a.config})" if a.config else ""), base)
         for kind in (("udp", "sim") if a.link == "both" else (a.link,)):
             label = kind + (f" ({a.config})" if a.config else "") + (" pinned" if a.pin else "") + \
                 (f" SCHED_FIFO {a.priority}" if a.priority else "") + (" spinning" if a.spin else "")
-            report(label, bench(kind, a.duration, tmp, a.config, a.pin, a.priority, a.spin))
+            s = bench(kind, a.duration, tmp, a.config, a.pin, a.priority, a.spin)
+            report(label, s)
+            steps[label] = s["t_step"]
+    b50 = base["t_step"]["p50"]
+    print(f"\nin-loop step vs the same step back to back (baseline p50 {1e6 * b50:.1f} µs, "
+          f"p99.9 {1e6 * base['t_step']['p99.9']:.1f} µs)")
+    print(f"  {'run':40s} {'p50 µs':>8s} {'p50/base':>9s} {'p99.9 µs':>9s} {'p99.9/p50':>10s}")
+    for label, st in steps.items():
+        print(f"  {label:40s} {1e6 * st['p50']:8.1f} {st['p50'] / b50:8.2f}x {1e6 * st['p99.9']:9.1f} "
+              f"{st['p99.9'] / st['p50']:9.2f}x")
+    print("  targets (issue 29, pinned quiet core): p50/base <= 1.5x, p99.9/p50 < 3x")
 
 
 if __name__ == "__main__":
