@@ -1,121 +1,189 @@
-"""First-use compile time of the controller's Numba kernels (a fresh clone, CI, a new user's first run).
+"""First use of the compiled code, cold (a fresh install: Numba compiles) and warm (loaded from Numba's disk cache).
 
-The kernels are compiled once per machine and cached on disk (`cache=True`); this times that
-once, stage by stage, in a fresh temporary ``NUMBA_CACHE_DIR`` in a new process:
+Three stages, in order, in one new process each time (a later stage does not pay again for kernels an
+earlier one compiled):
 
-1. ``Device.terms`` on rhi4 (`rhi.chain_kernel.chain_terms`: chain dynamics + `rhi.terms_kernel.task_terms`);
-2. the composed tick (`rhi.control.kernels.step.tick` with the allocation kernels), `bench_control.make`'s
-   controller with the whole-tick kernel switched off;
-3. the whole tick in one call (`rhi.control.kernels.whole.whole`, which links stages 1 and 2 and the
-   passivity kernel).
+1. ``Device.terms`` on rhi4 (the chain dynamics and task terms);
+2. the tick: the first ``NullSpaceController.step`` of `bench_control.make`'s ch7 controller on its
+   compiled route (the whole tick in one call);
+3. ``simulate``: 50 ms of `bench_sim`'s palpation on the compiled simulation loop (`rhi.sim.fast_loop`).
 
-Baseline measured in the same run: the package at git revision PREVIOUS (extracted with `git archive`,
-run the same way; skipped outside a git checkout). Times are the child process's CPU seconds
-(steadier than wall clock on a shared machine); the stages run in order in one process, so Numba's
-own helpers compiled by an earlier stage are not paid again by a later one.
+Cold: a fresh temporary ``NUMBA_CACHE_DIR``; warm: a second process on the cache the cold one left.
+Baseline measured in the same run: the warm process (its ratio cold / warm is printed), and with
+``--previous REV`` the package at that git revision run the same way (extracted with `git archive`).
+Times are CPU seconds of the child (steadier than wall clock on a shared machine) and wall seconds.
+Issue 29's target: ≤ 20 s from a fresh install to the first compiled tick (stages 1 + 2, cold) on 2 cores.
 
-    PYTHONPATH=src python benchmarks/bench_compile.py [--previous REV] [--repeat K]
+``--kernels K`` adds the K kernels whose cold compile took the most CPU, each split into Numba's front end
+(typing and lowering to LLVM IR), LLVM's function and module optimisation passes, and machine code
+generation (it wraps private methods of Numba's code library; benchmark only).
+
+    PYTHONPATH=src python benchmarks/bench_compile.py [--previous REV] [--repeat K] [--kernels K]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
 import tempfile
 import time
+from collections import defaultdict
 from pathlib import Path
 
 from revision import source_at
 
-#: main before the compile-time work of issue 14
-PREVIOUS = "e9a3029"
-STAGES = ("Device.terms (chain_terms)", "composed tick (step.tick)", "whole tick (whole.whole)")
+STAGES = ("Device.terms", "tick (controller.step)", "simulate (compiled loop)")
 
 
-def stages() -> list[float]:
-    """CPU seconds of the three stages' first calls in this process (the child's work)."""
+def _profile_kernels() -> dict[str, dict[str, float]]:
+    """Per kernel: compiles, CPU seconds of front end, LLVM function passes, module passes and machine code."""
+    from numba.core import codegen, event
+
+    rows: dict[str, dict[str, float]] = defaultdict(lambda: defaultdict(float))
+    stack: list[list] = []  # [start CPU, CPU of nested compiles and LLVM work, name]
+
+    def wrap(name: str, key: str) -> None:
+        f = getattr(codegen.CPUCodeLibrary, name)
+
+        def timed(self, *args, **kwargs):
+            t0 = time.process_time()
+            try:
+                return f(self, *args, **kwargs)
+            finally:
+                dt = time.process_time() - t0
+                if stack:
+                    rows[stack[-1][2]][key] += dt
+                    stack[-1][1] += dt
+
+        setattr(codegen.CPUCodeLibrary, name, timed)
+
+    for name, key in (("_optimize_functions", "function passes"), ("_optimize_final_module", "module passes"),
+                      ("_finalize_final_module", "machine code")):
+        wrap(name, key)
+
+    class Listener(event.Listener):
+        def on_start(self, ev) -> None:
+            f = getattr(ev.data.get("dispatcher"), "py_func", None)
+            stack.append([time.process_time(), 0.0, f"{f.__module__}.{f.__qualname__}" if f else "?"])
+
+        def on_end(self, ev) -> None:
+            t0, inner, name = stack.pop()
+            dt = time.process_time() - t0
+            if stack:
+                stack[-1][1] += dt
+            rows[name]["front end"] += dt - inner
+            rows[name]["compiles"] += 1
+
+    event.register("numba:compile", Listener())
+    return rows
+
+
+def stages(kernels: bool) -> dict:
+    """CPU and wall seconds of the three stages' first calls in this process, and the kernel profile."""
+    rows = _profile_kernels() if kernels else {}
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import bench_control as bc
+    import bench_sim as bs
 
     import rhi
+    from rhi.sim import fast_loop
 
     dev = rhi.device("rhi4")
     a = bc.ticks(3)[1]
-    out = []
-    t0 = time.process_time()
-    dev.terms(a[1], a[2])
-    out.append(time.process_time() - t0)
-    c = bc.make(dev)
-    c._kernel.whole_ok = False
-    t0 = time.process_time()
-    c.step(*a)
-    out.append(time.process_time() - t0)
-    c = bc.make(dev)
-    t0 = time.process_time()
-    c.step(*a)
-    out.append(time.process_time() - t0)
-    return out
+    ctrl = bc.make(dev)
+    sim_ctrl = bs.full_controller()
+    cpu, wall = [], []
+    for call in (lambda: dev.terms(a[1], a[2]), lambda: ctrl.step(*a), lambda: bs.run(sim_ctrl, 0.05)):
+        c0, w0 = time.process_time(), time.perf_counter()
+        call()
+        cpu.append(time.process_time() - c0)
+        wall.append(time.perf_counter() - w0)
+    return {"cpu": cpu, "wall": wall, "compiled_loop": fast_loop.last is not None,
+            "kernels": {k: dict(v) for k, v in rows.items()}}
 
 
-def measure(src: Path) -> list[float] | str:
-    """The stages' CPU seconds for the package in `src`, in a new process with an empty Numba cache."""
-    with tempfile.TemporaryDirectory() as cache:
-        env = {**os.environ, "PYTHONPATH": str(src), "NUMBA_CACHE_DIR": cache}
-        out = subprocess.run([sys.executable, __file__, "--stages-only"], capture_output=True, text=True, env=env)
+def measure(src: Path, cache: str, kernels: bool = False) -> dict | str:
+    """`stages` for the package in `src` in a new process on the Numba cache folder `cache`, or why it failed."""
+    env = {**os.environ, "PYTHONPATH": str(src), "NUMBA_CACHE_DIR": cache}
+    out = subprocess.run([sys.executable, __file__, "--stages-only", *(["--kernels", "1"] if kernels else [])],
+                         capture_output=True, text=True, env=env)
     if out.returncode != 0:
         return f"failed: {out.stderr.strip().splitlines()[-1] if out.stderr.strip() else out.returncode}"
-    return [float(v) for v in out.stdout.split()]
+    return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def previous(rev: str) -> list[float] | str:
-    """The stages' CPU seconds for the package at git revision `rev`, or why it could not run."""
-    try:
-        with source_at(rev) as src:
-            return measure(src)
-    except LookupError as exc:
-        return f"skipped ({exc})"
+def cold_warm(src: Path, kernels: bool = False) -> tuple[dict, dict] | str:
+    """(cold, warm) `stages` of the package in `src`: a fresh cache, then the same cache again."""
+    with tempfile.TemporaryDirectory() as cache:
+        cold = measure(src, cache, kernels)
+        if isinstance(cold, str):
+            return cold
+        warm = measure(src, cache)
+        return (cold, warm) if not isinstance(warm, str) else warm
+
+
+def _best(runs: list[dict], key: str) -> list[float]:
+    return [min(r[key][k] for r in runs) for k in range(len(STAGES))]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--previous", default=PREVIOUS, help="git revision of the baseline")
-    ap.add_argument("--repeat", type=int, default=1, help="runs of each (best kept), alternating")
+    ap.add_argument("--previous", help="git revision of an extra baseline (the package then), run the same way")
+    ap.add_argument("--repeat", type=int, default=1, help="runs of each (best kept)")
+    ap.add_argument("--kernels", type=int, default=0, help="list the K costliest kernels of the cold compile")
     ap.add_argument("--stages-only", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
-    if a.stages_only:  # a child run (fresh NUMBA_CACHE_DIR set by the parent)
-        print(*stages())
+    if a.stages_only:  # a child run (NUMBA_CACHE_DIR set by the parent)
+        print(json.dumps(stages(bool(a.kernels))))
         return
     load = os.getloadavg()[0]
-    now: list[list[float]] = []
-    before: list[list[float]] = []
-    why = ""
+    trees = {"this tree": Path(__file__).resolve().parents[1] / "src"}
+    runs: dict[str, list[tuple[dict, dict]]] = defaultdict(list)
     for i in range(a.repeat):
-        print(f"run {i + 1}/{a.repeat}: this tree ...", file=sys.stderr, flush=True)
-        m = measure(Path(__file__).resolve().parents[1] / "src")
-        if isinstance(m, str):
-            sys.exit(f"this tree {m}")
-        now.append(m)
-        print(f"run {i + 1}/{a.repeat}: @{a.previous} ...", file=sys.stderr, flush=True)
-        p = previous(a.previous)
-        if isinstance(p, str):
-            why = p
-        else:
-            before.append(p)
-    best = [min(r[k] for r in now) for k in range(3)]
-    base = [min(r[k] for r in before) for k in range(3)] if before else None
-    print(f"first-use Numba compile, CPU s, fresh NUMBA_CACHE_DIR, best of {a.repeat}; load average "
-          f"{load:.2f} -> {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
-    print(f"  {'stage':30s} {'this tree':>10s} {'@' + a.previous:>10s} {'ratio':>7s}")
-    for k, name in enumerate(STAGES):
-        b = f"{base[k]:10.1f} {base[k] / best[k]:6.2f}x" if base else f"{'-':>10s} {'-':>7s}"
-        print(f"  {name:30s} {best[k]:10.1f} {b}")
-    total = sum(best)
-    b = f"{sum(base):10.1f} {sum(base) / total:6.2f}x" if base else f"{'-':>10s} {'-':>7s}"
-    print(f"  {'total':30s} {total:10.1f} {b}")
-    if not base:
-        print(f"  previous implementation: {why}")
+        for label, src in trees.items():
+            print(f"run {i + 1}/{a.repeat}: {label} ...", file=sys.stderr, flush=True)
+            m = cold_warm(src, kernels=a.kernels > 0 and i == 0)
+            if isinstance(m, str):
+                sys.exit(f"{label} {m}")
+            runs[label].append(m)
+        if a.previous:
+            print(f"run {i + 1}/{a.repeat}: @{a.previous} ...", file=sys.stderr, flush=True)
+            try:
+                with source_at(a.previous) as src:
+                    m = cold_warm(src)
+            except LookupError as exc:
+                m = f"skipped ({exc})"
+            if isinstance(m, str):
+                print(f"  @{a.previous}: {m}", file=sys.stderr)
+            else:
+                runs["@" + a.previous].append(m)
+    print(f"first use of the compiled code, best of {a.repeat}; load average {load:.2f} -> "
+          f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cores")
+    for label, rs in runs.items():
+        cold_cpu, warm_cpu = _best([c for c, _ in rs], "cpu"), _best([w for _, w in rs], "cpu")
+        cold_wall, warm_wall = _best([c for c, _ in rs], "wall"), _best([w for _, w in rs], "wall")
+        print(f"\n{label} (compiled simulation loop taken: {rs[0][0]['compiled_loop']})")
+        print(f"  {'stage':28s} {'cold CPU s':>10s} {'cold wall s':>11s} {'warm CPU s':>10s} {'warm wall s':>11s} "
+              f"{'cold/warm CPU':>13s}")
+        for k, name in enumerate(STAGES):
+            print(f"  {name:28s} {cold_cpu[k]:10.2f} {cold_wall[k]:11.2f} {warm_cpu[k]:10.3f} {warm_wall[k]:11.3f} "
+                  f"{cold_cpu[k] / warm_cpu[k]:12.0f}x")
+        first = cold_cpu[0] + cold_cpu[1]
+        print(f"  to the first compiled tick (stages 1 + 2): cold {first:.1f} s CPU ({cold_wall[0] + cold_wall[1]:.1f} "
+              f"s wall), warm {warm_cpu[0] + warm_cpu[1]:.3f} s CPU; target (issue 29) <= 20 s")
+    first_runs = runs["this tree"][0][0]["kernels"]
+    if a.kernels and first_runs:
+        cols = ("front end", "function passes", "module passes", "machine code")
+        total = {c: sum(r.get(c, 0.0) for r in first_runs.values()) for c in cols}
+        print(f"\ncold compile by kernel, CPU s (all {len(first_runs)} kernels: "
+              + ", ".join(f"{c} {v:.1f}" for c, v in total.items()) + ")")
+        print(f"  {'kernel':58s} {'n':>3s} " + " ".join(f"{c:>15s}" for c in cols))
+        for name, r in sorted(first_runs.items(), key=lambda kv: -sum(kv[1].get(c, 0.0) for c in cols))[:a.kernels]:
+            print(f"  {name[-58:]:58s} {int(r.get('compiles', 0)):3d} "
+                  + " ".join(f"{r.get(c, 0.0):15.2f}" for c in cols))
 
 
 if __name__ == "__main__":
