@@ -258,3 +258,18 @@ def test_chapter_6_controllers_run_the_law_as_written(rhi4):
     assert S6.palpation_controller(rhi4, Mf, null_space="scaled").config.null_space == "scaled"
     ctrl = _ch6_controller(rhi4, Mf)()
     assert ctrl.config.null_space == "clipped" and ctrl._kernel is not None  # compiled, not the reference tick
+
+
+def test_ratio_map_reports_the_matched_cost(small_map, rhi4):
+    """Fig. 6.10's map carries ν of each matched configuration (eq. 6.10 + barrier), recomputed here at one point."""
+    a = small_map.arrays
+    ok = np.isfinite(a["ratio"])
+    assert ok.any() and np.all(np.isfinite(a["nu_stiff"][ok])) and np.all(a["nu_free"][ok] >= 0.0)
+    i, j = np.argwhere(ok)[0]
+    _, _, Mf, Ms = S6.desired_fmes(rhi4, np.array(S6.U), S6.Q_HOME)
+    from rhi.control import WeightedSum
+
+    obj = WeightedSum(S6.controller_terms(Ms, rhi4.torque_max))
+    x = (a["x"][j], a["y"][i])
+    q = S6.best_match(rhi4, x, obj, starts=S6.start_configurations(rhi4, x, 1))
+    assert obj.value(rhi4, q) == pytest.approx(a["nu_stiff"][i, j], rel=1e-9)

@@ -35,7 +35,7 @@ def _rhi4() -> Device:
 
 
 def _ratio_row(y: float, xs: np.ndarray, starts: int, limits: bool) -> np.ndarray:
-    """(6, len(xs)): F_max by scaling and LP and Λ (free, stiff) along the grid row at height y [m].
+    """(8, len(xs)): F_max by scaling and LP, Λ and the matched cost ν (free, stiff) along the grid row at height y [m].
 
     Every point is matched independently from the same deterministic starts (`best_match`),
     so a row's values do not depend on which process computes it. NaN where unreachable.
@@ -45,7 +45,7 @@ def _ratio_row(y: float, xs: np.ndarray, starts: int, limits: bool) -> np.ndarra
     u = np.array(U)
     _, _, Mf, Ms = _desired_rhi4()
     objs = [WeightedSum(controller_terms(D, hi, limits=limits)) for D in (Mf, Ms)]
-    out = np.full((6, len(xs)), np.nan)
+    out = np.full((8, len(xs)), np.nan)
     for i, x in enumerate(xs):
         try:
             qs = start_configurations(dev, (x, y), starts)
@@ -62,6 +62,7 @@ def _ratio_row(y: float, xs: np.ndarray, starts: int, limits: bool) -> np.ndarra
             out[c, i] = max_force_scaling(J, u, torque_min=lo, torque_max=hi)
             out[2 + c, i] = max_force(J, u, torque_min=lo, torque_max=hi, M=M)
             out[4 + c, i] = effective_inertia(J, M, u)
+            out[6 + c, i] = obj.value(dev, q)
         else:
             continue
         out[:, i] = np.nan
@@ -110,8 +111,8 @@ def fmax_ratio_map(
     fn = functools.partial(_ratio_row, xs=xs, starts=starts, limits=limits)
     rows = parallel_map(fn, list(ys), executor=executor, workers=workers, progress=progress,
                         units=[resolution] * resolution)
-    data = np.stack(rows, axis=1)  # (6, ny, nx)
-    fs_free, fs_stiff, lp_free, lp_stiff, lam_free, lam_stiff = data
+    data = np.stack(rows, axis=1)  # (8, ny, nx)
+    fs_free, fs_stiff, lp_free, lp_stiff, lam_free, lam_stiff, nu_free, nu_stiff = data
     ratio = fs_stiff / fs_free
     ratio_lp = lp_stiff / lp_free
     ok = np.isfinite(ratio)
@@ -130,13 +131,18 @@ def fmax_ratio_map(
         Row("fraction of points with ratio > 1, LP with null-space torques", None, stat(np.mean, rl > 1.0)),
         Row("median ratio, LP", None, stat(np.median, rl)),
         Row("median Λ ratio Λ_Stiff/Λ_Free", None, stat(np.median, (lam_stiff / lam_free)[ok])),
+        Row("median matched cost ν of M_Stiff^des (eq. 6.10 + barrier) over the points", None,
+            stat(np.median, nu_stiff[ok])),
+        Row("smallest matched cost ν of M_Stiff^des at the points where F_max(M_Stiff) ≤ F_max(M_Free)", None,
+            stat(np.min, nu_stiff[ok][r <= 1.0]), "", "compare with the median: how well M_Stiff^des is matched there"),
     ]
     return Result(
         "ch6.fmax_ratio_map",
         "Fig. 6.10: F_max ratio M_Stiff^des vs M_Free^des configurations over rhi4's workspace, u = [0, 1]",
         [Table("Fig. 6.10 F_max ratio", rows_out)],
         {"x": xs, "y": ys, "ratio": ratio, "ratio_lp": ratio_lp, "fs_free": fs_free, "fs_stiff": fs_stiff,
-         "lp_free": lp_free, "lp_stiff": lp_stiff, "lam_free": lam_free, "lam_stiff": lam_stiff},
+         "lp_free": lp_free, "lp_stiff": lp_stiff, "lam_free": lam_free, "lam_stiff": lam_stiff,
+         "nu_free": nu_free, "nu_stiff": nu_stiff},
         ["The thesis shows Fig. 6.10 as a map only; we report its extremes and the fraction of points "
          "where M_Stiff^des gives more force.",
          f"Configurations: `best_match` with {starts} start(s) per point, joint limits respected"
