@@ -57,6 +57,30 @@ def test_bad_protocols_are_refused_naming_the_key(old_new, key):
         variant(x=old_new)
 
 
+@pytest.mark.parametrize("old_new, key", [
+    ("kp = 2000.0|kp = -1.0", "teleoperation.kp"),
+    ("scale = 1.0 |scale = 0.0 ", "teleoperation.scale"),
+    ("offset = [0.0, 0.0]|offset = [0.0, 0.0, 0.0]", "teleoperation.offset"),
+    ("[teleoperation]|[teleoperation]\nrotation = 1.0", "teleoperation.rotation"),
+])
+def test_bad_teleoperation_is_refused_naming_the_key(old_new, key):
+    with pytest.raises(InvalidInput, match=f"^{key}"):
+        variant("ch5_path_following", x=old_new)
+
+
+def test_teleoperation_is_the_ch5_set_up_and_only_for_path_following():
+    p = load_protocol("ch5_path_following")
+    t = p.teleoperation
+    assert (t["slave"], t["kp"], t["kd"], t["scale"], t["offset"].tolist()) == ("rehab_slave", 2000.0, 60.0, 1.0,
+                                                                                [0.0, 0.0])
+    text = p.text[:p.text.index("[teleoperation]")] + p.text[p.text.index("[order]"):]
+    absent = parse_protocol(tomllib.loads(text)).teleoperation  # its defaults: the same set-up
+    assert {k: v.tolist() if k == "offset" else v for k, v in absent.items()} == \
+        {k: v.tolist() if k == "offset" else v for k, v in t.items()}
+    with pytest.raises(InvalidInput, match="^teleoperation: a discrimination_2afc task"):
+        variant(x="[order]|[teleoperation]\nscale = 2.0\n[order]")
+
+
 def test_impossible_adaptive_ranges_are_refused():
     st = ('method = "constant"|method = "staircase"\nstart_percent = 30.0\nstep_percent = 5.0\ntrials = 10\n'
           'min_percent = -20.0\nmax_percent = 20.0\n#')
@@ -265,3 +289,12 @@ def test_cli_simulate_then_analyze_reproduces_ch3_psychophysics_quick(tmp_path):
         assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-15), k
     page = (tmp_path / "an" / "report.html").read_text()  # a study report judges no thesis claim
     assert "Headline claims" not in page and not (tmp_path / "an" / "fidelity.md").exists()
+
+
+def test_simulated_users_refuse_another_teleoperation():
+    from rhi.experiments.participants import simulated_path_study
+
+    with pytest.raises(InvalidInput, match="^teleoperation.scale"):
+        simulated_path_study(variant("ch5_path_following", x="scale = 1.0 |scale = 2.0 "), 2)
+    with pytest.raises(InvalidInput, match="^teleoperation.offset"):
+        simulated_path_study(variant("ch5_path_following", x="offset = [0.0, 0.0]|offset = [0.0, 0.01]"), 2)

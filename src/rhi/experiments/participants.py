@@ -185,7 +185,8 @@ def simulated_path_study(protocol: Protocol, participants: int = 8, *, out: str 
 
     Raises:
         InvalidInput: conditions that are not the ch. 5 scenarios (rhi4 with ch5_tmi or ch5_manipulability,
-            rehab without a configuration).
+            rehab without a configuration), or a ``[teleoperation]`` other than ch. 5's (rehab_slave, K_p 2000 N/m,
+            K_d 60 N s/m, no scaling or offset: `rhi.sim.Teleoperation`'s defaults).
     """
     from rhi.design.executors import parallel_map
     from rhi.study.results import analyse_task
@@ -200,6 +201,15 @@ def simulated_path_study(protocol: Protocol, participants: int = 8, *, out: str 
             raise InvalidInput(f"conditions[{i}]: the simulated users run the ch. 5 scenarios only (rhi4 with config "
                                f"ch5_tmi or ch5_manipulability, rehab without), got {c.device!r}, {c.config!r}")
         keys[c.name] = key
+    tele = protocol.teleoperation or {}
+    ch5 = {"slave": "rehab_slave", "slave_params": {}, "kp": 2000.0, "kd": 60.0, "scale": 1.0}
+    for k, v in ch5.items():
+        if tele.get(k) != v:
+            raise InvalidInput(f"teleoperation.{k}: the simulated users teleoperate ch. 5's slave set-up only "
+                               f"({k} = {v!r}), got {tele.get(k)!r}")
+    if np.any(tele["offset"] != 0.0):
+        raise InvalidInput(f"teleoperation.offset: the simulated users teleoperate ch. 5's slave set-up only "
+                           f"(no offset), got {tele['offset'].tolist()}")
     rng = np.random.default_rng([protocol.seed, 2])
     base = protocol.task["speed"]
     speed = np.maximum(base * (1.0 + speed_sd * rng.standard_normal(int(participants))), 0.5 * base)

@@ -233,8 +233,7 @@ def run(
     m = dev.m if dev is not None else 0
     period = 1.0 / rate
     N = None if duration is None else int(round(duration * rate))
-    ms = getattr(getattr(getattr(link, "session", None), "teleop", None), "slave", None)
-    ms = ms.m if ms is not None else 0
+    ms = int(getattr(link, "slave_m", 0))  # a teleoperated slave's end effector (`rhi.runtime.teleoperated`)
     w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"),
                                                 "task_axes": getattr(dev, "task_axes", None), "rate": float(rate),
                                                 "source": type(link).__name__, "realtime": bool(realtime),

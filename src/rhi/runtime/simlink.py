@@ -23,16 +23,17 @@ class SimLink:
     Args:
         plant: the simulated device (already `reset` to its start).
         rate: control rate [Hz] (the plant's timestep must divide its period).
-        hand, physical, teleop: as in `rhi.sim.simulate`.
+        hand, physical: as in `rhi.sim.simulate` (a teleoperated slave: wrap the link in
+            `rhi.runtime.teleoperated.Teleoperated`).
 
     Attributes:
         session: the `rhi.sim.Session` it advances (its `hand` may be replaced while running).
         fault: why the simulation stopped (non-finite force, unstable physics), else None.
     """
 
-    def __init__(self, plant: Plant, *, rate: float = 1000.0, hand=None, physical=None, teleop=None) -> None:
+    def __init__(self, plant: Plant, *, rate: float = 1000.0, hand=None, physical=None) -> None:
         self.plant = plant
-        self.session = Session(plant, rate=rate, hand=hand, physical=physical, teleop=teleop)
+        self.session = Session(plant, rate=rate, hand=hand, physical=physical)
         self.n, self.m = plant.n, plant.m
         self.rate = float(rate)
         self.seq = 0
@@ -67,16 +68,13 @@ class SimLink:
         io, n, m = p.sensors(), p.n, p.m  # q, q̇ and the F/T reading in one call
         xv = p._sd[self._xv]
         sensors = {"ft": io[2 * n:], "x": xv[:m], "xdot": xv[m:], "F_hand": s.F_hand, "work": np.array([s.work])}
-        if s.teleop is not None:
-            sensors["slave_x"] = s.slave_x
         return Reading(s.t, self.seq, io[:n], io[n:2 * n], sensors, status, self.cmd_seq, s.fault or "")
 
     def write(self, tau, *, enable: bool) -> None:
         """Apply τ for one control period (zero when disabled or faulted) and advance the plant."""
         s = self.session
         self.enabled = bool(enable) and s.fault is None
-        x_m = self.plant.device.fk(self.plant.q) if s.teleop is not None else None
-        s.advance(np.asarray(tau, dtype=float) if self.enabled else self._zero, x_m)
+        s.advance(np.asarray(tau, dtype=float) if self.enabled else self._zero)
         self.cmd_seq += 1
         self.seq += 1
 

@@ -3,11 +3,13 @@
 Each condition's controller comes from its run configuration (`rhi.runtime.config`; a condition without one
 renders through ``ForceRendering`` with no null-space task, the §3.5 NHIs). A probe renders a one-sided
 spring of the sample's stiffness from the fixture's point along its direction plus the virtual fixture
-(`rhi.sim.Wall` + `rhi.sim.Fixture`); a path-following run renders nothing but the controller. The loop is
+(`rhi.sim.Wall` + `rhi.sim.Fixture`); a path-following run renders nothing but the controller, and a simulated
+slave robot follows the master by teleoperation (`rhi.study.slave`; its position is logged as ``slave_x``). The loop is
 `rhi.runtime.run` in a thread of its own (zero torque and a log whatever ends it), stopped by an event
 when the participant moves on. The link: ``sim`` — a fresh MuJoCo plant at the start point per probe, the
-physical obstacle as a stop, and as the hand either the simulated one (a minimum-jerk stroke, or the W path)
-or, for a dry run, the mouse (`rhi.sim.DraggableHand`, its target set from the experimenter's page); or
+physical obstacle as a stop, and as the hand either the simulated one (a minimum-jerk stroke, or the W path
+mapped into the master's frame) or, for a dry run, the mouse (`rhi.sim.DraggableHand`, its target set from the
+experimenter's page, or for path following from the participant's canvas); or
 ``udp://HOST:PORT`` — a device process (`rhi device-server` or a lab's driver), whose obstacle is physical.
 """
 
@@ -19,8 +21,10 @@ from typing import Any
 
 import numpy as np
 
+from rhi.control import NullSpaceController
 from rhi.errors import InvalidInput
 from rhi.runtime.config import RunConfig, load_config, parse_config
+from rhi.study import slave as sl
 from rhi.study.protocol import Condition, Protocol
 
 _RENDERING = {"controller": {"primary": {"law": "force_rendering", "damping": 0.0, "passivity": "off"},
@@ -63,6 +67,10 @@ class Haptics:
             self._address = parse_url(link)
         self.protocol, self.link, self.rate, self.mouse = protocol, link, float(rate), mouse
         self.configs = {c.name: condition_config(c) for c in protocol.conditions}
+        self.slave = None if protocol.teleoperation is None else sl.slave_device(protocol)
+        if self.slave is not None and self.slave.m != len(protocol.task["center"]):
+            raise InvalidInput(f"teleoperation.slave: {self.slave.name} moves in {self.slave.m} axes, the path in "
+                               f"{len(protocol.task['center'])} (task.center)")
         fx = protocol.fixture
         self.start_point: np.ndarray | None = None if fx is None else np.asarray(fx["point"], float)
         self.direction: np.ndarray = np.zeros(0) if fx is None else \
@@ -88,16 +96,15 @@ class Haptics:
 
     def _sim_link(self, cfg: RunConfig):
         from rhi.runtime import SimLink
-        from rhi.sim import Hand, MinimumJerkPalpation, Plant, stop, w_path
+        from rhi.sim import Hand, MinimumJerkPalpation, Plant, stop
         from rhi.sim.hand import DraggableHand
 
         dev, s, task = cfg.device, cfg.sim, self.protocol.task
         plant = Plant(dev, friction=s["friction"], timestep=s["timestep"], handle_mass=s["handle_mass"])
         q0 = np.asarray(s["q0"], float)
-        goal = self.start_point if self.start_point is not None else \
-            w_path(task["center"][:dev.m], width=task["width"], height=task["height"], speed=task["speed"]).points[0]
+        goal = self.start_point if self.start_point is not None else sl.master_path(self.protocol).points[0]
         if np.linalg.norm(dev.fk(q0) - goal) > 1e-3:
-            q0 = dev.ik(goal, np.full(dev.n, 0.3))
+            q0 = dev.ik(goal, q0 if dev.n == len(q0) else np.full(dev.n, 0.3))
         plant.reset(q0)
         physical = None
         ob = self.protocol.obstacle
@@ -112,8 +119,7 @@ class Haptics:
             depth = (ob["distance"] if ob is not None else 0.08) + 0.01
             hand = MinimumJerkPalpation(self.start_point, self.direction, depth, task["stroke_time"])
         else:
-            hand = Hand(w_path(task["center"][:dev.m], width=task["width"], height=task["height"],
-                               speed=task["speed"]))
+            hand = Hand(sl.master_path(self.protocol))
         self._hand = hand
         return SimLink(plant, rate=self.rate, hand=hand, physical=physical)
 
@@ -127,9 +133,33 @@ class Haptics:
             raise InvalidInput("hand: the mouse is the hand only in a dry run (--mouse) of a task with a fixture")
         if not np.isfinite(depth) or abs(depth) > 0.5:
             raise InvalidInput(f"depth: expected a finite offset within 0.5 m, got {depth!r}")
+        self._grip(self.start_point + float(depth) * self.direction)
+
+    def hand_point(self, point) -> None:
+        """Dry run of path following: the mouse-hand pulls the master to where the map sends the slave to `point`.
+
+        Args:
+            point: (m,) the pointer in the slave's frame, the participant's canvas [m].
+
+        Raises:
+            InvalidInput: not a mouse dry run of a path-following task, or a point that is not (m,) finite values
+                within 1 m of the path's centre.
+        """
+        if not self.mouse or self.slave is None:
+            raise InvalidInput("hand: the mouse drives the master only in a dry run (--mouse) of a path-following task")
+        c = np.asarray(self.protocol.task["center"], float)
+        try:
+            x = np.asarray(point, dtype=float)
+        except (TypeError, ValueError):
+            x = np.full(1, np.nan)
+        if x.shape != c.shape or not np.isfinite(x).all() or np.linalg.norm(x - c) > 1.0:
+            raise InvalidInput(f"point: expected {len(c)} finite coordinates within 1 m of task.center, got {point!r}")
+        self._grip(sl.to_master(self.protocol, x))
+
+    def _grip(self, target: np.ndarray) -> None:
         with self._lock:
             if self._hand is not None:
-                self._hand.target = self.start_point + float(depth) * self.direction
+                self._hand.target = target
 
     # ------------------------------------------------------------------ the loop
     @property
@@ -148,30 +178,38 @@ class Haptics:
         if condition not in self.configs:
             raise InvalidInput(f"condition: {condition!r} is not one of {sorted(self.configs)}")
         cfg = self.configs[condition]
+        tele = None if self.slave is None else sl.teleoperation(self.protocol, self.slave)
+        controller = cfg.controller() if tele is None else \
+            NullSpaceController(cfg.device, sl.live_tmi(cfg.controller_config, tele))
         if self.link == "sim":
             link = self._sim_link(cfg)
         else:
             from rhi.runtime.udp import UDPLink
 
             link = UDPLink(*self._address, rate=self.rate, connect_timeout=10.0)  # the device process may be starting
+        if tele is not None:
+            from rhi.runtime.teleoperated import Teleoperated
+
+            link = Teleoperated(link, cfg.device, tele, rate=self.rate)
         limit = self.protocol.task.get("probe_time") or self.protocol.task.get("time_limit")
         from rhi.sim.telemetry import Telemetry
 
         self._until = threading.Event()
         self.telemetry = Telemetry(every=max(1, int(self.rate // 50)))
         self.status = {"condition": condition, "t": 0.0, "ticks": 0, "missed": 0, "fault": None}
-        self._thread = threading.Thread(target=self._run, args=(cfg, link, log, stiffness, limit, self._until),
+        self._thread = threading.Thread(target=self._run, args=(cfg, controller, link, log, stiffness, limit,
+                                                                 self._until),
                                         name="rhi-study-probe", daemon=True)
         self._thread.start()
 
-    def _run(self, cfg: RunConfig, link, log: Path, stiffness, limit, until: threading.Event) -> None:
+    def _run(self, cfg: RunConfig, controller, link, log: Path, stiffness, limit, until: threading.Event) -> None:
         from rhi.runtime import run
 
         def progress(s: dict) -> None:
             self.status = {**self.status, **s}
 
         try:
-            res = run(link, cfg.controller(), rate=self.rate, duration=limit, safety=cfg.safety, log=log,
+            res = run(link, controller, rate=self.rate, duration=limit, safety=cfg.safety, log=log,
                       virtual=self.virtual(stiffness), progress=progress, until=until, telemetry=self.telemetry)
             self.last = {**res.summary, "log": str(log)}
             self.status = {**self.status, "fault": res.summary["fault"], "ticks": res.summary["ticks"]}
@@ -180,12 +218,15 @@ class Haptics:
             self.status = {**self.status, "fault": self.last["fault"]}
 
     def state(self) -> dict[str, Any]:
-        """The newest tick of the probe in progress: handle x [m], rendered force F_env [N], torques τ [N m]."""
+        """The newest tick of the probe in progress: x [m], F_env [N], τ [N m], the slave's slave_x [m] if any."""
         snap = None if self.telemetry is None or not self.running else self.telemetry.latest()
         if snap is None:
             return {}
-        return {"x": np.asarray(snap.x).tolist(), "F_env": np.asarray(snap.F_env).tolist(),
-                "tau": np.asarray(snap.tau).tolist(), "safety": snap.safety}
+        out = {"x": np.asarray(snap.x).tolist(), "F_env": np.asarray(snap.F_env).tolist(),
+               "tau": np.asarray(snap.tau).tolist(), "safety": snap.safety}
+        if hasattr(snap, "slave_x"):
+            out["slave_x"] = np.asarray(snap.slave_x).tolist()
+        return out
 
     def stop(self) -> dict[str, Any] | None:
         """End the probe in progress (zero torque, log closed); returns its summary (None if none ran)."""

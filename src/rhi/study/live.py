@@ -1,14 +1,15 @@
 """A participant's session run live: the trial state machine between the pages, the device and the folder.
 
 Discrimination (§3.5): a trial begins (after its rest, if the protocol puts one there) with the first sample
-rendered (`phase` "probe_1"); the participant's "next sample" replaces it with the second ("probe_2"); an
-answer ("first" or "second") ends the trial, which is committed to the participant's folder at once
+rendered (`phase` "probe_1"); the participant's "next sample" replaces it with the second ("probe_2"); an answer
+("first" or "second") ends the trial, which is committed to the participant's folder at once
 (`rhi.study.session`), and the next trial's first sample follows. The response time runs from the second
-sample's start to the answer. Path following (§5.5): "next" starts a run, "next" again ends it; the run's
-tracking error, effort and completion time come from its log. The experimenter may pause (the device loop
-stops: zero torque), resume (the current probe starts again, on a new log), abort (the session ends; the same
-command resumes it at the next uncommitted trial) and write notes. An optional rest is ended by the
-participant, a required one by the experimenter.
+sample's start to the answer. Path following (§5.5): "next" starts a run, "next" again ends it; the participant
+drives the master and a simulated slave robot follows it (`rhi.study.slave`); the run's tracking error (of the
+slave's end effector), the user's effort (on the master) and the completion time come from its log. The
+experimenter may pause (the device loop stops: zero torque), resume (the current probe starts again, on a new
+log), abort (the session ends; the same command resumes it at the next uncommitted trial) and write notes. An
+optional rest is ended by the participant, a required one by the experimenter.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from rhi.errors import InvalidInput
+from rhi.study import slave as sl
 from rhi.study.adaptive import procedure, replay
 from rhi.study.haptics import Haptics
 from rhi.study.session import Session, answer_row, run_row
@@ -126,6 +128,8 @@ class StudyRun:
                 self.phase = "running"
                 self._start_probe("run")
             elif self.phase == "running":
+                if self.haptics.running and not self.haptics.status.get("ticks"):
+                    raise InvalidInput("next: the run has not started yet (the device loop is starting)")
                 summary = self.haptics.stop()
                 self._commit_run(summary)
             else:
@@ -226,7 +230,9 @@ class StudyRun:
             if "reference_path" in show:
                 v["path"] = reference_path(self.protocol).tolist()
             if "slave" in show:
-                v["slave"] = self.haptics.state().get("x")
+                v["slave"] = self.haptics.state().get("slave_x")
+            if self.haptics.mouse and self.haptics.slave is not None:
+                v["hand"] = ph == "running"  # dry run: the pointer on the canvas is the hand
             return v
 
     def experimenter_view(self) -> dict[str, Any]:
@@ -246,29 +252,41 @@ class StudyRun:
                     "device": {k: st.get(k) for k in keys},
                     "state": self.haptics.state(), "running": self.haptics.running, "link": self.haptics.link,
                     "mouse": self.haptics.mouse,
+                    "path": None if self.haptics.slave is None else reference_path(self.protocol).tolist(),
+                    "teleoperation": None if self.haptics.slave is None else {
+                        "slave": self.haptics.slave.name, "scale": self.protocol.teleoperation["scale"],
+                        "offset": self.protocol.teleoperation["offset"].tolist()},
                     "notes": self.notes, "paused_by_fault": self.fault,
                     "last_fault": (self.haptics.last or {}).get("fault")}
 
 
 def reference_path(protocol) -> np.ndarray:
-    """(k, 2) corners of a path-following task's W path [m]."""
-    from rhi.sim import w_path
-
-    t = protocol.task
-    return np.asarray(w_path(np.asarray(t["center"])[:2], width=t["width"], height=t["height"], speed=t["speed"])
-                      .points)
+    """(k, 2) corners of a path-following task's W path in the slave's frame [m]."""
+    return np.asarray(sl.reference(protocol).points)
 
 
 def path_measures(run: StudyRun, log) -> dict[str, float]:
-    """§5.5 measures of a run's log: mean distance to the path [m], the hand's work ∫F·ẋ dt [J], duration [s]."""
+    """§5.5 measures of a run's log: the slave's tracking error, the user's effort, the completion time.
+
+    tracking_error: the mean distance ‖L_d − L_t‖ of the slave's end effector (the log's ``slave_x``) to the
+    reference path [m]; effort: the hand's work on the master W = ∫F_hᵀẋ dt (eq. 5.15, trapezoidal) [J];
+    completion_time: the run's duration [s].
+
+    Raises:
+        InvalidInput: a log without the slave's positions.
+    """
     P = reference_path(run.protocol)
-    x = np.asarray(log.x)[:, :2]
+    x = np.asarray(log.slave_x)
+    if x.ndim != 2 or x.shape[1] != P.shape[1]:
+        raise InvalidInput("log: the run's log holds no slave positions (slave_x); a path-following run needs the "
+                           "teleoperated slave")
     seg_a, seg_b = P[:-1], P[1:]
     d = seg_b - seg_a
     s = np.clip(np.einsum("tkj,kj->tk", x[:, None, :] - seg_a[None], d) / np.einsum("kj,kj->k", d, d), 0.0, 1.0)
     dist = np.linalg.norm(x[:, None, :] - (seg_a[None] + s[..., None] * d[None]), axis=-1).min(axis=1)
-    F, v, tt = np.asarray(log.F_hand)[:, :2], np.asarray(log.xdot)[:, :2], np.asarray(log.t)
-    power = np.abs(np.einsum("tj,tj->t", F, v))
+    m = np.asarray(log.x).shape[1]
+    F, v, tt = np.asarray(log.F_hand)[:, :m], np.asarray(log.xdot)[:, :m], np.asarray(log.t)
+    power = np.einsum("tj,tj->t", F, v)
     effort = float(np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(tt))) if len(tt) > 1 else 0.0
     return {"tracking_error": float(dist.mean()) if len(dist) else 0.0, "effort": effort,
             "completion_time": float(tt[-1] - tt[0]) if len(tt) else 0.0}

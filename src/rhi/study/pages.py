@@ -2,11 +2,12 @@
 
 ``/`` is the participant's page: it shows only what `StudyRun.participant_view` returns (the protocol's
 ``[display]``): a "next sample" control, the two answer buttons and their keys (N or space; 1 or ←, 2 or →),
-for path following the reference path and the slave. ``/experimenter`` shows progress, the trial, the device's
-live state and safety, and pause, resume, abort and a note field. Each page polls its JSON view
-(``/api/participant``, ``/api/experimenter``) and posts its actions (``/api/participant/next``,
-``/api/participant/answer``, ``/api/experimenter/pause|resume|abort|note|hand``). The pages are plain HTML
-and JavaScript with no dependencies (the 3-D viser view shows a device, not a study; a participant must see
+for path following the reference path and the teleoperated slave's end effector (in a mouse dry run the
+pointer on that canvas is the hand). ``/experimenter`` shows progress, the trial, the device's live state and
+safety, the path with the slave and the master's handle mapped onto it, and pause, resume, abort and a note
+field. Each page polls its JSON view (``/api/participant``, ``/api/experimenter``) and posts its actions
+(``/api/participant/next|answer|hand``, ``/api/experimenter/pause|resume|abort|note|hand``). The pages are plain
+HTML and JavaScript with no dependencies (the 3-D viser view shows a device, not a study; a participant must see
 nothing but what the protocol allows).
 """
 
@@ -72,6 +73,7 @@ class _Handler(BaseHTTPRequestHandler):
             actions = {
                 "/api/participant/next": lambda: run.next(),
                 "/api/participant/answer": lambda: run.answer(str(body.get("answer"))),
+                "/api/participant/hand": lambda: run.haptics.hand_point(body.get("point")),
                 "/api/experimenter/pause": run.pause,
                 "/api/experimenter/resume": run.resume,
                 "/api/experimenter/abort": run.abort,

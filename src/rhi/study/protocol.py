@@ -21,6 +21,10 @@ undeclared participant fields raise `InvalidInput` naming the key path:
   ``long_rest_every``, ``long_rest_seconds`` (a required rest), ``training`` (unscored trials per condition).
 - ``[fixture]`` (a virtual fixture holding the handle on a line: ``point``, ``direction`` [m],
   ``stiffness`` [N/m], ``damping`` [N s/m]) and ``[obstacle]`` (a physical stop ``distance`` [m] along it).
+- ``[teleoperation]`` (path following only; the §5.4 set-up when absent): the simulated slave robot that follows
+  the master, ``slave`` (a bundled device, "rehab_slave"), ``slave_params``, its Cartesian PD ``kp`` [N/m] and
+  ``kd`` [N s/m], and the master→slave map x_s,des = ``scale`` x_m + ``offset`` [m] (`rhi.sim.Teleoperation`);
+  the reference path lies in the slave's workspace.
 - ``[display]``: ``participant``: what the participant's page shows, out of `PARTICIPANT_ELEMENTS`.
 - ``[participant]``: ``fields`` (name = "integer" | "number" | "text" | a list of choices) and ``required``
   (names among them): nothing else about a participant is stored.
@@ -102,6 +106,9 @@ _ROOT = {
     "fixture": (S.table({"point": (S.vector(), _R), "direction": (S.vector(), _R), "stiffness": (_nonneg, 1000.0),
                          "damping": (_nonneg, 5.0)}), None),
     "obstacle": (S.table({"distance": (_pos, _R), "stiffness": (_nonneg, 2.0e4), "damping": (_nonneg, 50.0)}), None),
+    "teleoperation": (S.table({"slave": (S.string, "rehab_slave"), "slave_params": (S.numbers_table, {}),
+                               "kp": (_nonneg, 2000.0), "kd": (_nonneg, 60.0), "scale": (_pos, 1.0),
+                               "offset": (S.vector(), None)}), {}),
     "display": (S.table({"participant": (_strings, _R)}), _R),
     "participant": (S.table({"fields": (_fields, {}), "required": (_strings, [])}), {}),
 }
@@ -134,6 +141,7 @@ class Protocol:
         description, seed: as in the file.
         task, stimulus, order, blocks, fixture, obstacle: the checked tables (dicts, SI units; fixture and
             obstacle None where absent).
+        teleoperation: the slave's table of a path-following task (defaults filled in, ``offset`` (m,)), else None.
         conditions: the conditions in file order.
         display: the elements the participant's page shows.
         fields: declared participant fields {name: "integer" | "number" | "text" | choices}; required: names.
@@ -151,6 +159,7 @@ class Protocol:
     blocks: dict[str, Any]
     fixture: dict[str, Any] | None
     obstacle: dict[str, Any] | None
+    teleoperation: dict[str, Any] | None
     display: tuple[str, ...]
     fields: dict[str, str | tuple[str, ...]]
     required: tuple[str, ...]
@@ -243,6 +252,21 @@ def _check_stimulus(st: dict) -> None:
                 raise InvalidInput(f"stimulus.lapse: must be < 0.5, got {st['lapse']:g}")
 
 
+def _teleoperation(kind: str, d: dict, given: bool) -> dict[str, Any] | None:
+    """The `[teleoperation]` table of a path-following task (its defaults when absent), None for the others."""
+    if kind != "path_following":
+        if given:
+            raise InvalidInput(f"teleoperation: a {kind} task has no teleoperated slave")
+        return None
+    tele = dict(d["teleoperation"])
+    m = len(d["task"]["center"])
+    off = np.zeros(m) if tele["offset"] is None else tele["offset"]
+    if off.shape != (m,):
+        raise InvalidInput(f"teleoperation.offset: expected {m} values (the length of task.center), got {off.tolist()}")
+    tele["offset"] = off
+    return tele
+
+
 def parse_protocol(data: dict, *, name: str = "protocol", source: str = "<dict>", text: str = "") -> Protocol:
     """A `Protocol` from a parsed TOML document.
 
@@ -285,7 +309,8 @@ def parse_protocol(data: dict, *, name: str = "protocol", source: str = "<dict>"
             raise InvalidInput("fixture.direction: must be non-zero")
     return Protocol(name=name, source=source, text=text, description=d["description"], seed=d["seed"],
                     task=d["task"], stimulus=st, conditions=conds, order=d["order"], blocks=d["blocks"],
-                    fixture=fx, obstacle=ob, display=tuple(d["display"]["participant"]), fields=fields,
+                    fixture=fx, obstacle=ob, teleoperation=_teleoperation(kind, d, "teleoperation" in data),
+                    display=tuple(d["display"]["participant"]), fields=fields,
                     required=tuple(d["participant"]["required"]))
 
 
