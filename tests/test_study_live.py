@@ -168,21 +168,23 @@ def test_path_following_run_measures(tmp_path):
 
 def test_simulated_path_following_study(tmp_path):
     """`rhi study simulate` of a path-following protocol: ch. 5's teleoperation runs as the users, then analyze."""
-    text = load_protocol("ch5_path_following").text.replace("width = 0.16", "width = 0.04").replace(
-        "height = 0.25", "height = 0.05").replace("speed = 0.02 ", "speed = 0.05 ").replace(
+    # a W of 10 cm at 5 cm/s: about 3.5 s simulated per run with the settling, 9 runs, one process (serial: the
+    # test machine's cores are busy with other tests)
+    text = load_protocol("ch5_path_following").text.replace("width = 0.16", "width = 0.02").replace(
+        "height = 0.25", "height = 0.025").replace("speed = 0.02 ", "speed = 0.05 ").replace(
         "repetitions = 3", "repetitions = 1").replace("training = 1 ", "training = 0 ")
     proto = tmp_path / "paths.toml"
     proto.write_text(text)
     env = {**os.environ, "PYTHONPATH": SRC, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
     r = subprocess.run([sys.executable, "-m", "rhi", "study", "simulate", str(proto), "--participants", "3", "--out",
-                        str(tmp_path / "sim")], capture_output=True, text=True, env=env, timeout=900)
+                        str(tmp_path / "sim"), "--executor", "serial"], capture_output=True, text=True, env=env, timeout=900)
     assert r.returncode == 0, r.stderr
     assert "one-way ANOVA on completion_time: F(2, 6)" in r.stdout and "power" in r.stdout
     rows = [row for pid in ("S01", "S02", "S03") for row in read_responses(tmp_path / "sim" / pid / "responses.csv")]
     assert len(rows) == 9
     for row in rows:
         assert 0 <= float(row["tracking_error"]) < 0.02 and float(row["effort"]) != 0
-        assert 3.0 < float(row["completion_time"]) < 10.0
+        assert 1.0 < float(row["completion_time"]) < 5.0
     r = subprocess.run([sys.executable, "-m", "rhi", "study", "analyze", str(tmp_path / "sim"), "--out",
                         str(tmp_path / "an")], capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stderr

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
 import time
+import tomllib
 import urllib.request
 from pathlib import Path
 
@@ -22,9 +24,14 @@ import browser  # noqa: E402  (tests/browser.py)
 import numpy as np
 import pytest
 
+from rhi.device import device
 from rhi.experiments.ch5.setup import distance_to_polyline
 from rhi.sim.log import Log
-from rhi.study.session import read_responses
+from rhi.study import slave as sl
+from rhi.study.haptics import Haptics
+from rhi.study.live import StudyRun
+from rhi.study.protocol import parse_protocol
+from rhi.study.session import Session, read_responses
 
 pytestmark = [pytest.mark.realtime, pytest.mark.skipif(not browser.available(), reason="needs Debian's chromium")]
 
@@ -200,3 +207,41 @@ def test_mouse_drives_the_master_and_the_slave_follows_the_path(tmp_path):
         work = np.sum(0.5 * (power[1:] + power[:-1]) * np.diff(log.t))
         assert float(r["effort"]) == pytest.approx(work, rel=1e-9, abs=1e-12) and work > 0
         assert float(r["completion_time"]) == pytest.approx(log.t[-1] - log.t[0], rel=1e-9)
+
+
+def test_the_master_over_udp_drives_the_slave(tmp_path):
+    """A device process over UDP is the master (`rhi device-server`); the slave follows it in the study's process."""
+    cfg = tmp_path / "rehab_lenient.toml"  # rendering only; the link's timing limits of a loaded test machine
+    cfg.write_text('[device]\nname = "rehab"\n[controller]\ndamping = 0.0\nsaturation = "none"\n'
+                   '[controller.primary]\nlaw = "force_rendering"\ndamping = 0.0\npassivity = "off"\n'
+                   '[safety]\nsilence = 1.0\nmax_age = 1.0\nstale_ticks = 1000\n')
+    text = PROTOCOL[:PROTOCOL.index("[[conditions]]")] + f'[[conditions]]\nname = "S3"\ndevice = "rehab"\n' \
+        f'config = "{cfg}"\n' + PROTOCOL[PROTOCOL.index("[teleoperation]"):]
+    p = parse_protocol(tomllib.loads(text), name="udp", text=text)
+    x0 = sl.master_path(p).points[0]
+    q0 = device("rehab").ik(x0, np.array([0.3, 0.9]))
+    env = {**os.environ, "PYTHONPATH": SRC}
+    dev = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", "rehab", "--port", "0", "--q0",
+                            ",".join(map(repr, q0.tolist())), "--watchdog-ms", "1000"],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    try:
+        port = int(re.search(r"udp://127\.0\.0\.1:(\d+)", dev.stdout.readline()).group(1))
+        s = Session(tmp_path, p, "P01", fields={"handedness": "left"})
+        run = StudyRun(s, Haptics(p, f"udp://127.0.0.1:{port}", rate=1000.0))
+        run.next()
+        run.next()
+        wait(lambda: run.haptics.status.get("ticks", 0) > 300, 300, lambda: (run.haptics.status, run.haptics.last))
+        assert len(run.experimenter_view()["state"]["slave_x"]) == 2
+        run.next()
+        run.abort()
+        assert run.fault is None and len(s.rows) == 1
+    finally:
+        dev.send_signal(signal.SIGTERM)
+        dev.communicate(timeout=20)
+    log = Log.load(s.trial_log(0, "run"))
+    assert log.fault is None and log.slave_x.shape == log.x.shape and len(log.t) > 300
+    path = sl.reference(p).points
+    np.testing.assert_allclose(log.slave_x[-1], path[0], atol=0.003)  # the master held still at the start
+    np.testing.assert_allclose(log.slave_x[-1], SCALE * log.x[-1] + OFFSET, atol=0.003)
+    assert float(s.rows[0]["tracking_error"]) == pytest.approx(distance_to_polyline(log.slave_x, path).mean(),
+                                                               rel=1e-9)

@@ -137,8 +137,8 @@ def add_commands(sub) -> None:
     r.add_argument("--field", action="append", help="a declared participant field NAME=VALUE (repeatable)")
     r.add_argument("--host", default="127.0.0.1", help="address of the pages (default 127.0.0.1)")
     r.add_argument("--port", type=int, default=8090, help="port of the pages (default 8090; 0: any free port)")
-    r.add_argument("--mouse", action="store_true", help="dry run: the mouse is the hand (drag on the experimenter "
-                   "page's hand pad) on the simulated device")
+    r.add_argument("--mouse", action="store_true", help="dry run: the mouse is the hand on the simulated device "
+                   "(drag on the experimenter page's hand pad; for path following, on the participant's canvas)")
     r.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (default 1000)")
     r.set_defaults(func=_run)
     s = ss.add_parser("simulate", help="simulated participants run the protocol end to end (no browser): "

@@ -133,16 +133,16 @@ _CH5_SCENARIO = {("rhi4", "ch5_tmi"): "s1", ("rhi4", "ch5_manipulability"): "s2"
 
 
 def _path_run(item: tuple) -> dict[str, float]:
-    """§5.5 measures of one simulated path-following run: (scenario key, speed [m/s], task table)."""
-    from rhi.experiments.ch5.setup import w_reference
-    from rhi.experiments.ch5.tracking import w_trajectory_plan
+    """§5.5 measures of one simulated path-following run: (scenario key, speed [m/s], task table, start configurations)."""
+    from rhi.experiments.ch5 import setup
+    from rhi.experiments.ch5.tracking import w_scenario
 
-    key, speed, task = item
+    key, speed, task, start = item
     kw = {"center": tuple(task["center"][:2]), "width": task["width"], "height": task["height"]}
-    plan = w_trajectory_plan(speed=speed, settle=1.0, readings=False, ellipses=2, **kw)
-    stats, _ = next(p for p in plan.parts if p.label == key).run(progress=None)
+    stats, _ = w_scenario(key, start=start, scale=1.0, speed=speed, settle=1.0, k_q=setup.K_Q, gain=setup.GAIN,
+                          damping=setup.NULL_DAMPING, friction="thesis", ellipses=2, **kw)
     return {"tracking_error": stats["path_rms"], "effort": stats["work"],
-            "completion_time": w_reference(speed=speed, **kw).duration}
+            "completion_time": setup.w_reference(speed=speed, **kw).duration}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -189,6 +189,8 @@ def simulated_path_study(protocol: Protocol, participants: int = 8, *, out: str 
             K_d 60 N s/m, no scaling or offset: `rhi.sim.Teleoperation`'s defaults).
     """
     from rhi.design.executors import parallel_map
+    from rhi.experiments.ch5.setup import w_reference
+    from rhi.experiments.ch5.tracking import w_start
     from rhi.study.results import analyse_task
     from rhi.study.sequence import plan
 
@@ -213,11 +215,13 @@ def simulated_path_study(protocol: Protocol, participants: int = 8, *, out: str 
     rng = np.random.default_rng([protocol.seed, 2])
     base = protocol.task["speed"]
     speed = np.maximum(base * (1.0 + speed_sd * rng.standard_normal(int(participants))), 0.5 * base)
+    task = protocol.task
+    start = w_start(w_reference(tuple(task["center"][:2]), task["width"], task["height"], base))  # the W, checked once
     items, where = [], []
     for i in range(int(participants)):
         for t in plan(protocol, i):
             v = float(speed[i] * max(1.0 + run_sd * rng.standard_normal(), 0.5))
-            items.append((keys[t.condition], v, protocol.task))
+            items.append((keys[t.condition], v, task, start))
             where.append((i, t.index))
     runs = dict(zip(where, parallel_map(_path_run, items, progress=progress)))
     rows = simulate(protocol, participants, _Runs(runs), out=out)

@@ -1,16 +1,18 @@
 """The device side of a live study: every probe or run in the runtime loop, on its own log, one at a time.
 
 Each condition's controller comes from its run configuration (`rhi.runtime.config`; a condition without one
-renders through ``ForceRendering`` with no null-space task, the §3.5 NHIs). A probe renders a one-sided
-spring of the sample's stiffness from the fixture's point along its direction plus the virtual fixture
-(`rhi.sim.Wall` + `rhi.sim.Fixture`); a path-following run renders nothing but the controller, and a simulated
-slave robot follows the master by teleoperation (`rhi.study.slave`; its position is logged as ``slave_x``). The loop is
-`rhi.runtime.run` in a thread of its own (zero torque and a log whatever ends it), stopped by an event
-when the participant moves on. The link: ``sim`` — a fresh MuJoCo plant at the start point per probe, the
-physical obstacle as a stop, and as the hand either the simulated one (a minimum-jerk stroke, or the W path
-mapped into the master's frame) or, for a dry run, the mouse (`rhi.sim.DraggableHand`, its target set from the
-experimenter's page, or for path following from the participant's canvas); or
-``udp://HOST:PORT`` — a device process (`rhi device-server` or a lab's driver), whose obstacle is physical.
+renders through ``ForceRendering`` with no null-space task, the §3.5 NHIs). A probe renders a one-sided spring
+of the sample's stiffness from the fixture's point along its direction plus the virtual fixture (`rhi.sim.Wall`
++ `rhi.sim.Fixture`); a path-following run renders nothing but the controller, and a simulated slave robot
+follows the master by teleoperation (`rhi.study.slave`; its position is logged as ``slave_x``). The loop is
+`rhi.runtime.run` in a thread of its own (zero torque and a log whatever ends it), stopped by an event when the
+participant moves on. The link: ``sim`` — a fresh MuJoCo plant at the start point per probe, the physical
+obstacle as a stop, and as the hand either the simulated one (a minimum-jerk stroke, or the W path mapped into
+the master's frame) or, for a dry run, the mouse (`rhi.sim.DraggableHand`, its target set from the
+experimenter's page, or for path following from the participant's canvas); or ``udp://HOST:PORT`` — a device
+process (`rhi device-server` or a lab's driver), whose obstacle is physical. With a teleoperated slave either
+link is wrapped in `rhi.runtime.teleoperated.Teleoperated`: the slave is simulated here and follows the device's
+handle (start a device process where the map sends it onto the path's first point).
 """
 
 from __future__ import annotations
@@ -104,7 +106,7 @@ class Haptics:
         q0 = np.asarray(s["q0"], float)
         goal = self.start_point if self.start_point is not None else sl.master_path(self.protocol).points[0]
         if np.linalg.norm(dev.fk(q0) - goal) > 1e-3:
-            q0 = dev.ik(goal, q0 if dev.n == len(q0) else np.full(dev.n, 0.3))
+            q0 = dev.ik(goal, np.full(dev.n, 0.3))
         plant.reset(q0)
         physical = None
         ob = self.protocol.obstacle

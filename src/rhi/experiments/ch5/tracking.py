@@ -39,7 +39,7 @@ from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress, positive, ticks
 from rhi.metrics import ellipsoid_axes, penalized_jacobian, teleoperation_ellipsoid, tmi, velocity_ellipsoid
-from rhi.sim import Hand, Plant, Teleoperation, check_path_in_workspace, simulate
+from rhi.sim import Hand, HandPath, Plant, Teleoperation, check_path_in_workspace, simulate
 
 #: Alternative readings of scenarios 1–2 run beside the headline: (tag, scenario, changed setting).
 READINGS = (("plain", "s1", {"k_q": None}), ("plain", "s2", {"k_q": None}),
@@ -133,25 +133,34 @@ def w_trajectory_plan(
     devs = devices()
     for dev in devs.values():
         plant_friction(friction, dev)  # validate before the IK checks
+    duration = settle + path.duration + 0.5
+    common = {"scale": scale, "speed": speed, "settle": settle, "center": center, "width": width, "height": height,
+              "k_q": k_q, "gain": gain, "damping": damping, "friction": friction, "ellipses": ellipses,
+              "start": w_start(path)}
+    parts = [Part(key, functools.partial(w_scenario, key, **common), ticks(duration)) for key in SCENARIOS]
+    if readings:  # the alternative readings of scenarios 1–2, after the three scenarios (`READINGS`)
+        parts += [Part(f"{key}_{tag}", functools.partial(w_scenario, key, **{**common, **change}), ticks(duration))
+                  for tag, key, change in READINGS]
+    return Plan(parts, functools.partial(_w_merge, readings=readings, **common))
+
+
+def w_start(path: HandPath) -> dict[str, tuple[float, ...]]:
+    """{"RHI", "Rehab", "slave": start configuration (n,) [rad]} at the W's first point (IK from the §5.4 seeds).
+
+    Raises:
+        Unreachable: the W leaves the workspace of the RHI, the Rehab or the slave (IK along it).
+    """
     p0 = path.points[0]
     seeds = {"RHI": Q_FIXED, "Rehab": REHAB_SEED, "slave": SLAVE_SEED}
     start = {}
-    for name, dev in devs.items():
+    for name, dev in devices().items():
         try:
             start[name] = dev.ik(p0, seeds[name])
         except Unreachable:
             raise Unreachable(f"path: the W's first point {np.round(p0, 4).tolist()} m is outside the workspace of "
                               f"{name} ({dev.name})") from None
         check_path_in_workspace(dev, path, q0=start[name])
-    duration = settle + path.duration + 0.5
-    common = {"scale": scale, "speed": speed, "settle": settle, "center": center, "width": width, "height": height,
-              "k_q": k_q, "gain": gain, "damping": damping, "friction": friction, "ellipses": ellipses,
-              "start": {k: tuple(v.tolist()) for k, v in start.items()}}
-    parts = [Part(key, functools.partial(w_scenario, key, **common), ticks(duration)) for key in SCENARIOS]
-    if readings:  # the alternative readings of scenarios 1–2, after the three scenarios (`READINGS`)
-        parts += [Part(f"{key}_{tag}", functools.partial(w_scenario, key, **{**common, **change}), ticks(duration))
-                  for tag, key, change in READINGS]
-    return Plan(parts, functools.partial(_w_merge, readings=readings, **common))
+    return {k: tuple(v.tolist()) for k, v in start.items()}
 
 
 def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progress | None = None,
