@@ -247,15 +247,15 @@ class StudyRun:
                 t.reference * (1.0 + self.percent / 100.0), "rest": t.rest, "rest_seconds": t.rest_seconds}
             st = dict(self.haptics.status)
             keys = ("condition", "t", "ticks", "missed", "max_torque_ratio", "fault")
+            tele = self.protocol.teleoperation
             return {"participant": self.session.id, "protocol": self.protocol.name, "phase": self.phase,
                     "committed": self.session.next_trial, "total": len(self.session.plan), "trial": trial,
                     "device": {k: st.get(k) for k in keys},
                     "state": self.haptics.state(), "running": self.haptics.running, "link": self.haptics.link,
                     "mouse": self.haptics.mouse,
-                    "path": None if self.haptics.slave is None else reference_path(self.protocol).tolist(),
-                    "teleoperation": None if self.haptics.slave is None else {
-                        "slave": self.haptics.slave.name, "scale": self.protocol.teleoperation["scale"],
-                        "offset": self.protocol.teleoperation["offset"].tolist()},
+                    "path": None if tele is None else reference_path(self.protocol).tolist(),
+                    "teleoperation": None if tele is None else {
+                        "slave": tele["slave"], "scale": tele["scale"], "offset": tele["offset"].tolist()},
                     "notes": self.notes, "paused_by_fault": self.fault,
                     "last_fault": (self.haptics.last or {}).get("fault")}
 
