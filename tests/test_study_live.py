@@ -192,3 +192,4 @@ def test_simulated_path_following_study(tmp_path):
     got = {row["quantity"]: row["rhi"] for t in res["tables"] for row in t["rows"]}
     per = {c: [float(x["completion_time"]) for x in rows if x["condition"] == c] for c in ("S1", "S2", "S3")}
     assert got["completion_time mean, S1"] == pytest.approx(np.mean(per["S1"]), rel=1e-12)
+    assert (tmp_path / "an" / "figures" / "study.paths.by_condition.png").exists()  # the per-condition figure
