@@ -273,7 +273,8 @@ def test_cli_simulate_then_analyze_reproduces_ch3_psychophysics_quick(tmp_path):
     env = {**os.environ, "PYTHONPATH": SRC, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
     rhi = [sys.executable, "-m", "rhi", "study"]
     r = subprocess.run([*rhi, "simulate", str(proto), "--participants", "3", "--fast", "--durations", "1.0",
-                        "--out", str(tmp_path / "sim")], capture_output=True, text=True, env=env, timeout=900)
+                        "--out", str(tmp_path / "sim"), "--executor", "serial"],  # the machine's cores run other tests
+                       capture_output=True, text=True, env=env, timeout=900)
     assert r.returncode == 0, r.stderr
     assert "power of the one-way ANOVA" in r.stdout
     r = subprocess.run([*rhi, "analyze", str(tmp_path / "sim"), "--fast", "--out", str(tmp_path / "an")],
