@@ -222,9 +222,12 @@ def test_a_killed_writer_loses_and_repeats_nothing(tmp_path):
     assert [r["response"] for r in rows] == [str(e["response"]) for e in expect]
 
 
-def test_simulate_reproduces_ch3_psychophysics_and_analyze_reads_it_back(tmp_path):
+def test_simulate_reproduces_ch3_psychophysics_and_analyze_reads_it_back(tmp_path, monkeypatch):
     """`rhi study simulate` of the §3.6 protocol = ch3.psychophysics (same seed, same lookup); analyze = both."""
+    from rhi.design import executors
     from rhi.experiments.ch3.discrimination import psychophysics
+
+    monkeypatch.setitem(executors.DEFAULTS, "executor", "serial")  # 27 small fits: no pool on a busy machine
     from rhi.experiments.participants import simulated_study
     from rhi.report.study import study_result
 
