@@ -128,8 +128,10 @@ def waypoints(P: np.ndarray, step: float = 0.004) -> np.ndarray:
 def pixel(b: browser.Browser, path: np.ndarray, x: np.ndarray) -> tuple[float, float]:
     """The page coordinates of slave-frame point x on the participant's canvas (its drawing transform)."""
     r = b.evaluate("(() => { const r = document.getElementById('path').getBoundingClientRect();"
-                   " const c = document.getElementById('path'); return [r.left, r.top, c.width, c.height]; })()")
-    left, top, w, h = r
+                   " const c = document.getElementById('path');"
+                   " return [r.left, r.top, c.width, c.height, window.innerWidth, window.innerHeight]; })()")
+    left, top, w, h, width, height = r
+    assert 0 <= left and left + w <= width and 0 <= top and top + h <= height, f"the canvas leaves the window: {r}"
     lo, hi = path.min(axis=0), path.max(axis=0)
     s = 0.8 * min(w / (hi[0] - lo[0]), h / (hi[1] - lo[1]))
     mid = (lo + hi) / 2
@@ -158,7 +160,7 @@ def test_mouse_drives_the_master_and_the_slave_follows_the_path(tmp_path):
     folder = tmp_path / "study"
     s = Study(proto, folder)
     try:
-        with browser.Browser(s.url) as b:
+        with browser.Browser(s.url, width=1000, height=900) as b:  # the whole canvas inside the window
             assert b.wait_for("document.body.dataset.phase === 'ready'", 120)
             path = np.array(s.view("participant")["path"])
             order = []
@@ -172,6 +174,7 @@ def test_mouse_drives_the_master_and_the_slave_follows_the_path(tmp_path):
                 order.append(ex["trial"]["condition"])
                 wait(lambda: "slave_x" in s.view()["state"], 600, lambda: s.view()["device"])  # warm-up, compiles
                 assert s.view("participant")["hand"] is True and s.view("participant")["slave"] is not None
+                assert b.wait_for("document.body.innerText.includes('accuracy first')", 30)  # §5.5's instruction
                 if run == 1:  # the experimenter's page draws the slave on the path
                     b.call("Page.navigate", url=s.url + "experimenter")
                     assert b.wait_for("document.getElementById('slave').hidden === false", 60)

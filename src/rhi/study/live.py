@@ -29,7 +29,8 @@ from rhi.study.session import Session, answer_row, run_row
 _MESSAGES = {"ready": "Press Next to begin.", "rest": "Rest. Press Next when you are ready to go on.",
              "long_rest": "Break: the experimenter will continue the session.", "probe_1": "First sample.",
              "probe_2": "Second sample.", "paused": "Paused.", "done": "Thank you: the session is complete.",
-             "aborted": "The session was stopped.", "running": "Follow the path.", "between": "Press Next to start."}
+             "aborted": "The session was stopped.", "between": "Press Next to start.",
+             "running": "Keep the red dot on the blue path: accuracy first, then speed."}  # §5.5's instruction
 
 
 class StudyRun:
