@@ -51,6 +51,7 @@ from rhi.control.saturation import (
     tertiary,
     tertiary_projector,
 )
+from rhi.control.tank import NullSpaceTank, TankState
 from rhi.control.transition import (
     TransitionConfig,
     TransitionState,
@@ -74,6 +75,7 @@ __all__ = [
     "JointLimitBarrier",
     "Manipulability",
     "NullSpaceController",
+    "NullSpaceTank",
     "Objective",
     "ObjectiveTerm",
     "Passivity",
@@ -82,6 +84,7 @@ __all__ = [
     "PrimaryLaw",
     "SpringPalpation",
     "TMIMatching",
+    "TankState",
     "TransitionConfig",
     "TransitionState",
     "VMEMatching",

@@ -58,6 +58,7 @@ from rhi.control.passivity import PassivityController, PassivityState
 from rhi.control.primary import PrimaryLaw
 from rhi.control.reference import reference_terms, reference_tick
 from rhi.control.saturation import check_torque_limits
+from rhi.control.tank import NullSpaceTank, TankState
 from rhi.control.tick import KernelTick
 from rhi.control.transition import TransitionConfig, TransitionState, transition_step
 from rhi.device import Device
@@ -182,6 +183,9 @@ class ControllerConfig:
             eq. 7.16: scaled by the largest β <= 1 that keeps the box, projected off ASCM's held joints)
             or "clipped" (chapter 6 as written, eqs. 6.2–6.6: τ = α τ_m + (I − JᵀJ#ᵀ)τ_S, then the
             programmed limits clip each joint).
+        tank: the null-space energy tank (`rhi.control.tank`): the objectives' torque spends only the
+            energy the null space has dissipated (the wall, the allocation and the safety torques are never
+            scaled); None: off (the thesis's controller). Needs ``null_space="scaled"``.
     """
 
     primary: PrimaryLaw
@@ -196,6 +200,7 @@ class ControllerConfig:
     aso_shape: float = 50.0
     implementation: Literal["fast", "reference"] = "fast"
     null_space: Literal["scaled", "clipped"] = "scaled"
+    tank: NullSpaceTank | None = None
 
 
 @dataclasses.dataclass
@@ -219,6 +224,8 @@ class ControllerState:
         E_obs: energy the passivity observer has seen flow into the controller [J]
             (`rhi.control.passivity`; negative: energy created); NaN without a passivity option.
         alpha_pc: damping rate α of the passivity controller at the last tick [1/s]; NaN without one.
+        tank: the null-space energy tank (`rhi.control.tank`): its energy T and the objectives' scale λ;
+            None without ``ControllerConfig.tank`` (the controller creates it).
     """
 
     t: float = -math.inf
@@ -235,6 +242,7 @@ class ControllerState:
     ticks: int = 0
     E_obs: float = math.nan
     alpha_pc: float = math.nan
+    tank: TankState | None = None
 
 
 class NullSpaceController:
@@ -258,6 +266,11 @@ class NullSpaceController:
         if config.implementation not in ("fast", "reference"):
             raise InvalidInput(f"implementation: expected 'fast' or 'reference', got {config.implementation!r}")
         scalar("damping", config.damping, nonnegative=True)
+        if config.tank is not None and not isinstance(config.tank, NullSpaceTank):
+            raise InvalidInput(f"tank: expected a rhi.control.NullSpaceTank or None, got {config.tank!r:.60}")
+        if config.tank is not None and (config.null_space != "scaled" or config.projector != "dynamic"):
+            raise InvalidInput("tank: the null-space energy tank needs null_space='scaled' (Algorithm 2) and "
+                               "projector='dynamic' (its null-space torques put no force at the handle)")
         scalar("aso_shape", config.aso_shape, positive=True)
         primary = config.primary
         if not all(callable(getattr(primary, name, None)) for name in ("forces", "required_sensors", "check")):
@@ -274,6 +287,7 @@ class NullSpaceController:
         #: The allocation strategy ``config.saturation`` names.
         self.allocation = allocation
         self.state = state or ControllerState()
+        self._fresh_tank()
         #: S of eq. 6.14 for the ASO.
         self.aso_shape = config.fme.transition.S if config.fme is not None else config.aso_shape
         #: (gain, objective) of the tertiary objectives and of the joint-limit barriers (part of the safety torque).
@@ -326,8 +340,15 @@ class NullSpaceController:
     def reset(self) -> None:
         """Fresh state (clears a safe stop, empties the passivity observer)."""
         self.state = ControllerState()
+        self._fresh_tank()
         if self._pc is not None:
             self._pc.reset()
+
+    def _fresh_tank(self) -> None:
+        """Give the state a full-of-`initial` tank when the configuration has one and the state has none."""
+        tank = self.config.tank
+        if tank is not None and self.state.tank is None:
+            self.state.tank = TankState(energy=float(tank.initial))
 
     def _stop(self, why: str) -> np.ndarray:
         s = self.state

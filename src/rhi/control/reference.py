@@ -20,6 +20,7 @@ import numpy as np
 
 from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import null_basis, tertiary
+from rhi.control.tank import tank_blend
 from rhi.control.transition import aso_volume
 from rhi.device import DeviceTerms
 from rhi.errors import InvalidInput, Singular
@@ -89,7 +90,19 @@ def reference_tick(
     if cfg.null_space == "clipped":  # eqs. 6.2–6.6 as written: the caller clips τ to the box
         return al.tau + N @ tau_to, gamma * al.alpha, 1.0, al.saturated, al.clipped
     delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, torque_min=lo, torque_max=hi, N=N)
-    return (al.tau + delta if beta else al.tau), gamma * al.alpha, beta, al.saturated, al.clipped
+    tau = al.tau + delta if beta else al.tau
+    if cfg.tank is not None:  # the objectives spend only what the null-space energy tank holds (rhi.control.tank)
+        delta0, beta0 = tertiary(al.tau, al.saturated, Z, tau_s, torque_min=lo, torque_max=hi, N=N)
+        g_null = kin.g - J.T @ kin.Gx if cfg.gravity_compensation else np.zeros(dev.n)
+        c = np.zeros(Z.shape[1])
+        if dev.n - int(np.count_nonzero(al.saturated)) > dev.m:  # the damper's direction: q̇ on the allowed torques
+            c = Z.T @ dq
+            if al.saturated.any():
+                ZS = Z[al.saturated]
+                c = c - np.linalg.pinv(ZS) @ (ZS @ c)
+        tau = tank_blend(cfg.tank, s.tank, t, q, dq, J, kin.Jsharp, kin.Minv, g_null,
+                         al.tau + delta0 if beta0 else al.tau, tau, Z @ c, lo, hi)
+    return tau, gamma * al.alpha, beta, al.saturated, al.clipped
 
 
 __all__ = ["reference_terms", "reference_tick"]

@@ -22,7 +22,7 @@ import numpy as np
 
 from rhi.control import kernels
 from rhi.control.barrier import JointLimitBarrier, limit_rows
-from rhi.control.kernels import objectives as _objectives, whole as _whole
+from rhi.control.kernels import objectives as _objectives, tank as _tank, whole as _whole
 from rhi.control.objectives import EllipsoidMatching, FMEMatching, VMEMatching, gradient_function
 from rhi.control.primary import ForceRendering, ImpedanceControl, SpringPalpation
 from rhi.control.transition import TransitionState
@@ -126,6 +126,10 @@ class KernelTick:
                 fme.transition.eps1, fme.transition.eps2, fme.transition.rho)
             self._free, self._stiff = _f64(fme.free), _f64(fme.stiff)
         self._prm = prm
+        self._tank = np.zeros(_tank.N_TANK)  # the null-space energy tank's slots, mirrored with `ControllerState.tank`
+        self._tank_q, self._tank_e = np.zeros(n), np.zeros(n)
+        if cfg.tank is not None:
+            self._tank[_tank.TK_ON], self._tank[_tank.TK_CAPACITY] = 1.0, cfg.tank.capacity
         self._w2 = _f64(ctrl.hi**-2.0)
         vme, gains = [], []
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
@@ -178,7 +182,8 @@ class KernelTick:
             self._ps_of: PassivityState | None = None  # the PassivityState the passivity slots mirror
             # the kernel's arguments between `ready` and x, and after buf: the same arrays every tick
             self._mid = (self._at, law, ctrl.lo, ctrl.hi, self._prm, self._tr, self._free, self._stiff, self._w2,
-                         self._vme, self._vme_gain, self._obj, self._pc, self._pc_pos, self._pc_eff)
+                         self._vme, self._vme_gain, self._obj, self._pc, self._pc_pos, self._pc_eff, self._tank,
+                         self._tank_q, self._tank_e)
             self._out = (self._F[0], self._F[1], self._tau, self._sat, self._res)
             # the compiled entry point of `_whole.whole` (`_entry`), found at the first call, and the dispatcher it is of
             self._call: Callable[..., int] | None = None
@@ -221,6 +226,23 @@ class KernelTick:
         s.E_obs, s.alpha_pc = ps.energy, ps.alpha
         self._ps_of = ps
 
+    def _load_tank(self, s: ControllerState) -> None:
+        """Mirror the state's null-space energy tank into the kernel's slots (the reference may have advanced it)."""
+        ts = s.tank
+        if ts is not None:
+            v = self._tank
+            v[_tank.TK_ENERGY], v[_tank.TK_T], v[_tank.TK_PREV] = ts.energy, ts.t, float(ts.position is not None)
+            if ts.position is not None and ts.effort is not None:
+                self._tank_q[:], self._tank_e[:] = ts.position, ts.effort
+
+    def _store_tank(self, s: ControllerState) -> None:
+        """The tank's state after a kernel tick that ran it."""
+        ts = s.tank
+        if ts is not None:
+            v = self._tank.tolist()
+            ts.energy, ts.scale, ts.damping, ts.t = v[_tank.TK_ENERGY], v[_tank.TK_SCALE], v[_tank.TK_DAMPING], v[_tank.TK_T]
+            ts.position, ts.effort = self._tank_q.copy(), self._tank_e.copy()
+
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):
         """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or (F_render, F_extra).
 
@@ -243,16 +265,18 @@ class KernelTick:
         buf = kin._buf
         if buf is None:  # terms not from the compiled `Device.terms` (a joint that is not one-DoF)
             buf = np.concatenate([getattr(kin, name).ravel() for name, _ in TERMS[:9]])
+        self._load_tank(s)
         status, alpha, beta, V, omega, clipped = kernels.tick(
-            t, buf, self._at, _f64(F_r), _f64(F_x), _f64(kin.dq), ctrl.lo, ctrl.hi, self._prm, tr,
+            t, buf, self._at, _f64(F_r), _f64(F_x), _f64(kin.q), _f64(kin.dq), ctrl.lo, ctrl.hi, self._prm, tr,
             self._free, self._stiff, self._w2, self._vme, self._vme_gain, _f64(tau_s), _f64(tau_to),
-            self._tau, self._sat)
+            self._tank, self._tank_q, self._tank_e, self._tau, self._sat)
         if status != kernels.OK:
             self._tr_of = None  # the kernel may have advanced tr; the state did not
             if status == kernels.SINGULAR:
                 raise Singular("J: rank-deficient Jacobian")
             return F_r, F_x
         self._store_transition(s, before)
+        self._store_tank(s)
         s.V, s.omega = V, omega
         return self._tau.copy(), alpha, beta, self._sat.copy(), clipped
 
@@ -287,6 +311,7 @@ class KernelTick:
         ps = None if pc is None else pc.state
         if ps is not None and ps is not self._ps_of:
             self._load_passivity(ps)
+        self._load_tank(s)
         q, dq = _f64(q), _f64(dq)
         dev = ctrl.device
         last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already
@@ -311,6 +336,7 @@ class KernelTick:
             a0, a1, a2, a3 = self._tr.tolist()
             s.transition = self._tr_of = TransitionState(a0 != 0.0, a1, a2, a3)
         s.V, s.omega = V, omega
+        self._store_tank(s)
         if pc_ran and ps is not None:
             self._store_passivity(s, ps, t, ps.dissipated + float(self._pc[_whole.PC_DISSIPATED]))
         return self._tau.copy(), alpha, beta, self._sat.copy(), clipped != 0.0

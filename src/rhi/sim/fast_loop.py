@@ -204,7 +204,8 @@ class FastLoop:
     @staticmethod
     def build(sess, controller, kin, *, virtual, teleop, record, w) -> FastLoop | None:
         """The compiled loop for this run, or None where some part of it is only Python's (see the module)."""
-        if teleop is not None or record is not None or type(controller) is not NullSpaceController:
+        if (teleop is not None or record is not None or type(controller) is not NullSpaceController
+                or controller.config.tank is not None):  # the tank's state is mirrored per tick in Python
             return None
         kt = controller._kernel
         plant, hand, phys = sess.plant, sess.hand, sess.physical

@@ -42,6 +42,7 @@ from rhi.control.kernels.allocation import (
     well_conditioned,
 )
 from rhi.control.kernels.jit import jit
+from rhi.control.kernels.tank import TK_ON, blend
 from rhi.terms_kernel import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
 
 #: Status of `tick`.
@@ -146,8 +147,8 @@ def transition(tr, t, V, distance, eps1, eps2, rho):
 
 
 @jit
-def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
-         vme_D, vme_gain, tau_s_extra, tau_to_extra, tau_out, sat):
+def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
+         vme_D, vme_gain, tau_s_extra, tau_to_extra, tank, tank_q, tank_e, tau_out, sat):
     """Steps 2–6 of one controller tick (see `rhi.control.controller`).
 
     Args:
@@ -156,6 +157,7 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
         at: (≥ 9,) int64 start of each term in `terms` (`rhi.terms_kernel.layout`).
         F_r: (m,) rendered (α-scaled) task force [N].
         F_x: (m,) extra task force (never scaled) [N].
+        q: (n,) joint positions [rad] (read by the null-space energy tank).
         dq: (n,) joint velocities [rad/s].
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
@@ -168,6 +170,9 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
         vme_gain: (k,) their gradient steps.
         tau_s_extra: (n,) −Σ gain ∂ν_lim/∂q of the joint-limit barriers [N m].
         tau_to_extra: (n,) −Σ gain ∂ν/∂q of the objectives computed outside the kernel [N m].
+        tank: (N_TANK,) the null-space energy tank's settings and state (`rhi.control.kernels.tank`), advanced.
+        tank_q: (n,) its q of the previous tick, written.
+        tank_e: (n,) its metered torque of the previous tick, written.
         tau_out: (n,) the torque, written [N m].
         sat: (n,) bool, the held joints, written.
 
@@ -281,5 +286,32 @@ def tick(t, terms, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
     delta, beta, ok = tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
-    assign(tau_out, clip(add(tau, delta) if beta != 0.0 else tau, lo, hi))
+    tau1 = add(tau, delta) if beta != 0.0 else tau
+    if tank[TK_ON] == 0.0:
+        assign(tau_out, clip(tau1, lo, hi))
+        return OK, gamma * alpha, beta, V, omega, clipped
+    # the null-space energy tank (rhi.control.tank): the tick without the objectives, the damper's direction
+    Nsafe = sub(tau_s, mtv(J, mtv(Jsharp, tau_s))) if dynamic else mv(P, tau_s)
+    delta0, beta0, ok = tertiary(tau, sat, P, tau_s, Nsafe, lo, hi, r)
+    if not ok:
+        return FALLBACK, 1.0, 0.0, V, omega, False
+    S, k = held_set(sat)
+    d = np.zeros(n)
+    if k < r:
+        if not have_P:
+            P, ok = null_projector(JMinv)
+            if not ok:
+                return SINGULAR, 1.0, 0.0, V, omega, False
+        d = mv(P, dq)
+        if k:
+            rr = np.empty(k)
+            for i in range(k):
+                rr[i] = d[S[i]]
+            d = sub(d, held_torque(P, S, k, rr))
+    g_null = np.zeros(n)
+    if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
+        g_null = sub(g, mtv(J, Gx))
+    Minv = terms[at[4]:at[4] + n * n].reshape((n, n))
+    blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, add(tau, delta0) if beta0 != 0.0 else tau, tau1, d,
+          lo, hi, tau_out)
     return OK, gamma * alpha, beta, V, omega, clipped

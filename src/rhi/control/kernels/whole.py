@@ -80,7 +80,7 @@ def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
 
 @jit
 def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
-          lo, hi, prm, tr, fme_free, fme_stiff, w2, vme_D, vme_gain, obj, pc, pc_pos, pc_eff,
+          lo, hi, prm, tr, fme_free, fme_stiff, w2, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
           x, buf, F_r, F_x, tau_out, sat, res):
     """One whole tick; the status of `rhi.control.kernels.step.tick` (OK, FALLBACK, SINGULAR).
 
@@ -114,6 +114,9 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         pc: (N_PC,) the passivity layer's settings and state, advanced in place.
         pc_pos: (k,) its port position at the previous tick, written.
         pc_eff: (k,) its port effort at the previous tick, written.
+        tank: (N_TANK,) the null-space energy tank (`rhi.control.kernels.tank`), advanced in place.
+        tank_q: (n,) its q of the previous tick, written.
+        tank_e: (n,) its metered torque of the previous tick, written.
         x: (m,) handle position [m], written unless ready.
         buf: the device terms (`rhi.terms_kernel.layout`), written unless ready.
         F_r: (m,) the law's rendered force, written [N].
@@ -140,8 +143,8 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
     if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
         objectives(obj, q, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
     tr0, tr1, tr2, tr3 = tr[0], tr[1], tr[2], tr[3]
-    status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, dq, lo, hi, prm, tr, fme_free, fme_stiff,
-                                                  w2, vme_D, vme_gain, tau_s, tau_to, tau_out, sat)
+    status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff,
+                                                  w2, vme_D, vme_gain, tau_s, tau_to, tank, tank_q, tank_e, tau_out, sat)
     res[R_ALPHA], res[R_BETA], res[R_V], res[R_OMEGA], res[R_CLIPPED] = alpha, beta, V, omega, 1.0 if clipped else 0.0
     res[R_PC] = 0.0
     res[R_TR] = 0.0 if tr[0] == tr0 and tr[1] == tr1 and tr[2] == tr2 and tr[3] == tr3 else 1.0

@@ -1,0 +1,174 @@
+"""The null-space energy tank: an explicit energy budget for the allocation and the null-space objectives.
+
+Why. The null-space torque of a redundant haptic interface — the allocation's Z y under
+saturation (ASCM, Algorithm 1) and the objectives' projected gradients −β N ∇ν (eqs. 6.6,
+7.16) — is not the gradient of any potential: the projector N(q), the held set of ASCM, the
+scaling β and the FME schedule all change with the state, so the null-space side of the
+controller is an active source. In the §6.4 palpation set-up it puts joules into the
+self-motion, which reach the hand through the joint stops and the velocity coupling of the
+self-motion with the handle (`rhi.experiments.beyond.passivity` measures every source).
+
+What. An energy tank (Ferraguti, Secchi and Fantuzzi, "A tank-based approach to impedance
+control with variable stiffness", ICRA 2013; in the null space of a redundant robot as
+Dietrich, Wu, Bussmann, Ott and Albu-Schäffer, "Passive hierarchical impedance control via
+energy tanks", RA-L 2017): a store T ≥ 0 [J] of energy the null space may spend. It meters,
+exactly under the zero-order hold, the work of the controller's whole null-space torque
+``e = N(τ − g_N)``, ``N = I − JᵀJ#ᵀ`` (the part of the sent torque τ that puts no force at the
+handle, J#ᵀe = 0, less the null-space part g_N of the gravity compensation, which only cancels
+the plant's gravity), over each hold interval:
+
+    T(k) = min(T(k−1) − e(k−1)ᵀ(q(k) − q(k−1)), capacity),    T(0) = ``initial``.
+
+So the tank is fed by what the null-space damping −k_D q̇ and the plant's motion dissipate
+against the null-space torque (its work is negative) and drained by what the allocation,
+the objectives and the joint-limit barrier put in. Each tick (`tank_blend`):
+
+1. Book the last hold interval (above).
+2. Predict the coming interval's work of the null-space torque without the objectives, e₀, as
+   ``w(e) = ΔT eᵀq̇ + ½ ΔT² eᵀ M⁻¹ e`` (the work of a held torque on the free mechanism, as in
+   `rhi.control.passivity`). If it exceeds T (the allocation alone draws more than the tank
+   holds), a *null-space damper* −μ Π q̇ takes out the deficit: Π q̇ is the joint velocity
+   projected onto the null-space torques that leave ASCM's held joints unchanged (so its
+   power −μ‖P_c Zᵀq̇‖² is never positive and it puts no force at the handle),
+   ``μ = deficit / (ΔT q̇ᵀΠq̇)``, bounded by ``0.5 / (ΔT tr M⁻¹)`` (a sampled damper that does
+   not overshoot) and by the room the torque box leaves. It adds a dissipative torque; it scales nothing.
+3. Scale the objectives' share d (what Algorithm 2 adds with the objectives, run once with them
+   and once without) by the largest λ ∈ [0, 1] with ``w(e₀' + λ d) ≤ T`` that keeps the box.
+4. Send ``τ₀ − μΠq̇ + λ d`` and record its null-space part for step 1.
+
+The primary task torque (the rendered wall, its damping and compensation), the allocation
+and the safety torques (null-space damping, joint-limit barrier) are never scaled: with
+λ = 0 and the damper idle the tick is exactly the tick without objectives; with λ = 1 it is
+the thesis's tick.
+
+What it guarantees. The objectives only spend energy the tank holds, so over any run the
+null-space torque's net work is at most ``initial`` plus what the one-interval predictions
+miss, as long as the damper can take out the allocation's deficit. Where it cannot — ASCM holds
+so many joints that no redundancy is left (Π = 0), or the bound on μ or the box stops it —
+the deficit is booked (T < 0) and the objectives stay off until the damping has refilled it. ``capacity`` bounds how much stored energy a
+later burst may release. `rhi.experiments.beyond.passivity` checks it from the plant's signals.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from rhi.control.saturation import scaling_alpha
+from rhi.errors import InvalidInput
+
+
+@dataclasses.dataclass(frozen=True)
+class NullSpaceTank:
+    """Settings of the null-space energy tank (``ControllerConfig.tank``).
+
+    Attributes:
+        initial: T(0) [J], the energy the null space may spend before it has dissipated any.
+        capacity: the most the tank holds [J] (energy fed beyond it is not stored).
+    """
+
+    initial: float = 0.0
+    capacity: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("initial", "capacity"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
+                raise InvalidInput(f"tank.{name}: must be finite and >= 0 [J], got {v!r}")
+        if self.initial > self.capacity:
+            raise InvalidInput(f"tank.initial: {self.initial} J exceeds tank.capacity {self.capacity} J")
+
+
+@dataclasses.dataclass
+class TankState:
+    """The tank after a tick.
+
+    Attributes:
+        energy: T [J] (negative only when the allocation and the barrier alone drained it).
+        scale: λ of the last tick, the factor on the objectives' torque (1: untouched).
+        damping: μ of the last tick, the null-space damper's gain [N m s/rad] (0: idle).
+        t: time of the last tick [s].
+        position: (n,) q of the last tick [rad].
+        effort: (n,) the metered null-space torque e sent at the last tick [N m].
+    """
+
+    energy: float = 0.0
+    scale: float = 1.0
+    damping: float = 0.0
+    t: float = -math.inf
+    position: np.ndarray | None = None
+    effort: np.ndarray | None = None
+
+
+def _work(e: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
+    """w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e [J]."""
+    return dt * float(e.dot(v)) + 0.5 * dt * dt * float(e.dot(Minv.dot(e)))
+
+
+def largest_scale(E: float, base: np.ndarray, part: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
+    """The largest λ ∈ [0, 1] with w(base + λ part) ≤ E (0 when even λ = 0 exceeds E).
+
+    w(base + λ part) = A λ² + B λ + C is convex in λ, so the bound is its larger root.
+    """
+    A = 0.5 * dt * dt * float(part.dot(Minv.dot(part)))
+    B = dt * float(part.dot(v)) + dt * dt * float(part.dot(Minv.dot(base)))
+    C = _work(base, v, Minv, dt) - E
+    if A + B + C <= 0.0:
+        return 1.0
+    if C >= 0.0:
+        return 0.0
+    lam = (-B + math.sqrt(max(B * B - 4.0 * A * C, 0.0))) / (2.0 * A) if A > 0.0 else -C / B
+    return min(max(lam, 0.0), 1.0)
+
+
+def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: np.ndarray, J: np.ndarray,
+               Jsharp: np.ndarray, Minv: np.ndarray, g_null: np.ndarray, tau0: np.ndarray, tau1: np.ndarray,
+               d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Book the last interval, damp a deficit, choose λ: the torque to send (n,) [N m] (steps 1–4 of the module).
+
+    Args:
+        tank: the settings.
+        s: the tank's state, advanced.
+        t: time [s].
+        q: (n,) joint positions [rad].
+        dq: (n,) joint velocities [rad/s].
+        J: (m, n) task Jacobian.
+        Jsharp: (n, m) its dynamically consistent inverse J#.
+        Minv: (n, n) M⁻¹.
+        g_null: (n,) the null-space part of the gravity compensation in the torque [N m] (zeros without).
+        tau0: (n,) the tick's torque without the objectives [N m], in the box.
+        tau1: (n,) the tick's torque with them [N m], in the box.
+        d: (n,) the damper's direction Π q̇: q̇ projected onto the null-space torques that leave the
+            held joints unchanged (zeros when no redundancy is left) [rad/s].
+        lo: (n,) lower torque limits [N m].
+        hi: (n,) upper torque limits [N m].
+    """
+    if s.position is not None and s.effort is not None:  # 1. the held null-space torque's exact work
+        s.energy = min(s.energy - float(s.effort.dot(q - s.position)), tank.capacity)
+    dt = t - s.t
+
+    def null(tau: np.ndarray) -> np.ndarray:  # N τ, N = I − JᵀJ#ᵀ
+        return tau - J.T.dot(Jsharp.T.dot(tau))
+
+    lam, s.damping = 0.0, 0.0
+    tau = tau0
+    if dt > 0.0 and math.isfinite(dt):
+        deficit = _work(null(tau0) - g_null, dq, Minv, dt) - s.energy
+        p = float(dq.dot(d))  # |P_c Zᵀ q̇|² ≥ 0: the damper −μ d dissipates μ p
+        if deficit > 0.0 and p > 0.0:  # 2. the null-space damper on the deficit, in the box room left
+            s.damping = min(deficit / (dt * p), 0.5 / (dt * float(np.trace(Minv))))
+            sigma = scaling_alpha(-s.damping * d, tau0, lo=lo, hi=hi)
+            s.damping *= 0.0 if sigma is None else sigma
+            tau = tau0 - s.damping * d
+        diff = tau1 - tau0  # 3. the objectives' share, by what the tank holds and the box leaves
+        lam = largest_scale(s.energy, null(tau) - g_null, null(diff), dq, Minv, dt)
+        room = scaling_alpha(diff, tau, lo=lo, hi=hi) if lam > 0.0 else 0.0
+        lam = min(lam, 0.0 if room is None else room)
+    tau = np.minimum(np.maximum(tau + lam * (tau1 - tau0), lo), hi)
+    s.scale, s.t, s.position, s.effort = lam, t, np.array(q, dtype=float), null(tau) - g_null  # 4. recorded
+    return tau
+
+
+__all__ = ["NullSpaceTank", "TankState", "largest_scale", "tank_blend"]
