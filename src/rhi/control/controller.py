@@ -303,6 +303,9 @@ class NullSpaceController:
         self._n = device.n
         self._kernel = (None if config.implementation == "reference" or allocation.kernel is None
                         else KernelTick(self))
+        #: A dict to fill with each reference tick's torque by source (`rhi.control.reference.reference_tick`'s
+        #: parts; ``implementation="reference"``), or None.
+        self.sources: dict[str, np.ndarray] | None = None
 
     @property
     def passivity(self) -> PassivityState | None:
@@ -423,7 +426,7 @@ class NullSpaceController:
         if kernel is None:
             kin = reference_terms(self, q, dq) if self.config.implementation == "reference" else self.device.terms(
                 q, dq, check=False)
-            tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors)
+            tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, parts=self.sources)
             tau = np.minimum(np.maximum(tau, self.lo), self.hi)
         else:
             if kernel.whole_ok:  # one compiled call, the passivity layer included

@@ -40,11 +40,17 @@ def reference_terms(ctrl: NullSpaceController, q: np.ndarray, dq: np.ndarray) ->
 
 def reference_tick(
     ctrl: NullSpaceController, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray],
-    forces: tuple[np.ndarray, np.ndarray] | None = None,
+    forces: tuple[np.ndarray, np.ndarray] | None = None, parts: dict[str, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, float, float, np.ndarray, bool]:
     """Steps 2–6 of one tick; advances ``ctrl.state``'s V, transition and Ω.
 
-    `forces` (F_render, F_extra) [N] when the primary law has already run this tick.
+    `forces` (F_render, F_extra) [N] when the primary law has already run this tick. `parts`, if given, is
+    filled with the torque by source (``null_space="scaled"`` only), each (n,) [N m], summing to the
+    clipped τ: "task" (γ α Jᵀ F_render + Jᵀ F_extra: the rendered wall, its damping and compensation), "gravity"
+    (the null-space part of the gravity compensation), "allocation" (the allocation's null-space torque γ Z y,
+    eq. 7.8, with what the safety room's clip leaves), "damping" and "barrier" (the safety torque's shares: the
+    held part and Algorithm 2's), "tank damper" (`rhi.control.tank`), one "objective i: Name" per objective
+    (Algorithm 2's share, times the tank's λ) and "box clip".
 
     Returns:
         (τ (n,) [N m] before the final clip to the box, α, β, saturated (n,) bool, clipped).
@@ -55,8 +61,10 @@ def reference_tick(
     F_r, F_x = cfg.primary.forces(t, kin, sensors) if forces is None else forces
     a = J.T @ F_r
     b = J.T @ F_x
+    g_null = np.zeros(dev.n)
     if cfg.gravity_compensation and kin.g @ kin.g != 0.0:
-        b = b + (kin.g - J.T @ kin.Gx)  # (I − JᵀJ#ᵀ) g: the part G_x leaves out
+        g_null = kin.g - J.T @ kin.Gx  # (I − JᵀJ#ᵀ) g: the part G_x leaves out
+        b = b + g_null
     tau_m = a + b
     if not np.isfinite(tau_m).all():  # e.g. at a singular configuration or a joint limit: a safe stop (`step`)
         raise Singular(f"the primary law's joint torque Jᵀ F is not finite: F_render={np.asarray(F_r).tolist()}, "
@@ -81,6 +89,7 @@ def reference_tick(
     if not np.isfinite(Z).all():
         raise Singular("the null-space basis is not finite")
     al = ctrl.allocation.allocate(a, b, Z, torque_min=lo, torque_max=hi)
+    al0 = al
     N = nullspace_projector(J, M)
     gamma = 1.0
     if al.saturated.any() and ctrl.allocation.safe:  # safety the held joints would block
@@ -91,18 +100,50 @@ def reference_tick(
         return al.tau + N @ tau_to, gamma * al.alpha, 1.0, al.saturated, al.clipped
     delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, torque_min=lo, torque_max=hi, N=N)
     tau = al.tau + delta if beta else al.tau
+    beta0, d = beta, np.zeros(dev.n)
     if cfg.tank is not None:  # the objectives spend only what the null-space energy tank holds (rhi.control.tank)
         delta0, beta0 = tertiary(al.tau, al.saturated, Z, tau_s, torque_min=lo, torque_max=hi, N=N)
-        g_null = kin.g - J.T @ kin.Gx if cfg.gravity_compensation else np.zeros(dev.n)
         c = np.zeros(Z.shape[1])
         if dev.n - int(np.count_nonzero(al.saturated)) > dev.m:  # the damper's direction: q̇ on the allowed torques
             c = Z.T @ dq
             if al.saturated.any():
                 ZS = Z[al.saturated]
                 c = c - np.linalg.pinv(ZS) @ (ZS @ c)
+        d = Z @ c
         tau = tank_blend(cfg.tank, s.tank, t, q, dq, J, kin.Jsharp, kin.Minv, g_null,
-                         al.tau + delta0 if beta0 else al.tau, tau, Z @ c, lo, hi)
+                         al.tau + delta0 if beta0 else al.tau, tau, d, lo, hi)
+    if parts is not None:
+        lam, mu = (1.0, 0.0) if s.tank is None else (s.tank.scale, s.tank.damping)
+        _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, al.tau, gamma, tau_s, objectives, (1.0 - lam) * beta0 + lam * beta,
+               lam * beta, -mu * d, np.minimum(np.maximum(tau, lo), hi))
     return tau, gamma * al.alpha, beta, al.saturated, al.clipped
+
+
+def _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, tau_al, gamma, tau_s, objectives, beta_s, beta_o, damper, tau):
+    """Fill `parts` with the tick's torque τ (n,) [N m] by source (see `reference_tick`)."""
+    dev, q, dq = ctrl.device, kin.q, kin.dq
+    sat = al0.saturated
+    inf = np.full(dev.n, np.inf)
+
+    def share(x: np.ndarray) -> np.ndarray:  # Algorithm 2's projection Π x (β = 1)
+        return tertiary(tau_al, sat, Z, x, torque_min=-inf, torque_max=inf, N=N)[0]
+
+    damp = -ctrl.config.damping * dq
+    bar = tau_s - damp
+    held = tau_al - b - gamma * (al0.tau - b)  # the safety torque the held joints would block (`safety_room`)
+    hd, hb = held_part(Z, sat, N @ damp), held_part(Z, sat, N @ bar)
+    h = hd + hb
+    k = float(held @ h) / float(h @ h) if h @ h > 0.0 else 0.0
+    parts.clear()
+    parts["task"] = gamma * al0.alpha * a + b - g_null
+    parts["gravity"] = g_null
+    parts["allocation"] = gamma * (al0.tau - al0.alpha * a - b) + (held - k * h)
+    parts["damping"] = k * hd + beta_s * share(damp)
+    parts["barrier"] = k * hb + beta_s * share(bar)
+    parts["tank damper"] = damper
+    for i, (gain, obj) in enumerate(objectives):
+        parts[f"objective {i}: {type(obj).__name__}"] = beta_o * share(-gain * np.asarray(obj.gradient(dev, q), float))
+    parts["box clip"] = tau - sum(parts.values())
 
 
 __all__ = ["reference_terms", "reference_tick"]

@@ -36,17 +36,21 @@ the objectives and the joint-limit barrier put in. Each tick (`tank_blend`):
    and once without) by the largest λ ∈ [0, 1] with ``w(e₀' + λ d) ≤ T`` that keeps the box.
 4. Send ``τ₀ − μΠq̇ + λ d`` and record its null-space part for step 1.
 
-The primary task torque (the rendered wall, its damping and compensation), the allocation
-and the safety torques (null-space damping, joint-limit barrier) are never scaled: with
-λ = 0 and the damper idle the tick is exactly the tick without objectives; with λ = 1 it is
-the thesis's tick.
+The primary task torque (the rendered wall, its damping and compensation) and the allocation
+are never scaled, nor are the safety torques (null-space damping, joint-limit barrier): their
+held part is the same in τ₀ and τ₁, and their share in Algorithm 2 is (1 − λ) β₀ + λ β₁ (β₀,
+β₁: Algorithm 2's box scaling without and with the objectives). With λ = 0 and the damper
+idle the tick is exactly the tick without objectives; with λ = 1, the thesis's tick.
 
-What it guarantees. The objectives only spend energy the tank holds, so over any run the
-null-space torque's net work is at most ``initial`` plus what the one-interval predictions
-miss, as long as the damper can take out the allocation's deficit. Where it cannot — ASCM holds
-so many joints that no redundancy is left (Π = 0), or the bound on μ or the box stops it —
-the deficit is booked (T < 0) and the objectives stay off until the damping has refilled it. ``capacity`` bounds how much stored energy a
-later burst may release. `rhi.experiments.beyond.passivity` checks it from the plant's signals.
+What it guarantees, and what not. The objectives only spend energy the tank holds. The
+allocation is metered too but never scaled: where its null-space torque draws more than the
+tank holds and the damper cannot take the deficit out — ASCM holds so many joints that no
+redundancy is left (Π = 0: on rhi4, two held joints), or the bound on μ or the box stops
+it — the deficit is booked (T < 0) and the objectives stay off until the damping has
+refilled the tank. The null-space side is then *not* passive: the remaining source is ASCM's
+null-space torque with no redundancy left, which only a smaller rendered force (simple
+scaling's, α of eq. 7.9) would remove. ``capacity`` bounds how much stored energy a later
+burst may release. `rhi.experiments.beyond.passivity` measures every source from the plant's signals.
 """
 
 from __future__ import annotations
