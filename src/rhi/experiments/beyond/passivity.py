@@ -37,6 +37,7 @@ from rhi.control import (
     ControllerConfig,
     ForceRendering,
     NullSpaceController,
+    NullSpaceTank,
     Passivity,
     WeightedSum,
 )
@@ -45,6 +46,7 @@ from rhi.control.passivity import Method, Port
 from rhi.device import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
+from rhi.experiments.beyond import sources
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
@@ -59,45 +61,53 @@ HAND = (3000.0, 40.0, 60.0)
 OUT, DEPTH, SPEED = 0.002, 0.015, 0.01
 #: Target of the issue: the hand's work with the passivity controller [J].
 TARGET_W = -1e-3
-#: case key: (null-space objectives, passivity port or None, saturation handling, `Passivity.method`)
-CASES: dict[str, tuple[bool, Port | None, Saturation, Method]] = {
-    "objectives": (True, None, "ascm", "damper_bounding"),
-    "objectives_pc": (True, "motors", "ascm", "damper_bounding"),
-    "objectives_damper": (True, "motors", "ascm", "damper"),
-    "objectives_bounding": (True, "motors", "ascm", "bounding"),
-    "bare": (False, None, "ascm", "damper_bounding"),
-    "bare_pc": (False, "motors", "ascm", "damper_bounding"),
-    "objectives_pc_handle": (True, "handle", "ascm", "damper_bounding"),
-    "scaling": (True, None, "scaling", "damper_bounding"),
+#: case key: (null-space objectives, passivity port or None, saturation handling, `Passivity.method`, the null-space
+#: energy tank `rhi.control.tank`)
+CASES: dict[str, tuple[bool, Port | None, Saturation, Method, bool]] = {
+    "objectives": (True, None, "ascm", "damper_bounding", False),
+    "objectives_pc": (True, "motors", "ascm", "damper_bounding", False),
+    "objectives_damper": (True, "motors", "ascm", "damper", False),
+    "objectives_bounding": (True, "motors", "ascm", "bounding", False),
+    "objectives_tank": (True, None, "ascm", "damper", True),
+    "objectives_tank_damper": (True, "motors", "ascm", "damper", True),
+    "bare": (False, None, "ascm", "damper_bounding", False),
+    "bare_pc": (False, "motors", "ascm", "damper_bounding", False),
+    "objectives_pc_handle": (True, "handle", "ascm", "damper_bounding", False),
+    "scaling": (True, None, "scaling", "damper_bounding", False),
 }
+#: Cases whose energy is split by torque source (`rhi.experiments.beyond.sources`: a reference replay of every tick).
+SPLIT_CASES = ("objectives", "objectives_damper", "objectives_tank", "objectives_tank_damper")
 STIFF_CASES = ("objectives", "objectives_pc")
 #: Window of the moving average that separates chatter from the palpation motion [s].
 CHATTER_WINDOW = 0.02
 DECIMATE = 10
 #: Order of the per-case ``{case}_summary`` array.
 SUMMARY = ("W", "motors", "task", "null", "wall_zoh", "friction", "force_rms_error", "chatter_velocity",
-           "E_obs_min", "qdot_max")
+           "E_obs_min", "qdot_max", "force_peak", "objective_work", "null_work", "tank_end")
 
 
 def _passivity_state(ctrl: NullSpaceController) -> dict[str, float]:
-    """`simulate`'s record hook: the passivity scale λ and ASCM's held set (as a bit mask) of the tick."""
+    """`simulate`'s record hook: the passivity scale λ, ASCM's held set (a bit mask) and the tank's T and λ."""
     s, pc = ctrl.state, ctrl.passivity
     return {"pc_scale": math.nan if pc is None else pc.scale,
-            "held": 0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated))))}
+            "held": 0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated)))),
+            "tank": math.nan if s.tank is None else s.tank.energy,
+            "tank_scale": math.nan if s.tank is None else s.tank.scale}
 
 
 def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: Saturation = "ascm",
-               method: Method = "damper_bounding") -> NullSpaceController:
+               method: Method = "damper_bounding", tank: bool = False) -> NullSpaceController:
     """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`).
 
-    With the ch. 6 null-space objectives if `objectives`, and the passivity controller (`method`) on `port` if given.
+    With the ch. 6 null-space objectives if `objectives`, the passivity controller (`method`) on `port` if given,
+    and the null-space energy tank (`rhi.control.tank`, default settings) if `tank`.
     """
     u = np.array(ch6.U)
     _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
     terms = ch6.controller_terms(Ms, dev.torque_max) if objectives else ()
     law = ForceRendering(damping=B_D, passivity=None if port is None else Passivity(port=port, method=method))
     return NullSpaceController(dev, ControllerConfig(primary=law, objectives=terms, damping=ch6.K_D,
-                                                     saturation=saturation))
+                                                     saturation=saturation, tank=NullSpaceTank() if tank else None))
 
 
 def _moving_average(a: np.ndarray, w: int) -> np.ndarray:
@@ -134,11 +144,12 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     hand = Hand(HandPath(np.array(pts), speed=speed, start=0.2), stiffness=HAND[0], damping=HAND[1], max_force=HAND[2])
     plant = Plant(dev)
     plant.reset(q0)
-    objectives, port, saturation, method = CASES[case]
-    ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation, method=method)
+    objectives, port, saturation, method, tank = CASES[case]
+    ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation, method=method, tank=tank)
     log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=progress,
                    record=lambda: _passivity_state(ctrl))
     en = _energies(dev, log, plant.friction, stiffness)
+    work, replay = sources.source_work(dev, ctrl.config, log) if case in SPLIT_CASES else ({}, math.nan)
     pen = (log.x - x0) @ u
     F_des = stiffness * np.maximum(pen, 0.0)
     F = log.ft[:, :2] @ u  # the force the hand pushes along u = the force rendered to it [N]
@@ -161,6 +172,7 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
         "chatter_velocity": float(np.sqrt(np.mean(hf_v**2))) if hf_v.size else math.nan,
         "chatter_force": float(np.sqrt(np.mean(hf_F**2))) if hf_F.size else math.nan,
         "held": float(np.mean(held > 0)),
+        "held_full": float(np.mean([int(h).bit_count() >= dev.n - dev.m for h in held])),
         "qdot_max": float(np.max(np.abs(log.dq))),
         "beyond_range": float(np.mean(np.any((log.q < dev.q_min) | (log.q > dev.q_max), axis=1))),
         "E_obs_min": float(np.nanmin(E)) if port is not None else math.nan,
@@ -168,6 +180,13 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
         "pc_scaled": float(np.mean(log.extra["pc_scale"] < 1)) if port is not None else math.nan,
         "alpha_scaling_min": float(np.nanmin(log.alpha)),
         "fault": log.fault,
+        "sources": work,
+        "replay_error": replay,
+        "objective_work": sources.objective_work(work) if work else math.nan,
+        "null_work": sources.null_work(work) if work else math.nan,
+        "tank_end": float(log.extra["tank"][-1]),
+        "tank_min": float(np.min(log.extra["tank"])),
+        "tank_off": float(np.mean(log.extra["tank_scale"] < 1)),
     }
     series = {"t": log.t, "W": log.work, "F": F, "F_des": F_des, "pen": pen, "E_obs": E,
               "alpha_pc": alpha_pc, "xdot": xd}
@@ -294,6 +313,8 @@ _LABEL = {
     "objectives_pc": "null-space objectives, PC: damper + energy bounding (motor port)",
     "objectives_damper": "null-space objectives, series damper only, the law never scaled (motor port)",
     "objectives_bounding": "null-space objectives, energy bounding only (motor port)",
+    "objectives_tank": "null-space objectives on the null-space energy tank, no PC",
+    "objectives_tank_damper": "null-space objectives on the null-space energy tank, series damper (motor port)",
     "bare": "no null-space objectives, no PC",
     "bare_pc": "no null-space objectives, PC (motor port)",
     "objectives_pc_handle": "null-space objectives, PC at the handle port",
@@ -331,6 +352,20 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
             Row(f"largest rendered force, {lab}", None, m["force_peak"], "N"),
             Row(f"deepest penetration, {lab}", None, 1e3 * m["penetration_max"], "mm"),
         ]
+    src_rows = []
+    for c, m in res.items():
+        lab = _LABEL[c]
+        if m["sources"]:
+            src_rows += sources.rows(m["sources"], lab)
+            src_rows.append(Row(f"largest replay error of the reference twin, {lab}", None, m["replay_error"], "N m",
+                                "the twin sends the logged torque"))
+        if CASES[c][4]:
+            src_rows += [Row(f"tank energy T at the end (lowest), {lab}", None, m["tank_end"], "J",
+                             f"lowest {m['tank_min']:.3g} J; objectives scaled (λ < 1) on "
+                             f"{100 * m['tank_off']:.0f} % of the ticks")]
+        if m["sources"]:
+            src_rows.append(Row(f"ticks with no redundancy left (ASCM holds n − m joints), {lab}", None,
+                                100.0 * m["held_full"], "%"))
     for c, m in stiff_res.items():
         lab = _LABEL[c]
         s_rows += [
@@ -349,6 +384,9 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
     out = [Table(f"Energy at the hand palpating {stiffness:g} N/m for {duration:g} s (positive: into the device)",
                  e_rows),
            Table("What passivity costs in force", f_rows)]
+    if src_rows:
+        out.append(Table("Where the energy comes from: the motor-port work of each torque source, Σ part(k)ᵀΔq "
+                         "(positive: into the mechanism)", src_rows))
     if s_rows:
         out.append(Table("Chatter", s_rows))
     return out
