@@ -164,7 +164,7 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
         if deficit > 0.0 and p > 0.0:  # 2. the null-space damper on the deficit, in the box room left
             s.damping = min(deficit / (dt * p), 0.5 / (dt * float(np.trace(Minv))))
             sigma = scaling_alpha(-s.damping * d, tau0, lo=lo, hi=hi)
-            s.damping *= 0.0 if sigma is None else sigma
+            s.damping = 0.0 if sigma is None else s.damping * sigma
             tau = tau0 - s.damping * d
         diff = tau1 - tau0  # 3. the objectives' share, by what the tank holds and the box leaves
         lam = largest_scale(s.energy, null(tau) - g_null, null(diff), dq, Minv, dt)

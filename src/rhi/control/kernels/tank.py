@@ -65,7 +65,7 @@ def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau0, tau1, d
                 tr += Minv[i, i]
             mu = min(deficit / (dt * p), 0.5 / (dt * tr))
             sigma = scaling_alpha(-mu * d, tau0, lo, hi, np.ones(n, np.bool_))
-            mu *= sigma if sigma > 0.0 else 0.0
+            mu = mu * sigma if sigma > 0.0 else 0.0
             tau = tau0 - mu * d
         lam = _largest_scale(E, _null(J, Jsharp, tau, g_null), _null(J, Jsharp, diff, np.zeros(n)), dq, Minv, dt)
         if lam > 0.0:
