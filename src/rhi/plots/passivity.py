@@ -14,6 +14,8 @@ _NAMES = {
     "objectives_pc": "objectives, PC (motors)",
     "objectives_damper": "objectives, damper only (motors)",
     "objectives_bounding": "objectives, bounding only (motors)",
+    "objectives_tank": "objectives on the null-space tank, no PC",
+    "objectives_tank_damper": "objectives on the null-space tank, damper (motors)",
     "bare": "no objectives, no PC",
     "bare_pc": "no objectives, PC (motors)",
     "objectives_pc_handle": "objectives, PC (handle port)",

@@ -122,7 +122,7 @@ STEPS: list[Step] = [
           "ch7_palpation_settling": pl7p.settling}, progress=True),
     Step(expas.passivity, {},
          {"duration": 1.5, "stiff_duration": 2.0, "speed": 0.03,
-          "cases": ("objectives", "objectives_pc", "objectives_damper")},
+          "cases": ("objectives", "objectives_pc", "objectives_damper", "objectives_tank")},
          {"passivity_energy": plpas.energy, "passivity_force": plpas.force, "passivity_chatter": plpas.chatter},
          progress=True, plan=expas.passivity_plan),
     Step(exzw.z_width, {"duration": 2.0},

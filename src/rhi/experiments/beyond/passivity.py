@@ -447,6 +447,17 @@ def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
                 f"{m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N without a PC, mean "
                 f"{m['force_mean_error']:.2f} N vs {m0['force_mean_error']:.2f} N; the PC acted on "
                 f"{100 * m['pc_active']:.0f} % of the ticks and scaled the law on {100 * m['pc_scaled']:.0f} %.")
+    for c in ("objectives_tank", "objectives_tank_damper"):
+        if c in res and "objectives" in res and res[c]["sources"] and res["objectives"]["sources"]:
+            m, m0 = res[c], res["objectives"]
+            notes.append(
+                f"{_LABEL[c][0].upper()}{_LABEL[c][1:]}: the objectives did {m['objective_work']:.3g} J of work "
+                f"(without the tank {m0['objective_work']:.3g} J) and the null-space side {m['null_work']:.3g} J net "
+                f"({m0['null_work']:.3g} J); the allocation's null-space torque did {m['sources']['allocation']:.3g} J "
+                f"and ASCM left no redundancy on {100 * m['held_full']:.0f} % of the ticks, where neither the tank's "
+                f"λ nor its damper can act (the tank ended at {m['tank_end']:.3g} J). Hand's work W = {m['W']:.3g} J "
+                f"(lowest {m['W_min']:.2g} J); peak force {m['force_peak']:.1f} N vs {m0['force_peak']:.1f} N without "
+                f"a PC, RMS force error {m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N.")
     if "objectives_pc_handle" in res:
         m = res["objectives_pc_handle"]
         notes.append(
