@@ -165,10 +165,10 @@ def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
     fallbacks = []
     reference_tick = controller_module.reference_tick
 
-    def counting(ctrl, t, kin, sensors, forces=None):
+    def counting(ctrl, t, kin, sensors, forces=None, parts=None):
         if forces is not None and ctrl._kernel.whole_ok:
             fallbacks.append(t)
-        return reference_tick(ctrl, t, kin, sensors, forces)
+        return reference_tick(ctrl, t, kin, sensors, forces, parts)
 
     monkeypatch.setattr(controller_module, "reference_tick", counting)
     cfg = _config(rhi4, "render")
@@ -280,10 +280,10 @@ def test_whole_tick_decides_an_ill_conditioned_full_held_set(rhi4, rng, monkeypa
     fallbacks = []
     reference_tick = controller_module.reference_tick
 
-    def counting(ctrl, t, kin, sensors, forces=None):
+    def counting(ctrl, t, kin, sensors, forces=None, parts=None):
         if forces is not None:
             fallbacks.append(t)
-        return reference_tick(ctrl, t, kin, sensors, forces)
+        return reference_tick(ctrl, t, kin, sensors, forces, parts)
 
     monkeypatch.setattr(controller_module, "reference_tick", counting)
     _, _, _, Ms = ch6.desired_fmes(rhi4, np.array(ch6.U), ch6.Q_HOME)

@@ -101,7 +101,7 @@ def reference_tick(
     delta, beta = tertiary(al.tau, al.saturated, Z, tau_to, torque_min=lo, torque_max=hi, N=N)
     tau = al.tau + delta if beta else al.tau
     beta0, d = beta, np.zeros(dev.n)
-    if cfg.tank is not None:  # the objectives spend only what the null-space energy tank holds (rhi.control.tank)
+    if cfg.tank is not None and s.tank is not None:  # the objectives spend only what the tank holds (rhi.control.tank)
         delta0, beta0 = tertiary(al.tau, al.saturated, Z, tau_s, torque_min=lo, torque_max=hi, N=N)
         c = np.zeros(Z.shape[1])
         if dev.n - int(np.count_nonzero(al.saturated)) > dev.m:  # the damper's direction: q̇ on the allowed torques
@@ -110,7 +110,7 @@ def reference_tick(
                 ZS = Z[al.saturated]
                 c = c - np.linalg.pinv(ZS) @ (ZS @ c)
         d = Z @ c
-        tau = tank_blend(cfg.tank, s.tank, t, q, dq, J, kin.Jsharp, kin.Minv, g_null,
+        tau = tank_blend(cfg.tank, s.tank, t, q, np.asarray(dq), J, kin.Jsharp, kin.Minv, g_null,
                          al.tau + delta0 if beta0 else al.tau, tau, d, lo, hi)
     if parts is not None:
         lam, mu = (1.0, 0.0) if s.tank is None else (s.tank.scale, s.tank.damping)
