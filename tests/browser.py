@@ -16,6 +16,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import threading
 import time
 import urllib.request
 
@@ -53,10 +54,13 @@ class Browser:
         try:
             if port is None:
                 raise RuntimeError("chromium did not start its DevTools endpoint")
+            # the rest of chromium's stderr is read and dropped: a full pipe would block the browser
+            threading.Thread(target=self.proc.stderr.read, daemon=True, name="chromium-stderr").start()
             pages = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list"))
             page = next(p for p in pages if p.get("type") == "page")
-            # no keepalive pings: a busy machine delays the answer past the ping timeout and the connection drops
-            self.ws = connect(page["webSocketDebuggerUrl"], max_size=64 << 20, ping_interval=None)
+            # no keepalive pings and an unbounded queue: while a test does not read the page's events (viser's
+            # frames, many a second), a bounded queue stops the reader and a missed pong would close the connection
+            self.ws = connect(page["webSocketDebuggerUrl"], max_size=64 << 20, ping_interval=None, max_queue=None)
         except BaseException:
             self.close()
             raise
@@ -68,8 +72,12 @@ class Browser:
         self.call("Target.setAutoAttach", autoAttach=True, waitForDebuggerOnStart=False, flatten=True)
         self.call("Page.navigate", url=url)
 
-    def call(self, method: str, timeout: float = 30.0, **params):
-        """Send a CDP command and return its result (events met meanwhile are recorded)."""
+    def call(self, method: str, timeout: float = 120.0, **params):
+        """Send a CDP command and return its result (events met meanwhile are recorded).
+
+        The timeout is generous: on a loaded machine the page's renderer waits for software WebGL (SwiftShader),
+        seen to take 25-30 s at a load of 14 on 2 cores, before it answers.
+        """
         self._id += 1
         my = self._id
         self.ws.send(json.dumps({"id": my, "method": method, "params": params}))
@@ -104,7 +112,7 @@ class Browser:
         r = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
         return r.get("result", {}).get("value")
 
-    def wait_for(self, expression: str, timeout: float = 20.0) -> bool:
+    def wait_for(self, expression: str, timeout: float = 60.0) -> bool:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if self.evaluate(expression):

@@ -104,6 +104,14 @@ def test_sigterm_of_view_ends_its_child():
     assert proc.returncode == 128 + signal.SIGTERM, proc.stderr.read() if proc.stderr else ""
 
 
+def test_sigkill_of_compare_view_leaves_no_page():
+    """`rhi view --compare rhi4 phantom`: its page's process (`RemoteCompare`) goes with it."""
+    proc = _start("view", "--compare", "rhi4", "phantom", "--port", "0", "--duration", "120", stdout=subprocess.PIPE)
+    assert any("side by side" in line for line in iter(proc.stdout.readline, ""))  # printed once the page serves
+    assert _view_child(proc.pid), _session(proc.pid)
+    _kill_leader_and_check(proc)
+
+
 def test_sigterm_of_run_is_an_estop_with_log_and_summary_on_disk(tmp_path):
     log, summary = tmp_path / "run.rhilog", tmp_path / "summary.json"
     proc = _start("run", "rhi4", "--config", "ch7_full", "--duration", "120", "--log", str(log),

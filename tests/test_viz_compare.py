@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import re
+import threading
+import time
+
 import numpy as np
 import pytest
 
@@ -10,6 +14,9 @@ from rhi.errors import InvalidInput
 from rhi.sim.hand import DraggableHand
 
 pytest.importorskip("viser")
+
+import browser  # noqa: E402  (tests/browser.py)
+from test_viz_view import need_browser  # noqa: E402
 
 
 def test_following_hand_moves_by_the_leaders_displacement_from_its_own_start():
@@ -46,3 +53,89 @@ def test_devices_are_placed_side_by_side_without_overlap():
         lo, hi = p.bounds()
         boxes.append((lo + off, hi + off))
     assert boxes[1][0][0] > boxes[0][1][0]  # the second device starts right of the first one's box
+
+
+def _forces(b) -> list[tuple[float, float]]:
+    """(|F_h|, |F_env|) [N] read from each device's read-out panel in the page, left to right."""
+    out = []
+    for text in b.evaluate("[...document.querySelectorAll('#rhi-state')].map(e => e.innerText)"):
+        fh = re.search(r"\|F_h\| \[N\]\s+([\d.]+)", text)
+        fe = re.search(r"\|F_env\| \[N\]\s+([\d.]+)", text)
+        out.append((float(fh.group(1)) if fh else np.nan, float(fe.group(1)) if fe else np.nan))
+    return out
+
+
+@pytest.mark.realtime
+def test_compare_view_shows_two_devices_whose_forces_differ_on_a_push():
+    """rhi4 and phantom in one page; a 5 cm push of the gizmo into both walls: the read-outs differ."""
+    need_browser()
+    import msgspec
+    import viser
+    from viser import _messages
+    from websockets.sync.client import connect
+
+    from rhi.runtime import SafetyConfig
+    from rhi.viz.compare import compare
+    from rhi.viz.posed import rest_configuration
+
+    devs = [rhi.device("rhi4"), rhi.device("phantom")]
+    pages, lines, out = [], [], {}
+    # two 1 kHz loops beside a software-rendering browser on a loaded machine: the host's silence and staleness
+    # limits (20 ms, 3 ticks: a real link's) tripped the rhi4 after the push; the push moves the handles at up to
+    # about 1.2 m/s
+    safety = SafetyConfig(range_margin=0.3, max_handle_speed=3.0, silence=5.0, stale_ticks=10**6)
+    session = threading.Thread(target=lambda: out.setdefault("runs", compare(
+        devs, duration=None, port=0, on_start=pages.append, say=lines.append, safety=safety)), daemon=True)
+    session.start()
+    deadline = time.monotonic() + 240
+    while not pages and time.monotonic() < deadline:
+        time.sleep(0.1)
+    page = pages[0]
+    b = browser.Browser(page.url, width=1200, height=800)
+    try:
+        status = "[...document.querySelectorAll('#rhi-status')].map(e => e.innerText)"
+        assert b.wait_for(f"{status}.length === 2 && {status}.every(s => s === 'live')", timeout=300), \
+            (b.evaluate(status), lines)
+        text = b.evaluate("document.body.innerText")
+        assert "rhi4" in text and "phantom" in text
+        assert b.evaluate("document.querySelectorAll('#rhi-state').length") == 2
+        assert b.evaluate("document.querySelectorAll('#rhi-torques').length") == 2
+        before = _forces(b)
+        assert all(fh == 0.0 for fh, _ in before), before  # nobody pushes yet
+        x0 = devs[0].fk(rest_configuration(devs[0]))
+        goal = x0 + np.array([0.0, 0.05])  # 4 cm into the wall 1 cm beyond the start handle
+        msg = _messages.TransformControlsUpdateMessage(name="/device0/hand", wxyz=(1.0, 0.0, 0.0, 0.0),
+                                                       position=(float(goal[0]), float(goal[1]), 0.0))
+        with connect(f"ws://127.0.0.1:{page.port}", subprotocols=[f"viser-v{viser.__version__}"]) as ws:
+            ws.send(msgspec.msgpack.encode(msg.as_serializable_dict()))
+            deadline = time.monotonic() + 60
+            while page.hand.target is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+        np.testing.assert_allclose(page.hand.target, goal, atol=1e-9)  # set in the page's process
+        # both hands push (the phantom's follows the gizmo's displacement) and both walls push back: 2.5 s to settle
+        t_push = [tel.latest().t for tel in page.telemetries]
+        deadline = time.monotonic() + 300
+        while min(tel.latest().t - t for tel, t in zip(page.telemetries, t_push)) < 2.5:
+            assert time.monotonic() < deadline, ([c.status() for c in page.commands], lines)
+            time.sleep(0.2)
+        snaps = [tel.latest() for tel in page.telemetries]
+        assert all(s.safety == "ok" for s in snaps), ([c.status() for c in page.commands], lines)
+        assert b.wait_for("[...document.querySelectorAll('#rhi-state')].every(e => "
+                          "/\\|F_env\\| \\[N\\]\\s+[1-9]/.test(e.innerText))", timeout=120), _forces(b)
+        (fh_a, fe_a), (fh_b, fe_b) = _forces(b)
+        assert fh_a > 1.0 and fh_b > 1.0, _forces(b)
+        # the same push, different devices: the read-outs differ (rhi4 about 8 N, the locked NHI about 20 N)
+        assert abs(fe_a - fe_b) > 0.25 * max(fe_a, fe_b), (fe_a, fe_b)
+        assert abs(np.linalg.norm(snaps[0].F_env) - np.linalg.norm(snaps[1].F_env)) > 1.0
+        page.commands[0].request_stop()
+        session.join(60)
+        assert not session.is_alive()
+    finally:
+        b.close()
+        if session.is_alive():
+            for cmd in page.commands:
+                cmd.request_stop()
+            session.join(60)
+    runs = out["runs"]
+    assert len(runs) == 2 and all(r[-1].summary["fault_kind"] == "estop" for r in runs), [r[-1].fault for r in runs]
+    assert all("stopped in the view" in r[-1].fault for r in runs)

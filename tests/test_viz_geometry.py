@@ -209,3 +209,103 @@ def test_report_render_grid_and_its_line_fallback(monkeypatch):
     monkeypatch.setattr(renders, "render", no_gl)
     fig = renders._grid(panels, "t")
     assert "line drawing" in fig._suptitle.get_text() and len(fig.axes[1].lines) == 1
+
+
+def _two_material_obj(path: Path) -> None:
+    """An OBJ of two 0.15 m boxes along x (x in −0.15..0.15 m) in a red and a blue material (its own MTL)."""
+    import trimesh
+
+    boxes = [trimesh.creation.box(extents=[0.15, 0.04, 0.04]) for _ in range(2)]
+    boxes[0].apply_translation([-0.075, 0.0, 0.0])
+    boxes[1].apply_translation([0.075, 0.0, 0.0])
+    lines = [f"mtllib {path.stem}.mtl"] + [f"v {x:.6f} {y:.6f} {z:.6f}" for b in boxes for x, y, z in b.vertices]
+    for k, (b, mat) in enumerate(zip(boxes, ("red", "blue"))):
+        lines.append(f"usemtl {mat}")
+        lines += [f"f {' '.join(str(i + 1 + k * len(boxes[0].vertices)) for i in face)}" for face in b.faces]
+    path.write_text("\n".join(lines) + "\n")
+    path.with_suffix(".mtl").write_text("newmtl red\nKd 0.9 0.1 0.1\nnewmtl blue\nKd 0.1 0.2 0.9\n")
+
+
+def test_user_meshes_are_drawn_in_their_own_colours(tmp_path):
+    """A mesh's own materials colour its parts; a URDF colour wins; the browser's scene gets the same colours."""
+    from rhi.viz.view import View
+
+    _two_material_obj(tmp_path / "link.obj")
+    inertial = ('<inertial><mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/>'
+                "</inertial>")
+    urdf = tmp_path / "two.urdf"
+    urdf.write_text(f"""<robot name="two">
+<material name="green"><color rgba="0.1 0.7 0.2 1"/></material>
+<link name="base"/>
+<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+<limit lower="-3" upper="3" effort="5" velocity="1"/></joint>
+<link name="l1">{inertial}<visual><origin xyz="0.15 0 0"/><geometry><mesh filename="link.obj"/></geometry></visual></link>
+<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0.3 0 0"/><axis xyz="0 0 1"/>
+<limit lower="-3" upper="3" effort="5" velocity="1"/></joint>
+<link name="l2">{inertial}<visual><origin xyz="0.15 0 0"/><geometry><mesh filename="link.obj"/></geometry>
+<material name="green"/></visual></link>
+<joint name="ee" type="fixed"><parent link="l2"/><child link="tip"/><origin xyz="0.3 0 0"/></joint><link name="tip"/>
+</robot>""")
+    dev = rhi.device_from_urdf(urdf, ee_frame="tip", task="xy")
+    posed = Posed(dev)
+    m = posed.model
+    meshes = np.flatnonzero(m.geom_type == mujoco.mjtGeom.mjGEOM_MESH)
+    colours = m.geom_rgba[meshes, :3]
+    assert len(meshes) == 3
+    for want in ([0.9, 0.1, 0.1], [0.1, 0.2, 0.9], [0.1, 0.7, 0.2]):  # red, blue, the URDF's green (8-bit materials)
+        assert np.min(np.abs(colours - want).max(axis=1)) < 3e-3, colours
+    posed.set([0.0, 0.0])
+    red = meshes[np.argmax(m.geom_rgba[meshes, 0])]
+    i = m.geom_dataid[red]
+    V = m.mesh_vert[m.mesh_vertadr[i]: m.mesh_vertadr[i] + m.mesh_vertnum[i]]
+    W = posed.data.geom_xpos[red] + V @ posed.data.geom_xmat[red].reshape(3, 3).T
+    np.testing.assert_allclose([W[:, 0].min(), W[:, 0].max()], [0.0, 0.15], atol=1e-6)  # the red half, in place
+    v = View(dev, None, port=0)
+    try:
+        drawn = {tuple(h.color) for name, h in v.scene.meshes.items() if "/g" in name}
+        assert {tuple(int(round(255 * float(c))) for c in m.geom_rgba[g, :3]) for g in meshes} <= drawn, drawn
+    finally:
+        v.close()
+
+
+def test_rhi4_is_drawn_with_its_parallelograms_on_a_floor():
+    """The crank turns with the link it drives, the coupler stays parallel to the link before it, and they close."""
+    from rhi.viz.scene import CRANK, parallelograms
+    from rhi.viz.view import View
+
+    assert parallelograms(rhi.device("rhi4")) == [(1, 2), (3, 4)]  # the Quanser arm's and the PHANToM's
+    assert parallelograms(rhi.device("planar3r")) == [] and parallelograms(rhi.device("gen3")) == []
+    dev = rhi.device("rhi4")
+    v = View(dev, None, port=0)
+    try:
+        sc = v.scene
+        assert len(sc.linkages) == 2 and sum("/para" in name for name in sc.meshes) == 6
+        for q in ([0.3, 1.2, -0.4, 0.9], [1.0, 2.0, 0.5, 1.7]):
+            snap = v._rest_snapshot()
+            snap.q = np.array(q)
+            v._draw(snap, force=True)
+            d = sc.posed.data
+            for bp, bj, crank, crank_frame, coupler_frame in sc.linkages:
+                O, P = d.xpos[bp], d.xpos[bj]
+                link_j = d.xpos[bj + 1] - P if bj + 1 < sc.posed.model.nbody else None
+                c = _rot(crank_frame.wxyz) @ crank  # the crank, world frame
+                np.testing.assert_allclose(crank_frame.position, O, atol=1e-12)
+                np.testing.assert_allclose(np.linalg.norm(c), CRANK * np.linalg.norm(P - O), rtol=1e-9)
+                if link_j is not None:  # opposite to the link it drives
+                    assert np.dot(c, link_j) / np.linalg.norm(c) / np.linalg.norm(link_j) == pytest.approx(-1.0)
+                # the coupler: from the crank's tip, parallel to link p, to the driven link's rear extension
+                np.testing.assert_allclose(coupler_frame.position, O + c, atol=1e-12)
+                rear_tip = P + d.xmat[bj].reshape(3, 3) @ crank
+                end = np.asarray(coupler_frame.position) + (P - O)
+                np.testing.assert_allclose(end, rear_tip, atol=1e-12)
+                np.testing.assert_allclose(_rot(coupler_frame.wxyz), d.xmat[bp].reshape(3, 3), atol=1e-12)
+        lo, _ = sc.posed.bounds()
+        assert sc.floor < lo[2]  # under the device
+    finally:
+        v.close()
+
+
+def _rot(wxyz) -> np.ndarray:
+    R = np.zeros(9)
+    mujoco.mju_quat2Mat(R, np.asarray(wxyz, dtype=float))
+    return R.reshape(3, 3)

@@ -63,9 +63,37 @@ def test_view_commands_cross_processes():
         cmd.close()
 
 
+def test_status_reads_live_only_from_the_first_tick_and_an_error_is_shown():
+    from rhi.runtime import SimLink
+    from rhi.sim import Plant
+    from rhi.viz.session import supervise
+
+    dev = rhi.device("rhi4")
+    plant = Plant(dev)
+    plant.reset(rest_configuration(dev))
+    cmd = ViewCommands()
+    seen = []
+
+    def once(guard, left):
+        time.sleep(0.3)  # the kernels load: the watcher polls meanwhile
+        seen.append(cmd.status()[1])
+        guard.check(SimLink(plant).read(), None)  # the first tick's reading
+        deadline = time.monotonic() + 30
+        while cmd.status()[1] != "live" and time.monotonic() < deadline:
+            time.sleep(0.01)
+        seen.append(cmd.status()[1])
+        raise RuntimeError("the link broke")
+
+    try:
+        with pytest.raises(RuntimeError, match="the link broke"):
+            supervise(once, cmd, dev, lambda: None, say=lambda line: None)
+        assert seen == ["starting …", "live"]
+        assert cmd.status()[1] == "stopped: RuntimeError: the link broke"  # not "live" for a session that ended
+    finally:
+        cmd.close()
+
+
 @pytest.mark.realtime
-@pytest.mark.xfail(strict=False, reason="open defect (issue 28): a run restarted by the page's reset sometimes never "
-                   "ticks in this process (telemetry stays at the faulted run's last tick; seen in CI runs, not alone)")
 def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
     """A hand kick trips the safety layer: the page shows the reason; its reset button re-arms and restarts."""
     need_browser()
@@ -80,7 +108,10 @@ def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
     dev = rhi.device("rhi4")
     q0 = rest_configuration(dev)
     views, lines, out = [], [], {}
-    safety = SafetyConfig(range_margin=0.3, max_handle_speed=0.05, silence=5.0, stale_ticks=10**6)
+    # 0.3 m/s: the kick below moves the handle at about 2.5 m/s; the demo on its own moves it at up to 0.05 m/s
+    # (its null-space motion; a limit of 0.05 m/s tripped every run by itself at t = 3.158 s, and a test that read
+    # the telemetry after that waited for a restarted run that had already stopped: the "never ticks" defect)
+    safety = SafetyConfig(range_margin=0.3, max_handle_speed=0.3, silence=5.0, stale_ticks=10**6)
     session = threading.Thread(target=lambda: out.setdefault("runs", live(
         dev, duration=None, port=0, on_start=views.append, q0=q0, say=lines.append, safety=safety)), daemon=True)
     session.start()
@@ -97,29 +128,30 @@ def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
                                                        position=(float(goal[0]), float(goal[1]), 0.0))
         with connect(f"ws://127.0.0.1:{view.port}", subprotocols=[f"viser-v{viser.__version__}"]) as ws:
             ws.send(msgspec.msgpack.encode(msg.as_serializable_dict()))
-            assert b.wait_for("document.body.innerText.includes('handle speed')", timeout=20)
+            assert b.wait_for("document.body.innerText.includes('handle speed')", timeout=60)
         text = b.evaluate("document.getElementById('rhi-status').innerText")
         assert text.startswith("fault (") and "press reset" in text, text
         assert any("handle speed" in line for line in lines)
         b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('reset')).click()")
-        assert b.wait_for("document.getElementById('rhi-status').innerText === 'live'", timeout=20)
-        assert view.hand.target is None  # the mouse hand let go
-        t1 = view.telemetry.latest().t  # the faulted run's last tick until the new run publishes
-        deadline = time.monotonic() + 60  # the restarted run loads its kernels (run's warmup) before its first tick
+        status = "document.getElementById('rhi-status').innerText"
+        # "live" is said at the restarted run's first tick (the run first loads its kernels: run's warmup)
+        assert b.wait_for(f"{status} === 'live'", timeout=120), (b.evaluate(status), lines)
+        assert view.commands.status()[1] == "live" and view.hand.target is None  # the mouse hand let go
+        t1 = view.telemetry.latest().t
+        deadline = time.monotonic() + 60
         while view.telemetry.latest().t == t1 and time.monotonic() < deadline:
             time.sleep(0.05)
-        time.sleep(0.3)
         snap = view.telemetry.latest()
-        assert snap.t != t1 and snap.safety == "ok"  # running again
+        assert snap.t != t1 and snap.safety == "ok", (snap.t, t1, view.commands.status(), lines)  # running again
         # pause: the run stops with zero torque; resume goes on from where the device is
         b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('pause')).click()")
-        assert b.wait_for("document.getElementById('rhi-status').innerText.startsWith('paused')", timeout=30)
+        assert b.wait_for(f"{status}.startsWith('paused')", timeout=60)
         t_pause = view.telemetry.latest().t
         time.sleep(0.5)
         assert view.telemetry.latest().t == pytest.approx(t_pause, abs=5e-3)
         b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.includes('resume')).click()")
-        assert b.wait_for("document.getElementById('rhi-status').innerText === 'live'", timeout=30)
-        deadline = time.monotonic() + 60  # the resumed run loads its kernels (run's warmup) before its first tick
+        assert b.wait_for(f"{status} === 'live'", timeout=120), (b.evaluate(status), lines)
+        deadline = time.monotonic() + 60
         while view.telemetry.latest().t <= t_pause and time.monotonic() < deadline:
             time.sleep(0.05)
         assert view.telemetry.latest().t > t_pause
@@ -205,7 +237,7 @@ def test_replay_opens_paused_and_plays_at_twice_the_speed(tmp_path):
         time.sleep(0.5)
         assert v.player.time == log.t[0] and not v.player.playing
         b.evaluate("[...document.querySelectorAll('button')].find(e => e.innerText.trim() === '2×').click()")
-        assert b.wait_for(f"{state} === 'paused at t = 0.000 s'", timeout=20)
+        assert b.wait_for(f"{state} === 'paused at t = 0.000 s'", timeout=60)
         deadline = time.monotonic() + 10
         while v.player.speed != 2.0 and time.monotonic() < deadline:
             time.sleep(0.02)
@@ -219,7 +251,7 @@ def test_replay_opens_paused_and_plays_at_twice_the_speed(tmp_path):
             time.sleep(0.002)
         elapsed = time.monotonic() - started
         assert 0.8 * 1.5 <= elapsed <= 1.2 * 1.5, elapsed  # 3 s of log at 2×
-        assert b.wait_for(f"{state} === 'at the end'", timeout=20)
+        assert b.wait_for(f"{state} === 'at the end'", timeout=60)
     finally:
         b.close()
         v.close()
@@ -260,12 +292,12 @@ def test_live_view_plots_over_time_and_records_a_video(tmp_path):
     try:
         assert b.wait_for("document.querySelectorAll('.uplot').length === 3", timeout=60)
         assert b.wait_for("document.body.innerText.includes('τ / limit') && "
-                          "document.body.innerText.includes('forces along u')", timeout=20)
+                          "document.body.innerText.includes('forces along u')", timeout=60)
         ink = "[...document.querySelectorAll('.uplot canvas')].map(c => c.toDataURL().length)"
         before = b.evaluate(ink)
         click = "[...document.querySelectorAll('button')].find(e => e.innerText.includes('{}')).click()"
         b.evaluate(click.format("record a video"))
-        assert b.wait_for("document.getElementById('rhi-record').innerText.startsWith('recording')", timeout=20)
+        assert b.wait_for("document.getElementById('rhi-record').innerText.startsWith('recording')", timeout=60)
         simulate(plant, ctrl, duration=2.0, virtual=wall, telemetry=view.telemetry)
         # the three charts draw the run's series: their canvases gain ink
         assert b.wait_for(f"{ink}.every((n, i) => n > {before}[i] + 500)", timeout=30), (before, b.evaluate(ink))

@@ -157,6 +157,11 @@ class Safety:
         self._ft_same = 0
         self._ft_q0: list[float] | None = None
 
+    @property
+    def last_t(self) -> float | None:
+        """Device time of the last new reading checked [s]; None before the first one (and after `reset`)."""
+        return self._last_t
+
     # ------------------------------------------------------------------ faults
     def trip(self, kind: str, detail: str) -> None:
         """Latch a fault (the first one wins; later ones are recorded as events too)."""

@@ -2,8 +2,9 @@
 
 A device whose URDF has ``<visual>`` elements is drawn from them (meshes, boxes, cylinders,
 spheres; ``package://`` and relative mesh paths resolved by Pinocchio's URDF geometry loader,
-the mesh vertices handed to MuJoCo through `MjSpec`). Otherwise every link is a capsule from
-its joint to each child joint (or to the handle) — the real link lengths — with a cylinder
+the mesh vertices handed to MuJoCo through `MjSpec`), in the URDF's colours, or else in the mesh
+files' own material colours part by part (`mesh_parts`: a DAE's or an OBJ's, read by trimesh).
+Otherwise every link is a capsule from its joint to each child joint (or to the handle) — the real link lengths — with a cylinder
 at each revolute joint along its axis, a pedestal under the first joint and a ball at the
 handle. Geometry is visual only (no contacts, no mass: the bodies carry Pinocchio's inertias)
 unless ``collision=True``.
@@ -166,11 +167,53 @@ def add_urdf_visuals(add: GeomAdder, geom: pin.GeometryModel, bodies: dict) -> N
         elif hasattr(shape, "vertices") and shape.num_tris:
             V = np.asarray(shape.vertices(), dtype=float)
             F = np.array([[t[0], t[1], t[2]] for t in (shape.tri_indices(i) for i in range(shape.num_tris))])
-            name = f"mesh{k}"
-            spec.add_mesh(name=name, uservert=V.ravel().tolist(), userface=F.ravel().tolist())
-            add(body, _G.mjGEOM_MESH, meshname=name, rgba=rgba, **at)
+            # no colour in the URDF: the mesh file's own materials, part by part (a DAE's or an OBJ's)
+            parts = mesh_parts(go.meshPath, go.meshScale, V) if rgba == LINK_RGBA else None
+            for i, (Vi, Fi, ci) in enumerate(parts or [(V, F, rgba)]):
+                name = f"mesh{k}_{i}"
+                spec.add_mesh(name=name, uservert=Vi.ravel().tolist(), userface=Fi.ravel().tolist())
+                add(body, _G.mjGEOM_MESH, meshname=name, rgba=ci, **at)
         else:
             raise ModelError(f"urdf: visual {go.name!r} has geometry {kind} that rhi cannot draw")
+
+
+def mesh_parts(path: str, scale, vertices: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, tuple]] | None:
+    """A mesh file's parts in their own material colours: [(V (k, 3) [m], F (l, 3), RGBA)], or None.
+
+    None where the file gives no colour (an STL), trimesh cannot read it, or its geometry differs from the
+    one Pinocchio loaded (`vertices`: (N, 3) [m], scaled): the caller then draws that in one colour.
+
+    Args:
+        path: the mesh file (a resolved URDF ``<mesh filename>``).
+        scale: (3,) the URDF's mesh scale.
+        vertices: Pinocchio's vertices of the same mesh, to check the reading against.
+    """
+    import trimesh
+
+    try:
+        scene = trimesh.load(path, force="scene")
+    except Exception:  # noqa: BLE001 - any reader failure: the mesh is drawn as Pinocchio loaded it
+        return None
+    parts = []
+    for node in scene.graph.nodes_geometry:
+        T, geom = scene.graph[node]
+        mesh = scene.geometry[geom]
+        vis = mesh.visual
+        if isinstance(vis, trimesh.visual.TextureVisuals) and vis.material is not None:
+            color = np.asarray(vis.material.main_color, dtype=float)
+        elif isinstance(vis, trimesh.visual.ColorVisuals) and vis.kind is not None:
+            color = np.asarray(vis.main_color, dtype=float)
+        else:
+            return None
+        V = trimesh.transform_points(np.asarray(mesh.vertices, dtype=float), T) * np.asarray(scale, dtype=float)
+        parts.append((V, np.asarray(mesh.faces, dtype=np.int64), tuple((color / 255.0).tolist())))
+    if not parts:
+        return None
+    every = np.vstack([V for V, _, _ in parts])
+    size = float(np.max(np.ptp(vertices, axis=0))) or 1.0
+    same = np.allclose(every.min(axis=0), vertices.min(axis=0), atol=1e-3 * size) and \
+        np.allclose(every.max(axis=0), vertices.max(axis=0), atol=1e-3 * size)
+    return parts if same else None
 
 
 def add_mecanum_base(add: GeomAdder, body, *, wheel_radius: float, half_length: float, half_width: float) -> float:

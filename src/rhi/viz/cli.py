@@ -116,7 +116,9 @@ def _compare(args: argparse.Namespace) -> int:
     for dev, runs in zip(devices, results):
         print(f"rhi view: {dev.name}: {len(runs)} run(s), {sum(r.summary['ticks'] for r in runs)} ticks, missed "
               f"deadlines {sum(r.summary['missed'] for r in runs)}")
-    return 0
+    # the first device's loop runs in this thread and takes the signals: a kill's e-stop is the shell's code
+    code = results[0][-1].exit_code if results[0] else 0
+    return code if code > 1 else 0
 
 
 def _serve(view) -> int:

@@ -13,7 +13,6 @@ difference they see.
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import threading
 
 import numpy as np
@@ -25,7 +24,7 @@ from rhi.runtime import SafetyConfig, SimLink, run
 from rhi.sim.hand import DraggableHand
 from rhi.viz.commands import ViewCommands
 from rhi.viz.posed import Posed
-from rhi.viz.remote import SharedDraggableHand, SharedTelemetry
+from rhi.viz.remote import SharedDraggableHand, SharedTelemetry, end_view, spawn_view
 
 #: free space between two devices in the page, as a fraction of the larger one's size
 GAP = 0.3
@@ -140,14 +139,10 @@ class RemoteCompare:
         for i, (kw, q0, cmd) in enumerate(zip(kws, q0s, self.commands)):
             kw.update(q0=q0, commands=cmd, hand=hand if i == 0 else None)
         offsets = side_by_side(devices, q0s)
-        ctx = mp.get_context("spawn")
-        ready, self._stop = ctx.Queue(), ctx.Event()
         tels = [(t.name, t.sizes) for t in self.telemetries]
-        self.process = ctx.Process(target=_serve, args=(devices, tels, kws, offsets, host, port, ready, self._stop),
-                                   daemon=True, name="rhi-compare-view")
-        self.process.start()
         try:
-            self.port = int(ready.get(timeout=180))
+            self.process, self._stop, self.port = spawn_view(
+                _serve, (devices, tels, kws, offsets, host, port), name="rhi-compare-view")
         except Exception:
             self.close()
             raise
@@ -159,11 +154,8 @@ class RemoteCompare:
 
     def close(self) -> None:
         """Stop the page's process and free the shared memory (the hand's too)."""
-        self._stop.set()
-        self.process.join(10)
-        if self.process.is_alive():
-            self.process.terminate()
-            self.process.join(5)
+        if hasattr(self, "process"):
+            end_view(self.process, self._stop)
         for t in self.telemetries:
             t.close()
         for c in self.commands:

@@ -16,6 +16,8 @@ import os
 import types
 import warnings
 from multiprocessing import shared_memory
+from multiprocessing.process import BaseProcess
+from multiprocessing.synchronize import Event
 
 import numpy as np
 
@@ -167,7 +169,7 @@ class SharedDraggableHand(DraggableHand):
             self.shm.unlink()
 
 
-def _serve(device, tel_name: str, sizes, hand, kw: dict, ready, stop, cpus) -> None:
+def _serve(device, tel_name: str, sizes, hand, kw: dict, cpus, ready, stop) -> None:
     from rhi.viz.view import View
 
     die_with_parent()  # a killed `rhi run --view` or `rhi view` takes its view with it
@@ -187,6 +189,44 @@ def _serve(device, tel_name: str, sizes, hand, kw: dict, ready, stop, cpus) -> N
     kw["commands"].close()
     if hand is not None:
         hand.close()
+
+
+def spawn_view(target, args: tuple, *, name: str, timeout: float = 180.0) -> tuple[BaseProcess, Event, int]:
+    """Start a view's child process, `target(*args, ready, stop)`, and wait until it serves.
+
+    The child (spawned, a daemon that calls `die_with_parent`) puts its port on `ready` once it serves and
+    closes when `stop` is set. Used by `RemoteView` and `rhi.viz.compare.RemoteCompare`.
+
+    Args:
+        target: the child's function.
+        args: its arguments before `ready` and `stop`.
+        name: the child's process name.
+        timeout: how long the child may take to serve [s] (it imports viser and builds the scene).
+
+    Returns:
+        (the process, its stop event, the port it serves on).
+
+    Raises:
+        queue.Empty: the child did not serve within `timeout` (it is ended first).
+    """
+    ctx = mp.get_context("spawn")
+    ready, stop = ctx.Queue(), ctx.Event()
+    process = ctx.Process(target=target, args=(*args, ready, stop), daemon=True, name=name)
+    process.start()
+    try:
+        return process, stop, int(ready.get(timeout=timeout))
+    except Exception:
+        end_view(process, stop)
+        raise
+
+
+def end_view(process: BaseProcess, stop: Event) -> None:
+    """Ask a view's child process to close (`stop`), and end it where it does not within 10 s."""
+    stop.set()
+    process.join(10)
+    if process.is_alive():
+        process.terminate()
+        process.join(5)
 
 
 class RemoteView:
@@ -214,13 +254,9 @@ class RemoteView:
         self.hand = hand
         self.telemetry = SharedTelemetry(device.n, device.m, m_slave, every=every)
         self.commands = kw["commands"] = ViewCommands()
-        ctx = mp.get_context("spawn")
-        ready, self._stop = ctx.Queue(), ctx.Event()
-        self.process = ctx.Process(target=_serve, args=(device, self.telemetry.name, self.telemetry.sizes, hand, kw,
-                                                        ready, self._stop, cpus), daemon=True, name="rhi-view")
-        self.process.start()
         try:
-            self.port = int(ready.get(timeout=120))
+            self.process, self._stop, self.port = spawn_view(
+                _serve, (device, self.telemetry.name, self.telemetry.sizes, hand, kw, cpus), name="rhi-view")
         except Exception:
             self.close()
             raise
@@ -232,11 +268,8 @@ class RemoteView:
 
     def close(self) -> None:
         """Stop the view's process and free the shared memory (the hand's too)."""
-        self._stop.set()
-        self.process.join(10)
-        if self.process.is_alive():
-            self.process.terminate()
-            self.process.join(5)
+        if hasattr(self, "process"):
+            end_view(self.process, self._stop)
         self.telemetry.close()
         self.commands.close()
         if self.hand is not None:

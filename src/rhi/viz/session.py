@@ -24,8 +24,12 @@ STOP = "session stopped in the view"
 
 
 def _watch(commands: ViewCommands, guard: Safety, resets: int, done: threading.Event, asked: list[str]) -> None:
-    """Turn the view's pause and reset into an e-stop of the running loop (polled at 50 Hz)."""
+    """Say "live" at the run's first checked reading; turn the view's pause and reset into an e-stop (50 Hz)."""
+    live = False
     while not done.wait(0.02):
+        if not live and guard.last_t is not None:
+            live = True
+            commands.set_status("live")
         if commands.stopped or commands.resets != resets or commands.paused:
             asked.append(STOP if commands.stopped else RESET if commands.resets != resets else PAUSE)
             guard.estop(asked[0])
@@ -58,13 +62,18 @@ def supervise(run_once: Callable[[Safety, float | None], RunResult], commands: V
         done, asked = threading.Event(), list[str]()
         watcher = threading.Thread(target=_watch, args=(commands, guard, resets, done, asked), daemon=True,
                                    name="rhi-view-commands")
+        # "live" only once the run has ticked (the watcher says it): until then the run loads its kernels
+        commands.set_status("starting …" if not results else "restarting …")
         watcher.start()
-        commands.set_status("live")
         try:
-            res = run_once(guard, left)
-        finally:
-            done.set()
-            watcher.join()
+            try:
+                res = run_once(guard, left)
+            finally:
+                done.set()
+                watcher.join()
+        except BaseException as exc:  # the session ends: the page must not keep saying "starting" or "live"
+            commands.set_status(f"stopped: {type(exc).__name__}: {exc}")
+            raise
         results.append(res)
         log = res.log
         if left is not None and len(log):
