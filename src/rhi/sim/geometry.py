@@ -191,7 +191,7 @@ def mesh_parts(path: str, scale, vertices: np.ndarray) -> list[tuple[np.ndarray,
     import trimesh
 
     try:
-        scene = trimesh.load(path, force="scene")
+        scene = trimesh.load_scene(path)
     except Exception:  # noqa: BLE001 - any reader failure: the mesh is drawn as Pinocchio loaded it
         return None
     parts = []
