@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import time
 import types
 import warnings
 from multiprocessing import shared_memory
@@ -84,8 +85,12 @@ class SharedTelemetry:
         self.count += 1
 
     def latest(self) -> types.SimpleNamespace | None:
-        """The newest snapshot (the `Telemetry.latest` attributes), or None before the first one."""
-        for _ in range(100):
+        """The newest snapshot (the `Telemetry.latest` attributes), or None before the first one.
+
+        A read that meets the writer in the middle of a row is retried (a descheduled writer: for up to about a
+        second), so that None means "nothing published yet".
+        """
+        for k in range(10_000):
             s1 = int(self._seq[0])
             if s1 == 0:
                 return None
@@ -93,6 +98,8 @@ class SharedTelemetry:
             fault = bytes(self._fault[:flen]).decode(errors="replace") if flen >= 0 else None
             if s1 % 2 == 0 and int(self._seq[0]) == s1:
                 break
+            if k >= 10:  # the writer was descheduled in the middle of a row (a loaded machine): let it finish
+                time.sleep(1e-4)
         else:
             return None
         snap = {c: (float(row[i]) if isinstance(i, int) else row[i]) for c, i in self.cols.items()}
