@@ -9,6 +9,7 @@ bytes field published under a seqlock, so no lock is needed across processes.
 
 from __future__ import annotations
 
+import time
 from multiprocessing import shared_memory
 
 import numpy as np
@@ -80,11 +81,13 @@ class ViewCommands:
 
     def status(self) -> tuple[int, str]:
         """(change counter, status line): the counter grows with every `set_status`."""
-        for _ in range(100):
+        for k in range(10_000):
             s = int(self._i[2])
             text = bytes(self._text[: int(self._i[3])]).decode(errors="replace")
             if s % 2 == 0 and int(self._i[2]) == s:
                 return s, text
+            if k >= 10:  # the writer was descheduled in the middle of the line: let it finish
+                time.sleep(1e-4)
         return s, text
 
     def __getstate__(self):  # pickled to the other process as a reference to the block
