@@ -150,6 +150,9 @@ def _doc(name: str = "ch7_ascm_tertiary") -> dict:
     (lambda d: d.update(safety={"stale_ticks": 0}), "safety.stale_ticks: must be a finite integer > 0"),
     (lambda d: d["device"].update(params={"d9": 0.1}), "device.params: unknown parameter"),
     (lambda d: d["controller"].update(fme={"free_direction": [0.0, 1.0]}), "controller.fme.contact_direction: missing"),
+    (lambda d: d["controller"].update(tank={"initial": -1.0}), "controller.tank.initial: expected a number >= 0"),
+    (lambda d: d["controller"].update(tank={"initial": 0.2, "capacity": 0.1}), "controller: tank.initial: 0.2 J exceeds"),
+    (lambda d: d["controller"].update(tank={"size": 0.1}), "controller.tank.size: unknown key in controller.tank"),
 ])
 def test_bad_config_names_the_key(edit, message):
     d = _doc()
@@ -157,6 +160,17 @@ def test_bad_config_names_the_key(edit, message):
     with pytest.raises(InvalidInput) as exc:
         parse_config(d)
     assert message in str(exc.value)
+
+
+def test_null_space_tank_from_the_file():
+    """``[controller.tank]`` turns on the null-space energy tank (rhi.control.tank); absent, it is off."""
+    from rhi.control import NullSpaceTank
+
+    d = _doc()
+    assert parse_config(d).controller().config.tank is None
+    d["controller"]["tank"] = {"capacity": 0.2}
+    ctrl = parse_config(d).controller()
+    assert ctrl.config.tank == NullSpaceTank(initial=0.0, capacity=0.2) and ctrl.state.tank.energy == 0.0
 
 
 def test_every_saturation_method_of_the_controller_is_accepted():

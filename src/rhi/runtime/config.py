@@ -13,7 +13,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
   "active_set", or a strategy registered with `rhi.control.allocation.register`),
   ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
   ``gravity_compensation``, ``aso_shape``, ``implementation``, ``null_space`` ("scaled", "clipped") — the fields
-  of `rhi.control.ControllerConfig`;
+  of `rhi.control.ControllerConfig`; ``[controller.tank]`` (``initial``, ``capacity`` [J]) turns on the null-space
+  energy tank (`rhi.control.tank`);
   ``[controller.primary]`` (required) with ``law`` = "impedance" | "force_rendering" | "spring" and that law's
   parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...; the rendering
   laws take ``passivity`` = "motors" (default) | "handle" | "off", `rhi.control.passivity`);
@@ -61,6 +62,7 @@ from rhi.control import (
     JointLimitBarrier,
     Manipulability,
     NullSpaceController,
+    NullSpaceTank,
     ObjectiveTerm,
     Passivity,
     SpringPalpation,
@@ -127,6 +129,7 @@ _CONTROLLER = {
     "aso_shape": (_pos, 50.0),
     "implementation": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["implementation"])), "fast"),
     "null_space": (S.choice(*typing.get_args(typing.get_type_hints(ControllerConfig)["null_space"])), "scaled"),
+    "tank": (S.table({"initial": (_nonneg, 0.0), "capacity": (_nonneg, 0.05)}), None),
 }
 _ENV = S.tagged("type", {
     "wall": {"point": (_vec, R), "normal": (_vec, R), "stiffness": (_stiff, R), "damping": (_damp, 0.0)},
@@ -288,7 +291,8 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
     cfg = ControllerConfig(primary=_primary(dev, c["primary"]), objectives=tuple(terms), fme=fme, damping=c["damping"],
                            saturation=c["saturation"], projector=c["projector"], torque_min=lo, torque_max=hi,
                            gravity_compensation=c["gravity_compensation"], aso_shape=c["aso_shape"],
-                           implementation=c["implementation"], null_space=c["null_space"])
+                           implementation=c["implementation"], null_space=c["null_space"],
+                           tank=None if c["tank"] is None else S.prefixed("controller", NullSpaceTank, **c["tank"]))
     S.prefixed("controller", NullSpaceController, dev, cfg)  # every check the controller makes, now
     return cfg
 
