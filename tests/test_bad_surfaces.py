@@ -237,11 +237,14 @@ HOST = st.one_of(st.tuples(st.integers(256, 999), st.integers(0, 255), st.intege
 POSITIVE = st.one_of(st.sampled_from(["nan", "inf", "-inf", "0", "-1", "abc", ""]),
                      st.floats(max_value=0.0, allow_nan=False, min_value=-1e300).map(repr))
 FINITE = st.sampled_from(["nan", "inf", "-inf", "abc", ""])
+DURATION = st.one_of(POSITIVE, st.floats(min_value=1e6, exclude_min=True, max_value=1e300).map(repr))  # MAX_DURATION
+WATCHDOG = st.one_of(POSITIVE, st.floats(min_value=1e4, exclude_min=True, max_value=1e300).map(repr))  # <= 10 s
+ELEVATION = st.one_of(FINITE, st.floats(min_value=90.0, exclude_min=True, max_value=1e300).map(repr))
 COUNT = st.one_of(st.integers(max_value=0).map(str), st.sampled_from(["1.5", "abc", ""]))
 FLOATS = st.one_of(st.sampled_from(["nan,0,0,0", "0,inf,0,0", "a,b", "", "1;2"]))
 # (command line before the flag, flag, invalid values)
 FLAGS = [
-    (["run", "rhi4", "--config", "ch7_full"], "--duration", POSITIVE),
+    (["run", "rhi4", "--config", "ch7_full"], "--duration", DURATION),
     (["run", "rhi4", "--config", "ch7_full"], "--rate", POSITIVE),
     (["run", "rhi4", "--config", "ch7_full"], "--view-port", PORT.map(str)),
     (["run", "rhi4", "--config", "ch7_full"], "--cpu", st.integers(max_value=-1).map(str)),
@@ -249,16 +252,16 @@ FLAGS = [
     (["device-server", "rhi4"], "--port", PORT.map(str)),
     (["device-server", "rhi4"], "--host", HOST),
     (["device-server", "rhi4"], "--rate", POSITIVE),
-    (["device-server", "rhi4"], "--watchdog-ms", POSITIVE),
-    (["device-server", "rhi4"], "--duration", POSITIVE),
+    (["device-server", "rhi4"], "--watchdog-ms", WATCHDOG),
+    (["device-server", "rhi4"], "--duration", DURATION),
     (["device-server", "rhi4"], "--q0", FLOATS),
     (["view"], "--port", PORT.map(str)),
     (["view"], "--host", HOST),
-    (["view"], "--duration", POSITIVE),
+    (["view"], "--duration", DURATION),
     (["render", "rhi4"], "--width", COUNT),
     (["render", "rhi4"], "--height", COUNT),
     (["render", "rhi4"], "--azimuth", FINITE),
-    (["render", "rhi4"], "--elevation", FINITE),
+    (["render", "rhi4"], "--elevation", ELEVATION),
     (["render", "rhi4"], "--q", FLOATS),
     (["measure", "rhi4", "--q", "0,0,0,0"], "--u", FLOATS),
     (["reproduce", "--only", "ch3"], "--jobs", COUNT),
@@ -361,6 +364,9 @@ def test_run_configuration_bombs_and_device_checks():
         (("sim", "q0"), [10.0] * 4, "sim.q0"),
         (("run", "rate"), 0.001, "run.rate"),
         (("safety", "max_joint_speed"), 1e300, "safety.max_joint_speed"),
+        (("sim", "friction"), {"damping": 1e300}, "sim.friction.damping"),
+        (("controller", "objectives"), [{"type": "joint_limits", "gain": 1.0, "margin": 1e300}],
+         "controller.objectives[0].margin"),
     ]
     for path, value, name in bad:
         expect_error(lambda doc: parse_config(doc), name, doc=_edit(SHIPPED, path, value))

@@ -89,6 +89,10 @@ def unit_vector(name: str, u, m: int | None = None) -> np.ndarray:
     return u / norm
 
 
+MAX_DURATION = 1e6
+"""[s] The longest run, live view or device-server session rhi accepts (11.6 days; 1e300 s would never end)."""
+
+
 def writable_file(name: str, path, *, suffix: str | None = None) -> Path:
     """`path` as an output file that can be written: not a folder, its folder created, write permission.
 
@@ -116,9 +120,10 @@ def writable_file(name: str, path, *, suffix: str | None = None) -> Path:
 def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, allow_inf: bool = False) -> float:
     """Return `value` as a float, refusing None, strings, complex numbers, arrays and NaN.
 
-    ±inf is refused unless `allow_inf`; `positive` requires > 0, `nonnegative` >= 0.
+    ±inf and booleans are refused (unless `allow_inf` for ±inf); `positive` requires > 0, `nonnegative` >= 0.
     """
-    if value is None or isinstance(value, (str, bytes, complex, np.complexfloating)) or np.ndim(value) != 0:
+    if value is None or isinstance(value, (str, bytes, bool, np.bool_, complex, np.complexfloating)) \
+            or not isinstance(value, (int, float, np.integer, np.floating, np.ndarray)) or np.ndim(value) != 0:
         raise InvalidInput(f"{name}: expected a real number, got {value!r:.60}")
     try:
         v = float(value)

@@ -44,6 +44,32 @@ def positive(text: str) -> float:
     return v
 
 
+def duration(text: str) -> float:
+    """A duration [s] > 0 and at most `rhi._validate.MAX_DURATION` (1e6 s, as `rhi.runtime.run` accepts)."""
+    from rhi._validate import MAX_DURATION
+
+    v = positive(text)
+    if v > MAX_DURATION:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_DURATION:g} s, got {text!r}")
+    return v
+
+
+def watchdog_ms(text: str) -> float:
+    """A watchdog time [ms] > 0 and at most 10 000 (a longer one guards nothing)."""
+    v = positive(text)
+    if v > 10_000:
+        raise argparse.ArgumentTypeError(f"must be at most 10000 ms, got {text!r}")
+    return v
+
+
+def elevation(text: str) -> float:
+    """A camera elevation [deg] in [-90, 90]."""
+    v = finite(text)
+    if not -90.0 <= v <= 90.0:
+        raise argparse.ArgumentTypeError(f"must be in [-90, 90] degrees, got {text!r}")
+    return v
+
+
 def nonnegative(text: str) -> float:
     """A finite number >= 0."""
     v = finite(text)

@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from rhi._description_checks import MAX_JOINTS, check_finite_numbers
 from rhi._urdf import UNBOUNDED, JointInfo, check_urdf, description_roots, read_description, stderr_captured
-from rhi._validate import as_array
+from rhi._validate import as_array, scalar
 from rhi.device import Device
 from rhi.errors import InvalidInput, ModelError, UnknownDevice
 
@@ -338,7 +338,7 @@ def _lock_values(model: pin.Model, lock, movable: list[str], mimic: dict) -> dic
             raise InvalidInput(f"lock: unknown joint {jn!r}; movable joints: {', '.join(movable)}")
         if jn in mimic:
             raise InvalidInput(f"lock: {jn!r} mimics {mimic[jn][0]!r}; lock {mimic[jn][0]!r} instead")
-        val = float(as_array(f"lock[{jn!r}]", v))
+        val = scalar(f"lock[{jn!r}]", v)
         i = model.joints[model.getJointId(jn)].idx_q
         if not model.lowerPositionLimit[i] - 1e-12 <= val <= model.upperPositionLimit[i] + 1e-12:
             raise InvalidInput(f"lock[{jn!r}]: {val} outside the joint range "

@@ -33,8 +33,9 @@ A file holds these tables (every key optional unless marked; the shipped files i
 Unknown keys and values of the wrong type raise `InvalidInput` naming the key path, and so do values
 outside these plausibility bounds, checked against the device and physics when the file is read:
 ``[run]`` rate 10 Hz–100 kHz, duration ≤ 10⁶ s; ``[controller]`` torque limits within the device's, damping
-≤ 100 N m s/rad, objective gains ≤ 10⁶, ``ellipsoid`` and ``fme`` desired matrices (m, m);
-``[sim]`` q0 inside the joint ranges, |dq0| ≤ 10 rad/s, timestep ≤ 10 ms, hand repeat ≤ 1000, speed ≤ 5 m/s,
+≤ 100 N m s/rad, objective gains ≤ 10⁶, ``joint_limits`` margin ≤ π rad, ``ellipsoid`` and ``fme`` desired
+matrices (m, m); ``[sim]`` q0 inside the joint ranges, |dq0| ≤ 10 rad/s, friction damping ≤ 100 N m s/rad and
+frictionloss ≤ 100 N m, timestep ≤ 10 ms, hand repeat ≤ 1000, speed ≤ 5 m/s,
 stiffness ≤ 10⁵ N/m, damping ≤ 10³ N s/m, max_force ≤ 1000 N; environments' stiffness ≤ 10⁶ N/m, damping ≤
 10⁴ N s/m; ``[safety]`` stale_ticks ≤ 1000, frozen_ticks ≤ 10⁵, frozen_motion ≤ 0.1 rad, silence ≤ 1 s,
 max_joint_speed ≤ 100 rad/s, range_margin ≤ 0.5 rad, max_handle_speed ≤ 10 m/s (a limit above these does
@@ -44,6 +45,7 @@ not guard anything). A document nested too deeply is refused as well.
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 import typing
 from importlib import resources
@@ -109,7 +111,7 @@ _BUNDLED_OBJECTIVES: dict[str, S.Spec] = {
     "tmi": {**_GAIN, "slave": (S.string, R), "slave_params": (S.numbers_table, {}), "slave_q": (_vec, R),
             "k_q": (_pos, None), "penalize_slave": (S.boolean, False), "H": (S.matrix, None)},
     "manipulability": {**_GAIN, "log": (S.boolean, False), "k_q": (_pos, None)},
-    "joint_limits": {**_GAIN, "margin": (_pos, R), "weight": (_pos, 1.0),
+    "joint_limits": {**_GAIN, "margin": (S.number(low=0.0, strict=True, high=math.pi), R), "weight": (_pos, 1.0),
                      "kind": (S.choice("quadratic", "inverse"), "quadratic")},
 }
 _OBJECTIVES = ObjectiveSpecs(_BUNDLED_OBJECTIVES, _GAIN)  # and the installed plugins' types (rhi.objectives)
@@ -143,7 +145,9 @@ _HAND = {"path": (S.either(S.matrix, _vec, want="a point or a list of points"), 
          "damping": (S.number(low=0.0, high=1e3), 10.0),
          "max_force": (S.either(S.number(low=0.0, strict=True, high=1e3), S.choice("none"),
                                 want='a number > 0 and <= 1000 or "none"'), 20.0)}
-_PLANT_FRICTION = {"damping": (_num_or_vec, 0.0), "frictionloss": (_num_or_vec, 0.0)}
+_PLANT_LOSS = S.either(S.number(low=0.0, high=100.0), S.vector(low=0.0, high=100.0),
+                       want="a number or a list of numbers, each >= 0 and <= 100 (plausibility bound)")
+_PLANT_FRICTION = {"damping": (_PLANT_LOSS, 0.0), "frictionloss": (_PLANT_LOSS, 0.0)}
 _SIM: S.Spec = {
     "q0": (_vec, None), "dq0": (_vec, None),
     "friction": (S.either(S.choice("device", "none"), S.table(_PLANT_FRICTION),

@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rhi._validate import scalar
+from rhi._validate import MAX_DURATION, scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
 from rhi.runtime.safety import Safety, SafetyConfig
@@ -379,10 +379,6 @@ def _check_sensors(link: DeviceLink, controller) -> None:
                             f"reports only {sorted(have) or 'none'} (docs/protocol.md, INFO)")
         if width is not None and have[name] != width:
             raise LinkError(f"sensors: the device's {name!r} has {have[name]} floats, the controller needs {width}")
-
-
-#: The longest `duration` of a run [s] (11.6 days); None runs until a fault or an e-stop.
-MAX_DURATION = 1e6
 
 
 def _check_run_arguments(link, controller, safety, log, virtual, telemetry, progress, **flags: bool) -> None:

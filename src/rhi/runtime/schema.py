@@ -89,15 +89,16 @@ def string(path: str, v) -> str:
     return v
 
 
-def vector(length: int | None = None) -> Check:
-    """A non-empty list of finite numbers (of `length` if given), as a float array."""
+def vector(length: int | None = None, *, low: float | None = None, high: float | None = None) -> Check:
+    """A non-empty list of finite numbers (of `length` if given, each in [`low`, `high`]), as a float array."""
     want = f"a list of {length if length else 'one or more'} numbers"
+    entry = number(low=low, high=high)
 
     def check(path: str, v) -> np.ndarray:
         if not isinstance(v, list) or not v or (length is not None and len(v) != length):
             raise _fail(path, want, v)
         for i, x in enumerate(v):
-            number()(f"{path}[{i}]", x)
+            entry(f"{path}[{i}]", x)
         return np.array(v, dtype=float)
 
     return check
@@ -117,11 +118,15 @@ def either(*checks: Check, want: str) -> Check:
     """The first of `checks` that accepts the value (e.g. a number or a matrix)."""
 
     def check(path: str, v):
+        inner = None  # a check that failed inside the value (a key of a table): its error names the deeper path
         for c in checks:
             try:
                 return c(path, v)
-            except InvalidInput:
-                continue
+            except InvalidInput as exc:
+                if str(exc).startswith((f"{path}.", f"{path}[")):
+                    inner = inner or exc
+        if inner is not None:
+            raise inner
         raise _fail(path, want, v)
 
     return check

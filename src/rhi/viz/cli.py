@@ -167,7 +167,7 @@ def add_commands(sub, floats) -> None:
     r.add_argument("--width", type=A.pixels, default=640)
     r.add_argument("--height", type=A.pixels, default=480)
     r.add_argument("--azimuth", type=A.finite, help="camera azimuth [deg]")
-    r.add_argument("--elevation", type=A.finite, help="camera elevation [deg]")
+    r.add_argument("--elevation", type=A.elevation, help="camera elevation [deg]")
     r.set_defaults(func=_render)
     v = sub.add_parser("view", help="the device live in the browser (viser): replay a log, or simulate it with the "
                                     "mouse as the hand")
@@ -175,7 +175,7 @@ def add_commands(sub, floats) -> None:
     add_device_options(v, positional=False, default="rhi4")
     v.add_argument("--host", type=A.host, default="127.0.0.1")
     v.add_argument("--port", type=A.port, default=8080)
-    v.add_argument("--duration", type=A.positive, default=3600.0, help="live simulation length [s]")
+    v.add_argument("--duration", type=A.duration, default=3600.0, help="live simulation length [s]")
     v.add_argument("--config", help="replay: the run configuration whose environment and desired FME to draw "
                                     "(default: the environment stored in the log)")
     v.add_argument("--q0", type=floats, help="start configuration [rad] (default: mid-range, bent where that is "
