@@ -170,3 +170,4 @@ def test_mjcf_nan_pose_and_missing_file_name_the_file(tmp_path):
         rhi.device_from_mjcf(path, ee_frame="tip")
     with pytest.raises(ModelError, match=rf"{tmp_path / 'no.xml'}: file does not exist"):
         rhi.device_from_mjcf(tmp_path / "no.xml", ee_frame="tip")
+

@@ -130,3 +130,20 @@ def test_sigterm_of_run_is_an_estop_with_log_and_summary_on_disk(tmp_path):
     full = Log.load(log)
     assert full.fault == s["fault"] and len(full) == s["ticks"] and (full.tau[-1] == 0).all()
     assert "fault (estop): emergency stop: SIGTERM" in err.strip().splitlines()[-1]
+
+
+def test_a_view_process_that_dies_before_serving_is_an_error_at_once():
+    """RemoteView waits for its child's port only while the child lives (a child that cannot serve: no 120 s hang)."""
+    import multiprocessing as mp
+
+    from rhi.viz.remote import _port_when_ready
+
+    ctx = mp.get_context("fork")
+    ready = ctx.Queue()
+    child = ctx.Process(target=sys.exit, args=(3,))
+    child.start()
+    child.join()
+    with pytest.raises(RhiError, match=r"view: its process ended before serving \(exit code 3\)"):
+        _port_when_ready(ready, child, 60.0)
+    ready.put(8080)
+    assert _port_when_ready(ready, child, 60.0) == 8080  # a port already put is taken whatever the process's state

@@ -117,16 +117,26 @@ _LABEL = re.compile(r"^(?!-)[A-Za-z0-9-]{1,63}(?<!-)$")
 
 
 def host(text: str) -> str:
-    """An IPv4 or IPv6 address or a host name (RFC 1123); a dotted quad must be a valid IPv4 address."""
+    """An address to listen on: an IPv4 or IPv6 address or a host name (RFC 1123) of this machine.
+
+    A dotted quad must be a valid IPv4 address, and the address must be one this machine can bind
+    (checked with a throwaway socket), so that a server never starts on an address it cannot serve.
+    """
+    import socket
+
     try:
         ipaddress.ip_address(text)
-        return text
     except ValueError:
-        pass
-    labels = text.rstrip(".").split(".")
-    if (len(text) > 253 or not all(_LABEL.match(x) for x in labels)
-            or all(x.isdigit() for x in labels)):  # 256.0.0.1: a malformed address, not a name
-        raise argparse.ArgumentTypeError(f"expected an IP address or a host name, got {text!r}")
+        labels = text.rstrip(".").split(".")
+        if (len(text) > 253 or not all(_LABEL.match(x) for x in labels)
+                or all(x.isdigit() for x in labels)):  # 256.0.0.1: a malformed address, not a name
+            raise argparse.ArgumentTypeError(f"expected an IP address or a host name, got {text!r}") from None
+    try:
+        family, kind, proto, _, addr = socket.getaddrinfo(text, 0, type=socket.SOCK_STREAM)[0]
+        with socket.socket(family, kind, proto) as s:
+            s.bind(addr)
+    except OSError as exc:
+        raise argparse.ArgumentTypeError(f"cannot listen on {text!r} ({exc.strerror or exc})") from None
     return text
 
 

@@ -33,7 +33,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
 Unknown keys and values of the wrong type raise `InvalidInput` naming the key path, and so do values
 outside these plausibility bounds, checked against the device and physics when the file is read:
 ``[run]`` rate 10 Hz–100 kHz, duration ≤ 10⁶ s; ``[controller]`` torque limits within the device's, damping
-≤ 100 N m s/rad, objective gains ≤ 10⁶, ``joint_limits`` margin ≤ π rad, ``ellipsoid`` and ``fme`` desired
+≤ 100 N m s/rad, primary damping ≤ 10⁴ N s/m, force_rendering gain ≤ 100, spring stiffness ≤ 10⁶ N/m,
+objective gains ≤ 10⁶, ``joint_limits`` margin ≤ π rad, ``ellipsoid`` and ``fme`` desired
 matrices (m, m); ``[sim]`` q0 inside the joint ranges, |dq0| ≤ 10 rad/s, friction damping ≤ 100 N m s/rad and
 frictionloss ≤ 100 N m, timestep ≤ 10 ms, hand repeat ≤ 1000, speed ≤ 5 m/s,
 stiffness ≤ 10⁵ N/m, damping ≤ 10³ N s/m, max_force ≤ 1000 N; environments' stiffness ≤ 10⁶ N/m, damping ≤
@@ -98,8 +99,8 @@ _COMPENSATED = {"damping": (_num_or_mat, 0.0), "coriolis": (S.boolean, True), "g
 _PASSIVITY = S.choice("motors", "handle", "off")  # rhi.control.passivity port, or off (the thesis's laws)
 _PRIMARY: dict[str, S.Spec] = {
     "impedance": {**_COMPENSATED, "inertia": (S.matrix, None), "sensor": (S.string, "ft")},
-    "force_rendering": {**_COMPENSATED, "gain": (_num, 1.0), "passivity": (_PASSIVITY, "motors")},
-    "spring": {**_COMPENSATED, "stiffness": (_nonneg, R), "x0": (_vec, R), "normal": (_vec, None),
+    "force_rendering": {**_COMPENSATED, "gain": (S.number(low=0.0, high=100.0), 1.0), "passivity": (_PASSIVITY, "motors")},
+    "spring": {**_COMPENSATED, "stiffness": (_stiff, R), "x0": (_vec, R), "normal": (_vec, None),
                "passivity": (_PASSIVITY, "motors")},
 }
 _GAIN = {"gain": (S.number(low=0.0, high=1e6), R)}
@@ -215,6 +216,9 @@ def _environments(path: str, envs: list[dict], m: int):
 def _primary(dev: Device, p: dict):
     p = dict(p)
     law = p.pop("law")
+    if np.abs(np.asarray(p["damping"], dtype=float)).max() > 1e4:
+        raise InvalidInput(f"controller.primary.damping: expected entries <= 1e4 N s/m (plausibility bound), got "
+                           f"{np.asarray(p['damping']).tolist()!r:.80}")
     if p["friction"] is not None:
         p["friction"] = S.prefixed("controller.primary.friction", JointFriction, **p["friction"])
     if law == "spring":

@@ -23,7 +23,7 @@ from multiprocessing.synchronize import Event
 import numpy as np
 
 from rhi._lifetime import die_with_parent
-from rhi.errors import InvalidInput
+from rhi.errors import InvalidInput, RhiError
 from rhi.sim.hand import DraggableHand
 from rhi.sim.log import layout
 from rhi.viz.commands import ViewCommands
@@ -214,15 +214,15 @@ def spawn_view(target, args: tuple, *, name: str, timeout: float = 180.0) -> tup
         (the process, its stop event, the port it serves on).
 
     Raises:
-        queue.Empty: the child did not serve within `timeout` (it is ended first).
+        RhiError: the child ended before serving, or did not serve within `timeout` (it is ended first).
     """
     ctx = mp.get_context("spawn")
     ready, stop = ctx.Queue(), ctx.Event()
     process = ctx.Process(target=target, args=(*args, ready, stop), daemon=True, name=name)
     process.start()
     try:
-        return process, stop, int(ready.get(timeout=timeout))
-    except Exception:
+        return process, stop, _port_when_ready(ready, process, timeout)
+    except BaseException:
         end_view(process, stop)
         raise
 
@@ -234,6 +234,23 @@ def end_view(process: BaseProcess, stop: Event) -> None:
     if process.is_alive():
         process.terminate()
         process.join(5)
+
+
+def _port_when_ready(ready, process, timeout: float) -> int:
+    """The port the view's `process` puts on `ready`; an RhiError at once if the process ends first."""
+    import queue
+    import time
+
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            return int(ready.get(timeout=0.25))
+        except queue.Empty:
+            if not process.is_alive():
+                raise RhiError(f"view: its process ended before serving (exit code {process.exitcode}); "
+                               "the reason is printed above") from None
+            if time.monotonic() > end:
+                raise RhiError(f"view: its process did not serve within {timeout:g} s") from None
 
 
 class RemoteView:
