@@ -74,7 +74,7 @@ def test_run_refuses_a_link_of_another_device():
     expect_error(lambda link: run(link, _controller(), duration=0.002, realtime=False), "link", link=SimLink(p))
 
 
-SIMLINK_ARGS = {"plant": bad_object(), "hand": bad_object(), "physical": bad_object(), "teleop": bad_object(),
+SIMLINK_ARGS = {"plant": bad_object(), "hand": bad_object(), "physical": bad_object(),
                 "rate": bad_scalar(low_ok=0.0)}
 
 
