@@ -269,8 +269,12 @@ def test_user_meshes_are_drawn_in_their_own_colours(tmp_path):
 
 
 def test_rhi4_is_drawn_with_its_parallelograms_on_a_floor():
-    """The crank turns with the link it drives, the coupler stays parallel to the link before it, and they close."""
-    from rhi.viz.scene import CRANK, parallelograms
+    """The crank turns with the link it drives, the coupler stays parallel to the link before it: they close.
+
+    The browser's scene and MuJoCo's renders draw them.
+    """
+    from rhi.viz.posed import CRANK, parallelograms
+    from rhi.viz.render import add_linkages
     from rhi.viz.view import View
 
     assert parallelograms(rhi.device("rhi4")) == [(1, 2), (3, 4)]  # the Quanser arm's and the PHANToM's
@@ -278,29 +282,36 @@ def test_rhi4_is_drawn_with_its_parallelograms_on_a_floor():
     dev = rhi.device("rhi4")
     v = View(dev, None, port=0)
     try:
-        sc = v.scene
-        assert len(sc.linkages) == 2 and sum("/para" in name for name in sc.meshes) == 6
+        sc, posed = v.scene, v.posed
+        body = [posed.model.body(f"b_theta{i}").id for i in range(1, 5)]
+        assert len(sc.links) == 6 and sum("/link" in name for name in sc.meshes) == 6
         for q in ([0.3, 1.2, -0.4, 0.9], [1.0, 2.0, 0.5, 1.7]):
             snap = v._rest_snapshot()
             snap.q = np.array(q)
             v._draw(snap, force=True)
-            d = sc.posed.data
-            for bp, bj, crank, crank_frame, coupler_frame in sc.linkages:
-                O, P = d.xpos[bp], d.xpos[bj]
-                link_j = d.xpos[bj + 1] - P if bj + 1 < sc.posed.model.nbody else None
-                c = _rot(crank_frame.wxyz) @ crank  # the crank, world frame
-                np.testing.assert_allclose(crank_frame.position, O, atol=1e-12)
-                np.testing.assert_allclose(np.linalg.norm(c), CRANK * np.linalg.norm(P - O), rtol=1e-9)
-                if link_j is not None:  # opposite to the link it drives
-                    assert np.dot(c, link_j) / np.linalg.norm(c) / np.linalg.norm(link_j) == pytest.approx(-1.0)
-                # the coupler: from the crank's tip, parallel to link p, to the driven link's rear extension
-                np.testing.assert_allclose(coupler_frame.position, O + c, atol=1e-12)
-                rear_tip = P + d.xmat[bj].reshape(3, 3) @ crank
-                end = np.asarray(coupler_frame.position) + (P - O)
-                np.testing.assert_allclose(end, rear_tip, atol=1e-12)
-                np.testing.assert_allclose(_rot(coupler_frame.wxyz), d.xmat[bp].reshape(3, 3), atol=1e-12)
-        lo, _ = sc.posed.bounds()
-        assert sc.floor < lo[2]  # under the device
+            d = posed.data
+            segs = posed.linkages()
+            after = [d.xpos[body[2]], d.xpos[posed.handle]]  # where links θ2 and θ4 end
+            for k, (p, j) in enumerate(((0, 1), (2, 3))):
+                O, P = d.xpos[body[p]], d.xpos[body[j]]
+                crank, coupler, rear = segs[3 * k: 3 * k + 3]
+                c = crank[1] - crank[0]
+                link_j = after[k] - P
+                np.testing.assert_allclose(crank[0], O, atol=1e-12)
+                assert np.linalg.norm(c) == pytest.approx(CRANK * np.linalg.norm(P - O))
+                assert np.dot(c, link_j) / np.linalg.norm(c) / np.linalg.norm(link_j) == pytest.approx(-1.0)
+                np.testing.assert_allclose(coupler, [O + c, P + c], atol=1e-12)  # parallel to link p, closing
+                np.testing.assert_allclose(rear, [P, P + c], atol=1e-12)
+            for frame, (a, b) in zip(sc.links, segs):  # the browser's capsules sit on the segments
+                np.testing.assert_allclose(frame.position, a, atol=1e-9)
+                np.testing.assert_allclose(_rot(frame.wxyz)[:, 2], (b - a) / np.linalg.norm(b - a), atol=1e-9)
+        scene = mujoco.MjvScene(posed.model, maxgeom=1000)
+        mujoco.mjv_updateScene(posed.model, posed.data, mujoco.MjvOption(), None, mujoco.MjvCamera(),
+                               mujoco.mjtCatBit.mjCAT_ALL, scene)
+        n = scene.ngeom
+        add_linkages(scene, posed)
+        assert scene.ngeom == n + 6  # and in MuJoCo's renders (`rhi render`, videos)
+        assert sc.floor < float(posed.bounds()[0][2])  # a floor under the device
     finally:
         v.close()
 

@@ -15,11 +15,37 @@ from rhi._validate import as_array
 from rhi.device import Device
 from rhi.errors import InvalidInput
 from rhi.mobile_base import BASE_JOINTS
+from rhi.sim.geometry import joint_axis
 from rhi.sim.mobile import MobilePlant
 from rhi.sim.plant import Plant
 
 #: the smallest σ_min/σ_max of the Jacobian a start pose may have (`rest_configuration`)
 WELL_CONDITIONED = 0.1
+#: a parallelogram's crank as a fraction of the link it parallels (`Posed.linkages`)
+CRANK = 0.3
+
+
+def parallelograms(device: Device) -> list[tuple[int, int]]:
+    """Chain joints (p, j) whose link j is driven through a parallelogram from joint p's axis.
+
+    The actuation map says so: θ_p = q_a and θ_j = q_b − q_a with parallel hinge axes, so the motor b sets
+    link j's absolute angle from the base (thesis §3.5: the Quanser arm and the PHANToM 1.5A of the rhi4).
+    A chain that branches at p models its linkage itself and is left out.
+    """
+    model, A = device.model, np.asarray(device.A, dtype=float)
+    out = []
+    for j in range(2, model.njoints):
+        p = int(model.parents[j])
+        if p == 0 or list(model.parents).count(p) != 1:
+            continue
+        rp, rj = A[model.joints[p].idx_v], A[model.joints[j].idx_v]
+        a = np.flatnonzero(rp)
+        if len(a) != 1 or rp[a[0]] != 1.0 or rj[a[0]] != -1.0 or np.count_nonzero(rj) != 2 or rj.sum() != 0.0:
+            continue
+        (kp, ap), (kj, aj) = joint_axis(model.joints[p]), joint_axis(model.joints[j])
+        if kp == kj == "hinge" and abs(abs(float(ap @ (model.jointPlacements[j].rotation @ aj))) - 1.0) < 1e-9:
+            out.append((p, j))
+    return out
 
 
 def rest_configuration(device: Device) -> np.ndarray:
@@ -72,6 +98,37 @@ class Posed:
             self._A, self._b = device.A[moving], device.b[moving]
         self.model, self.data = plant.model, plant.data
         self.handle = self.model.body("handle").id
+        self._links = self._parallelogram_links()
+
+    def _parallelogram_links(self) -> list[tuple[int, int, np.ndarray]]:
+        """Per parallelogram: MuJoCo bodies of joints p and j, and the crank (3,) in j's frame [m].
+
+        The crank is `CRANK` of link p long and points away from link j.
+        """
+        dev, m, d = self.device, self.model, self.data
+        mujoco.mj_kinematics(m, d)
+        out = []
+        for p, j in parallelograms(dev):
+            bp, bj = (m.body(f"b_{dev.model.names[i]}").id for i in (p, j))
+            children = [i for i in range(1, dev.model.njoints) if dev.model.parents[i] == j]
+            end = m.body(f"b_{dev.model.names[children[0]]}").id if children else self.handle
+            O, P, C = d.xpos[bp], d.xpos[bj], d.xpos[end]
+            along = d.xmat[bj].reshape(3, 3).T @ (C - P) / float(np.linalg.norm(C - P))
+            out.append((bp, bj, -CRANK * float(np.linalg.norm(P - O)) * along))
+        return out
+
+    def linkages(self) -> np.ndarray:
+        """The parallelograms' links the serial chain leaves out, at the current pose: (k, 2, 3) segments [m].
+
+        Per parallelogram (`parallelograms`), three: the crank at joint p (turning with link j), the coupler
+        from its tip parallel to link p, and link j's rear extension to the coupler's end.
+        """
+        d, out = self.data, []
+        for bp, bj, crank in self._links:
+            O, P = d.xpos[bp], d.xpos[bj]
+            c = d.xmat[bj].reshape(3, 3) @ crank
+            out += [(O, O + c), (O + c, P + c), (P, P + c)]
+        return np.array(out, dtype=float).reshape(-1, 2, 3)
 
     def set(self, q) -> None:
         """Place the device at motor coordinates q: (n,) [rad or m] (kinematics only)."""

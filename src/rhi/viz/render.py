@@ -19,6 +19,7 @@ from rhi._gl import has_display
 from rhi._validate import as_array, writable_file
 from rhi.device import Device
 from rhi.errors import InvalidInput, RhiError
+from rhi.sim.geometry import LINK_RGBA, link_radius
 from rhi.viz.posed import Posed
 
 
@@ -100,11 +101,25 @@ def frames(posed: Posed, Q, *, width: int = 800, height: int = 600, azimuth: flo
         for i, q in enumerate(Q):
             posed.set(q)
             renderer.update_scene(posed.data, camera=cam, scene_option=opt)
+            add_linkages(renderer.scene, posed)
             if decorate is not None:
                 decorate(renderer.scene, i)
             yield renderer.render().copy()
     finally:
         renderer.close()
+
+
+def add_linkages(scene: mujoco.MjvScene, posed: Posed) -> None:
+    """Add the parallelograms' links the serial chain leaves out (`Posed.linkages`) to a scene, as capsules."""
+    r = 0.6 * link_radius(posed.device)
+    for a, b in posed.linkages():
+        if scene.ngeom >= scene.maxgeom:
+            return
+        g = scene.geoms[scene.ngeom]
+        mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_CAPSULE, np.zeros(3), np.zeros(3), np.eye(3).ravel(),
+                            np.array(LINK_RGBA, dtype=np.float32))
+        mujoco.mjv_connector(g, mujoco.mjtGeom.mjGEOM_CAPSULE, r, a, b)
+        scene.ngeom += 1
 
 
 def render(device: Device | Posed, q, *, width: int = 800, height: int = 600, azimuth: float | None = None,

@@ -2,9 +2,9 @@
 
 The geometry is built once (`DeviceScene`); each update sets only the pose of every body
 frame (a few hundred bytes to the browser), from `mj_kinematics` of the configuration.
-MuJoCo's tree is the device's serial chain; a link driven through a parallelogram (`parallelograms`:
-the Quanser arm and the PHANToM of the rhi4) also gets the parallelogram's crank, coupler and the
-link's rear extension, posed from the chain at every update.
+MuJoCo's tree is the device's serial chain; the links of its parallelograms that the chain leaves out
+(`rhi.viz.posed.Posed.linkages`: the Quanser arm's and the PHANToM's of the rhi4) are drawn too, each a
+capsule on a frame of its own placed at every update.
 """
 
 from __future__ import annotations
@@ -15,12 +15,10 @@ import mujoco
 import numpy as np
 import trimesh
 
-from rhi.sim.geometry import LINK_RGBA, joint_axis, link_radius
+from rhi.sim.geometry import LINK_RGBA, link_radius
 from rhi.viz.posed import Posed
 
 _G = mujoco.mjtGeom
-#: a parallelogram's crank as a fraction of the link it parallels
-CRANK = 0.3
 #: the floor's colour (RGB 0..255) under the grid
 FLOOR_RGB = (222, 226, 231)
 
@@ -56,36 +54,11 @@ def geom_rgba(model: mujoco.MjModel, g: int) -> np.ndarray:
     return model.geom_rgba[g]
 
 
-def parallelograms(device) -> list[tuple[int, int]]:
-    """Chain joints (p, j) whose link j is driven through a parallelogram from joint p's axis.
-
-    The actuation map says so: θ_p = q_a and θ_j = q_b − q_a with parallel hinge axes, so the motor b sets
-    link j's absolute angle from the base (thesis §3.5: the Quanser arm and the PHANToM 1.5A of the rhi4).
-    """
-    model, A = device.model, np.asarray(device.A, dtype=float)
-    out = []
-    for j in range(2, model.njoints):
-        p = int(model.parents[j])
-        if p == 0 or list(model.parents).count(p) != 1:  # a branch at p: the chain models its linkage itself
-            continue
-        rp, rj = A[model.joints[p].idx_v], A[model.joints[j].idx_v]
-        a = np.flatnonzero(rp)
-        if len(a) != 1 or rp[a[0]] != 1.0 or rj[a[0]] != -1.0 or np.count_nonzero(rj) != 2 or rj.sum() != 0.0:
-            continue
-        (kp, ap), (kj, aj) = joint_axis(model.joints[p]), joint_axis(model.joints[j])
-        if kp == kj == "hinge" and abs(abs(float(ap @ (model.jointPlacements[j].rotation @ aj))) - 1.0) < 1e-9:
-            out.append((p, j))
-    return out
-
-
-def _segment(a: np.ndarray, b: np.ndarray, r: float) -> trimesh.Trimesh:
-    """A capsule of radius r [m] from point a to point b (3,) [m]."""
-    v = np.asarray(b, dtype=float) - np.asarray(a, dtype=float)
-    mesh = trimesh.creation.capsule(height=float(np.linalg.norm(v)), radius=r, count=[12, 12])
-    T = trimesh.geometry.align_vectors([0.0, 0.0, 1.0], v)
-    T[:3, 3] = 0.5 * (np.asarray(a) + np.asarray(b))
-    mesh.apply_transform(T)
-    return mesh
+def z_to(v: np.ndarray) -> np.ndarray:
+    """The rotation (4,) wxyz that turns the z axis onto the direction of v (3,)."""
+    quat = np.zeros(4)
+    mujoco.mju_quatZ2Vec(quat, np.asarray(v, dtype=float))
+    return quat
 
 
 class DeviceScene:
@@ -99,8 +72,7 @@ class DeviceScene:
     Attributes:
         frames: {body id: viser frame handle} of the bodies that move.
         meshes: {scene name: mesh handle} of every part drawn (its `color` is the part's).
-        linkages: per parallelogram, (body of joint p, body of joint j, crank (3,) in j's frame [m], crank frame,
-            coupler frame).
+        links: per segment of `Posed.linkages`, the frame its capsule hangs from (at the segment's start, z along it).
         floor: z of the floor [m] (a plate with a grid is drawn there).
     """
 
@@ -127,7 +99,15 @@ class DeviceScene:
             else:
                 pos, quat = m.geom_pos[g], m.geom_quat[g]
             self._mesh(f"{self._parent(b, moving)}/g{g}", mesh, geom_rgba(m, g), pos, quat)
-        self.linkages = [self._linkage(k, p, j, moving) for k, (p, j) in enumerate(parallelograms(posed.device))]
+        r = 0.6 * link_radius(posed.device)
+        self.links = []
+        for k, (a, b) in enumerate(posed.linkages()):  # rigid links: their lengths at the first pose hold
+            self.links.append(server.scene.add_frame(f"{root}/link{k}", show_axes=False))
+            length = float(np.linalg.norm(b - a))
+            capsule = trimesh.creation.capsule(height=length, radius=r, count=[12, 12])
+            capsule.apply_translation([0.0, 0.0, 0.5 * length])
+            self._mesh(f"{root}/link{k}/capsule", capsule, LINK_RGBA)
+        self._pose_links()
         lo, hi = posed.bounds()
         self.floor = floor if floor is not None else float(lo[2]) - 0.02
         size = float(np.max(hi - lo))
@@ -151,32 +131,9 @@ class DeviceScene:
             name, mesh.vertices.astype(np.float32), mesh.faces.astype(np.uint32),
             color=tuple(int(round(255 * float(c))) for c in rgba[:3]), position=tuple(pos), wxyz=tuple(quat))
 
-    def _linkage(self, k: int, p: int, j: int, moving: set[int]) -> tuple:
-        """Draw parallelogram k at joints (p, j): the crank at p, the coupler parallel to link p, j's rear extension."""
-        model, dev, d = self.posed.model, self.posed.device, self.posed.data
-        bp, bj = (model.body(f"b_{dev.model.names[i]}").id for i in (p, j))
-        children = [i for i in range(1, dev.model.njoints) if dev.model.parents[i] == j]
-        end = model.body(f"b_{dev.model.names[children[0]]}").id if children else self.posed.handle
-        O, P, C = d.xpos[bp], d.xpos[bj], d.xpos[end]
-        Rp, Rj = d.xmat[bp].reshape(3, 3), d.xmat[bj].reshape(3, 3)
-        crank = -CRANK * float(np.linalg.norm(P - O)) * (Rj.T @ (C - P)) / float(np.linalg.norm(C - P))
-        r = 0.6 * link_radius(dev)
-        zero = np.zeros(3)
-        self._mesh(f"{self._parent(bj, moving)}/para{k}_rear", _segment(zero, crank, r), LINK_RGBA)
-        crank_frame = self.server.scene.add_frame(f"{self.root}/para{k}_crank", show_axes=False)
-        self._mesh(f"{self.root}/para{k}_crank/link", _segment(zero, crank, r), LINK_RGBA)
-        coupler_frame = self.server.scene.add_frame(f"{self.root}/para{k}_coupler", show_axes=False)
-        self._mesh(f"{self.root}/para{k}_coupler/link", _segment(zero, Rp.T @ (P - O), r), LINK_RGBA)
-        link = (bp, bj, crank, crank_frame, coupler_frame)
-        self._pose_linkage(link)
-        return link
-
-    def _pose_linkage(self, link: tuple) -> None:
-        bp, bj, crank, crank_frame, coupler_frame = link
-        d = self.posed.data
-        crank_frame.position, crank_frame.wxyz = d.xpos[bp], d.xquat[bj]
-        coupler_frame.position = d.xpos[bp] + d.xmat[bj].reshape(3, 3) @ crank
-        coupler_frame.wxyz = d.xquat[bp]
+    def _pose_links(self) -> None:
+        for frame, (a, b) in zip(self.links, self.posed.linkages()):
+            frame.position, frame.wxyz = a, z_to(b - a)
 
     def update(self, q) -> None:
         """Move the bodies to configuration q: (n,) [rad or m] (call it inside `server.atomic()`)."""
@@ -185,15 +142,14 @@ class DeviceScene:
         for b, frame in self.frames.items():
             frame.position = d.xpos[b]
             frame.wxyz = d.xquat[b]
-        for link in self.linkages:
-            self._pose_linkage(link)
+        self._pose_links()
 
     def set_visible(self, visible: bool) -> None:
         """Show or hide the device's geometry."""
         for frame in self.frames.values():
             frame.visible = bool(visible)
-        for link in self.linkages:
-            link[3].visible = link[4].visible = bool(visible)
+        for frame in self.links:
+            frame.visible = bool(visible)
 
     def handle_position(self) -> np.ndarray:
         """World position of the handle at the last update: (3,) [m]."""
