@@ -239,19 +239,21 @@ POSITIVE = st.one_of(st.sampled_from(["nan", "inf", "-inf", "0", "-1", "abc", ""
 FINITE = st.sampled_from(["nan", "inf", "-inf", "abc", ""])
 DURATION = st.one_of(POSITIVE, st.floats(min_value=1e6, exclude_min=True, max_value=1e300).map(repr))  # MAX_DURATION
 WATCHDOG = st.one_of(POSITIVE, st.floats(min_value=1e4, exclude_min=True, max_value=1e300).map(repr))  # <= 10 s
+RATE = st.one_of(FINITE, st.floats(max_value=10.0, exclude_max=True, min_value=-1e300).map(repr),
+                 st.floats(min_value=1e5, exclude_min=True, max_value=1e300).map(repr))  # [10 Hz, 100 kHz]
 ELEVATION = st.one_of(FINITE, st.floats(min_value=90.0, exclude_min=True, max_value=1e300).map(repr))
 COUNT = st.one_of(st.integers(max_value=0).map(str), st.sampled_from(["1.5", "abc", ""]))
 FLOATS = st.one_of(st.sampled_from(["nan,0,0,0", "0,inf,0,0", "a,b", "", "1;2"]))
 # (command line before the flag, flag, invalid values)
 FLAGS = [
     (["run", "rhi4", "--config", "ch7_full"], "--duration", DURATION),
-    (["run", "rhi4", "--config", "ch7_full"], "--rate", POSITIVE),
+    (["run", "rhi4", "--config", "ch7_full"], "--rate", RATE),
     (["run", "rhi4", "--config", "ch7_full"], "--view-port", PORT.map(str)),
     (["run", "rhi4", "--config", "ch7_full"], "--cpu", st.integers(max_value=-1).map(str)),
     (["run", "rhi4", "--config", "ch7_full"], "--priority", st.one_of(st.integers(max_value=0), st.integers(100)).map(str)),
     (["device-server", "rhi4"], "--port", PORT.map(str)),
     (["device-server", "rhi4"], "--host", HOST),
-    (["device-server", "rhi4"], "--rate", POSITIVE),
+    (["device-server", "rhi4"], "--rate", RATE),
     (["device-server", "rhi4"], "--watchdog-ms", WATCHDOG),
     (["device-server", "rhi4"], "--duration", DURATION),
     (["device-server", "rhi4"], "--q0", FLOATS),

@@ -247,7 +247,7 @@ def test_cli_fault_exits_nonzero_with_reason(tmp_path, capsys):
     (["--link", "tcp://127.0.0.1:5005"], "--link: expected sim or udp://HOST:PORT"),
     (["--link", "udp://127.0.0.1:99999"], "--link: link: cannot parse"),
     (["--duration", "-1"], "argument --duration: must be > 0, got '-1'"),
-    (["--rate", "0"], "argument --rate: must be > 0"),
+    (["--rate", "0"], "argument --rate: must be in [10, 100000] Hz"),
     (["--rate", "1500"], "rate: 1500"),
 ])
 def test_cli_bad_arguments_exit_2(args, message, capsys):

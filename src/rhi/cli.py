@@ -242,7 +242,7 @@ def _add_run(sub) -> None:
     r.add_argument("--config", required=True,
                    help=f"a TOML file or a shipped configuration: {', '.join(shipped)}")
     r.add_argument("--duration", type=A.duration, help="run time [s] (default: the configuration's, else until Ctrl-C)")
-    r.add_argument("--rate", type=A.positive, help="control rate [Hz] (default: the configuration's, else 1000)")
+    r.add_argument("--rate", type=A.rate, help="control rate [Hz] (default: the configuration's, else 1000)")
     r.add_argument("--log", help="streamed log (.rhilog; default out/run-<timestamp>/run.rhilog)")
     r.add_argument("--summary", help="JSON summary (default: summary.json beside the log)")
     r.add_argument("--device-name", help="accept a device whose INFO calls it this (default: the configuration's "
@@ -320,7 +320,7 @@ def main(argv: list[str] | None = None) -> int:
     add_device_options(d)
     d.add_argument("--port", type=A.port, default=5005, help="UDP port (0: any free port; default 5005)")
     d.add_argument("--host", type=A.host, default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
-    d.add_argument("--rate", type=A.positive, default=1000.0, help="device rate [Hz] (default 1000)")
+    d.add_argument("--rate", type=A.rate, default=1000.0, help="device rate [Hz] (default 1000)")
     d.add_argument("--watchdog-ms", type=A.watchdog_ms, default=20.0, help="zero torque after this long without a command")
     d.add_argument("--lockstep", action="store_true", help="wait for each command (bit-exact simulation)")
     d.add_argument("--config", help="a run configuration whose [sim] start, hand and physical world the device uses")

@@ -54,6 +54,14 @@ def duration(text: str) -> float:
     return v
 
 
+def rate(text: str) -> float:
+    """A loop rate [Hz] in [10, 100 000] (the plausibility bounds of a configuration's ``[run] rate``)."""
+    v = finite(text)
+    if not 10.0 <= v <= 1e5:
+        raise argparse.ArgumentTypeError(f"must be in [10, 100000] Hz, got {text!r}")
+    return v
+
+
 def watchdog_ms(text: str) -> float:
     """A watchdog time [ms] > 0 and at most 10 000 (a longer one guards nothing)."""
     v = positive(text)

@@ -119,7 +119,7 @@ def add_commands(sub) -> None:
                    "(default 0,1: the thesis's)")
     p.add_argument("--trials", type=A.count, default=10, help="pushes pooled for M_x (default 10, the thesis's)")
     p.add_argument("--seed", type=int, default=0, help="seed of the push forces (default 0)")
-    p.add_argument("--rate", type=A.positive, help="control rate [Hz] (default: the configuration's, else 1000)")
+    p.add_argument("--rate", type=A.rate, help="control rate [Hz] (default: the configuration's, else 1000)")
     p.add_argument("--out", help="output folder (default out/identify-<timestamp>)")
     p.add_argument("--device-name", help="accept a device whose INFO calls it this (default: the device's name)")
     p.add_argument("--takeover", action="store_true", help="take the device over from another host's session")

@@ -8,6 +8,7 @@ import sys
 import tomllib
 from pathlib import Path
 
+from rhi import cli_args as A
 from rhi.errors import InvalidInput
 
 
@@ -139,7 +140,7 @@ def add_commands(sub) -> None:
     r.add_argument("--port", type=int, default=8090, help="port of the pages (default 8090; 0: any free port)")
     r.add_argument("--mouse", action="store_true", help="dry run: the mouse is the hand on the simulated device "
                    "(drag on the experimenter page's hand pad; for path following, on the participant's canvas)")
-    r.add_argument("--rate", type=float, default=1000.0, help="control rate [Hz] (default 1000)")
+    r.add_argument("--rate", type=A.rate, default=1000.0, help="control rate [Hz] (default 1000)")
     r.set_defaults(func=_run)
     s = ss.add_parser("simulate", help="simulated participants run the protocol end to end (no browser): "
                       "expected JND/WF spread and the ANOVA's power")
