@@ -20,10 +20,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from rhi.control._compiled import allocation
 from rhi.control.allocation import allocate_active_set, allocate_lp, ascm
-from rhi.control.kernels import allocation
 from rhi.control.saturation import null_basis
-from rhi.device import device
+from rhi.devices.model import device
 
 
 def _cases(dev, rng, count):

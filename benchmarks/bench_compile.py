@@ -6,7 +6,7 @@ earlier one compiled):
 1. ``Device.terms`` on rhi4 (the chain dynamics and task terms);
 2. the tick: the first ``NullSpaceController.step`` of `bench_control.make`'s ch7 controller on its
    compiled route (the whole tick in one call);
-3. ``simulate``: 50 ms of `bench_sim`'s palpation on the compiled simulation loop (`rhi.sim.fast_loop`).
+3. ``simulate``: 50 ms of `bench_sim`'s palpation on the compiled simulation loop (`rhi.sim._compiled.fast_loop`).
 
 Cold: a fresh temporary ``NUMBA_CACHE_DIR``; warm: a second process on the cache the cold one left.
 Baseline measured in the same run: the warm process (its ratio cold / warm is printed), and with

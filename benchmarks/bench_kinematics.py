@@ -1,9 +1,9 @@
-"""Batch kinematics and dynamics (`rhi.batch`): J, ∂J/∂q, M, g and ρ + Λ for 10,000 configurations.
+"""Batch kinematics and dynamics (`rhi.devices.batch`): J, ∂J/∂q, M, g and ρ + Λ for 10,000 configurations.
 
 Baselines, all measured in this run and printed as ratios:
 
 * 4 batch calls: `Device.jacobian(Q)`, `jacobian_derivative(Q)`, `mass_matrix(Q)`, `gravity(Q)`,
-  each its own compiled pass (the batch column is `rhi.batch.terms`, one pass for the four);
+  each its own compiled pass (the batch column is `rhi.devices.batch.terms`, one pass for the four);
 * Pinocchio loop: per configuration, θ = A q + b, `computeFrameJacobian`, `crba`,
   `computeGeneralizedGravity` and ∂J/∂θ from `computeJointJacobiansTimeVariation` along each
   θ̇ = e_k (Pinocchio's way to the same four terms), mapped to motor coordinates;
@@ -49,7 +49,7 @@ def best_of(fn, repeat: int = 5) -> float:
 
 def arms():
     """Panda and UR5 from example-robot-data (none when it is not installed)."""
-    from rhi.loaders import device_from_description
+    from rhi.devices.loaders import device_from_description
 
     out = []
     for name, ee in (("panda", "panda_hand_tcp"), ("ur5", "tool0")):
@@ -88,7 +88,7 @@ def pinocchio_loop(dev, Q, with_dJ: bool = True) -> None:
 
 def old_batch_api(dev, Q) -> None:
     saved = dev.__dict__.get("_batch")
-    dev.__dict__["_batch"] = None  # the per-configuration loop the batch API used before rhi.batch
+    dev.__dict__["_batch"] = None  # the per-configuration loop the batch API used before rhi.devices.batch
     try:
         dev.jacobian(Q), dev.jacobian_derivative(Q), dev.mass_matrix(Q), dev.gravity(Q)
     finally:
@@ -108,13 +108,14 @@ def main() -> None:
     args = p.parse_args()
 
     import rhi
-    from rhi import batch, metrics
-    from rhi.device import MODELS
+    from rhi import metrics
+    from rhi.devices import batch
+    from rhi.devices.model import MODELS
 
     scale = args.n / args.loop_n
     print(f"J, dJ/dq, M and g for {args.n} configurations (loops timed on {args.loop_n} and scaled; "
           f"BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']})")
-    print("batch: rhi.batch.terms, the four terms from one compiled pass; ratios are baseline / batch")
+    print("batch: rhi.devices.batch.terms, the four terms from one compiled pass; ratios are baseline / batch")
     print(f"{'device':<9}{'batch':>9}{'4 batch calls':>21}{'Pinocchio loop':>22}{'Pinocchio J,M,g':>22}"
           f"{'previous batch API':>25}{'Device.terms loop':>24}")
     for dev in [rhi.device("rhi4"), rhi.device("phantom3"), rhi.device("gen3"), *arms()]:
@@ -168,7 +169,7 @@ def main() -> None:
     t_old = best_of(lambda: rho_lambda(Q=Q[: args.loop_n]), 2) * scale
     dev.__dict__["_batch"] = saved
     print(f"\nrho + Lambda for {args.n} rhi4 configurations (thesis eqs. 3.6, 3.10)")
-    print(f"  batch (rhi.batch + metrics)     {t_b * 1e3:8.1f} ms")
+    print(f"  batch (rhi.devices.batch + metrics)     {t_b * 1e3:8.1f} ms")
     print(f"  previous batch API              {t_old * 1e3:8.1f} ms   batch is {t_old / t_b:6.1f}x faster")
     print(f"  Robotics Toolbox loop (scaled)  {t_rtb * 1e3:8.1f} ms   batch is {t_rtb / t_b:6.1f}x faster "
           "(target >= 40x)")

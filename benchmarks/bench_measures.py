@@ -3,7 +3,7 @@
 All timings are taken in the same run and printed as ratios against the baselines.
 
 * Every bundled device, Panda and UR5 (example-robot-data), --n configurations: the batch API
-  (`Device.jacobian` / `rhi.batch.terms` and `rhi.metrics`) against a plain Pinocchio loop that per
+  (`Device.jacobian` / `rhi.devices.batch.terms` and `rhi.metrics`) against a plain Pinocchio loop that per
   configuration computes θ = A q + b, `computeFrameJacobian` (and `crba`), and then with NumPy
   ρ = (uᵀ(JJᵀ)⁻¹u)^(-1/2) (eq. 3.6), Λ = (uᵀ J M⁻¹ Jᵀ u)⁻¹ (eq. 3.13) and μ = √det(JJᵀ) (eq. 4.7).
   Both give the same numbers (checked to 1e-10 relative). Columns: J + ρ, and J, M + ρ, Λ, μ.
@@ -44,8 +44,8 @@ def best_of(fn, repeat: int = 3) -> float:
 def devices():
     """Every bundled device, then Panda and UR5 from example-robot-data (dropped with a note if not installed)."""
     import rhi
-    from rhi.device import available_devices
-    from rhi.loaders import device_from_description
+    from rhi.devices.loaders import device_from_description
+    from rhi.devices.model import available_devices
 
     out = [rhi.device(name) for name in available_devices()]
     for name, ee in (("panda", "panda_hand_tcp"), ("ur5", "tool0")):
@@ -79,7 +79,8 @@ def pinocchio_loop(dev, Q, u, dynamics: bool) -> np.ndarray:
 
 def batch_measures(dev, Q, u, dynamics: bool) -> np.ndarray:
     """The same (B, 3) from the batch API."""
-    from rhi import batch, metrics
+    from rhi import metrics
+    from rhi.devices import batch
 
     out = np.full((len(Q), 3), np.nan)
     if not dynamics:
@@ -129,7 +130,7 @@ def main() -> None:
 
     import rhi
     from rhi import metrics
-    from rhi.device import MODELS
+    from rhi.devices.model import MODELS
 
     dev = rhi.device("rhi4")
     rng = np.random.default_rng(0)

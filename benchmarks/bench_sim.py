@@ -6,11 +6,11 @@ the same run: bare MuJoCo stepping of the same plant at rest, MuJoCo alone throu
 motion (the hand force of every physics step replayed: the floor of any loop; a moving plant
 costs MuJoCo more than one at rest), the same loop with a zero-torque controller (plant + hand +
 environment + log: the loop's own cost; its hand, wall, handle kinematics, sensor reads and log
-rows run in compiled calls, `rhi.sim.handle_kernel` and `rhi.sim.io_kernel`, between MuJoCo's steps
+rows run in compiled calls, `rhi.sim._compiled.handle` and `rhi.sim._compiled.io`, between MuJoCo's steps
 and the controller), and that zero-controller loop as the previous
 implementation ran it (the package at git revision PREVIOUS, extracted with `git archive`
 and run in a subprocess; skipped outside a git checkout). The full loop runs in blocks of compiled
-ticks (`rhi.sim.fast_loop`: sensors, virtual wall, the controller's whole tick, hand, MuJoCo's steps and
+ticks (`rhi.sim._compiled.fast_loop`: sensors, virtual wall, the controller's whole tick, hand, MuJoCo's steps and
 log rows in one call per block); the zero controller is not one it computes, so its rows are the
 Python loop's. Target (issue 14): the full loop ≥ 25× faster than real time.
 
@@ -169,7 +169,7 @@ def main() -> None:
         rows.append((f"loop + zero controller @{a.previous}", prev))
     rows.append(("loop + zero controller", best(lambda: run(Zero(), s), r)))
     fulls = [run(full_controller(), s) for _ in range(r)]
-    from rhi.sim import fast_loop
+    from rhi.sim._compiled import fast_loop
 
     compiled = "none" if fast_loop.last is None else f"{fast_loop.last.ticks} in {fast_loop.last.calls} calls"
     full = min(f[0] for f in fulls), min(f[1] for f in fulls)

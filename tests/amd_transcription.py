@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from rhi.device import Device
+from rhi.devices.model import Device
 
 
 class AMDTranscription:

@@ -17,7 +17,7 @@ from bad_values import examples
 from hypothesis import given, strategies as st
 
 import rhi
-from rhi._description_checks import MAX_JOINTS
+from rhi.devices._description_checks import MAX_JOINTS
 from rhi.errors import ModelError, RhiError
 
 _INERTIAL = '<inertial><mass value="1.0"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>'

@@ -1,4 +1,4 @@
-"""Batch kinematics and dynamics (`rhi.batch`) against Pinocchio, one configuration at a time."""
+"""Batch kinematics and dynamics (`rhi.devices.batch`) against Pinocchio, one configuration at a time."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from rhi import batch
-from rhi.device import BATCH_MIN, Device, available_devices, device
+from rhi.devices import batch
+from rhi.devices.model import BATCH_MIN, Device, available_devices, device
 
 TERMS = ("x", "J", "dJ", "M", "g")
 
@@ -31,7 +31,7 @@ def _device(name: str) -> Device:
         return Device(model, name=name, ee_frame="panda_hand_tcp", q_min=model.lowerPositionLimit,
                       q_max=model.upperPositionLimit, torque_max=model.effortLimit)
     if name in ("panda", "ur5"):
-        from rhi.loaders import device_from_description
+        from rhi.devices.loaders import device_from_description
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the locked Panda fingers
@@ -83,7 +83,7 @@ def test_batch_terms_equal_pinocchio(name):
 
 def test_batch_leading_axes_blocks_and_subsets():
     """Leading batch axes, a last block of the compiled loop that is partial, and any subset of terms."""
-    from rhi.batch_kernel import BLOCK
+    from rhi.devices._compiled.batch import BLOCK
 
     dev = device("rhi4")
     Q = _configurations(dev, 3 * (2 * BLOCK + 5), seed=3).reshape(3, 2 * BLOCK + 5, dev.n)
@@ -162,7 +162,7 @@ def test_batch_matches_per_configuration_api():
 
 
 def test_terms_in_one_pass_equal_the_device_methods():
-    """`rhi.batch.terms` runs one pass for several terms; each equals the `Device` method's batch."""
+    """`rhi.devices.batch.terms` runs one pass for several terms; each equals the `Device` method's batch."""
     from rhi.errors import InvalidInput
 
     dev = device("gen3")
@@ -183,7 +183,7 @@ def test_unsupported_joint_falls_back_to_pinocchio():
     model = pin.Model()
     jid = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "hinge")
     offset = pin.SE3(np.eye(3), np.array([0.3, 0.0, 0.0]))
-    jid = model.addJoint(jid, pin.JointModelHZ(0.05), offset, "screw")  # helical: not in rhi.batch
+    jid = model.addJoint(jid, pin.JointModelHZ(0.05), offset, "screw")  # helical: not in rhi.devices.batch
     model.appendBodyToJoint(jid, pin.Inertia.FromBox(1.0, 0.1, 0.2, 0.3), pin.SE3.Identity())
     model.addFrame(pin.Frame("tip", jid, 0, offset, pin.FrameType.OP_FRAME))
     dev = Device(model, name="screw", ee_frame="tip", torque_max=[1.0, 1.0])

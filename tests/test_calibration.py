@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import rhi
-from rhi.device_spec import bundled_spec
-from rhi.device_variant import available_variants, read_variant
+from rhi.devices.spec import bundled_spec
+from rhi.devices.variant import available_variants, read_variant
 from rhi.errors import InvalidInput
 from rhi.experiments import calibration as C
 

@@ -13,7 +13,7 @@ from conftest import fd_jacobian, random_q
 from rhi import thesis as T
 from rhi.control import FMEMatching, JointLimitBarrier
 from rhi.design.executors import PoolExecutor, SerialExecutor
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments import ch6
 from rhi.experiments.ch6 import capability, setup as S6

@@ -90,7 +90,7 @@ def test_ch7_figures_draw(fig71):
 def test_vme_values_equal_the_objectives_one_configuration_at_a_time():
     """The batched ν of a VME-matching objective along a log equals its `value` per configuration."""
     from rhi.control import EllipsoidMatching, JointLimitBarrier, VMEMatching
-    from rhi.device import device
+    from rhi.devices.model import device
     from rhi.experiments.setups import vme_values
 
     dev = device("rhi4")

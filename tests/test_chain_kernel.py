@@ -1,4 +1,4 @@
-"""The compiled chain dynamics behind `Device.terms` (`rhi.chain_kernel`) against Pinocchio's algorithms."""
+"""The compiled chain dynamics behind `Device.terms` (`rhi.devices._compiled.chain`) against Pinocchio's algorithms."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 from test_batch import _device
 
-from rhi import batch
-from rhi.device import Device, available_devices, device
+from rhi.devices import batch
+from rhi.devices.model import Device, available_devices, device
 
 NAMES = available_devices() + ["panda", "ur5", "panda_tree"]
 
@@ -27,12 +27,12 @@ def _reference(model: pin.Model, fid: int, th: np.ndarray, dth: np.ndarray) -> d
 @pytest.mark.parametrize("name", NAMES)
 def test_chain_dynamics_equal_pinocchio(name):
     """x, the 6-D frame Jacobian, CRBA (with armature), gravity and the Coriolis matrix at 50 random states."""
-    from rhi import chain_kernel
+    from rhi.devices._compiled import chain as chain_kernel
 
     dev = _device(name)
     model, fid = dev.model, dev.ee_frame_id
     assert batch.supported(model)
-    consts = chain_kernel.pack(model, fid)
+    consts = batch.pack(model, fid)
     rng = np.random.default_rng(7)
     for _ in range(50):
         th = rng.uniform(-np.pi, np.pi, model.nv)

@@ -1,4 +1,4 @@
-"""`rhi.device_spec`: the one reader of device.toml, and the plant data a locked device keeps."""
+"""`rhi.devices.spec`: the one reader of device.toml, and the plant data a locked device keeps."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import rhi
-from rhi.device_spec import available_devices, bundled_spec, read_spec
+from rhi.devices.mobile_base import wheel_geometry
+from rhi.devices.spec import available_devices, bundled_spec, read_spec
 from rhi.errors import ModelError, UnknownDevice
-from rhi.mobile_base import wheel_geometry
 from rhi.sim import device_friction
 
 SRC = Path(rhi.__file__).parent
@@ -65,4 +65,4 @@ def test_malformed_device_toml_raises_model_error(tmp_path):
 def test_only_the_spec_module_reads_device_toml():
     readers = [p.relative_to(SRC).as_posix() for p in SRC.rglob("*.py")
                if re.search(r"""["']device\.toml["']""", p.read_text(encoding="utf-8"))]
-    assert readers == ["device_spec.py"]
+    assert readers == ["devices/spec.py"]

@@ -11,7 +11,7 @@ import pytest
 from conftest import fd_jacobian, random_q
 
 import rhi
-from rhi.device import device as load_device_by_name  # the loader the rest of the package uses
+from rhi.devices.model import device as load_device_by_name  # the loader the rest of the package uses
 from rhi.errors import InvalidInput, Unreachable
 
 s, c = np.sin, np.cos

@@ -1,4 +1,4 @@
-"""The compiled simulation loop (`rhi.sim.fast_loop`) against the Python loop of `simulate`: same log, same state.
+"""The compiled simulation loop (`rhi.sim._compiled.fast_loop`) against the Python loop of `simulate`: same log, same state.
 
 Each scenario runs twice from the same start: once as `simulate` chooses (the compiled loop), once with
 `FastLoop.build` refusing (the Python loop, the reference). Logs equal to 1e-9 in every column but the

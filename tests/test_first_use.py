@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from rhi import cli_help, kernel_cache
+from rhi import cli_help, jit
 from rhi.cli import main
 from rhi.report.steps import experiments
 
@@ -76,8 +76,8 @@ def test_a_cold_cache_says_so_once(tmp_path):
     cold = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     warm = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert cold.returncode == 0 and warm.returncode == 0, cold.stderr + warm.stderr
-    assert cold.stderr.count(kernel_cache.COLD) == 1, cold.stderr
-    assert kernel_cache.COLD not in warm.stderr and cold.stdout == warm.stdout
+    assert cold.stderr.count(jit.COLD) == 1, cold.stderr
+    assert jit.COLD not in warm.stderr and cold.stdout == warm.stdout
 
 
 def test_warmup_runs_every_step(capsys):

@@ -1,13 +1,13 @@
-"""Kinova Gen3 (`gen3`) and the wheeled mobile manipulator (`wmm`) of thesis App. A/B, and `rhi.mobile_base`."""
+"""Kinova Gen3 (`gen3`) and the wheeled mobile manipulator (`wmm`) of thesis App. A/B, and `rhi.devices.mobile_base`."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from rhi.device import device
+from rhi.devices.mobile_base import body_map, mecanum_map, wheel_geometry, wmm_jacobian
+from rhi.devices.model import device
 from rhi.errors import InvalidInput
-from rhi.mobile_base import body_map, mecanum_map, wheel_geometry, wmm_jacobian
 
 PI = np.pi
 Q0_ARM = np.array([0, PI / 6, 0, PI / 2, 0, -PI / 6, 0])  # thesis §A.4.1 / §B.4.1 (arm part of q0)

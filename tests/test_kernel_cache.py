@@ -1,33 +1,33 @@
-"""Numba's disk cache of rhi's kernels is stamped with every kernel source (`rhi.kernel_cache`)."""
+"""Numba's disk cache of rhi's kernels is stamped with every kernel source (`rhi.jit`)."""
 
 from __future__ import annotations
 
 import shutil
 from pathlib import Path
 
-from rhi import kernel_cache
+from rhi import jit as kernel_cache
 
 
 def test_every_rhi_kernel_carries_the_package_stamp():
     """A kernel that calls other files' kernels (the whole tick) is refreshed when any of them changes."""
-    from rhi import chain_kernel, terms_kernel
-    from rhi.control.kernels import allocation, step, whole
+    from rhi.control._compiled import allocation, step, whole
     from rhi.design import planar
+    from rhi.devices._compiled import chain as chain_kernel, terms as terms_kernel
 
     files = {p.relative_to(kernel_cache._ROOT).as_posix() for p in kernel_cache.kernel_files()}
-    assert {"control/kernels/whole.py", "control/kernels/step.py", "control/kernels/allocation.py", "terms_kernel.py",
-            "chain_kernel.py", "design/planar.py"} <= files
-    assert "device.py" not in files  # no compiled function there
+    assert {"control/_compiled/whole.py", "control/_compiled/step.py", "control/_compiled/allocation.py",
+            "devices/_compiled/terms.py", "devices/_compiled/chain.py", "design/planar.py"} <= files
+    assert "devices/model.py" not in files  # no compiled function there
     for fn in (whole.whole, step.tick, allocation.ascm, terms_kernel.mv, chain_kernel.chain_terms, planar._axes):
         assert fn._cache._cache_file._source_stamp == kernel_cache.stamp(), fn
 
 
 def test_stamp_follows_every_kernel_file(tmp_path: Path):
     src = Path(kernel_cache.__file__).parent
-    for name in ("terms_kernel.py", "device.py"):
-        shutil.copy(src / name, tmp_path / name)
+    for name, to in (("devices/_compiled/terms.py", "terms_kernel.py"), ("devices/model.py", "device.py")):
+        shutil.copy(src / name, tmp_path / to)
     (tmp_path / "sub").mkdir()
-    shutil.copy(src / "control/kernels/whole.py", tmp_path / "sub/whole.py")
+    shutil.copy(src / "control/_compiled/whole.py", tmp_path / "sub/whole.py")
     assert [p.name for p in kernel_cache.kernel_files(tmp_path)] == ["whole.py", "terms_kernel.py"]
     before = kernel_cache.stamp(tmp_path)
     kernel_cache.stamp.cache_clear()

@@ -113,7 +113,7 @@ def test_panda_xacro_expanded_and_compared_with_pinocchio():
         warnings.simplefilter("ignore")
         dev = rhi.device_from_urdf(XACRO, ee_frame="panda_hand", armature=0.01)
     assert dev.n == 7
-    from rhi._urdf import _xacro_find
+    from rhi.devices._urdf import _xacro_find
 
     with _xacro_find(XACRO.parent, ()):
         raw = pin.buildModelFromXML(xacro.process_file(str(XACRO)).toxml())

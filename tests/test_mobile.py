@@ -40,7 +40,7 @@ from rhi.control.mobile import (
     velocity_bounds,
     weighted_pinv_psd,
 )
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InfeasibleLimits, InvalidInput
 from rhi.metrics import directional_manipulability
 from rhi.sim.mobile import (

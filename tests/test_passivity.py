@@ -127,7 +127,7 @@ def test_handle_port_observer():
 
     On the rhi4 model with the null space idle it agrees with the motor port to first order in the step.
     """
-    from rhi.device import device
+    from rhi.devices.model import device
 
     dev = device("rhi4")
     rng = np.random.default_rng(3)
@@ -149,7 +149,7 @@ def test_handle_port_observer():
                                          ("motors", "damper"), ("motors", "bounding"), ("handle", "damper")])
 def test_kernel_equals_reference(port, method):
     """The compiled PO/PC equals its readable composition (rhi.control.reference) tick by tick, damping active."""
-    from rhi.device import device
+    from rhi.devices.model import device
 
     dev = device("rhi4")
     rng = np.random.default_rng(7)

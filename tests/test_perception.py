@@ -15,7 +15,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from rhi import thesis as T  # noqa: E402
-from rhi.device import device  # noqa: E402
+from rhi.devices.model import device  # noqa: E402
 from rhi.errors import InvalidInput  # noqa: E402
 from rhi.experiments import identification as ID  # noqa: E402
 from rhi.experiments.ch3 import discrimination as D, sysid_table_3_2  # noqa: E402

@@ -160,7 +160,7 @@ def test_bad_input(rhi4, tmp_path):
 
 
 def test_device_from_urdf_matches_bundled(rhi4):
-    from rhi.device import MODELS
+    from rhi.devices.model import MODELS
 
     path = MODELS / "rhi4" / "rhi4.urdf"
     dev = rhi.device_from_urdf(path, ee_frame="handle", task="xy")
@@ -178,7 +178,7 @@ def test_mass_matrix_equals_kinetic_energy_by_hand(rhi4, rng):
     import tomllib
     import xml.etree.ElementTree as ET
 
-    from rhi.device import MODELS
+    from rhi.devices.model import MODELS
 
     root = ET.parse(MODELS / "rhi4" / "rhi4.urdf").getroot()
     body = {}

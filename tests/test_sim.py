@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController, ObjectiveTerm, VMEMatching
-from rhi.device import available_devices, device
+from rhi.devices.model import available_devices, device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.sim import (
     Fixture,

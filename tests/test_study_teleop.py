@@ -24,7 +24,7 @@ import browser  # noqa: E402  (tests/browser.py)
 import numpy as np
 import pytest
 
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.experiments.ch5.setup import distance_to_polyline
 from rhi.sim.log import Log
 from rhi.study import slave as sl

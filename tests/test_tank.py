@@ -109,7 +109,7 @@ def test_empty_tank_never_scales_the_wall_or_the_safety_torques(rhi4, impl):
 
 
 def test_fast_equals_reference_in_a_palpation(rhi4):
-    """The compiled tank (rhi.control.kernels.tank in the whole tick) sends the reference's torque and books its T."""
+    """The compiled tank (rhi.control._compiled.tank in the whole tick) sends the reference's torque and books its T."""
     from rhi.experiments.beyond import passivity as P
     from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InvalidInput
 from rhi.experiments.ch5.setup import controller
 from rhi.runtime import SimLink, Telemetry, run

@@ -15,7 +15,7 @@ import pytest
 from wmm_transcription import Q0, Transcription, desired_circle, run
 
 from rhi.control.mobile import DMConfig, WeightedConfig, WeightedDistributionController
-from rhi.device import device
+from rhi.devices.model import device
 
 #: Agreement of the commands [rad/s, m/s] at the same state: analytic vs finite-difference ∂J/∂q
 #: (step 1e-6) and two different routes to the weighted pseudoinverse.

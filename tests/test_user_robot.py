@@ -13,11 +13,11 @@ import pytest
 from conftest import arm3_urdf, child_env, free_udp_port
 
 import rhi
-from rhi._urdf import fill_inertia
 from rhi.cli import main
-from rhi.device_source import device_from_table
+from rhi.devices._urdf import fill_inertia
+from rhi.devices.loaders import available_descriptions
+from rhi.devices.source import device_from_table
 from rhi.errors import InvalidInput, ModelError
-from rhi.loaders import available_descriptions
 from rhi.runtime.config import load_config
 from rhi.sim import Log
 

@@ -113,7 +113,7 @@ def test_user_urdf_meshes_package_and_relative_paths(tmp_path):
 
 
 def test_user_urdf_without_visuals_gets_capsules(tmp_path):
-    from rhi.device import MODELS
+    from rhi.devices.model import MODELS
 
     dev = rhi.device_from_urdf(MODELS / "planar3r" / "planar3r.urdf", ee_frame="tip", task="xy", torque_max=1.0)
     m = Posed(dev).model

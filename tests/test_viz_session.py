@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import rhi
-from rhi.device_spec import available_devices
+from rhi.devices.mobile_base import BASE_JOINTS
+from rhi.devices.spec import available_devices
 from rhi.errors import InvalidInput
-from rhi.mobile_base import BASE_JOINTS
 from rhi.viz.commands import ViewCommands
 from rhi.viz.posed import WELL_CONDITIONED, rest_configuration
 

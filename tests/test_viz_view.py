@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import rhi
-from rhi.device_spec import available_devices
+from rhi.devices.spec import available_devices
 from rhi.errors import InvalidInput
 from rhi.sim import DraggableHand, Plant, simulate
 from rhi.viz.panels import torque_panel

@@ -1,4 +1,4 @@
-"""The whole tick in one compiled call (`rhi.control.kernels.whole`) equals the reference composition."""
+"""The whole tick in one compiled call (`rhi.control._compiled.whole`) equals the reference composition."""
 
 from __future__ import annotations
 
@@ -191,7 +191,7 @@ def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
         c.reset()
     both(cases[300:], 0.3)
     # the kernel's FALLBACK hands the tick to the reference on the terms it computed
-    from rhi.control.kernels import whole
+    from rhi.control._compiled import whole
 
     kernel = whole.whole
 
@@ -224,7 +224,7 @@ def test_whole_tick_bad_force(rhi4):
 
 def test_whole_tick_reuses_the_loops_terms(monkeypatch):
     """A loop that read `Device.terms(q, dq)` first (the runtime's handle speed, a virtual wall) is not computed twice."""
-    from rhi.control.kernels import whole
+    from rhi.control._compiled import whole
 
     kernel, ready = whole.whole, []
 
@@ -245,7 +245,7 @@ def test_whole_tick_reuses_the_loops_terms(monkeypatch):
 
 def test_whole_tick_runs_the_experiments_controllers(rhi4, monkeypatch):
     """The §6.4 palpation controllers (static FME matching + the limit barrier) and beyond.passivity's run in one call."""
-    from rhi.control.kernels import whole
+    from rhi.control._compiled import whole
     from rhi.experiments.beyond import passivity
     from rhi.experiments.ch6 import setup as ch6
 

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from rhi.device import Device
+from rhi.devices.model import Device
 
 PI = math.pi
 #: §A.4.1: q0 = [0, 0, 0, 0, π/6, 0, π/2, 0, −π/6, 0].

@@ -13,9 +13,16 @@ from rhi._gl import headless_default
 headless_default()  # before anything imports MuJoCo (see rhi._gl)
 
 from rhi import errors, metrics  # noqa: E402
-from rhi.device import Device, available_devices, device  # noqa: E402
-from rhi.device_measures import all_measures  # noqa: E402
-from rhi.loaders import description_path, device_from_description, device_from_mjcf, device_from_urdf  # noqa: E402
+from rhi.devices import (  # noqa: E402
+    Device,
+    all_measures,
+    available_devices,
+    description_path,
+    device,
+    device_from_description,
+    device_from_mjcf,
+    device_from_urdf,
+)
 
 __all__ = [
     "Device",

@@ -23,8 +23,8 @@ from rhi.cli_link import Status as _Status, add_realtime as _add_realtime, link 
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
 from rhi.cli_warmup import add_commands as add_warmup_command
-from rhi.device import available_devices, device
-from rhi.device_measures import all_measures
+from rhi.devices.measures import all_measures
+from rhi.devices.model import available_devices, device
 from rhi.errors import InvalidInput, RhiError
 from rhi.viz.cli import add_commands
 
@@ -39,7 +39,7 @@ def _param(text: str) -> tuple[str, float]:
 
 def _devices(args: argparse.Namespace) -> int:
     if args.descriptions:
-        from rhi.loaders import available_descriptions
+        from rhi.devices.loaders import available_descriptions
 
         found = available_descriptions()
         if not found:

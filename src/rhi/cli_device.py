@@ -1,7 +1,7 @@
 """The device options of the `rhi` commands: a bundled name, or `--urdf`, `--mjcf` or `--description` and the loaders' options.
 
 Every command that takes a device (measure, render, run, view, device-server) takes these options; they
-build the table of `rhi.device_source` (the same keys as a run configuration's ``[device]``).
+build the table of `rhi.devices.source` (the same keys as a run configuration's ``[device]``).
 """
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from __future__ import annotations
 import argparse
 import re
 
-from rhi.device import Device
-from rhi.device_source import device_from_table
+from rhi.devices.model import Device
+from rhi.devices.source import device_from_table
 from rhi.errors import InvalidInput, RhiError
 
 SOURCE_EXAMPLE = ("rhi measure --urdf arm.urdf --ee-frame tool0 --q 0,0.5,0,1,0,0.5  "
@@ -74,7 +74,7 @@ def add_device_options(p: argparse.ArgumentParser, *, positional: bool = True, d
 
 
 def device_table(args: argparse.Namespace) -> dict | None:
-    """The `rhi.device_source` table of the source options given, or None when no source option was."""
+    """The `rhi.devices.source` table of the source options given, or None when no source option was."""
     src = {k: getattr(args, k, None) for k in ("urdf", "mjcf", "description")}
     opts = {"ee_frame": args.ee_frame, "task": args.task, "ee_offset": args.ee_offset, "armature": args.armature,
             "torque_min": args.torque_min, "torque_max": args.torque_max, "inertia": args.inertia,

@@ -1,6 +1,6 @@
 """The `rhi warmup` command: compile, or load from Numba's disk cache, every kernel rhi runs, with a progress bar.
 
-On a cold cache (a fresh install, or after an update of any kernel module, `rhi.kernel_cache`) the first
+On a cold cache (a fresh install, or after an update of any kernel module, `rhi.jit`) the first
 call of each kernel compiles it (about two minutes in all on two cores); afterwards every process loads
 them from the cache in seconds. `./run` runs this once after installing.
 """
@@ -23,7 +23,7 @@ def _mid(dev) -> np.ndarray:
 
 
 def _terms() -> None:
-    from rhi.device import available_devices, device
+    from rhi.devices.model import available_devices, device
 
     for name in available_devices():
         dev = device(name)
@@ -32,8 +32,8 @@ def _terms() -> None:
 
 def _batch() -> None:
     from rhi import metrics
-    from rhi.batch import terms
-    from rhi.device import device
+    from rhi.devices.batch import terms
+    from rhi.devices.model import device
 
     dev = device("rhi4")
     terms(dev, _mid(dev) + np.random.default_rng(0).uniform(-0.1, 0.1, (64, dev.n)), ("x", "J", "dJ", "M", "g"))
@@ -52,7 +52,7 @@ def _controllers() -> None:
 
 def _simulation() -> None:
     from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
-    from rhi.device import device
+    from rhi.devices.model import device
     from rhi.sim import Hand, HandPath, Plant, Wall, simulate, stop
 
     dev = device("rhi4")
@@ -87,9 +87,9 @@ def warmup(progress: bool = True) -> list[tuple[str, float]]:
     """Run every `STEPS` entry (a rich progress bar when `progress`); returns [(step, seconds)]."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from rhi import kernel_cache
+    from rhi import jit
 
-    kernel_cache.announced(True)  # the bar says it; no "compiling ..." line besides
+    jit.announced(True)  # the bar says it; no "compiling ..." line besides
     out = []
     with Progress(TextColumn("{task.description:<44}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
                   TimeElapsedColumn(), disable=not progress) as bar:

@@ -9,7 +9,7 @@ from typing import Literal
 
 import numpy as np
 
-from rhi.device import Device, DeviceTerms
+from rhi.devices.model import Device, DeviceTerms
 from rhi.errors import InvalidInput
 
 _LIMIT_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -7,7 +7,7 @@ from scipy.optimize import LinearConstraint, NonlinearConstraint, minimize
 
 from rhi._validate import as_array
 from rhi.control.objectives import Objective
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import Unreachable
 
 

@@ -33,8 +33,8 @@ construction or `reset` they are bad input instead and raise InvalidInput.
 Two implementations compute the same tick: ``implementation="fast"`` (the default: for a
 device whose chain the compiled kinematics handle, a built-in primary law and the objectives
 the kernel knows, the whole tick, passivity layer included, in one compiled call,
-`rhi.control.kernels.whole`; otherwise `Device.terms`, the law's `forces`, then steps 2–6 in
-one compiled kernel; `rhi.control.tick` and `rhi.control.kernels`) and ``"reference"`` (`rhi.control.reference`:
+`rhi.control._compiled.whole`; otherwise `Device.terms`, the law's `forces`, then steps 2–6 in
+one compiled kernel; `rhi.control.tick` and `rhi.control._compiled`) and ``"reference"`` (`rhi.control.reference`:
 per-call Device methods, `null_basis` SVD, `ascm`/`tertiary` on the orthonormal basis,
 `rhi.metrics` projectors) — the readable composition of the equations, kept as the oracle
 the kernel is tested against. A strategy without a compiled branch (``kernel=None``: the LP,
@@ -61,7 +61,7 @@ from rhi.control.saturation import check_torque_limits
 from rhi.control.tank import NullSpaceTank, TankState
 from rhi.control.tick import KernelTick
 from rhi.control.transition import TransitionConfig, TransitionState, transition_step
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput, RhiError, Singular
 from rhi.metrics import dynamic_pinv, weighted_pinv
 from rhi.metrics.spd import spd_matrix
@@ -104,7 +104,7 @@ class FMESchedule:
     A schedule of objectives: each tick the controller advances it with the ASO volume V
     (`advance`, eqs. 6.15–6.19) and adds ``gain ×`` the FME-matching objective it gives for that
     tick's activation Ω (`objective`, eqs. 6.10, 6.16) to the other objective terms. The compiled
-    tick (`rhi.control.kernels.step`) runs the same two steps inside the kernel.
+    tick (`rhi.control._compiled.step`) runs the same two steps inside the kernel.
 
     Attributes:
         free: (m, m) SPD M_Free^des (eq. 6.12).

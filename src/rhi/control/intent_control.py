@@ -22,7 +22,7 @@ from rhi.control.objectives import (
     desired_fme_free,
     desired_fme_stiff,
 )
-from rhi.device import Device, DeviceTerms
+from rhi.devices.model import Device, DeviceTerms
 from rhi.errors import InvalidInput
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from rhi._validate import as_array
 from rhi.control.objectives import contract
-from rhi.device import Device, DeviceTerms, inv_small
+from rhi.devices.model import Device, DeviceTerms, inv_small
 from rhi.errors import InvalidInput
 from rhi.metrics import jbld
 

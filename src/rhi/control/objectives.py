@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device import Device, DeviceTerms, inv_small
+from rhi.devices.model import Device, DeviceTerms, inv_small
 from rhi.errors import InvalidInput
 from rhi.metrics import desired_vme, jbld
 from rhi.metrics.spd import spd_matrix

@@ -81,9 +81,9 @@ from typing import Literal
 
 import numpy as np
 
-from rhi.control.kernels import passivity as _kernel
+from rhi.control._compiled import passivity as _kernel
 from rhi.control.reference import reference_passivity
-from rhi.device import DeviceTerms
+from rhi.devices.model import DeviceTerms
 from rhi.errors import InvalidInput
 
 #: The port the observer watches: the motors (τ against q̇) or the handle (J#ᵀτ against ẋ).
@@ -129,7 +129,7 @@ class Passivity:
 
     @property
     def mode(self) -> int:
-        """The compiled kernel's code of `method` (`rhi.control.kernels.passivity`; OBSERVE without control)."""
+        """The compiled kernel's code of `method` (`rhi.control._compiled.passivity`; OBSERVE without control)."""
         return _MODES[self.method] if self.control else _kernel.OBSERVE
 
 
@@ -165,7 +165,7 @@ class PassivityController:
     Args:
         config: the settings.
         reference: run the readable composition (`rhi.control.reference.reference_passivity`)
-            instead of the compiled kernel (`rhi.control.kernels.passivity`); equal to rounding.
+            instead of the compiled kernel (`rhi.control._compiled.passivity`); equal to rounding.
     """
 
     def __init__(self, config: Passivity, *, reference: bool = False) -> None:

@@ -1,7 +1,7 @@
 """Primary (task-space) control laws: the force the device renders to the user's hand.
 
 A primary law reads the per-tick `DeviceTerms` snapshot (x, ẋ, J, M_x, C_x, G_x, J#, …
-of the device at (q, q̇), see `rhi.device.Device.terms`) and the sensor readings, and
+of the device at (q, q̇), see `rhi.devices.model.Device.terms`) and the sensor readings, and
 returns two task-space forces ``(F_render, F_extra)`` [N]: ``F_render`` is the rendered
 environment force, which saturation handling may scale by α (eq. 7.9); ``F_extra`` (the
 μ of eq. 7.9: damping and the Coriolis, gravity and friction compensation
@@ -27,7 +27,7 @@ import numpy as np
 
 from rhi._validate import as_array, scalar
 from rhi.control.passivity import Passivity
-from rhi.device import Device, DeviceTerms
+from rhi.devices.model import Device, DeviceTerms
 from rhi.errors import InvalidInput
 from rhi.metrics.spd import spd_matrix
 

@@ -1,6 +1,6 @@
 """The controller tick as the readable composition of the thesis's equations: the oracle of the kernel.
 
-`reference_tick` computes what `rhi.control.kernels.tick` computes (steps 2–6 of
+`reference_tick` computes what `rhi.control._compiled.tick` computes (steps 2–6 of
 `rhi.control.controller`), one equation per line, with an orthonormal null-space basis Z
 from an SVD (`null_basis`), the configured strategy's `allocate` on that basis (`rhi.control.allocation`),
 `tertiary`, `safety_room` and `held_part`, the objectives' own `gradient(device, q)` and the
@@ -22,7 +22,7 @@ from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import null_basis, tertiary
 from rhi.control.tank import tank_blend
 from rhi.control.transition import aso_volume
-from rhi.device import DeviceTerms
+from rhi.devices.model import DeviceTerms
 from rhi.errors import InvalidInput, Singular
 from rhi.metrics import nullspace_projector
 
@@ -153,7 +153,7 @@ def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau
                         hi: np.ndarray) -> np.ndarray:
     """`PassivityController.apply` (steps 1–4 of its docstring), one equation per line.
 
-    The oracle of `rhi.control.kernels.passivity.apply`. Returns the torque to send (n,) [N m];
+    The oracle of `rhi.control._compiled.passivity.apply`. Returns the torque to send (n,) [N m];
     advances ``pc.state``.
     """
     s, cfg = pc.state, pc.config

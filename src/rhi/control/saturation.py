@@ -27,8 +27,8 @@ import math
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.control import kernels
-from rhi.device import eye
+from rhi.control import _compiled as kernels
+from rhi.devices.model import eye
 from rhi.errors import InfeasibleLimits, InvalidInput, Singular
 
 _TOL = 1e-12

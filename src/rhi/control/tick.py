@@ -5,11 +5,11 @@ and FMEs, output buffers). Objectives the kernels know (VME matching, the FME sc
 run inside them; in the composed tick any other objective and the joint-limit barriers run their
 own `gradient_at` in Python and enter as two torque vectors.
 
-`KernelTick.whole` is the whole tick in one call of `rhi.control.kernels.whole` (device terms,
+`KernelTick.whole` is the whole tick in one call of `rhi.control._compiled.whole` (device terms,
 primary law, steps 2–6, the passivity layer) for a device whose chain the compiled kinematics
 handle, a built-in primary law and only objectives the kernels know — VME matching, the FME schedule,
-static FME matching and joint-limit barriers (`rhi.control.kernels.objectives`) — (`KernelTick.whole_ok`);
-`KernelTick.__call__` runs steps 2–6 of `rhi.control.kernels.tick` after `Device.terms` and the
+static FME matching and joint-limit barriers (`rhi.control._compiled.objectives`) — (`KernelTick.whole_ok`);
+`KernelTick.__call__` runs steps 2–6 of `rhi.control._compiled.tick` after `Device.terms` and the
 primary law's `forces`.
 """
 
@@ -20,15 +20,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rhi.control import kernels
+from rhi.control import _compiled as kernels
+from rhi.control._compiled import objectives as _objectives, tank as _tank, whole as _whole
 from rhi.control.barrier import JointLimitBarrier, limit_rows
-from rhi.control.kernels import objectives as _objectives, tank as _tank, whole as _whole
 from rhi.control.objectives import EllipsoidMatching, FMEMatching, VMEMatching, gradient_function
 from rhi.control.primary import ForceRendering, ImpedanceControl, SpringPalpation
 from rhi.control.transition import TransitionState
-from rhi.device import DeviceTerms
+from rhi.devices.model import DeviceTerms
+from rhi.devices.terms import TERMS, layout
 from rhi.errors import InvalidInput, Singular
-from rhi.terms_kernel import TERMS, layout
 
 if TYPE_CHECKING:
     from rhi.control.controller import ControllerState, NullSpaceController
@@ -42,7 +42,7 @@ def _f64(v) -> np.ndarray:
 
 
 def _law_vector(law, n: int, m: int) -> np.ndarray | None:
-    """The settings of a built-in primary law as `rhi.control.kernels.whole` reads them (LAW_* slots), else None."""
+    """The settings of a built-in primary law as `rhi.control._compiled.whole` reads them (LAW_* slots), else None."""
     if isinstance(law, ForceRendering):
         kind = _whole.FORCE
     elif isinstance(law, SpringPalpation):
@@ -97,7 +97,7 @@ def _kernel_barrier(objective) -> tuple[int, float, float] | None:
 
 
 class KernelTick:
-    """Steps 2–6 of a `NullSpaceController` tick through `rhi.control.kernels.tick`.
+    """Steps 2–6 of a `NullSpaceController` tick through `rhi.control._compiled.tick`.
 
     Args:
         ctrl: the controller (its device, configuration, limits and objectives).
@@ -159,7 +159,7 @@ class KernelTick:
         self._tr_of: TransitionState | None = None  # the state object self._tr mirrors
         fast = dev._fast_maps
         law = _law_vector(cfg.primary, n, m)
-        #: the whole tick runs in `rhi.control.kernels.whole` (see `whole`)
+        #: the whole tick runs in `rhi.control._compiled.whole` (see `whole`)
         self.whole_ok = fast.chain is not None and law is not None and not python_only
         if self.whole_ok:
             self._law = law

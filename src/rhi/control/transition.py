@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from rhi._validate import as_array, scalar
-from rhi.control import kernels
+from rhi.control import _compiled as kernels
 from rhi.control.saturation import check_torque_limits
 from rhi.errors import InvalidInput
 

@@ -22,8 +22,8 @@ from typing import Protocol
 
 import numpy as np
 
-from rhi.device import Device, device
-from rhi.device_spec import bundled_spec
+from rhi.devices.model import Device, device
+from rhi.devices.spec import bundled_spec
 from rhi.errors import InvalidInput, Unreachable
 
 

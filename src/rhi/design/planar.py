@@ -23,19 +23,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from rhi import kernel_cache
 from rhi._validate import as_array
 from rhi.errors import InvalidInput, Unreachable
+from rhi.jit import jit
 from rhi.metrics import SINGULAR_RTOL
 
-kernel_cache.install()  # before the decorators: the cache refreshes when any kernel source changes
 _RTOL = SINGULAR_RTOL
 _DIR_ATOL = 1e-10  # rhi.metrics._common.DIRECTION_ATOL
 
 
-@njit(cache=True, error_model="numpy")
+@jit
 def _axes(J, k, out_s, out_u):  # pragma: no cover - compiled
     """Singular values (descending) into out_s (2,) and left singular vectors (columns) into out_u (2, 2)."""
     n = J.shape[2]
@@ -87,7 +85,7 @@ def _axes(J, k, out_s, out_u):  # pragma: no cover - compiled
         out_u[0, 0], out_u[1, 0], out_u[0, 1], out_u[1, 1] = ct, st, -st, ct
 
 
-@njit(cache=True, error_model="numpy")
+@jit
 def _radius(s, U, u0, u1):  # pragma: no cover - compiled
     """Radius of the ellipse with semi-axes s (2,) along the columns of U (2, 2) in the unit direction (u0, u1)."""
     q = 0.0
@@ -102,7 +100,7 @@ def _radius(s, U, u0, u1):  # pragma: no cover - compiled
     return 1.0 / math.sqrt(q) if q > 0 else 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@jit
 def _sums(Jm, Js, ok, weights):  # pragma: no cover - compiled
     """Σ w μ, Σ w (1/κ), Σ w λ over the reached samples."""
     sM = np.empty(2)
@@ -129,7 +127,7 @@ def _sums(Jm, Js, ok, weights):  # pragma: no cover - compiled
     return gm, gc, gt
 
 
-@njit(cache=True, error_model="numpy")
+@jit
 def _sums_many(Jm, Js, ok, weights, out):  # pragma: no cover - compiled
     """`_sums` of each design i of Jm (P, N, 2, n_M), ok (P, N) into out[i] (3,)."""
     for i in range(Jm.shape[0]):

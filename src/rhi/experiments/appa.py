@@ -22,12 +22,12 @@ from scipy.optimize import minimize
 
 from rhi import thesis as T
 from rhi.control.mobile import W_TAU_LIMITS, DMConfig, WeightedConfig, WeightedDistributionController
-from rhi.device import device
+from rhi.devices.mobile_base import wheel_geometry
+from rhi.devices.model import device
 from rhi.experiments.arguments import checked
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain
-from rhi.mobile_base import wheel_geometry
 from rhi.sim.mobile import MobileLog, MobilePlant, SlipModel, circle, hold, simulate_mobile
 
 PI = math.pi

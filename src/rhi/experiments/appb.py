@@ -22,7 +22,7 @@ from scipy.optimize import minimize
 
 from rhi import thesis as T
 from rhi.control.mobile import AMDConfig, AMDController, PinvAccelConfig, PinvAccelController
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.experiments.appa import CM, DEG, Q0, slip_note
 from rhi.experiments.arguments import checked
 from rhi.experiments.parts import Part, Plan, run_plan

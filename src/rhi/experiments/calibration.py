@@ -24,9 +24,9 @@ import pinocchio as pin
 from scipy.optimize import least_squares
 
 from rhi import thesis as T
-from rhi.device import Device, device
-from rhi.device_spec import bundled_spec
-from rhi.device_variant import model_with_links
+from rhi.devices.model import Device, device
+from rhi.devices.spec import bundled_spec
+from rhi.devices.variant import model_with_links
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import POINTS
 from rhi.experiments.ch6.identification import ch6_configurations

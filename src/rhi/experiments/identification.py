@@ -65,7 +65,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from rhi.analysis.sysid import Record, SysidResult, identify
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Row
 from rhi.experiments.setups import Progress, ZeroTorque

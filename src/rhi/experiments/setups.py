@@ -17,7 +17,7 @@ from rhi.control.allocation import ascm_projector
 from rhi.control.controller import Saturation
 from rhi.control.objectives import EllipsoidMatching, VMEMatching
 from rhi.control.saturation import null_basis
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.metrics import jbld, max_force, max_force_scaling
 from rhi.metrics.force import ProjectorKind

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.terms_kernel import _jit
+from rhi.jit import jit
 
 #: Jacobi stops when every pair of rows has |cos angle| at most this times m (the round-off of their dot product).
 _ORTHO_TOL = 2.0**-52
@@ -33,7 +33,7 @@ BLOCK = 32
 _TINY = np.finfo(np.float64).tiny
 
 
-@_jit
+@jit
 def svd_rows(B, want_u, s, U):
     """Singular values s (K, m), descending, and, if want_u, left singular vectors U (K, m, m) of B (K, m, n), m <= n.
 
@@ -147,7 +147,7 @@ def svd_rows(B, want_u, s, U):
                         U[i0 + b, r, k] = W[r, order[k], b]
 
 
-@_jit
+@jit
 def whiten(J, M, sym_rtol, B, bad):
     """B (K, m, n) = J L⁻ᵀ with M = L Lᵀ for J (K, m, n), M (K, n, n) symmetric positive definite.
 

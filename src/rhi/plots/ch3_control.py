@@ -6,7 +6,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.experiments.result import Result
 from rhi.plots.draw import chain, ellipse
 

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.experiments.result import Result
 from rhi.viz.posed import Posed
 from rhi.viz.render import RenderUnavailable, render

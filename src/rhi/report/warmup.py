@@ -26,7 +26,7 @@ def _middle(dev) -> np.ndarray:
 def _terms_control_and_loop() -> None:
     """`Device.terms`, the whole controller tick, then the compiled simulation loop around it.
 
-    The kernels: rhi.chain_kernel, rhi.control.kernels.whole, rhi.sim.fast_loop.
+    The kernels: rhi.devices._compiled.chain, rhi.control._compiled.whole, rhi.sim._compiled.fast_loop.
     The whole tick's compilation also caches the steps 2–6 tick it calls, which a controller with an
     objective computed in Python runs after `Device.terms` (the same argument types: loaded, not compiled).
     The loop's comes last: by then the other group has cached the simulation kernels it calls.
@@ -39,7 +39,7 @@ def _terms_control_and_loop() -> None:
         ObjectiveTerm,
         VMEMatching,
     )
-    from rhi.device import device
+    from rhi.devices.model import device
 
     dev = device("rhi4")
     q0 = _middle(dev)
@@ -63,9 +63,9 @@ def _simulate(dev, q0: np.ndarray, controller) -> None:
 
 
 def _batch_design_and_simulation() -> None:
-    """The batch kernel (rhi.batch_kernel), the planar design indices and the simulation's kernels."""
+    """The batch kernel (rhi.devices._compiled.batch), the planar design indices and the simulation's kernels."""
     from rhi.design.planar import planar_indices
-    from rhi.device import BATCH_MIN, device
+    from rhi.devices.model import BATCH_MIN, device
     from rhi.experiments.setups import ZeroTorque
 
     for name in ("rhi4", "gen3"):  # a planar RHI and a spatial one (3 task rows)

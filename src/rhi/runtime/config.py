@@ -8,7 +8,7 @@ A file holds these tables (every key optional unless marked; the shipped files i
 - ``[device]``: ``name`` of a bundled device, ``params`` (its design parameters, e.g. ``{ d2 = 0.1405 }``);
   or your robot: ``urdf``, ``mjcf`` or ``description`` with ``ee_frame`` and optionally ``task``, ``ee_offset``,
   ``lock``, ``armature``, ``torque_min``, ``torque_max``, ``friction`` (``damping``, ``frictionloss``) and
-  ``inertia`` = "fill" (`rhi.device_source`; relative paths from the configuration's folder).
+  ``inertia`` = "fill" (`rhi.devices.source`; relative paths from the configuration's folder).
 - ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp",
   "active_set", or a strategy registered with `rhi.control.allocation.register`),
   ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
@@ -77,8 +77,8 @@ from rhi.control import (
     fme_shape,
 )
 from rhi.control.allocation import method_names
-from rhi.device import Device, device
-from rhi.device_source import SOURCES, device_from_table
+from rhi.devices.model import Device, device
+from rhi.devices.source import SOURCES, device_from_table
 from rhi.errors import InvalidInput, RhiError
 from rhi.runtime import objective_plugins, schema as S
 from rhi.runtime.objective_plugins import ObjectiveSpecs
@@ -402,7 +402,7 @@ def parse_config(data: dict, *, name: str = "config", source: str = "<dict>", de
         source: where it was read from (for messages and the run summary).
         device_name: the device asked for (e.g. `rhi run DEVICE`); must match ``[device] name`` if the file names one
             (and the loaded device's name for a file source).
-        device: the device given on the command line (a `rhi.device_source` table), for a file whose
+        device: the device given on the command line (a `rhi.devices.source` table), for a file whose
             ``[device]`` names none.
         base: the folder of ``[device]``'s relative paths (default: the working directory).
 

@@ -17,8 +17,8 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from rhi import batch
 from rhi._validate import scalar
+from rhi.devices import batch
 from rhi.errors import InvalidInput
 from rhi.sim.environment import describe
 from rhi.sim.log import Log, LogWriter, layout
@@ -40,7 +40,7 @@ class ForceField(Protocol):
         """The force on the handle: (m,) [N]."""
 
 
-#: the log row's columns that `rhi.sim.io_kernel.log_row` writes, in its order, then the first scalar
+#: the log row's columns that `rhi.sim._compiled.io.log_row` writes, in its order, then the first scalar
 _ROW_ARRAYS = ["q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "ft", "work"]
 
 
@@ -99,7 +99,7 @@ class Session:
         self._F = np.zeros(plant.m)
         self._acc = np.array([0.0, plant.timestep, 0.0])
         self._idx = np.concatenate([p._pos, p._vel, p._task]).astype(np.int64)
-        self._fused: tuple[Any, np.ndarray] | None = None  # (rhi.sim.handle_kernel.hand_period, its constants)
+        self._fused: tuple[Any, np.ndarray] | None = None  # (rhi.sim._compiled.handle.hand_period, its constants)
         self._addr = (p.model._address, p.data._address)  # the C structs, for MuJoCo's step in compiled code
         self._badv = np.array(p._bad, dtype=np.int64)
         self._at = np.zeros(1, dtype=np.int64)
@@ -173,13 +173,13 @@ class Session:
     def _compiled(self, hand, phys) -> tuple[Any, np.ndarray] | None:
         """The kernel of `_steps_compiled` and its constants where the kernels know the hand and the physical wall.
 
-        A `Hand` or a `MinimumJerkPalpation` and a `Wall` or none (`rhi.sim.handle_kernel.hand_supported`).
+        A `Hand` or a `MinimumJerkPalpation` and a `Wall` or none (`rhi.sim._compiled.handle.hand_supported`).
         None for other hands and environments, or a hand or wall of another dimension than the plant's
         (`_steps` raises their error).
         """
         if self._fused_for[0] is hand and self._fused_for[1] is phys:
             return self._fused
-        from rhi.sim.handle_kernel import hand_constants, hand_period, hand_supported
+        from rhi.sim._compiled.handle import hand_constants, hand_period, hand_supported
 
         if not hand_supported(hand, phys, self.plant.m):
             return None
@@ -190,7 +190,7 @@ class Session:
     def _steps_compiled(self, kernel, c: np.ndarray) -> str | None:
         """`_steps` for a `Hand` or a `MinimumJerkPalpation` and a physical `Wall` (or none): one compiled call.
 
-        The same arithmetic as the hand's `force` and `Wall.force` (`rhi.sim.handle_kernel.hand_period`), with the
+        The same arithmetic as the hand's `force` and `Wall.force` (`rhi.sim._compiled.handle.hand_period`), with the
         handle's state read from MuJoCo's sensors, the force written to its applied force and MuJoCo's step
         called from there.
         """
@@ -205,8 +205,8 @@ class Session:
         return None
 
     def _fault(self, status: int, t0: float) -> str:
-        """Why `rhi.sim.handle_kernel.hand_period` stopped a period that started at t0 [s] (its failed step in `_at`)."""
-        from rhi.sim.handle_kernel import PERIOD_NONFINITE
+        """Why `rhi.sim._compiled.handle.hand_period` stopped a period that started at t0 [s] (its failed step in `_at`)."""
+        from rhi.sim._compiled.handle import PERIOD_NONFINITE
 
         t = t0 + int(self._at[0]) * self.plant.timestep
         if status == PERIOD_NONFINITE:
@@ -266,7 +266,7 @@ def simulate(
         InvalidInput: a bad duration or rate (named), a record name that is a log column or
             changes between ticks, or the controller's bad-input errors.
     """
-    from rhi.sim.io_kernel import log_row
+    from rhi.sim._compiled.io import log_row
 
     sess = Session(plant, rate=rate, hand=hand, physical=physical, teleop=teleop)
     if scalar("duration", duration) < sess.dt * (1 - 1e-9):
@@ -279,7 +279,7 @@ def simulate(
                   meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate), "source": "simulate",
                         "environment": describe(virtual)})
     c = w.cols
-    # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `io_kernel.log_row`), the scalars
+    # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `_compiled.io.log_row`), the scalars
     # from work to alpha_pc, then seq, the timing columns and safety: one write each.
     names = [name for name, _ in w.columns]
     at = dict(zip(names, np.cumsum([0] + [width for _, width in w.columns]).tolist()))
@@ -343,7 +343,7 @@ def simulate(
             progress(k + 1, N)
         return False
 
-    from rhi.sim import fast_loop
+    from rhi.sim._compiled import fast_loop
 
     fast = fast_loop.FastLoop.build(sess, controller, kin, virtual=virtual, teleop=teleop, record=record, w=w)
     fast_loop.last = fast
@@ -365,13 +365,13 @@ def simulate(
 
 
 def _fast_block(fast, w: LogWriter, k: int, N: int, t_start: float, telemetry, progress, every: int) -> tuple[int, bool]:
-    """Ticks from k in compiled calls (`rhi.sim.fast_loop`) until the end, a fault or a tick for Python.
+    """Ticks from k in compiled calls (`rhi.sim._compiled.fast_loop`) until the end, a fault or a tick for Python.
 
     Returns (the next tick, whether the run ended at a fault). Timing columns: each call's average per tick.
     """
     c, perf = w.cols, time.perf_counter
     i_wall, i_read, i_tick = int(c["wall"]), int(c["t_read"]), int(c["t_tick"])  # type: ignore[arg-type]
-    from rhi.sim.fast_loop import FAULT, PYTHON
+    from rhi.sim._compiled.fast_loop import FAULT, PYTHON
 
     while k < N:
         rows = w.block(min(N - k, 1000))
@@ -420,7 +420,7 @@ class Kinematics:
 
     What a haptic rendering loop computes before its controller runs, leaving the device's
     `terms` snapshot untouched: for trees of one-DoF revolute/prismatic joints one compiled call
-    (`rhi.sim.handle_kernel`, on the constants of `rhi.chain_kernel.pack`), which also evaluates a
+    (`rhi.sim._compiled.handle`, on the constants of `rhi.devices.batch.pack`), which also evaluates a
     virtual `Wall`, `Fixture` or a `compose` of them; otherwise one Pinocchio forward-kinematics pass
     with velocities on a `pin.Data` of its own. Equal to `Device.fk(q)`, `Device.terms(q, dq).xdot` and
     `virtual.force` (to rounding).
@@ -441,10 +441,9 @@ class Kinematics:
         self._compiled = None
         self._fused = False  # the compiled call evaluates the virtual wall too
         if batch.supported(self.model):
-            from rhi.chain_kernel import pack
-            from rhi.sim.handle_kernel import env_constants, handle_state
+            from rhi.sim._compiled.handle import env_constants, handle_state
 
-            ints, joints, consts = pack(self.model, self.frame)
+            ints, joints, consts = batch.pack(self.model, self.frame)
             fc = [consts[:12], self.b, self.A.ravel()]
             env = None if virtual is None else env_constants(virtual, self.m)
             self._fused = env is not None

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput, ModelError
 from rhi.sim.geometry import (
     GeomAdder,

@@ -36,9 +36,9 @@ import mujoco
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device import Device, device as load_device
+from rhi.devices.mobile_base import body_map, wheel_geometry
+from rhi.devices.model import Device, device as load_device
 from rhi.errors import InvalidInput, ModelError
-from rhi.mobile_base import body_map, wheel_geometry
 from rhi.sim.mobile_spec import wmm_spec
 
 if TYPE_CHECKING:
@@ -158,7 +158,7 @@ def base_to_wheels(JV_pinv: np.ndarray, dq_b, theta_b: float) -> np.ndarray:
     """Wheel speeds (4,) [rad/s] of the generalized base velocity dq_b = [ẋ_b, ẏ_b, θ̇_b] at heading θ_b [rad].
 
     The world velocity is rotated into the base frame and mapped by JV_pinv, the
-    pseudoinverse of `rhi.mobile_base.body_map` (eq. A.21 inverted; no slip).
+    pseudoinverse of `rhi.devices.mobile_base.body_map` (eq. A.21 inverted; no slip).
     """
     c, s = math.cos(theta_b), math.sin(theta_b)
     return JV_pinv @ np.array([c * dq_b[0] + s * dq_b[1], -s * dq_b[0] + c * dq_b[1], dq_b[2]])

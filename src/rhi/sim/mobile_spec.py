@@ -15,9 +15,9 @@ import math
 import mujoco
 import numpy as np
 
-from rhi.device import Device
+from rhi.devices.mobile_base import BASE_JOINTS, wheel_geometry
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput, ModelError
-from rhi.mobile_base import BASE_JOINTS, wheel_geometry
 from rhi.sim.geometry import GeomAdder, add_floor, add_handle, add_mecanum_base, add_scenery, add_skeleton, link_radius, quat_wxyz
 
 #: Reflected rotor inertia of each Gen3 joint in the plant [kg m²] (ESTIMATE: harmonic-drive

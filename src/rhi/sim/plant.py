@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from rhi._validate import as_array, scalar
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput, ModelError
 from rhi.sim.mjcf import PlantFriction, plant_spec
 
@@ -181,10 +181,10 @@ class Plant:
         """The encoders and the F/T sensor in one compiled call: (2 n + 6,) fresh array.
 
         [:n] `q` [rad], [n:2n] `dq` [rad/s], [2n:] `ft()` [N, N m]: the same values, for the simulation
-        loop's tick (`rhi.sim.io_kernel.sensors`; Numba is imported on the first call).
+        loop's tick (`rhi.sim._compiled.io.sensors`; Numba is imported on the first call).
         """
         if self._read is None:
-            from rhi.sim.io_kernel import sensors
+            from rhi.sim._compiled.io import sensors
 
             d = self.data
             self._read = (sensors, self._ten, self._tenv, d.sensordata, self._R,

@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 
 from rhi.control import ControllerConfig, ObjectiveTerm, TMIMatching
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.runtime.schema import prefixed
 from rhi.sim import HandPath, Plant, Teleoperation, w_path

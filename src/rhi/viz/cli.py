@@ -76,7 +76,7 @@ def _view(args: argparse.Namespace) -> int:
         print(f"rhi view: {args.log} ({log.t[-1] - log.t[0]:.2f} s) at {view.url}, paused at its start: press "
               "play in the page", flush=True)
         return _serve(view)
-    from rhi.mobile_base import BASE_JOINTS
+    from rhi.devices.mobile_base import BASE_JOINTS
     from rhi.viz.live import live
 
     if tuple(dev.joint_names[:3]) == BASE_JOINTS:  # velocity-commanded: drawn, not simulated live

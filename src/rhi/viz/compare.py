@@ -18,7 +18,7 @@ import threading
 import numpy as np
 
 from rhi._lifetime import die_with_parent
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.runtime import SafetyConfig, SimLink, run
 from rhi.sim.hand import DraggableHand

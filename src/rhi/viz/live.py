@@ -24,9 +24,9 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
-from rhi.device import Device
+from rhi.devices.mobile_base import BASE_JOINTS
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
-from rhi.mobile_base import BASE_JOINTS
 from rhi.runtime import SafetyConfig, SimLink, run
 from rhi.sim import Plant, Wall
 from rhi.viz.posed import rest_configuration

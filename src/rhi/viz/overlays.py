@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 import pinocchio as pin
 
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import RhiError
 from rhi.metrics import force_ellipsoid, max_force, max_force_scaling, velocity_ellipsoid
 from rhi.sim.environment import Compose, Fixture, Spring, Wall

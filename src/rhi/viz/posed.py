@@ -12,9 +12,9 @@ import mujoco
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device import Device
+from rhi.devices.mobile_base import BASE_JOINTS
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
-from rhi.mobile_base import BASE_JOINTS
 from rhi.sim.geometry import joint_axis
 from rhi.sim.mobile import MobilePlant
 from rhi.sim.plant import Plant

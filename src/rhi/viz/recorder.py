@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.sim.environment import describe
 from rhi.sim.log import Log
 

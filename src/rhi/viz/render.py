@@ -17,7 +17,7 @@ import numpy as np
 
 from rhi._gl import has_display
 from rhi._validate import as_array, writable_file
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput, RhiError
 from rhi.sim.geometry import LINK_RGBA, link_radius
 from rhi.viz.posed import Posed

@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 
 from rhi._validate import writable_file
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.sim.environment import Wall, from_description
 from rhi.sim.log import Log

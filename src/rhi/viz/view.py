@@ -20,7 +20,7 @@ import types
 
 import numpy as np
 
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.sim.environment import Wall, from_description
 from rhi.sim.hand import DraggableHand

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.control import kernels
+from rhi.control import _compiled as kernels
 from rhi.control.allocation.base import Allocation, Allocator, register
 from rhi.control.allocation.lp import allocate_lp
 from rhi.control.saturation import check_allocation
@@ -33,7 +33,7 @@ def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | 
     ``torque_min <= α a + b + Z y <= torque_max`` (eq. 7.9 with every null-space torque allowed). Falls back to
     `allocate_lp` if ASCM's start is not feasible (b itself outside the box) or the
     iteration does not settle within `max_iter` steps (degenerate cycling). The iteration is
-    the compiled `rhi.control.kernels.active_set`.
+    the compiled `rhi.control._compiled.active_set`.
 
     Args:
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
@@ -42,7 +42,7 @@ def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | 
         torque_min: (n,) lower torque limits [N m].
         torque_max: (n,) upper torque limits [N m].
         start: a feasible allocation to start from (default: ASCM in projector form on P = Z Zᵀ, or
-            simple scaling where that form cannot decide; `rhi.control.kernels.allocation.active_set_start`).
+            simple scaling where that form cannot decide; `rhi.control._compiled.allocation.active_set_start`).
         max_iter: iteration limit.
 
     Returns:

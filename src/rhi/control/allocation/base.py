@@ -6,7 +6,7 @@ an orthonormal basis of the null-space torques (`rhi.control.saturation.null_bas
 task force is ``J#ᵀ(α a + b)``. A strategy is an `AllocationMethod`: a name (the
 ``ControllerConfig(saturation=...)`` string), the readable `allocate` on the basis (the
 reference the controller's oracle runs), whether the safety torque acts whatever it holds, and
-the code of its branch in the compiled tick (`rhi.control.kernels.step`), or None where every
+the code of its branch in the compiled tick (`rhi.control._compiled.step`), or None where every
 tick runs through the reference. `Allocator` is the dataclass each strategy module registers.
 """
 
@@ -50,7 +50,7 @@ class AllocationMethod(Protocol):
         safe: the controller's safety torque (null-space damping, joint-limit barriers) acts whatever
             the allocation holds (`rhi.control.safety`); False keeps chapter 6's Algorithm 2 as it is
             (simple scaling, whose FME term and limit barrier balance each other there).
-        kernel: code of its branch in the compiled tick (`rhi.control.kernels.step`: NONE, SCALING,
+        kernel: code of its branch in the compiled tick (`rhi.control._compiled.step`: NONE, SCALING,
             ASCM, ACTIVE_SET), or None: the controller runs every tick through `rhi.control.reference`.
     """
 

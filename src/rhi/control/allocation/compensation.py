@@ -2,7 +2,7 @@
 
 `ascm` on an orthonormal basis Z of the null-space torques is the reference; `ascm_projector`
 computes the same allocation from the projector P = Z Zᵀ with the compiled
-`rhi.control.kernels.allocation.ascm`, the branch ``kernels.ASCM`` of the controller's tick.
+`rhi.control._compiled.allocation.ascm`, the branch ``kernels.ASCM`` of the controller's tick.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from rhi.control import kernels
+from rhi.control import _compiled as kernels
 from rhi.control.allocation.base import Allocation, Allocator, register
 from rhi.control.allocation.scaling import allocate_scaling
 from rhi.control.saturation import RANK_TOL, basis_from_projector, check_allocation, scaling_alpha
@@ -95,7 +95,7 @@ def ascm_projector(a, b, P, *, torque_min, torque_max, rank: int | None = None) 
 
     Same iteration as `ascm` (most overloaded joint first, least-norm null-space torque,
     α-scaling when ``Z_𝒮`` would lose rank), with the least-norm torque written
-    ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` (the compiled `rhi.control.kernels.ascm`): for a controller
+    ``P[:, 𝒮] P[𝒮, 𝒮]⁻¹ r`` (the compiled `rhi.control._compiled.ascm`): for a controller
     tick, where P comes from `null_projector` instead of an SVD. Because P[𝒮, 𝒮] squares
     the condition number of Z_𝒮, a held set with σ_min(Z_𝒮) < 0.01 is handed to `ascm`
     with a basis of P (the same allocation, computed accurately).

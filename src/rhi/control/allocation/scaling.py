@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.control import kernels
+from rhi.control import _compiled as kernels
 from rhi.control.allocation.base import Allocation, Allocator, register
 from rhi.control.saturation import check_allocation, scaling_alpha
 

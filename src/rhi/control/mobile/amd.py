@@ -33,7 +33,7 @@ from rhi.control.mobile.kinematics import (
     gram_inverse,
 )
 from rhi.control.mobile.protocol import MobileStep
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InfeasibleLimits, InvalidInput
 
 

@@ -13,7 +13,7 @@ from rhi.control.mobile.bounds import (
     acceleration_bounds_unchecked,
     check_dt,
 )
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 
 

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device import Device, device as load
+from rhi.devices.model import Device, device as load
 from rhi.errors import InfeasibleLimits, InvalidInput, ModelError
 
 #: Components below this magnitude count as zero in the scaling of Fig. B.4.

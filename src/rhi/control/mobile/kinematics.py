@@ -18,10 +18,10 @@ import pinocchio as pin
 
 from rhi._validate import all_finite, as_array
 from rhi.control.mobile.bounds import EPS
-from rhi.device import Device
-from rhi.device_terms import LEVI_CIVITA
+from rhi.devices.mobile_base import BASE_JOINTS, check_mobile_manipulator
+from rhi.devices.model import Device
+from rhi.devices.terms import LEVI_CIVITA
 from rhi.errors import InvalidInput, ModelError
-from rhi.mobile_base import BASE_JOINTS, check_mobile_manipulator
 
 
 class WMMKinematics:

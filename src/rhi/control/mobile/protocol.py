@@ -8,7 +8,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from rhi.control.mobile.bounds import JointBounds
-from rhi.device import Device
+from rhi.devices.model import Device
 
 
 @dataclasses.dataclass(frozen=True)

@@ -31,9 +31,9 @@ from rhi.control.mobile.bounds import (
 from rhi.control.mobile.kinematics import check_base, check_vector, gram_inverse
 from rhi.control.mobile.measures import dm_cartesian_gradient, dm_gradient, dm_value
 from rhi.control.mobile.protocol import MobileStep
-from rhi.device import Device, DeviceTerms
+from rhi.devices.mobile_base import mecanum_map, wheel_geometry, wheel_jacobian
+from rhi.devices.model import Device, DeviceTerms
 from rhi.errors import InfeasibleLimits, InvalidInput
-from rhi.mobile_base import mecanum_map, wheel_geometry, wheel_jacobian
 
 #: An arm joint whose local velocity bound (A.13) toward its position bound is below this [rad/s] is at that bound.
 HELD = 1e-6

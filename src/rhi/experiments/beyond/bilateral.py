@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.experiments.arguments import checked
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table

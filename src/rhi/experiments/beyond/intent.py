@@ -31,7 +31,7 @@ from rhi.control import (
 )
 from rhi.control.intent import FilteredIntent, HMMIntent, KnownIntent, axial_error
 from rhi.control.intent_control import IntentController, IntentFME, IntentVME
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch5 import setup as ch5

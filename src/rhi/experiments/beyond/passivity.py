@@ -32,7 +32,6 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from rhi import batch
 from rhi.control import (
     ControllerConfig,
     ForceRendering,
@@ -43,7 +42,8 @@ from rhi.control import (
 )
 from rhi.control.controller import Saturation
 from rhi.control.passivity import Method, Port
-from rhi.device import Device, device
+from rhi.devices import batch
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.beyond import sources

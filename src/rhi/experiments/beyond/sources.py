@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from rhi.control import ControllerConfig, NullSpaceController
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Row
 

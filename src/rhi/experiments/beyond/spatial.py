@@ -33,7 +33,7 @@ import numpy as np
 from rhi.control import VMEMatching
 from rhi.control.configuration import optimal_configuration
 from rhi.design.executors import parallel_map
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table

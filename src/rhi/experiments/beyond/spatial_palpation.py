@@ -35,7 +35,7 @@ from rhi.control import (
     WeightedSum,
 )
 from rhi.control.configuration import optimal_configuration
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.beyond.spatial import chain_points

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController, Passivity
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.beyond.passivity import B_D, HAND, TARGET_W

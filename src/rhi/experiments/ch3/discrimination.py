@@ -48,7 +48,7 @@ from rhi.analysis import psychophysics as pp
 from rhi.analysis.stats import paired_t_tests
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
 from rhi.design.executors import parallel_map
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import DEVICE_NAMES

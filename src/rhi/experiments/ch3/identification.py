@@ -14,7 +14,7 @@ import numpy as np
 from rhi import thesis as T
 from rhi.control import VMEMatching
 from rhi.control.configuration import optimal_configuration
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import BETA, DEVICE_NAMES, POINTS, THESIS_Q

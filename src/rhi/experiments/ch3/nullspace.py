@@ -67,7 +67,7 @@ from rhi.control import (
     WeightedSum,
 )
 from rhi.control.configuration import optimal_configuration
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import BETA, POINTS, THESIS_LAMBDA, THESIS_Q, THESIS_RHO, U, measures

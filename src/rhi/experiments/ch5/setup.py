@@ -11,7 +11,7 @@ import numpy as np
 
 from rhi import thesis as T
 from rhi.control import ControllerConfig, ImpedanceControl, NullSpaceController, ObjectiveTerm
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.setups import positive
 from rhi.metrics import tmi

@@ -8,7 +8,7 @@ import numpy as np
 
 from rhi.control import WeightedSum
 from rhi.design.executors import parallel_map
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (

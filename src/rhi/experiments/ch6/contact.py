@@ -8,7 +8,7 @@ import numpy as np
 
 from rhi import thesis as T
 from rhi.control import FMEMatching, WeightedSum
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (

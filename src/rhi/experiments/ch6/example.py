@@ -7,7 +7,7 @@ import numpy as np
 from rhi import thesis as T
 from rhi.control import FMEMatching
 from rhi.control.allocation import allocate_scaling
-from rhi.device import device
+from rhi.devices.model import device
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import F_3DOF, MU, Q_3DOF, THESIS_3DOF_EIG, U_3DOF, desired_fmes, match_fme
 from rhi.experiments.result import Result, Row, Table

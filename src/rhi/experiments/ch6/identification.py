@@ -16,7 +16,7 @@ import numpy as np
 
 from rhi import thesis as T
 from rhi.control import ControllerConfig, ForceRendering, NullSpaceController, WeightedSum
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (

@@ -24,7 +24,7 @@ from rhi.control import (
 )
 from rhi.control.configuration import optimal_configuration
 from rhi.control.controller import Saturation
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import Unreachable
 from rhi.metrics import nullspace_projector
 from rhi.metrics.force import ProjectorKind

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 
 from rhi.control import FMEMatching, FMESchedule, TransitionConfig, WeightedSum
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch6.setup import (

@@ -21,7 +21,7 @@ from rhi.control.allocation import allocation_method, force_capability
 from rhi.control.controller import output_force
 from rhi.control.saturation import null_basis
 from rhi.design.executors import parallel_map
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table

@@ -66,7 +66,7 @@ from rhi.control.allocation import force_capability
 from rhi.control.barrier import limit_rows
 from rhi.control.configuration import optimal_configuration
 from rhi.control.controller import Saturation
-from rhi.device import Device, device
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.nullspace import (

@@ -1,4 +1,4 @@
-"""Compiled loop behind `rhi.batch`: x, J, ∂J/∂q, M and g of many configurations in blocks.
+"""Compiled loop behind `rhi.devices.batch`: x, J, ∂J/∂q, M and g of many configurations in blocks.
 
 `evaluate` walks the batch in blocks of `BLOCK` configurations. Inside a block every
 quantity is stored with the configuration index last, so each step of the spatial algebra
@@ -8,7 +8,7 @@ axes and placements of real arms are mostly axis-aligned). The work arrays are a
 once per call and stay in cache; each block's terms are written straight into the
 batch-first outputs.
 
-Constants come from `rhi.batch.BatchChain`: every joint j has an internal frame
+Constants come from `rhi.devices.batch.BatchChain`: every joint j has an internal frame
 F_j = R_j U_j whose z axis is its joint axis, and, with chain coordinates θ = A q + b,
 
 * F_j = F_p(j) G_j Rot_z(θ_j + ψ_j) (revolute) or F_p(j) G_j (prismatic), o_j = o_p(j) + F_p(j) t_j
@@ -30,13 +30,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.terms_kernel import _jit
+from rhi.jit import jit
 
 #: configurations per block: the block's work arrays (a few 10 kB for 7 joints) stay in the L1/L2 cache
 BLOCK = 32
 
 
-@_jit
+@jit
 def _forward(parent, revolute, G, psi, t, th, nb, F, o, v, cs, sn):
     """Internal frames F (nθ, 3 columns, 3, K), origins o (nθ, 3, K) [m], linear axes v (nθ, 3, K)."""
     d3 = t.shape[1]  # 3, a run-time trip count: no full unrolling of the loops around the SIMD loops
@@ -88,7 +88,7 @@ def _forward(parent, revolute, G, psi, t, th, nb, F, o, v, cs, sn):
                     v[j, r, b] = F[j, 2, r, b]
 
 
-@_jit
+@jit
 def _composite(parent, mass, lever, inertia, F, o, nb, with_inertia, h, Ic, c, FI):
     """Subtree first moments h (nθ, 3, K) [kg m] and, if asked, inertias about the origin Ic (nθ, 6, K).
 
@@ -141,7 +141,7 @@ def _composite(parent, mass, lever, inertia, F, o, nb, with_inertia, h, Ic, c, F
                         Ic[par, e, b] += Ic[j, e, b]
 
 
-@_jit
+@jit
 def _mass(revolute, mass_c, arm_t, sup, F, v, h, Ic, nb, Mt, Hk, Lk):
     """M_θ (nθ, nθ, K) [kg m²] by the composite-rigid-body algorithm; Hk, Lk (3, K) work arrays."""
     d3 = v.shape[1]
@@ -174,7 +174,7 @@ def _mass(revolute, mass_c, arm_t, sup, F, v, h, Ic, nb, Mt, Hk, Lk):
                     Mt[k, j, b] = Mt[j, k, b]
 
 
-@_jit
+@jit
 def _gravity(revolute, mass_c, g0, F, v, h, nb, gt):
     """g_θ (nθ, K) [N m]."""
     d3 = g0.shape[0]
@@ -197,7 +197,7 @@ def _gravity(revolute, mass_c, g0, F, v, h, nb, gt):
                         gt[j, b] += g0[z] * F[j, 2, y, b] * h[j, r, b]
 
 
-@_jit
+@jit
 def _put_vector(X, A, identity, b0, nb, out, i):
     """out[b0 + b, i, a] = Σ_j X[j, b] A[j, a] for X: (nθ, K)."""
     nt, n = A.shape
@@ -214,7 +214,7 @@ def _put_vector(X, A, identity, b0, nb, out, i):
                 out[b0 + b, i, a] = s
 
 
-@_jit
+@jit
 def _put_congruence(X, A, identity, diag, b0, nb, W, out, i):
     """out[b0 + b, i] = Aᵀ X[:, :, b] A + diag(diag) for X: (nθ, nθ, K); W: (nθ, n, K) work."""
     nt, n = A.shape
@@ -245,7 +245,7 @@ def _put_congruence(X, A, identity, diag, b0, nb, W, out, i):
             out[b0 + b, i, a, a] += diag[a]
 
 
-@_jit
+@jit
 def evaluate(parent, revolute, G, psi, t, mass, lever, inertia, mass_c, arm_t, fj, ft, g0, sup, path,
              A, identity, rows, arm_q, th, want, x, J, dJ, M, g):
     """Write the requested terms of every configuration of th into the outputs.

@@ -11,11 +11,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device_terms import eye
+from rhi.devices.terms import eye
 from rhi.errors import InvalidInput, Unreachable
 
 if TYPE_CHECKING:
-    from rhi.device import Device
+    from rhi.devices.model import Device
 
 
 def ik(device: Device, x, q0, *, weights=None, tol: float = 1e-9, max_iter: int = 200, k_null: float = 0.1,

@@ -6,8 +6,8 @@ UR5, Kinova Gen3, mobile bases on prismatic joints, ...). It computes what `Devi
 `jacobian`, `jacobian_derivative`, `mass_matrix` and `gravity` compute with Pinocchio one
 configuration at a time, equal to ~1e-14 relative and about a hundred times faster than a
 loop of Pinocchio calls for 10⁴ configurations: `BatchChain` packs the model's constants
-once and the compiled loop of `rhi.batch_kernel` writes every configuration's terms into
-batch-first arrays. `Device` calls it for batches of at least `rhi.device.BATCH_MIN`
+once and the compiled loop of `rhi.devices._compiled.batch` writes every configuration's terms into
+batch-first arrays. `Device` calls it for batches of at least `rhi.devices.model.BATCH_MIN`
 configurations. With chain coordinates θ = A q + b:
 
 * forward kinematics: R_j = R_p(j) P_j Rot(a_j, θ_j), o_j = o_p(j) + R_p(j) t_j (+ θ_j R_j a_j
@@ -57,6 +57,42 @@ def supported(model: pin.Model) -> bool:
         return False
     return all(joint_axis(model.joints[j]) is not None and model.joints[j].idx_v == j - 1
                for j in range(1, model.njoints))
+
+
+#: per-joint constant columns of `pack`'s float array: placement rotation (9), translation (3),
+#: joint axis (3), body mass (1), centre of mass (3), rotational inertia about it (9), armature (1)
+_P, _T, _AX, _MASS, _COM, _ROT, _ARM, _WIDTH = 0, 9, 12, 15, 16, 19, 28, 29
+
+
+def pack(model: pin.Model, frame_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The constants of the compiled chain kernels (`chain_terms`) for a `supported` model and its end-effector frame.
+
+    Raises:
+        ModelError: a joint of `model` is not one-DoF revolute or prismatic.
+
+    Returns:
+        ints (2 nθ + 1,) int64: parent chain index of each joint (−1: the world), revolute flags,
+            then the chain index of the frame's joint (−1: the world);
+        joints (nθ, 29) float: per-joint constants in the columns described above (SI units);
+        frame (15,) float: frame placement rotation (9) and translation (3) in its joint, gravity g₀ (3) [m/s²].
+    """
+    nt = model.nv
+    ints = np.empty(2 * nt + 1, dtype=np.int64)
+    joints = np.empty((nt, _WIDTH))
+    for j in range(nt):
+        joint = joint_axis(model.joints[j + 1])
+        if joint is None:
+            raise ModelError(f"model: joint {j + 1} is not a one-DoF revolute/prismatic joint")
+        revolute, axis = joint
+        ints[j], ints[nt + j] = model.parents[j + 1] - 1, int(revolute)
+        pl, inert = model.jointPlacements[j + 1], model.inertias[j + 1]
+        joints[j, _P:_T], joints[j, _T:_AX], joints[j, _AX:_MASS] = pl.rotation.ravel(), pl.translation, axis
+        joints[j, _MASS], joints[j, _COM:_ROT] = inert.mass, inert.lever
+        joints[j, _ROT:_ARM], joints[j, _ARM] = inert.inertia.ravel(), model.armature[j]
+    frame = model.frames[frame_id]
+    ints[2 * nt] = frame.parentJoint - 1
+    consts = np.concatenate([frame.placement.rotation.ravel(), frame.placement.translation, model.gravity.linear])
+    return ints, joints, consts
 
 
 def _exact(a: np.ndarray) -> np.ndarray:
@@ -146,7 +182,7 @@ class BatchChain:
         Raises:
             InvalidInput: theta is not a finite (..., nθ) array, or a name in `what` is unknown.
         """
-        from rhi.batch_kernel import evaluate  # Numba: imported on the first batched call, not with `import rhi`
+        from rhi.devices._compiled.batch import evaluate  # Numba: imported on the first batched call, not with `import rhi`
 
         if not what or any(k not in TERMS for k in what):
             raise InvalidInput(f"what: expected names among {list(TERMS)}, got {list(what)!r}")
@@ -178,13 +214,13 @@ def terms(device, q, what: tuple[str, ...] = ("J", "dJ", "M", "g")) -> dict[str,
     times and the composite inertias twice; this runs the pass once. Same numbers as those methods.
 
     Args:
-        device: an `rhi.device.Device`.
+        device: an `rhi.devices.model.Device`.
         q: (..., n) motor positions [rad or m].
         what: names among "x" (..., m) [m], "J" (..., m, n), "dJ" (..., m, n, n), "M" (..., n, n) [kg m²]
             and "g" (..., n) [N m] (as `BatchChain.evaluate`).
 
     Returns:
-        {name: array}, batch axes first; a device whose joints `rhi.batch` does not support gets the
+        {name: array}, batch axes first; a device whose joints `rhi.devices.batch` does not support gets the
         `Device` methods' per-configuration results.
 
     Raises:

@@ -6,7 +6,7 @@ import numpy as np
 
 from rhi import metrics
 from rhi._validate import as_array, unit_vector
-from rhi.device import Device
+from rhi.devices.model import Device
 from rhi.errors import Singular
 
 

@@ -1,6 +1,6 @@
 """The null-space energy tank of one tick, compiled (equations: `rhi.control.tank`).
 
-`blend` is what `rhi.control.tank.tank_blend` computes, run inside `rhi.control.kernels.step.tick`;
+`blend` is what `rhi.control.tank.tank_blend` computes, run inside `rhi.control._compiled.step.tick`;
 the reference is its oracle (equal to rounding, `tests/test_tank.py`).
 """
 
@@ -10,10 +10,10 @@ import math
 
 import numpy as np
 
-from rhi.control.kernels.allocation import scaling_alpha
-from rhi.control.kernels.jit import jit
-from rhi.control.kernels.passivity import _largest_scale, _work
-from rhi.terms_kernel import dot, mtv
+from rhi.control._compiled.allocation import scaling_alpha
+from rhi.control._compiled.passivity import _largest_scale, _work
+from rhi.devices._compiled.terms import dot, mtv
+from rhi.jit import jit
 
 #: Slots of the tank vector: settings (on, capacity [J]), then state (T [J], a previous tick, its time [s], λ, μ).
 TK_ON, TK_CAPACITY, TK_ENERGY, TK_PREV, TK_T, TK_SCALE, TK_DAMPING = range(7)

@@ -1,4 +1,4 @@
-"""Reading robot description files for `rhi.loaders`: xacro expansion, `package://` paths, checks.
+"""Reading robot description files for `rhi.devices.loaders`: xacro expansion, `package://` paths, checks.
 
 Every check names the link or joint and the attribute at fault, before Pinocchio sees the
 file (its own parser reports most problems only on stderr).
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rhi._description_checks import check_finite_numbers, check_mesh_files, check_urdf_tree
+from rhi.devices._description_checks import check_finite_numbers, check_mesh_files, check_urdf_tree
 from rhi.errors import InvalidInput, ModelError
 
 UNBOUNDED = 1e12  # |limit| >= this in a joint range means "no limit" (continuous joints)
@@ -177,7 +177,7 @@ def check_urdf(text: str, *, inertia: str = "strict", where: str = "path",
     """Validate URDF text and normalise it for Pinocchio.
 
     Every error names `where` (the file), the element and the attribute.
-    The checks of `rhi._description_checks` come first (finite numbers, one kinematic tree of at most
+    The checks of `rhi.devices._description_checks` come first (finite numbers, one kinematic tree of at most
     `MAX_JOINTS` joints, mesh files that exist relative to `near`).
 
     Continuous joints become revolute joints with an unbounded range; revolute/prismatic

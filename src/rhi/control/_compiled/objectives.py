@@ -1,8 +1,8 @@
-"""Static null-space objectives and joint-limit barriers inside the whole tick (`rhi.control.kernels.whole`).
+"""Static null-space objectives and joint-limit barriers inside the whole tick (`rhi.control._compiled.whole`).
 
 The objectives the controller would otherwise compute in Python every tick (`gradient_at`):
 FME matching to a fixed desired FME (`rhi.control.FMEMatching`, eqs. 6.9–6.10, through
-`rhi.control.kernels.step.fme_gradient`, the gradient the FME schedule uses) and the joint-limit
+`rhi.control._compiled.step.fme_gradient`, the gradient the FME schedule uses) and the joint-limit
 barrier (`rhi.control.JointLimitBarrier`). Their settings travel in one float vector:
 
     [k_fme, k_barrier, r, C (r × n), lower (r), upper (r),
@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.control.kernels.jit import jit
-from rhi.control.kernels.step import fme_gradient
+from rhi.control._compiled.step import fme_gradient
+from rhi.jit import jit
 
 #: Head slots of the objective vector: counts of FME terms, barrier terms and limit rows.
 OBJ_FME, OBJ_BARRIER, OBJ_ROWS = range(3)

@@ -3,7 +3,7 @@
 This module is the only reader of ``device.toml`` (format: models/README.md). A spec holds
 what the URDF cannot say (task, actuation map, limits in motor coordinates, design
 parameters, plant friction, the Mecanum base geometry) already converted to SI units;
-`rhi.device.device` builds the `Device` from it and the Device carries it (`Device.spec`),
+`rhi.devices.model.device` builds the `Device` from it and the Device carries it (`Device.spec`),
 so controllers, the plant and the design code read the device, never the file.
 """
 
@@ -19,7 +19,7 @@ import pinocchio as pin
 from rhi._validate import as_array
 from rhi.errors import InvalidInput, ModelError, UnknownDevice
 
-MODELS = Path(__file__).parent / "models"
+MODELS = Path(__file__).parents[1] / "models"
 #: Keys of the ``[mobile_base]`` table (eq. A.21 / B.21) [m].
 MOBILE_BASE_KEYS = ("wheel_radius", "half_length", "half_width")
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -249,7 +249,7 @@ def build_model(spec: DeviceSpec, params: dict[str, float],
     Args:
         spec: a spec that is not derived (``spec.base is None``).
         params: {parameter: value} overriding the declared defaults [m or rad].
-        links: inertial overrides of a parameter variant (`rhi.device_variant`), or None.
+        links: inertial overrides of a parameter variant (`rhi.devices.variant`), or None.
 
     Returns:
         (model, {parameter: value used}).
@@ -260,7 +260,7 @@ def build_model(spec: DeviceSpec, params: dict[str, float],
     """
     model = load_urdf(spec.chain()[0])
     if links:
-        from rhi.device_variant import model_with_links
+        from rhi.devices.variant import model_with_links
 
         model = model_with_links(spec.chain()[0], links)
     unknown = set(params) - set(spec.parameters)

@@ -1,11 +1,11 @@
 """A whole controller tick in one compiled call: device terms, primary law, steps 2–6 and the passivity layer.
 
 `whole` runs, without returning to Python, what a `NullSpaceController` tick otherwise
-composes from four calls: `rhi.chain_kernel.chain_terms` (every device term at (q, q̇)),
+composes from four calls: `rhi.devices._compiled.chain.chain_terms` (every device term at (q, q̇)),
 the primary law's (F_render, F_extra) for the built-in laws (`ForceRendering`,
 `SpringPalpation`, `ImpedanceControl` without a desired inertia: eqs. 5.6, 6.21, 7.2, 7.20),
-`rhi.control.kernels.step.tick` and `rhi.control.kernels.passivity.apply`, with the static FME-matching
-objectives and joint-limit barriers of `rhi.control.kernels.objectives`. The laws'
+`rhi.control._compiled.step.tick` and `rhi.control._compiled.passivity.apply`, with the static FME-matching
+objectives and joint-limit barriers of `rhi.control._compiled.objectives`. The laws'
 Python `forces` and the controller's composition are the references it is tested against
 (`tests/test_whole_tick.py`). The law's settings travel in one float vector (`LAW_*`
 indices), the passivity layer's settings and state in another (`PC_*`).
@@ -20,12 +20,12 @@ import math
 
 import numpy as np
 
-from rhi.chain_kernel import chain_terms
-from rhi.control.kernels import passivity
-from rhi.control.kernels.jit import jit
-from rhi.control.kernels.objectives import OBJ_BARRIER, OBJ_FME, objectives
-from rhi.control.kernels.step import FALLBACK, OK, SINGULAR, tick
-from rhi.terms_kernel import assign, dot, mm, mtv, mv
+from rhi.control._compiled import passivity
+from rhi.control._compiled.objectives import OBJ_BARRIER, OBJ_FME, objectives
+from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
+from rhi.devices._compiled.chain import chain_terms
+from rhi.devices._compiled.terms import assign, dot, mm, mtv, mv
+from rhi.jit import jit
 
 __all__ = ["FALLBACK", "OK", "SINGULAR", "whole"]
 
@@ -82,14 +82,14 @@ def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
 def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
           lo, hi, prm, tr, fme_free, fme_stiff, w2, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
           x, buf, F_r, F_x, tau_out, sat, res):
-    """One whole tick; the status of `rhi.control.kernels.step.tick` (OK, FALLBACK, SINGULAR).
+    """One whole tick; the status of `rhi.control._compiled.step.tick` (OK, FALLBACK, SINGULAR).
 
     Args:
         t: time [s].
         q: (n,) joint positions [rad].
         dq: (n,) joint velocities [rad/s].
         force: (m,) ``sensors["force"]`` [N] (read by `ForceRendering`).
-        ints: the device's chain constants (`rhi.chain_kernel.pack`).
+        ints: the device's chain constants (`rhi.devices.batch.pack`).
         joints: its per-joint constants.
         consts: its frame and gravity constants.
         A: (nθ, n) actuation map.
@@ -99,26 +99,26 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         supports: (nθ, nθ) bool, chain joint k supports joint j.
         identity: A is the identity.
         ready: x and buf already hold this state's terms (a `Device.terms` snapshot): not recomputed.
-        at: (≥ 13,) int64 term offsets in buf (`rhi.terms_kernel.layout`).
+        at: (≥ 13,) int64 term offsets in buf (`rhi.devices.terms.layout`).
         law: the primary law's code and settings (LAW_* slots).
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
-        prm: parameters of `rhi.control.kernels.step.tick` (P_* slots).
+        prm: parameters of `rhi.control._compiled.step.tick` (P_* slots).
         tr: (4,) FME transition state, advanced in place.
         fme_free: (m, m) desired free-motion FME.
         fme_stiff: (m, m) desired contact FME.
         w2: (n,) 1/T_max² [1/(N m)²].
         vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
         vme_gain: (k,) their gradient steps.
-        obj: the static FME-matching objectives and joint-limit barriers (`rhi.control.kernels.objectives.pack`).
+        obj: the static FME-matching objectives and joint-limit barriers (`rhi.control._compiled.objectives.pack`).
         pc: (N_PC,) the passivity layer's settings and state, advanced in place.
         pc_pos: (k,) its port position at the previous tick, written.
         pc_eff: (k,) its port effort at the previous tick, written.
-        tank: (N_TANK,) the null-space energy tank (`rhi.control.kernels.tank`), advanced in place.
+        tank: (N_TANK,) the null-space energy tank (`rhi.control._compiled.tank`), advanced in place.
         tank_q: (n,) its q of the previous tick, written.
         tank_e: (n,) its metered torque of the previous tick, written.
         x: (m,) handle position [m], written unless ready.
-        buf: the device terms (`rhi.terms_kernel.layout`), written unless ready.
+        buf: the device terms (`rhi.devices.terms.layout`), written unless ready.
         F_r: (m,) the law's rendered force, written [N].
         F_x: (m,) the law's extra force, written [N].
         tau_out: (n,) the torque to send, written [N m].

@@ -2,10 +2,10 @@
 
 `handle_state` is what a haptic rendering loop computes before its controller runs (the virtual
 environment's input): forward kinematics of a tree of one-DoF revolute/prismatic joints packed by
-`rhi.chain_kernel.pack`, the end-effector point p and its velocity ṗ = Σ_j J_j θ̇_j over the
+`rhi.devices.batch.pack`, the end-effector point p and its velocity ṗ = Σ_j J_j θ̇_j over the
 joints j supporting the frame, with the linear Jacobian column J_j = ω_j × (p − o_j) for a
 revolute joint and ω_j for a prismatic one (ω_j = R_j a_j the joint's world axis, o_j its
-origin); each joint's frame by `rhi.chain_kernel.joint_frame` (Pinocchio's conventions), without the
+origin); each joint's frame by `rhi.devices._compiled.chain.joint_frame` (Pinocchio's conventions), without the
 inertias, the Jacobian's angular rows or the dynamics; with the virtual environment's force (walls,
 fixtures and their sums). `hand_step` is `rhi.sim.Hand.force` (or `rhi.sim.MinimumJerkPalpation.force`)
 plus a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
@@ -19,11 +19,11 @@ import math
 
 import numpy as np
 
-from rhi.chain_kernel import joint_frame
+from rhi.devices._compiled.chain import joint_frame
+from rhi.jit import jit
 from rhi.sim.environment import Compose, Fixture, Wall
 from rhi.sim.hand import Hand, MinimumJerkPalpation
 from rhi.sim.mjc import step1, step2
-from rhi.terms_kernel import _jit
 
 #: `hand_period`'s outcomes: the period ran; a step's force was not finite; MuJoCo flagged a step as diverged.
 PERIOD_OK, PERIOD_NONFINITE, PERIOD_UNSTABLE = 0, 1, 2
@@ -32,7 +32,7 @@ PERIOD_OK, PERIOD_NONFINITE, PERIOD_UNSTABLE = 0, 1, 2
 _AX = 12
 
 
-@_jit
+@jit
 def handle_state(ints, joints, fc, q, dq, out):
     """Write the end-effector position and velocity on the task rows at motor state (q, q̇) into `out`.
 
@@ -116,7 +116,7 @@ def env_constants(env, m: int) -> list[float] | None:
     return c
 
 
-@_jit
+@jit
 def _env_force(x, v, c, o, F):
     """Write the force (m,) [N] of the environment whose `env_constants` start at c[o] on the handle at x, ẋ into F.
 
@@ -143,7 +143,7 @@ def _env_force(x, v, c, o, F):
             o += 3 + m + m * m
 
 
-@_jit
+@jit
 def _wall_push(x, v, c, o):
     """How hard a wall pushes the handle at x (m,) [m] moving at v (m,) [m/s]: max(K_e d + B_e ḋ, 0) [N].
 
@@ -200,7 +200,7 @@ def hand_supported(hand, wall, m: int) -> bool:
     return dim == m and (wall is None or (type(wall) is Wall and wall.point.shape == (m,)))
 
 
-@_jit
+@jit
 def hand_step(t, sd, idx, c, F, xfrc, acc):
     """The hand's force (and a physical wall's) on the handle for one physics step, from MuJoCo's sensors.
 
@@ -276,7 +276,7 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
     return n2
 
 
-@_jit
+@jit
 def hand_period(model, data, sub, t0, sd, idx, c, F, xfrc, acc, wn, bad, at):
     """A control period of `sub` physics steps: `hand_step`, then mj_step2 + mj_step1, then the divergence check.
 

@@ -21,26 +21,19 @@ from typing import Any, cast
 import numpy as np
 import pinocchio as pin
 
-from rhi import batch, plugins
+from rhi import plugins
 from rhi._validate import as_array, limits_pair
-from rhi.device_ik import ik as solve_ik
-from rhi.device_spec import (
-    MODELS,
-    DeviceSpec,
-    LinearLimits,
-    available_devices,
-    build_model,
-    bundled_spec,
-    read_spec,
-)
-from rhi.device_terms import DeviceTerms, FastMaps, compiled_terms, eye, fast_maps, inv_small, lazy
-from rhi.device_variant import read_variant
+from rhi.devices import batch
+from rhi.devices.ik import ik as solve_ik
+from rhi.devices.spec import MODELS, DeviceSpec, LinearLimits, available_devices, build_model, bundled_spec, read_spec
+from rhi.devices.terms import DeviceTerms, FastMaps, compiled_terms, eye, fast_maps, inv_small, lazy
+from rhi.devices.variant import read_variant
 from rhi.errors import InvalidInput, ModelError
 
 __all__ = ["BATCH_MIN", "MODELS", "Device", "DeviceTerms", "LinearLimits", "available_devices", "device", "eye",
            "from_spec", "inv_small", "load_device"]
 _AXES = {"x": 0, "y": 1, "z": 2}
-BATCH_MIN = 16  # batched inputs with at least this many configurations go through `rhi.batch`
+BATCH_MIN = 16  # batched inputs with at least this many configurations go through `rhi.devices.batch`
 
 
 class Device:
@@ -234,13 +227,13 @@ class Device:
     def terms(self, q, dq=None, *, check: bool = True) -> DeviceTerms:
         """Every kinematic and dynamic term of one state from a single pass.
 
-        Trees of revolute/prismatic joints: one compiled call (`rhi.chain_kernel`, equal to
+        Trees of revolute/prismatic joints: one compiled call (`rhi.devices._compiled.chain`, equal to
         Pinocchio's algorithms to round-off). Otherwise one `computeJointJacobians` (forward
         kinematics + joint Jacobians), the frame Jacobian, `crba` and `computeGeneralizedGravity`; ∂J/∂q follows in closed form
         from the 6-D frame Jacobian (∂J_j/∂θ_k = ω_k × J_j when joint k supports joint j,
         ω_j × J_k otherwise; one-DoF joints). Equal to `fk`, `jacobian`,
         `jacobian_derivative`, `mass_matrix` and `gravity` called one by one, several
-        times faster; with one-DoF joints M_x, J#, C_x, G_x too (compiled `rhi.terms_kernel`).
+        times faster; with one-DoF joints M_x, J#, C_x, G_x too (compiled `rhi.devices._compiled.terms`).
         A call with the same q and dq as the previous one returns the same snapshot (a
         simulation tick reads it for the virtual environment, then the controller).
 
@@ -310,7 +303,7 @@ class Device:
 
     def ik(self, x, q0, *, weights=None, tol: float = 1e-9, max_iter: int = 200, k_null: float = 0.1,
            restarts: int = 8) -> np.ndarray:
-        """Inverse kinematics x ↦ q within the joint limits (thesis eqs. 3.3–3.4); see `rhi.device_ik.ik`.
+        """Inverse kinematics x ↦ q within the joint limits (thesis eqs. 3.3–3.4); see `rhi.devices.ik.ik`.
 
         Args:
             x: (m,) target position [m].
@@ -393,7 +386,7 @@ class Device:
         return (self.m,)
 
     def _map(self, q, shape: tuple[int, ...], fn: Callable[[np.ndarray], np.ndarray], term: str) -> np.ndarray:
-        """Fn per configuration, or the vectorized `rhi.batch` term for batches of >= BATCH_MIN configurations."""
+        """Fn per configuration, or the vectorized `rhi.devices.batch` term for batches of >= BATCH_MIN configurations."""
         th = self.theta(q)
         if th.ndim == 1:
             return fn(th)
@@ -444,7 +437,7 @@ def device(name: str, **params: float | str) -> Device:
     Args:
         name: device name, e.g. "rhi4", "phantom", "rehab", "planar3r", "gen3".
         **params: design parameters declared in the device's `device.toml` (e.g. `d2=0.1405` for rhi4) [m or rad];
-            ``params``: a named parameter variant from the model folder (`rhi.device_variant`), e.g. "thesis-fit"
+            ``params``: a named parameter variant from the model folder (`rhi.devices.variant`), e.g. "thesis-fit"
             for rhi4 and its halves (models/rhi4/README.md), absent or "default" the default model (or a plugin's).
 
     Raises:

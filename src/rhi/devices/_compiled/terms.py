@@ -1,7 +1,7 @@
 """Compiled kernel behind `Device.terms`: the motor-coordinate and task-space terms of one state.
 
 `task_terms` maps the chain's 6-D frame Jacobian, inertia, gravity and Coriolis matrices
-(`rhi.chain_kernel` or Pinocchio, chain coordinates θ = A q + b) to motor coordinates and computes the
+(`rhi.devices._compiled.chain` or Pinocchio, chain coordinates θ = A q + b) to motor coordinates and computes the
 task-space dynamics of thesis eq. 5.2 (M_x, J#, C_x, G_x) in one call. Imported on the
 first `Device.terms` call, not with `rhi` (Numba's import and, once per machine, the
 compilation stay out of ``import rhi``).
@@ -10,17 +10,11 @@ compilation stay out of ``import rhi``).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from rhi import kernel_cache
-
-kernel_cache.install()  # before the decorator: the cache refreshes when any kernel source changes
-
-#: Compiled once per machine (cached on disk); floating-point errors give inf/NaN, not exceptions.
-_jit = njit(cache=True, error_model="numpy")
+from rhi.jit import jit
 
 
-@_jit
+@jit
 def inv(A):
     """Inverse of a small (k, k) matrix: closed form for k <= 3, Gauss-Jordan otherwise (singular: inf/NaN)."""
     k = A.shape[0]
@@ -71,7 +65,7 @@ def inv(A):
     return out
 
 
-@_jit
+@jit
 def mm(A, B):
     """A B for small matrices (loops: faster than a BLAS call at these sizes)."""
     n, k = A.shape
@@ -85,7 +79,7 @@ def mm(A, B):
     return C
 
 
-@_jit
+@jit
 def mv(A, v):
     """A v for a small matrix A (k, n) and v (n,)."""
     k, n = A.shape
@@ -98,7 +92,7 @@ def mv(A, v):
     return out
 
 
-@_jit
+@jit
 def dot(a, b):
     """The dot product a · b of two small vectors."""
     s = 0.0
@@ -107,7 +101,7 @@ def dot(a, b):
     return s
 
 
-@_jit
+@jit
 def mtv(A, v):
     """Aᵀ v for a small matrix A (k, n) and v (k,)."""
     k, n = A.shape
@@ -119,34 +113,9 @@ def mtv(A, v):
     return out
 
 
-#: The terms `task_terms` writes, in order, with their shapes as functions of (n, m).
-TERMS = (
-    ("J", lambda n, m: (m, n)), ("dJ", lambda n, m: (m, n, n)), ("M", lambda n, m: (n, n)), ("g", lambda n, m: (n,)),
-    ("Minv", lambda n, m: (n, n)), ("JMinv", lambda n, m: (m, n)), ("Lambda", lambda n, m: (m, m)),
-    ("Jsharp", lambda n, m: (n, m)), ("Gx", lambda n, m: (m,)), ("xdot", lambda n, m: (m,)),
-    ("Jdot", lambda n, m: (m, n)), ("C", lambda n, m: (n, n)), ("Cx", lambda n, m: (m, m)),
-)
-
-
-def layout(n: int, m: int) -> tuple[dict[str, tuple[int, int, tuple[int, ...]]], np.ndarray, int]:
-    """Where each term of `TERMS` lies in the flat output of `task_terms`.
-
-    Returns:
-        ({name: (start, stop, shape)}, (len(TERMS),) int64 start offsets, total length).
-    """
-    out: dict[str, tuple[int, int, tuple[int, ...]]] = {}
-    pos = 0
-    for name, shape in TERMS:
-        shp: tuple[int, ...] = shape(n, m)
-        size = int(np.prod(shp))
-        out[name] = (pos, pos + size, shp)
-        pos += size
-    return out, np.array([v[0] for v in out.values()], dtype=np.int64), pos
-
-
-@_jit
+@jit
 def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower, dq, out):
-    """Motor-coordinate and task-space terms of one state, written into `out` in the order of `TERMS`.
+    """Motor-coordinate and task-space terms of one state, written into `out` in the order of `rhi.devices.terms.TERMS`.
 
     Args:
         J6: (6, nθ) frame Jacobian (LOCAL_WORLD_ALIGNED; linear rows first).
@@ -160,7 +129,7 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
         identity: A is the identity.
         fill_lower: mirror Mt's upper triangle.
         dq: (n,) joint velocities [rad/s].
-        out: flat float64 output (`layout`): J (m, n), ∂J/∂q (m, n, n), M (n, n), g (n,), M⁻¹,
+        out: flat float64 output (`rhi.devices.terms.layout`): J (m, n), ∂J/∂q (m, n, n), M (n, n), g (n,), M⁻¹,
             J M⁻¹ (m, n), M_x (m, m), J# (n, m), G_x (m,), ẋ (m,), J̇ (m, n), C_q (n, n), C_x (m, m).
     """
     nt, n, m = Mt.shape[0], A.shape[1], rows.shape[0]
@@ -220,7 +189,7 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
     put(out, pos, Cx.ravel())
 
 
-@_jit
+@jit
 def add(x, y):
     """X + y for 1-D arrays (loops: a fraction of the code Numba's array expressions compile to)."""
     out = np.empty(x.shape[0])
@@ -229,7 +198,7 @@ def add(x, y):
     return out
 
 
-@_jit
+@jit
 def sub(x, y):
     """X − y for 1-D arrays."""
     out = np.empty(x.shape[0])
@@ -238,7 +207,7 @@ def sub(x, y):
     return out
 
 
-@_jit
+@jit
 def axpy(s, x, y):
     """The 1-D array s x + y for a scalar s (y − c x is this with s = −c: the same floats)."""
     out = np.empty(x.shape[0])
@@ -247,7 +216,7 @@ def axpy(s, x, y):
     return out
 
 
-@_jit
+@jit
 def assign(dst, src):
     """dst[:] = src for 1-D arrays of one length, as a loop.
 
@@ -258,7 +227,7 @@ def assign(dst, src):
         dst[i] = src[i]
 
 
-@_jit
+@jit
 def put(out, pos, part):
     """Write part (k,) into out[pos:pos + k]; returns pos + k (a loop: no slice assignment to compile)."""
     k = part.shape[0]

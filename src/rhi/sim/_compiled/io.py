@@ -8,10 +8,10 @@ NumPy operations. Imported by `rhi.sim.loop.simulate`, not with ``import rhi`` (
 
 from __future__ import annotations
 
-from rhi.terms_kernel import _jit
+from rhi.jit import jit
 
 
-@_jit
+@jit
 def sensors(ten, tenv, sd, R, c, adr, out):
     """Write q (n,) [rad], q̇ (n,) [rad/s] and the tared F/T reading (6,) [N, N m] into out (2 n + 6,).
 
@@ -36,7 +36,7 @@ def sensors(ten, tenv, sd, R, c, adr, out):
         out[o + 3 + r] = -(R[3 * r] * tx + R[3 * r + 1] * ty + R[3 * r + 2] * tz)
 
 
-@_jit
+@jit
 def log_row(row, start, read, tau, sd, idx, F_hand, F_env):
     """Write q, q̇, τ, x, ẋ, F_h, F_e and the F/T reading into row[start:] (`rhi.sim.log.layout` order).
 

@@ -1,9 +1,9 @@
 """Compiled chain dynamics behind `Device.terms`: Pinocchio's per-state terms for trees of one-DoF joints.
 
-For a kinematic tree of one-DoF revolute and prismatic joints (`rhi.batch.supported`),
+For a kinematic tree of one-DoF revolute and prismatic joints (`rhi.devices.batch.supported`),
 `chain_terms` computes at one chain configuration θ and velocity θ̇ what `Device.terms`
 otherwise asks Pinocchio for (forward kinematics, the 6-D frame Jacobian, CRBA, generalized
-gravity and the Coriolis matrix), then calls `rhi.terms_kernel.task_terms` on them: one
+gravity and the Coriolis matrix), then calls `rhi.devices._compiled.terms.task_terms` on them: one
 compiled call per state, no per-algorithm Python/boost overhead. Spatial algebra about
 the world origin, (linear, angular) ordering as in Pinocchio:
 
@@ -20,56 +20,20 @@ the world origin, (linear, angular) ordering as in Pinocchio:
   −(S_i × S_j)ᵀ I^c_k S_k if i lies on the path from j (excluded) to k, and
   −(S_i × S_j)ᵀ I^c_i S_k − S_jᵀ I^c_i (S_i × S_k) if k supports i (i ≠ k).
 
-The model constants are packed once by `pack` (a `Device`'s `_fast_maps`). Numba is imported
+The model constants are packed once by `rhi.devices.batch.pack` (a `Device`'s `_fast_maps`). Numba is imported
 with this module, on the first `Device.terms` call, not with ``import rhi``.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 
-from rhi.batch import joint_axis
-from rhi.errors import ModelError
-from rhi.terms_kernel import _jit, dot, task_terms
-
-#: per-joint constant columns of `pack`'s float array: placement rotation (9), translation (3),
-#: joint axis (3), body mass (1), centre of mass (3), rotational inertia about it (9), armature (1)
-_P, _T, _AX, _MASS, _COM, _ROT, _ARM, _WIDTH = 0, 9, 12, 15, 16, 19, 28, 29
+from rhi.devices._compiled.terms import dot, task_terms
+from rhi.devices.batch import _ARM, _AX, _COM, _MASS, _P, _ROT, _T
+from rhi.jit import jit
 
 
-def pack(model: pin.Model, frame_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The constants of `chain_terms` for a `rhi.batch.supported` model and its end-effector frame.
-
-    Raises:
-        ModelError: a joint of `model` is not one-DoF revolute or prismatic.
-
-    Returns:
-        ints (2 nθ + 1,) int64: parent chain index of each joint (−1: the world), revolute flags,
-            then the chain index of the frame's joint (−1: the world);
-        joints (nθ, 29) float: per-joint constants in the columns described above (SI units);
-        frame (15,) float: frame placement rotation (9) and translation (3) in its joint, gravity g₀ (3) [m/s²].
-    """
-    nt = model.nv
-    ints = np.empty(2 * nt + 1, dtype=np.int64)
-    joints = np.empty((nt, _WIDTH))
-    for j in range(nt):
-        joint = joint_axis(model.joints[j + 1])
-        if joint is None:
-            raise ModelError(f"model: joint {j + 1} is not a one-DoF revolute/prismatic joint")
-        revolute, axis = joint
-        ints[j], ints[nt + j] = model.parents[j + 1] - 1, int(revolute)
-        pl, inert = model.jointPlacements[j + 1], model.inertias[j + 1]
-        joints[j, _P:_T], joints[j, _T:_AX], joints[j, _AX:_MASS] = pl.rotation.ravel(), pl.translation, axis
-        joints[j, _MASS], joints[j, _COM:_ROT] = inert.mass, inert.lever
-        joints[j, _ROT:_ARM], joints[j, _ARM] = inert.inertia.ravel(), model.armature[j]
-    frame = model.frames[frame_id]
-    ints[2 * nt] = frame.parentJoint - 1
-    consts = np.concatenate([frame.placement.rotation.ravel(), frame.placement.translation, model.gravity.linear])
-    return ints, joints, consts
-
-
-@_jit
+@jit
 def _cross(a, b, out):
     """Write a × b for 3-vectors a, b into out."""
     out[0] = a[1] * b[2] - a[2] * b[1]
@@ -77,7 +41,7 @@ def _cross(a, b, out):
     out[2] = a[0] * b[1] - a[1] * b[0]
 
 
-@_jit
+@jit
 def _motion_cross(s, t, out):
     """Write s × t, the spatial motion cross product of (linear, angular) 6-vectors, into out."""
     out[0] = s[4] * t[2] - s[5] * t[1] + s[1] * t[5] - s[2] * t[4]
@@ -88,7 +52,7 @@ def _motion_cross(s, t, out):
     out[5] = s[3] * t[4] - s[4] * t[3]
 
 
-@_jit
+@jit
 def _mv(A, v, out):
     """Write A v into out."""
     for i in range(A.shape[0]):
@@ -98,7 +62,7 @@ def _mv(A, v, out):
         out[i] = s
 
 
-@_jit
+@jit
 def joint_frame(ints, joints, j, th, oR, o, RP, T):
     """Orientation oR[j] and origin o[j] of chain joint j's frame at its coordinate th [rad or m], in place.
 
@@ -139,12 +103,12 @@ def joint_frame(ints, joints, j, th, oR, o, RP, T):
             o[j, r] += th * (RP[r, 0] * a0 + RP[r, 1] * a1 + RP[r, 2] * a2)
 
 
-@_jit
+@jit
 def _forward(ints, joints, th, oR, o, S, Ic):
     """Forward kinematics and composite inertias of one configuration, written in place.
 
     Args:
-        ints: the model's integer constants (`pack`).
+        ints: the model's integer constants (`rhi.devices.batch.pack`).
         joints: its per-joint constants.
         th: (nθ,) chain coordinates [rad or m].
         oR: (nθ, 3, 3) joint frames' orientations.
@@ -194,12 +158,12 @@ def _forward(ints, joints, th, oR, o, S, Ic):
                     Ic[p, r, k] += Ic[j, r, k]
 
 
-@_jit
+@jit
 def chain_dynamics(ints, joints, consts, th, dth):
     """x, J6, M_θ, g_θ, C_θ of one state.
 
     Args:
-        ints: the model's integer constants (`pack`).
+        ints: the model's integer constants (`rhi.devices.batch.pack`).
         joints: its per-joint constants.
         consts: its frame and gravity constants.
         th: (nθ,) chain coordinates [rad or m].
@@ -286,12 +250,12 @@ def chain_dynamics(ints, joints, consts, th, dth):
     return pt, J6, M, g, C
 
 
-@_jit
+@jit
 def chain_terms(ints, joints, consts, th, A, rows, armature, supports, identity, dq, x, out):
-    """`chain_dynamics` then `rhi.terms_kernel.task_terms`: every term of one state in one call.
+    """`chain_dynamics` then `rhi.devices._compiled.terms.task_terms`: every term of one state in one call.
 
     Args:
-        ints: the model's integer constants (`pack`).
+        ints: the model's integer constants (`rhi.devices.batch.pack`).
         joints: its per-joint constants.
         consts: its frame and gravity constants.
         th: (nθ,) chain coordinates θ = A q + b.

@@ -1,8 +1,8 @@
 """`DeviceTerms`: the kinematic and dynamic terms of a device at one state, and the constant maps behind them.
 
 `Device.terms` fills a `DeviceTerms` from one pass: for trees of revolute/prismatic joints the
-compiled `rhi.chain_kernel` computes the chain's kinematics and dynamics (otherwise Pinocchio);
-for chains of one-DoF joints the compiled `rhi.terms_kernel.task_terms` writes every term
+compiled `rhi.devices._compiled.chain` computes the chain's kinematics and dynamics (otherwise Pinocchio);
+for chains of one-DoF joints the compiled `rhi.devices._compiled.terms.task_terms` writes every term
 (∂J/∂q in closed form from the 6-D frame Jacobian, the task-space dynamics of thesis eqs.
 5.2 / 7.1) into one flat buffer the snapshot's attributes view; otherwise the task-space
 dynamics are computed on first access. Also the small numeric helpers the 1 kHz paths
@@ -23,7 +23,7 @@ import pinocchio as pin
 from rhi.errors import InvalidInput
 
 if TYPE_CHECKING:
-    from rhi.device import Device
+    from rhi.devices.model import Device
 
 #: one-DoF joints whose kinematic Hessian has the closed form used by `Device.terms`
 ONE_DOF_JOINT = re.compile(r"JointModel(R[XYZ]|P[XYZ]|RevoluteUnaligned|PrismaticUnaligned|Helical\w*)$")
@@ -33,6 +33,30 @@ for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
     LEVI_CIVITA[_i, _j, _k], LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
 
 _EYE: dict[int, np.ndarray] = {}
+
+#: The terms the compiled `task_terms` writes (`rhi.devices._compiled.terms`), in order, with their shapes as functions of (n, m).
+TERMS = (
+    ("J", lambda n, m: (m, n)), ("dJ", lambda n, m: (m, n, n)), ("M", lambda n, m: (n, n)), ("g", lambda n, m: (n,)),
+    ("Minv", lambda n, m: (n, n)), ("JMinv", lambda n, m: (m, n)), ("Lambda", lambda n, m: (m, m)),
+    ("Jsharp", lambda n, m: (n, m)), ("Gx", lambda n, m: (m,)), ("xdot", lambda n, m: (m,)),
+    ("Jdot", lambda n, m: (m, n)), ("C", lambda n, m: (n, n)), ("Cx", lambda n, m: (m, m)),
+)
+
+
+def layout(n: int, m: int) -> tuple[dict[str, tuple[int, int, tuple[int, ...]]], np.ndarray, int]:
+    """Where each term of `TERMS` lies in the flat output of the compiled `task_terms`.
+
+    Returns:
+        ({name: (start, stop, shape)}, (len(TERMS),) int64 start offsets, total length).
+    """
+    out: dict[str, tuple[int, int, tuple[int, ...]]] = {}
+    pos = 0
+    for name, shape in TERMS:
+        shp: tuple[int, ...] = shape(n, m)
+        size = int(np.prod(shp))
+        out[name] = (pos, pos + size, shp)
+        pos += size
+    return out, np.array([v[0] for v in out.values()], dtype=np.int64), pos
 
 
 class lazy:
@@ -60,7 +84,7 @@ class lazy:
 class term(lazy):
     """A `DeviceTerms` attribute: a view into the snapshot's flat buffer, or computed on first access.
 
-    The view when `Device.terms` filled the buffer (`rhi.terms_kernel`); otherwise the
+    The view when `Device.terms` filled the buffer (`rhi.devices._compiled.terms`); otherwise the
     function runs once and its value is cached, like `lazy`.
     """
 
@@ -116,8 +140,8 @@ class FastMaps:
     crba_symmetric: bool
     rows_idx: np.ndarray  # (m,) int64 task rows of the 6-D frame Jacobian
     supports: np.ndarray | None  # (nθ, nθ) bool: chain joint k supports joint j (or is j); None: not all one-DoF
-    kernel: Callable | None  # rhi.chain_kernel.chain_terms (with `chain`), else rhi.terms_kernel.task_terms, else None
-    chain: tuple[np.ndarray, ...] | None  # rhi.chain_kernel.pack constants: trees of revolute/prismatic joints
+    kernel: Callable | None  # _compiled.chain.chain_terms (with `chain`), else _compiled.terms.task_terms, else None
+    chain: tuple[np.ndarray, ...] | None  # rhi.devices.batch.pack constants: trees of revolute/prismatic joints
     layout: dict[str, tuple[int, int, tuple[int, ...]]]  # where each term lies in the kernel's output
     position_layout: dict[str, tuple[int, int, tuple[int, ...]]]  # the same without the velocity terms
     size: int  # length of the kernel's output
@@ -169,7 +193,7 @@ class DeviceTerms:
     @classmethod
     def from_buffer(cls, device: Device, q: np.ndarray, dq: np.ndarray | None, x: np.ndarray, theta: np.ndarray,
                     buf: np.ndarray, layout: dict[str, tuple[int, int, tuple[int, ...]]]) -> DeviceTerms:
-        """A snapshot whose terms are views into `buf`, the flat output of `rhi.terms_kernel.task_terms`.
+        """A snapshot whose terms are views into `buf`, the flat output of `rhi.devices._compiled.terms.task_terms`.
 
         Args:
             device: the device.
@@ -178,7 +202,7 @@ class DeviceTerms:
             x: (m,) end-effector position [m].
             theta: (nθ,) chain coordinates.
             buf: the kernel's output.
-            layout: {name: (start, stop, shape)} of the terms in buf (`rhi.terms_kernel.layout`).
+            layout: {name: (start, stop, shape)} of the terms in buf (`layout`).
         """
         self = cls.__new__(cls)
         self.device, self.q, self.dq, self.x, self._theta = device, q, dq, x, theta
@@ -291,10 +315,11 @@ def fast_maps(model: pin.Model, frame_id: int, A: np.ndarray, b: np.ndarray, arm
     th = np.random.default_rng(0).uniform(-1.0, 1.0, nt)
     Mt = pin.crba(model, data, th)
     mask = hessian_mask(model)
-    from rhi import batch, chain_kernel, terms_kernel  # Numba: imported on the first `Device.terms`, not with `import rhi`
+    from rhi.devices import batch  # Numba: imported on the first `Device.terms`, not with `import rhi`
+    from rhi.devices._compiled import chain as chain_kernel, terms as terms_kernel
 
-    where, _, size = terms_kernel.layout(n, m)
-    chain = chain_kernel.pack(model, frame_id) if mask is not None and batch.supported(model) else None
+    where, _, size = layout(n, m)
+    chain = batch.pack(model, frame_id) if mask is not None and batch.supported(model) else None
     return FastMaps(
         rows=rows_idx,
         offset=bool(np.any(b != 0)),
@@ -317,9 +342,9 @@ def compiled_terms(device: Device, fast: FastMaps, kernel: Callable, q: np.ndarr
                    th: np.ndarray) -> DeviceTerms:
     """Every term of one state, the task-space dynamics included, from compiled kernels.
 
-    Trees of revolute/prismatic joints (``fast.chain``): one `rhi.chain_kernel.chain_terms` call
+    Trees of revolute/prismatic joints (``fast.chain``): one `rhi.devices._compiled.chain.chain_terms` call
     computes Pinocchio's terms too; other one-DoF joints: Pinocchio's algorithms, then
-    `rhi.terms_kernel.task_terms`.
+    `rhi.devices._compiled.terms.task_terms`.
 
     Args:
         device: the device.

@@ -4,10 +4,10 @@
 whole tick runs compiled (`KernelTick.whole_ok`), a `Hand`, a `MinimumJerkPalpation` or no hand, a
 physical `Wall` or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, no teleoperation
 and no ``record`` hook. `ticks` then runs up to a block
-of ticks per call: the plant's sensors (`rhi.sim.io_kernel.sensors`), the handle's kinematics and
-the virtual environment (`rhi.sim.handle_kernel.handle_state`), the controller's input checks and whole tick
-(`rhi.control.kernels.whole`), the torque and a control period of physics steps with the hand and the
-physical wall (`rhi.sim.handle_kernel.hand_period`, MuJoCo's step by `rhi.sim.mjc`), and the log row.
+of ticks per call: the plant's sensors (`rhi.sim._compiled.io.sensors`), the handle's kinematics and
+the virtual environment (`rhi.sim._compiled.handle.handle_state`), the controller's input checks and whole tick
+(`rhi.control._compiled.whole`), the torque and a control period of physics steps with the hand and the
+physical wall (`rhi.sim._compiled.handle.hand_period`, MuJoCo's step by `rhi.sim.mjc`), and the log row.
 
 The arithmetic is that of the Python loop, so the log and the controller's state equal it. A tick the
 compiled loop does not decide — a non-finite reading, a non-finite torque, the kernel's FALLBACK or
@@ -26,10 +26,10 @@ import math
 
 import numpy as np
 
+from rhi.control._compiled import whole as _whole
 from rhi.control.controller import NullSpaceController
-from rhi.control.kernels import whole as _whole
-from rhi.sim.environment import Wall
-from rhi.sim.handle_kernel import (
+from rhi.jit import jit
+from rhi.sim._compiled.handle import (
     PERIOD_OK,
     hand_constants,
     hand_period,
@@ -37,8 +37,8 @@ from rhi.sim.handle_kernel import (
     handle_state,
     physical_constants,
 )
-from rhi.sim.io_kernel import log_row, sensors
-from rhi.terms_kernel import _jit
+from rhi.sim._compiled.io import log_row, sensors
+from rhi.sim.environment import Wall
 
 #: How a call of `ticks` ended: every tick ran; the next tick is the Python loop's; a plant fault at the last tick.
 DONE, PYTHON, FAULT = 0, 1, 2
@@ -56,7 +56,7 @@ L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS = range(9)
 last: FastLoop | None = None
 
 
-@_jit
+@jit
 def _finite(v):
     """Whether every entry of the vector v is finite (its squares' sum is; overflow sends the tick to Python)."""
     s = 0.0
@@ -65,7 +65,7 @@ def _finite(v):
     return math.isfinite(s)
 
 
-@_jit
+@jit
 def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows):
     """Run up to `count` ticks of the simulation loop from tick k0, one log row each (see the module docstring).
 
@@ -75,12 +75,12 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         dt: control period [s].
         sub: physics steps per period.
         mj: (mjModel address, mjData address).
-        sens: `rhi.sim.io_kernel.sensors`' arguments but its output.
+        sens: `rhi.sim._compiled.io.sensors`' arguments but its output.
         kin: (ints, joints, fc) of `handle_state` with the virtual wall's constants (`rhi.sim.loop.Kinematics`).
         hand: `hand_period`'s (sd, idx, c, F, xfrc, acc, wn, bad, at).
         ctrl: (n,) MuJoCo's ctrl.
         F_hand: (m,) the hand's force of the last period [N], advanced.
-        wargs: `rhi.control.kernels.whole.whole`'s arguments after (t, q, dq, force).
+        wargs: `rhi.control._compiled.whole.whole`'s arguments after (t, q, dq, force).
         cs: the controller's arrays among them: FME transition tr, passivity vector, port position and
             effort, torque, held joints, result (`KernelTick`).
         st: (N_ST,) float state (S_* slots), advanced.
@@ -156,7 +156,7 @@ def _no_hand(m: int, wall) -> np.ndarray:
 
 
 def whole_args(controller) -> tuple:
-    """`rhi.control.kernels.whole.whole`'s arguments after (t, q, dq, force), as `KernelTick.whole` passes them.
+    """`rhi.control._compiled.whole.whole`'s arguments after (t, q, dq, force), as `KernelTick.whole` passes them.
 
     The controller's own terms buffers (ready = False) and state mirrors: the same arrays every call.
     """

@@ -71,7 +71,7 @@ def check_urdf_tree(root: ET.Element, where: str) -> None:
     joints = root.findall("joint")
     if len(joints) > MAX_JOINTS:
         raise ModelError(f"{where}: {len(joints)} joints; at most {MAX_JOINTS} are supported "
-                         "(rhi._description_checks.MAX_JOINTS)")
+                         "(rhi.devices._description_checks.MAX_JOINTS)")
     parent_of: dict[str, str] = {}  # link: the joint it is the child of
     child_to_parent: dict[str, str] = {}  # link: its parent link
     seen: set[str] = set()

@@ -1,17 +1,21 @@
-"""Numba's disk cache for rhi's kernels, refreshed when any kernel source changes, not only the function's own file.
+"""The one Numba decorator of rhi (`jit`) and its disk cache, refreshed when any kernel source changes.
+
+Every compiled function of rhi is decorated with `jit` (``cache=True``: compiled once per machine;
+``error_model="numpy"``: floating-point errors give inf/NaN, checked by the caller, not exceptions);
+`tests/test_structure.py` checks that no other decorator exists. Importing this module imports Numba:
+only the compiled modules (each layer's private ``_compiled`` package, `rhi.metrics._small`,
+`rhi.design.planar`) import it, never ``import rhi``.
 
 Numba stamps a cached function with the hash of the file that defines it. A kernel that calls
-kernels of other files (`rhi.control.kernels.whole` calls `step`, `allocation`, `objectives`,
-`passivity`, `rhi.terms_kernel` and `rhi.chain_kernel`, and a compiled simulation loop calls
-`whole`) would then load machine code compiled from the old callees after an edit of theirs.
-`install` registers cache locators for the files of the rhi package whose stamp is one hash of
-every rhi module that defines compiled functions (`kernel_files`): an edit of any of them
-recompiles every rhi kernel once. Functions outside the rhi package keep Numba's own locators.
-
-Uses Numba's cache-locator classes (``numba.core.caching``); `install` runs before the kernel
-modules create their decorators (`rhi.terms_kernel`, `rhi.control.kernels.jit`, `rhi.design.planar`).
-It also listens to Numba's compile events: the first compile of an rhi kernel in a process (a cold
-cache) prints `COLD` once on stderr, so that a first use is not two minutes without a word.
+kernels of other files (`rhi.control._compiled.whole` calls `step`, `allocation`, `objectives`,
+`passivity`, `rhi.devices._compiled.terms` and `rhi.devices._compiled.chain`, and the compiled simulation
+loop calls `whole`) would then load machine code compiled from the old callees after an edit of theirs.
+`install` (run here, before the decorator is made) registers cache locators for the files of the rhi
+package whose stamp is one hash of every rhi module that defines compiled functions (`kernel_files`): an
+edit of any of them recompiles every rhi kernel once. Functions outside the rhi package keep Numba's own
+locators. Uses Numba's cache-locator classes (``numba.core.caching``). It also listens to Numba's compile
+events: the first compile of an rhi kernel in a process (a cold cache) prints `COLD` once on stderr, so
+that a first use is not two minutes without a word.
 """
 
 from __future__ import annotations
@@ -22,11 +26,12 @@ import re
 import sys
 from pathlib import Path
 
+from numba import njit
 from numba.core import caching, event
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
-_DECORATED = re.compile(rb"^@(_?jit|njit)\b", re.M)
+_DECORATED = re.compile(rb"^@jit\b", re.M)
 
 
 def kernel_files(root: Path = _ROOT) -> list[Path]:
@@ -114,3 +119,8 @@ def install() -> None:
     if _LISTENER not in event._registered.get("numba:compile", ()):
         event.register("numba:compile", _LISTENER)
 
+
+install()  # before the decorator: the cache refreshes when any kernel source changes
+
+#: The decorator of every compiled function of rhi.
+jit = njit(cache=True, error_model="numpy")

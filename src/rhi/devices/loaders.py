@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from rhi._description_checks import MAX_JOINTS, check_finite_numbers
-from rhi._urdf import UNBOUNDED, JointInfo, check_urdf, description_roots, read_description, stderr_captured
 from rhi._validate import as_array, scalar
-from rhi.device import Device
+from rhi.devices._description_checks import MAX_JOINTS, check_finite_numbers
+from rhi.devices._urdf import UNBOUNDED, JointInfo, check_urdf, description_roots, read_description, stderr_captured
+from rhi.devices.model import Device
 from rhi.errors import InvalidInput, ModelError, UnknownDevice
 
 __all__ = ["available_descriptions", "device_from_description", "device_from_mjcf", "device_from_urdf",
@@ -77,7 +77,7 @@ def device_from_urdf(
         name: device name (default: the file stem).
         package_dirs: extra folders to search for ROS packages.
         inertia: "strict" (default: a link with a mass and a zero inertia, a point mass, is refused) or "fill"
-            (each point mass becomes a solid sphere of its mass at the density of water, `rhi._urdf.fill_inertia`,
+            (each point mass becomes a solid sphere of its mass at the density of water, `rhi.devices._urdf.fill_inertia`,
             with a warning listing them).
 
     Raises:
@@ -152,7 +152,7 @@ def device_from_mjcf(
         raise ModelError(f"{where}: malformed MJCF: {' '.join(str(exc).split())}") from None
     if mj.njnt > MAX_JOINTS:
         raise ModelError(f"{where}: {mj.njnt} joints; at most {MAX_JOINTS} are supported "
-                         "(rhi._description_checks.MAX_JOINTS)")
+                         "(rhi.devices._description_checks.MAX_JOINTS)")
     for j in range(mj.njnt):
         if mj.jnt_type[j] in (mujoco.mjtJoint.mjJNT_FREE, mujoco.mjtJoint.mjJNT_BALL):
             raise ModelError(f"{where}: joint {mj.joint(j).name!r}: free/ball joints are not supported (hinge, slide)")

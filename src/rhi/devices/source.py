@@ -5,13 +5,13 @@ and a run configuration's ``[device]`` hold:
 
 - exactly one source: ``name`` (a bundled device, `rhi.available_devices`, with ``params``), ``urdf``
   (a URDF or xacro file), ``mjcf`` (an MJCF file) or ``description`` (an installed description package's
-  robot, `rhi.loaders.available_descriptions`); with a file source ``name`` names the loaded device
+  robot, `rhi.devices.loaders.available_descriptions`); with a file source ``name`` names the loaded device
   (default: the file's stem);
 - with a file source: ``ee_frame`` (required), ``task`` (world axes, "xyz"), ``ee_offset`` (3,) [m],
   ``lock`` {joint: value [rad or m]}, ``armature`` [kg m²], ``torque_min`` / ``torque_max`` [N m],
   ``friction`` {``damping`` [N m s/rad], ``frictionloss`` [N m]}, each a scalar or one value per motor,
   and for URDF sources ``inertia`` ("strict" or "fill": point-mass links get a small documented inertia,
-  with a warning naming them; `rhi.loaders.device_from_urdf`).
+  with a warning naming them; `rhi.devices.loaders.device_from_urdf`).
 
 Relative file paths are taken from `base` (a configuration's folder).
 """
@@ -21,9 +21,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from pathlib import Path
 
-from rhi.device import Device, device
+from rhi.devices.loaders import device_from_description, device_from_mjcf, device_from_urdf
+from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput, RhiError
-from rhi.loaders import device_from_description, device_from_mjcf, device_from_urdf
 
 SOURCES = ("urdf", "mjcf", "description")
 """The file sources (a bundled device is ``name`` alone)."""

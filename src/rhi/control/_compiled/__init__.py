@@ -6,8 +6,8 @@ on their own by `rhi.control.saturation` and the strategies of `rhi.control.allo
 the code of its branch in `step.tick`: NONE, SCALING, ASCM, ACTIVE_SET).
 """
 
-from rhi.control.kernels.allocation import active_set, active_set_result, active_set_start, ascm, tertiary
-from rhi.control.kernels.step import (
+from rhi.control._compiled.allocation import active_set, active_set_result, active_set_start, ascm, tertiary
+from rhi.control._compiled.step import (
     ACTIVE_SET,
     ASCM,
     FALLBACK,

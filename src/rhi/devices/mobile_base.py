@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.device_spec import bundled_spec
+from rhi.devices.spec import bundled_spec
 from rhi.errors import InvalidInput, ModelError
 
 if TYPE_CHECKING:
-    from rhi.device import Device
+    from rhi.devices.model import Device
 
 BASE_JOINTS = ("x_b", "y_b", "theta_b")
 

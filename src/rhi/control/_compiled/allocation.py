@@ -16,8 +16,8 @@ import math
 
 import numpy as np
 
-from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import add, assign, axpy, dot, inv as _inv, mm, mv, sub
+from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mv, sub
+from rhi.jit import jit
 
 _TOL = 1e-12  # ASCM: relative overload below this is no overload
 _FAST_TOL = 1e-4  # smallest eigenvalue of P[S, S] the projector form trusts (σ_min(Z_S) >= 0.01)

@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from rhi.control.kernels.allocation import (
+from rhi.control._compiled.allocation import (
     active_set,
     active_set_result,
     active_set_start,
@@ -41,9 +41,9 @@ from rhi.control.kernels.allocation import (
     tertiary,
     well_conditioned,
 )
-from rhi.control.kernels.jit import jit
-from rhi.control.kernels.tank import TK_ON, blend
-from rhi.terms_kernel import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
+from rhi.control._compiled.tank import TK_ON, blend
+from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
+from rhi.jit import jit
 
 #: Status of `tick`.
 OK, FALLBACK, SINGULAR = 0, 1, 2
@@ -153,8 +153,8 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2
 
     Args:
         t: time [s].
-        terms: the device terms, flat (`rhi.terms_kernel.task_terms`; at least the first nine).
-        at: (≥ 9,) int64 start of each term in `terms` (`rhi.terms_kernel.layout`).
+        terms: the device terms, flat (`rhi.devices._compiled.terms.task_terms`; at least the first nine).
+        at: (≥ 9,) int64 start of each term in `terms` (`rhi.devices.terms.layout`).
         F_r: (m,) rendered (α-scaled) task force [N].
         F_x: (m,) extra task force (never scaled) [N].
         q: (n,) joint positions [rad] (read by the null-space energy tank).
@@ -170,7 +170,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2
         vme_gain: (k,) their gradient steps.
         tau_s_extra: (n,) −Σ gain ∂ν_lim/∂q of the joint-limit barriers [N m].
         tau_to_extra: (n,) −Σ gain ∂ν/∂q of the objectives computed outside the kernel [N m].
-        tank: (N_TANK,) the null-space energy tank's settings and state (`rhi.control.kernels.tank`), advanced.
+        tank: (N_TANK,) the null-space energy tank's settings and state (`rhi.control._compiled.tank`), advanced.
         tank_q: (n,) its q of the previous tick, written.
         tank_e: (n,) its metered torque of the previous tick, written.
         tau_out: (n,) the torque, written [N m].

@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from rhi.control.kernels.jit import jit
-from rhi.terms_kernel import dot, mtv, mv
+from rhi.devices._compiled.terms import dot, mtv, mv
+from rhi.jit import jit
 
 
 @jit
