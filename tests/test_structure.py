@@ -4,9 +4,10 @@ Read with `ast` from the source, like `tests/test_codebase.py` (nothing is impor
 
 - a private name (a ``_name`` in a module, or a module whose dotted path has a ``_`` component such as
   ``rhi.control._compiled.step``) is imported only inside the package that holds it — a ``_name`` of
-  module ``rhi.a.b``, or a private module ``rhi.a._c...``, from ``rhi.a`` and its subpackages — except that compiled code calls compiled code: a module of a ``_compiled`` package may
-  import another layer's ``_compiled`` modules (the compiled tick calls the device kernels, the compiled
-  simulation loop calls the tick; `tests/test_codebase.py` keeps those edges downwards);
+  module ``rhi.a.b``, or a private module ``rhi.a._c...``, from ``rhi.a`` and its subpackages — except
+  that compiled code calls compiled code: a module of a ``_compiled`` package may import another layer's
+  ``_compiled`` modules (the compiled tick calls the device kernels, the compiled simulation loop calls
+  the tick; `tests/test_codebase.py` keeps those edges downwards);
 - every compiled function of rhi carries the one decorator `rhi.jit.jit`: no other module makes a Numba
   decorator (``njit``, ``jit``, ``vectorize``, ... from Numba) or decorates with a ``*jit`` of its own.
 """

@@ -44,3 +44,7 @@ class Singular(RhiError, ArithmeticError):
 
 class LinkError(RhiError, ConnectionError):
     """A device link failed: the device is unreachable or silent, or it speaks another protocol version."""
+
+
+class RouteWarning(UserWarning):
+    """A controller that asked for the compiled tick runs a slower route (`rhi.control.compiled.Route` says why)."""

@@ -5,10 +5,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import weakref
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
+from rhi.control.compiled import CompiledObjective
 from rhi.devices.model import Device, DeviceTerms
 from rhi.errors import InvalidInput
 
@@ -66,6 +67,8 @@ class JointLimitBarrier:
     margin: float
     weight: float = 1.0
     kind: Literal["quadratic", "inverse"] = "quadratic"
+    #: part of the safety torque τ_s (acts whatever the allocation holds), not of the objectives' τ_to
+    safety: ClassVar[bool] = True
 
     def __post_init__(self) -> None:
         for name in ("margin", "weight"):
@@ -112,6 +115,12 @@ class JointLimitBarrier:
     def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
         """`gradient` from a terms snapshot: (n,)."""
         return self.gradient(terms.device, terms.q)
+
+    def compiled(self, device: Device) -> CompiledObjective | None:
+        """The barrier computed by the whole compiled tick (None for a subclass: its own gradient in Python)."""
+        if type(self) is not JointLimitBarrier:
+            return None
+        return CompiledObjective("barrier", barrier=(self.kind, self.margin, self.weight))
 
 
 

@@ -52,14 +52,14 @@ import numpy as np
 
 from rhi._validate import as_array, scalar
 from rhi.control.allocation import Allocation, AllocationMethod, Saturation, allocation_method
-from rhi.control.barrier import JointLimitBarrier
+from rhi.control.compiled import Route, warn_route
 from rhi.control.objectives import FMEMatching, Objective
 from rhi.control.passivity import PassivityController, PassivityState
 from rhi.control.primary import PrimaryLaw
 from rhi.control.reference import reference_terms, reference_tick
 from rhi.control.saturation import check_torque_limits
 from rhi.control.tank import NullSpaceTank, TankState
-from rhi.control.tick import KernelTick
+from rhi.control.tick import Fallback, KernelTick
 from rhi.control.transition import TransitionConfig, TransitionState, transition_step
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput, RhiError, Singular
@@ -295,7 +295,7 @@ class NullSpaceController:
         self.barriers: list[tuple[float, Objective]] = []
         for term in config.objectives:
             if term.gain > 0:
-                (self.barriers if isinstance(term.objective, JointLimitBarrier) else self.objectives).append(
+                (self.barriers if getattr(term.objective, "safety", False) else self.objectives).append(
                     (float(term.gain), term.objective))
         self._sensors = tuple(config.primary.required_sensors())
         pas = getattr(config.primary, "passivity", None)
@@ -306,6 +306,18 @@ class NullSpaceController:
         #: A dict to fill with each reference tick's torque by source (`rhi.control.reference.reference_tick`'s
         #: parts; ``implementation="reference"``), or None.
         self.sources: dict[str, np.ndarray] | None = None
+        if config.implementation == "fast":
+            warn_route(self.route)
+
+    @property
+    def route(self) -> Route:
+        """Which implementation runs this controller's tick, and why not the whole compiled tick (`rhi.control.compiled`)."""
+        cfg, kt = self.config, self._kernel
+        if kt is not None:
+            return Route("whole") if kt.whole_ok else Route("composed", kt.reason or "the whole tick is switched off")
+        if cfg.implementation == "reference":
+            return Route("reference", "implementation='reference' asked for")
+        return Route("reference", f"the allocation {self.allocation.name!r} has no compiled branch")
 
     @property
     def passivity(self) -> PassivityState | None:
@@ -431,19 +443,17 @@ class NullSpaceController:
         else:
             if kernel.whole_ok:  # one compiled call, the passivity layer included
                 out = kernel.whole(t, q, dq, sensors)
-                if len(out) == 2:
-                    kin, forces = out
-                else:
-                    pc = None
             else:
                 kin = self.device.terms(q, dq, check=False)
                 out = kernel(t, kin, sensors)
-                forces = out
-            if len(out) == 2:  # the kernel cannot decide this held set accurately: the basis form
-                tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, forces)
+            if type(out) is Fallback:  # the kernel cannot decide this held set accurately: the basis form
+                kin = out.kin
+                tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, (out.F_render, out.F_extra))
                 tau = np.minimum(np.maximum(tau, self.lo), self.hi)
             else:
-                tau, alpha, beta, sat, clipped = out
+                tau, alpha, beta, sat, clipped = out  # type: ignore[misc]
+                if kernel.whole_ok:
+                    pc = None  # the whole tick ran the passivity layer
         if pc is not None and _finite(tau):  # time-domain passivity around the whole torque (rhi.control.passivity)
             tau = pc.apply(t, kin, tau, self.lo, self.hi)
             s.E_obs, s.alpha_pc = pc.state.energy, pc.state.alpha

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Protocol
 import numpy as np
 
 from rhi._validate import as_array
+from rhi.control.compiled import CompiledObjective
 from rhi.devices.model import Device, DeviceTerms, inv_small
 from rhi.errors import InvalidInput
 from rhi.metrics import desired_vme, jbld
@@ -33,8 +34,15 @@ if TYPE_CHECKING:
 class Objective(Protocol):
     """A scalar cost ν(q) to decrease in the null space of the primary task.
 
-    Optionally also ``gradient_at(terms: DeviceTerms) -> (n,)``: the same gradient from the
-    controller's per-tick snapshot (see `gradient_function`).
+    Optionally also:
+
+    - ``gradient_at(terms: DeviceTerms) -> (n,)``: the same gradient from the controller's per-tick
+      snapshot (see `gradient_function`);
+    - ``compiled(device) -> CompiledObjective | None``: the objective as the compiled tick computes it
+      (`rhi.control.compiled`); without it the controller runs its gradient in Python each tick, on the
+      composed route, and says so (`NullSpaceController.route`);
+    - ``safety = True`` (a class attribute): the term belongs to the safety torque τ_s, which acts
+      whatever the allocation holds (the joint-limit barrier), not to the objectives' τ_to.
     """
 
     def value(self, device: Device, q: np.ndarray) -> float:
@@ -94,6 +102,10 @@ class VMEMatching:
     def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
         """`gradient` from a terms snapshot: (n,)."""
         return jbld_velocity_gradient(self._desired, terms.J, terms.dJ)
+
+    def compiled(self, device: Device) -> CompiledObjective:
+        """VME matching to M_des, computed by the compiled tick."""
+        return CompiledObjective("vme", desired=self.desired())
 
 
 def jbld_velocity_gradient(D: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
@@ -178,6 +190,14 @@ class FMEMatching:
         """`gradient` from a terms snapshot: (n,)."""
         return self.gradient_from(terms.J, terms.dJ)
 
+    def compiled(self, device: Device) -> CompiledObjective | None:
+        """FME matching to the fixed M_des, computed by the whole compiled tick (None: a subclass, or misfit shapes)."""
+        n, m = device.n, device.m
+        w2 = self._w2
+        if type(self) is not FMEMatching or self.desired.shape != (m, m) or w2.shape not in ((1,), (n,)):
+            return None
+        return CompiledObjective("fme", desired=self.desired, w2=np.broadcast_to(w2, (n,)))
+
     def gradient_from(self, J: np.ndarray, dJ: np.ndarray, desired: np.ndarray | None = None) -> np.ndarray:
         """Gradient from J: (m, n) and ∂J/∂q: (m, n, n) (for callers that already hold them).
 
@@ -231,6 +251,10 @@ class EllipsoidMatching:
     def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
         """`gradient` from a terms snapshot: (n,)."""
         return self._gradient(terms.J, terms.dJ)
+
+    def compiled(self, device: Device) -> CompiledObjective | None:
+        """VME matching to `desired`, computed by the compiled tick (None with a map H: in Python)."""
+        return CompiledObjective("vme", desired=self.desired) if self.H is None else None
 
     def _gradient(self, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
         if self.H is None:

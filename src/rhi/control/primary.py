@@ -15,6 +15,9 @@ The laws that render an environment (`ForceRendering`, `SpringPalpation`) carry 
 ``passivity`` option, on by default: the controller then runs the time-domain passivity
 observer and controller of `rhi.control.passivity` (Hannaford and Ryu 2002) around the
 whole torque it sends. ``passivity=None`` renders exactly the thesis's law.
+
+A law may also give its ``compiled(device)`` form (`rhi.control.compiled.CompiledLaw`), which the
+whole compiled tick computes instead of calling ``forces``; the bundled laws do.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from rhi._validate import as_array, scalar
+from rhi.control.compiled import CompiledLaw
 from rhi.control.passivity import Passivity
 from rhi.devices.model import Device, DeviceTerms
 from rhi.errors import InvalidInput
@@ -54,6 +58,9 @@ class PrimaryLaw(Protocol):
         The controller calls it once, at construction.
         """
         ...
+
+    # Optional: ``compiled(device) -> CompiledLaw | None``, the law as the whole compiled tick computes it
+    # (`rhi.control.compiled`); without it, or where it gives None, the tick calls `forces` in Python.
 
 
 def _damping(name: str, B) -> np.ndarray:
@@ -172,6 +179,16 @@ class _Compensated:
         if self.friction is not None:
             self.friction.check(device.n)
 
+    def _compiled(self, device: Device, kind, **kw) -> CompiledLaw:
+        """This law's `CompiledLaw` of `kind` with the shared damping and compensation settings."""
+        B = np.asarray(self.damping, dtype=float)
+        f, n = self.friction, device.n
+        return CompiledLaw(kind, B * np.eye(device.m) if B.ndim == 0 else B, coriolis=bool(self.coriolis),
+                           gravity=bool(self.gravity),
+                           viscous=None if f is None else np.broadcast_to(np.asarray(f.viscous, dtype=float), (n,)),
+                           coulomb=None if f is None else np.broadcast_to(np.asarray(f.coulomb, dtype=float), (n,)),
+                           velocity_scale=0.0 if f is None else float(f.velocity_scale), **kw)
+
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class ImpedanceControl(_Compensated):
@@ -220,6 +237,10 @@ class ImpedanceControl(_Compensated):
     def required_sensors(self) -> tuple[str, ...]:
         """The hand's F/T sensor when inertia is shaped (eq. 5.4), none otherwise (eq. 5.6)."""
         return () if self.inertia is None else (self.sensor,)
+
+    def compiled(self, device: Device) -> CompiledLaw | None:
+        """The compiled form of free motion (eq. 5.6); None with a desired inertia (eq. 5.4 runs in Python)."""
+        return self._compiled(device, "free") if self.inertia is None else None
 
     def hand_force(self, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]) -> np.ndarray:
         """F_h: (m,) [N] from the sensor reading, a (6,) world-axes wrench [N, N m] or an (m,) task force."""
@@ -285,6 +306,10 @@ class ForceRendering(_Compensated):
         """The force to render, ``sensors["force"]`` (m,) [N]."""
         return ("force",)
 
+    def compiled(self, device: Device) -> CompiledLaw:
+        """The compiled form of eq. 7.2."""
+        return self._compiled(device, "force", gain=float(self.gain))
+
     def forces(self, t, kin, sensors):
         """(gain · sensors["force"], compensation C_x ẋ + G_x + F_x − B^d ẋ) of eq. 7.2, each (m,) [N]."""
         F = np.asarray(sensors["force"], dtype=float)
@@ -342,6 +367,11 @@ class SpringPalpation(_Compensated):
     def required_sensors(self) -> tuple[str, ...]:
         """None: the spring is a function of the position alone."""
         return ()
+
+    def compiled(self, device: Device) -> CompiledLaw:
+        """The compiled form of eqs. 6.21 / 7.20."""
+        return self._compiled(device, "spring", stiffness=float(self.stiffness), x0=np.asarray(self.x0, dtype=float),
+                              normal=None if self.normal is None else np.asarray(self.normal, dtype=float))
 
     def spring(self, x: np.ndarray) -> np.ndarray:
         """K_e δX: (m,) [N] at the end-effector position x: (m,) [m]."""

@@ -1,20 +1,23 @@
 """The controller's fast tick: one compiled call, or the primary law in Python and the rest compiled.
 
 `KernelTick` holds what does not change between ticks (limits, parameters, the desired VMEs
-and FMEs, output buffers). Objectives the kernels know (VME matching, the FME schedule)
-run inside them; in the composed tick any other objective and the joint-limit barriers run their
-own `gradient_at` in Python and enter as two torque vectors.
+and FMEs, output buffers). It asks the primary law and each objective for its compiled form
+(``compiled(device)``, `rhi.control.compiled`) and recognises no type: objectives whose form the kernels
+compute (VME matching; in the whole tick also static FME matching and the joint-limit barrier) and the
+FME schedule run inside them; in the composed tick every other objective and the barriers run their own
+`gradient_at` in Python and enter as two torque vectors.
 
 `KernelTick.whole` is the whole tick in one call of `rhi.control._compiled.whole` (device terms,
 primary law, steps 2–6, the passivity layer) for a device whose chain the compiled kinematics
-handle, a built-in primary law and only objectives the kernels know — VME matching, the FME schedule,
-static FME matching and joint-limit barriers (`rhi.control._compiled.objectives`) — (`KernelTick.whole_ok`);
+handle, a primary law with a compiled form and only objectives with one (`KernelTick.whole_ok`;
+`KernelTick.reason` says why not);
 `KernelTick.__call__` runs steps 2–6 of `rhi.control._compiled.tick` after `Device.terms` and the
 primary law's `forces`.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING
 
@@ -22,9 +25,9 @@ import numpy as np
 
 from rhi.control import _compiled as kernels
 from rhi.control._compiled import objectives as _objectives, tank as _tank, whole as _whole
-from rhi.control.barrier import JointLimitBarrier, limit_rows
-from rhi.control.objectives import EllipsoidMatching, FMEMatching, VMEMatching, gradient_function
-from rhi.control.primary import ForceRendering, ImpedanceControl, SpringPalpation
+from rhi.control.barrier import limit_rows
+from rhi.control.compiled import CompiledLaw
+from rhi.control.objectives import gradient_function
 from rhi.control.transition import TransitionState
 from rhi.devices.model import DeviceTerms
 from rhi.devices.terms import TERMS, layout
@@ -41,59 +44,47 @@ def _f64(v) -> np.ndarray:
     return np.ascontiguousarray(v, dtype=np.float64)
 
 
-def _law_vector(law, n: int, m: int) -> np.ndarray | None:
-    """The settings of a built-in primary law as `rhi.control._compiled.whole` reads them (LAW_* slots), else None."""
-    if isinstance(law, ForceRendering):
-        kind = _whole.FORCE
-    elif isinstance(law, SpringPalpation):
-        kind = _whole.SPRING
-    elif isinstance(law, ImpedanceControl) and law.inertia is None:
-        kind = _whole.FREE
-    else:
-        return None
+def _law_vector(law: CompiledLaw, n: int, m: int) -> np.ndarray:
+    """A compiled primary law's settings as `rhi.control._compiled.whole` reads them (LAW_* slots)."""
     head = np.zeros(_whole.N_LAW)
-    head[_whole.LAW_KIND] = kind
-    head[_whole.LAW_GAIN] = getattr(law, "gain", 1.0)
+    head[_whole.LAW_KIND] = _LAW_KINDS[law.kind]
+    head[_whole.LAW_GAIN] = law.gain
     head[_whole.LAW_CORIOLIS], head[_whole.LAW_GRAVITY] = float(law.coriolis), float(law.gravity)
-    x0, normal = np.zeros(m), np.zeros(m)
-    if kind == _whole.SPRING:
-        head[_whole.LAW_STIFFNESS] = law.stiffness
-        x0 = np.asarray(law.x0, dtype=float)
-        if law.normal is not None:
-            head[_whole.LAW_NORMAL], normal = 1.0, np.asarray(law.normal, dtype=float)
-    f = law.friction
+    x0 = np.zeros(m) if law.x0 is None else law.x0
+    head[_whole.LAW_STIFFNESS] = law.stiffness
+    normal = np.zeros(m)
+    if law.normal is not None:
+        head[_whole.LAW_NORMAL], normal = 1.0, law.normal
     viscous, coulomb = np.zeros(n), np.zeros(n)
-    if f is not None:
-        head[_whole.LAW_FRICTION], head[_whole.LAW_VS] = 1.0, f.velocity_scale
-        viscous, coulomb = np.broadcast_to(f.viscous, (n,)), np.broadcast_to(f.coulomb, (n,))
-    B = np.asarray(law.damping, dtype=float)
-    B = B * np.eye(m) if B.ndim == 0 else B
-    return np.concatenate([head, B.ravel(), x0, normal, viscous, coulomb])
+    if law.viscous is not None and law.coulomb is not None:
+        head[_whole.LAW_FRICTION], head[_whole.LAW_VS] = 1.0, law.velocity_scale
+        viscous, coulomb = law.viscous, law.coulomb
+    return np.concatenate([head, law.damping.ravel(), x0, normal, viscous, coulomb])
 
 
-def _kernel_vme(objective) -> np.ndarray | None:
-    """M_des of a VME-matching objective the kernel computes, else None."""
-    if isinstance(objective, VMEMatching):
-        return objective.desired()
-    if isinstance(objective, EllipsoidMatching) and objective.H is None:
-        return objective.desired
-    return None
+_LAW_KINDS = {"force": _whole.FORCE, "spring": _whole.SPRING, "free": _whole.FREE}
+_BARRIER_KINDS = {"quadratic": _objectives.QUADRATIC, "inverse": _objectives.INVERSE}
 
 
-def _kernel_fme(objective, n: int, m: int) -> tuple[np.ndarray, np.ndarray] | None:
-    """(w2 (n,), M_des (m, m)) of a static FME-matching objective the whole tick computes, else None."""
-    if type(objective) is not FMEMatching or objective.desired.shape != (m, m):
-        return None
-    w2 = objective._w2
-    return (np.broadcast_to(w2, (n,)), objective.desired) if w2.shape in ((1,), (n,)) else None
+def compiled_form(term, device):
+    """``term.compiled(device)`` (a `CompiledLaw` or `CompiledObjective`), None where it has none."""
+    fn = getattr(term, "compiled", None)
+    return fn(device) if callable(fn) else None
 
 
-def _kernel_barrier(objective) -> tuple[int, float, float] | None:
-    """(kind, margin δ [rad], weight) of a joint-limit barrier the whole tick computes, else None."""
-    if type(objective) is not JointLimitBarrier:
-        return None
-    return (_objectives.INVERSE if objective.kind == "inverse" else _objectives.QUADRATIC, objective.margin,
-            objective.weight)
+@dataclasses.dataclass(frozen=True, eq=False)
+class Fallback:
+    """A tick the kernel cannot decide accurately (a held set for the basis form): the reference runs steps 2–6.
+
+    Attributes:
+        kin: the device terms of the tick.
+        F_render: (m,) the primary law's rendered force [N].
+        F_extra: (m,) its unscaled force [N].
+    """
+
+    kin: DeviceTerms
+    F_render: np.ndarray
+    F_extra: np.ndarray
 
 
 class KernelTick:
@@ -134,20 +125,26 @@ class KernelTick:
         vme, gains = [], []
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
         static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
-        python_only = False  # an objective or barrier only Python computes (the whole tick does not apply)
+        python = []  # names of the objectives and barriers only Python computes (the whole tick does not apply)
         for gain, obj in ctrl.objectives:
-            D = _kernel_vme(obj)
-            if D is None:
-                self._grads.append((gain, gradient_function(obj, dev)))
-                fme_term = _kernel_fme(obj, n, m)
-                python_only = python_only or fme_term is None
-                if fme_term is not None:
-                    static.append((gain, *fme_term))
-            else:
-                vme.append(D)
+            c = compiled_form(obj, dev)
+            if c is not None and c.kind == "vme":
+                vme.append(c.desired)
                 gains.append(gain)
-        bars = [(gain, _kernel_barrier(obj)) for gain, obj in ctrl.barriers]
-        python_only = python_only or any(b is None for _, b in bars)
+                continue
+            self._grads.append((gain, gradient_function(obj, dev)))
+            if c is not None and c.kind == "fme":
+                static.append((gain, c.w2, c.desired))
+            else:
+                python.append(type(obj).__name__)
+        bars = []
+        for gain, obj in ctrl.barriers:
+            c = compiled_form(obj, dev)
+            if c is not None and c.kind == "barrier" and c.barrier is not None:
+                shape, margin, weight = c.barrier
+                bars.append((gain, _BARRIER_KINDS[shape], margin, weight))
+            else:
+                python.append(type(obj).__name__)
         self._vme = _f64(np.array(vme).reshape(len(vme), m, m))
         self._vme_gain = _f64(np.array(gains, dtype=float))
         self._barriers = [(gain, gradient_function(obj, dev)) for gain, obj in ctrl.barriers]
@@ -158,14 +155,24 @@ class KernelTick:
         self._tr = np.zeros(4)
         self._tr_of: TransitionState | None = None  # the state object self._tr mirrors
         fast = dev._fast_maps
-        law = _law_vector(cfg.primary, n, m)
+        compiled_law = compiled_form(cfg.primary, dev)
+        why = []
+        if fast.chain is None:
+            why.append(f"the chain of {dev.name!r} is not one the compiled kinematics handle")
+        if compiled_law is None:
+            why.append(f"the primary law {type(cfg.primary).__name__} has no compiled form")
+        if python:
+            why.append(f"no compiled form for {', '.join(sorted(set(python)))} (their gradients run in Python)")
+        #: why the whole tick does not apply ("" where it does)
+        self.reason = "; ".join(why)
         #: the whole tick runs in `rhi.control._compiled.whole` (see `whole`)
-        self.whole_ok = fast.chain is not None and law is not None and not python_only
+        self.whole_ok = not why
         if self.whole_ok:
+            law = _law_vector(compiled_law, n, m)  # type: ignore[arg-type]  # not None here
             self._law = law
             rows = limit_rows(dev) if bars else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
-            self._obj = _objectives.pack(n, m, static, [(gain, *b) for gain, b in bars], rows)  # type: ignore[misc]
-            self._force = isinstance(cfg.primary, ForceRendering)
+            self._obj = _objectives.pack(n, m, static, bars, rows)
+            self._force = compiled_law.kind == "force"  # type: ignore[union-attr]  # reads sensors["force"]
             self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
             self._no_force = np.zeros(m)
             self._x, self._buf = np.empty(m), np.empty(fast.size)
@@ -244,9 +251,9 @@ class KernelTick:
             ts.position, ts.effort = self._tank_q.copy(), self._tank_e.copy()
 
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):
-        """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or (F_render, F_extra).
+        """One tick: (τ (n,) [N m], α, β, saturated (n,) bool, clipped), or a `Fallback`.
 
-        The forces come back where the kernel cannot decide: the reference's basis form then runs the tick.
+        A `Fallback` where the kernel cannot decide: the reference's basis form then runs the tick.
 
         Raises:
             Singular: a rank-deficient Jacobian.
@@ -274,7 +281,7 @@ class KernelTick:
             self._tr_of = None  # the kernel may have advanced tr; the state did not
             if status == kernels.SINGULAR:
                 raise Singular("J: rank-deficient Jacobian")
-            return F_r, F_x
+            return Fallback(kin, F_r, F_x)
         self._store_transition(s, before)
         self._store_tank(s)
         s.V, s.omega = V, omega
@@ -283,8 +290,8 @@ class KernelTick:
     def whole(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: Mapping[str, np.ndarray]):
         """One whole tick (`whole_ok`): (τ (n,) [N m] to send, passivity included, α, β, saturated, clipped).
 
-        Where the kernel cannot decide, ``(kin, (F_render, F_extra))`` instead: the reference then runs
-        steps 2–6 on those terms and forces, and the passivity layer after it.
+        Where the kernel cannot decide, a `Fallback` instead: the reference then runs steps 2–6 on its
+        terms and forces, and the passivity layer after it.
 
         Args:
             t: time [s].
@@ -331,7 +338,7 @@ class KernelTick:
                 raise Singular("J: rank-deficient Jacobian")
             kin = DeviceTerms.from_buffer(dev, q, dq, x.copy(), dev.A.dot(q) + dev.b, buf.copy(),
                                           dev._fast_maps.layout)
-            return kin, (self._F[0].copy(), self._F[1].copy())
+            return Fallback(kin, self._F[0].copy(), self._F[1].copy())
         if tr_changed:
             a0, a1, a2, a3 = self._tr.tolist()
             s.transition = self._tr_of = TransitionState(a0 != 0.0, a1, a2, a3)

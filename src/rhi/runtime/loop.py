@@ -47,7 +47,8 @@ class RunResult:
         summary: JSON-serialisable statistics: ticks, rate, the rate reached [Hz], missed deadlines (count and %),
             skipped device readings (a link's readings superseded before a tick took them), p50/p99/p99.9/max of
             the tick time, of the read→write latency (reading in hand to command sent) and of the readings'
-            round-trip age (`Reading.age`, where the link measures it) [s], clamp count, fault, every safety event.
+            round-trip age (`Reading.age`, where the link measures it) [s], clamp count, fault, every safety event,
+            the controller tick's ``route`` (`rhi.control.compiled.Route`; None for a controller without one).
     """
 
     log: Log
@@ -234,10 +235,11 @@ def run(
     period = 1.0 / rate
     N = None if duration is None else int(round(duration * rate))
     ms = int(getattr(link, "slave_m", 0))  # a teleoperated slave's end effector (`rhi.runtime.teleoperated`)
+    route = None if getattr(controller, "route", None) is None else str(controller.route)  # the tick's route
     w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"),
                                                 "task_axes": getattr(dev, "task_axes", None), "rate": float(rate),
                                                 "source": type(link).__name__, "realtime": bool(realtime),
-                                                "spin": bool(spin), "environment": describe(virtual)})
+                                                "spin": bool(spin), "environment": describe(virtual), "route": route})
     c = w.cols
     at = _offsets(w, n, m)
     state = getattr(controller, "state", None)
@@ -358,6 +360,7 @@ def run(
     stats["skipped_readings"] = int(getattr(link, "stats", {}).get("skipped", 0))
     result_log = w.to_log()
     summary = _summary(result_log, stats, rate, guard, realtime, spin)
+    summary["route"] = route
     summary["round_trip"] = nan_stats(np.frombuffer(ages, dtype=float) if len(ages) else np.zeros(0))
     return RunResult(result_log, summary)
 

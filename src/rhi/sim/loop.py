@@ -275,9 +275,13 @@ def simulate(
     n, m = plant.n, plant.m
     dev = getattr(controller, "device", plant.device)
     ms = teleop.slave.m if teleop is not None else 0
+    kin = Kinematics(dev, virtual) if (virtual is not None or teleop is not None) else None
+    from rhi.sim._compiled import fast_loop
+
+    why = fast_loop.FastLoop.why_not(sess, controller, kin, virtual=virtual, teleop=teleop, record=record)
     w = LogWriter(layout(n, m, ms), log,
                   meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate), "source": "simulate",
-                        "environment": describe(virtual)})
+                        "environment": describe(virtual), "route": _route(why, controller)})
     c = w.cols
     # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `_compiled.io.log_row`), the scalars
     # from work to alpha_pc, then seq, the timing columns and safety: one write each.
@@ -288,7 +292,6 @@ def simulate(
         raise AssertionError(f"log layout changed: {w.columns}")  # pragma: no cover - a bug, not an input
     scalars, tail = slice(i_sc, i_sc + 7), slice(i_seq, i_seq + 8)
     slave = c.get("slave_x")
-    kin = Kinematics(dev, virtual) if (virtual is not None or teleop is not None) else None
     zero_m = np.zeros(m)
     nan = math.nan
     every = max(1, N // 100)
@@ -343,9 +346,7 @@ def simulate(
             progress(k + 1, N)
         return False
 
-    from rhi.sim._compiled import fast_loop
-
-    fast = fast_loop.FastLoop.build(sess, controller, kin, virtual=virtual, teleop=teleop, record=record, w=w)
+    fast = None if why else fast_loop.FastLoop(sess, controller, kin, w)
     fast_loop.last = fast
     try:
         k = 0
@@ -362,6 +363,14 @@ def simulate(
     out = w.to_log()
     out.extra = {name: np.array(v) for name, v in recorded.items()}
     return out
+
+
+def _route(why: str, controller) -> str:
+    """The log's ``route``: the compiled loop, or the Python loop, why, and the controller's route."""
+    if not why:
+        return "compiled loop (whole tick)"
+    route = getattr(controller, "route", None)
+    return f"python loop ({why})" + ("" if route is None or why.endswith(str(route)) else f"; controller: {route}")
 
 
 def _fast_block(fast, w: LogWriter, k: int, N: int, t_start: float, telemetry, progress, every: int) -> tuple[int, bool]:

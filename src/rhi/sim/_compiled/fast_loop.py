@@ -1,6 +1,6 @@
 """Many ticks of `rhi.sim.simulate` in one compiled call, for the runs it computes exactly.
 
-`FastLoop.build` accepts a run whose every part the kernels know: a `NullSpaceController` whose
+`FastLoop.why_not` accepts (with "") a run whose every part the kernels know: a `NullSpaceController` whose
 whole tick runs compiled (`KernelTick.whole_ok`), a `Hand`, a `MinimumJerkPalpation` or no hand, a
 physical `Wall` or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, no teleoperation
 and no ``record`` hook. `ticks` then runs up to a block
@@ -202,26 +202,31 @@ class FastLoop:
         self.calls = self.ticks = 0
 
     @staticmethod
-    def build(sess, controller, kin, *, virtual, teleop, record, w) -> FastLoop | None:
-        """The compiled loop for this run, or None where some part of it is only Python's (see the module)."""
-        if (teleop is not None or record is not None or type(controller) is not NullSpaceController
-                or controller.config.tank is not None):  # the tank's state is mirrored per tick in Python
-            return None
-        kt = controller._kernel
+    def why_not(sess, controller, kin, *, virtual, teleop, record) -> str:
+        """Why this run is not one the compiled loop computes ("" where it is; see the module)."""
+        if teleop is not None or record is not None:
+            return "teleoperation" if teleop is not None else "a record hook"
+        if type(controller) is not NullSpaceController:
+            return f"the controller is a {type(controller).__name__}, not a NullSpaceController"
+        if controller.config.tank is not None:
+            return "the tank's state is mirrored per tick in Python"
+        if controller._kernel is None or not controller._kernel.whole_ok:
+            return f"the controller's tick is not the whole compiled tick: {controller.route}"
+        if "step" in controller.__dict__:
+            return "the controller's step is replaced"
         plant, hand, phys = sess.plant, sess.hand, sess.physical
-        m = plant.m
-        if kt is None or not kt.whole_ok or "step" in controller.__dict__:
-            return None
-        dev = controller.device
-        if (dev.n, dev.m) != (plant.n, m) or not set(controller._sensors) <= {"force", "ft"}:
-            return None
+        m, dev = plant.m, controller.device
+        if (dev.n, dev.m) != (plant.n, m):
+            return "the controller's device and the plant differ in size"
+        if not set(controller._sensors) <= {"force", "ft"}:
+            return "the primary law reads sensors other than force and ft"
         if hand is not None and not hand_supported(hand, phys, m):
-            return None
+            return f"the hand ({type(hand).__name__}) is not one the compiled loop computes"
         if phys is not None and (type(phys) is not Wall or phys.point.shape != (m,)):
-            return None
+            return f"the physical environment ({type(phys).__name__}) is not a Wall"
         if virtual is not None and (kin is None or kin._compiled is None or not kin._fused):
-            return None
-        return FastLoop(sess, controller, kin, w)
+            return f"the virtual environment ({type(virtual).__name__}) is not one the compiled loop computes"
+        return ""
 
     def run(self, k0: int, rows: np.ndarray) -> tuple[int, int]:
         """Ticks k0, k0 + 1, ... into `rows` (at most all of them): (ticks run, outcome DONE / PYTHON / FAULT).

@@ -1,0 +1,108 @@
+"""How a concept tells the compiled tick what it is, and which route a controller's tick takes.
+
+The compiled tick (`rhi.control.tick`) does not recognise types: it asks each primary law and each
+objective for its ``compiled(device)`` form — a `CompiledLaw` or a `CompiledObjective`, one of the kinds
+its kernels compute, or None — and computes in Python what answers None (or has no ``compiled``).
+A user's objective without ``compiled`` runs on the composed route (its gradient in Python each tick);
+the controller says so (`NullSpaceController.route`) and warns once (`RouteWarning`).
+
+The routes, fastest first:
+
+- ``"whole"``: the whole tick in one compiled call (device terms, primary law, steps 2–6, passivity);
+- ``"composed"``: `Device.terms` and the primary law's ``forces`` in Python, objectives without a
+  compiled form by their ``gradient_at`` in Python, steps 2–6 compiled;
+- ``"reference"``: every tick in `rhi.control.reference` (asked for, or an allocation without a compiled
+  branch, or ``null_space="clipped"``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from typing import Literal
+
+import numpy as np
+
+from rhi.errors import RouteWarning
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CompiledLaw:
+    """A primary law as the compiled whole tick computes it (the laws of `rhi.control.primary`).
+
+    Attributes:
+        kind: "force" (`ForceRendering`), "spring" (`SpringPalpation`) or "free" (`ImpedanceControl` without
+            a desired inertia).
+        damping: (m, m) task damping B [N s/m].
+        gain: force gain (1 but for "force").
+        coriolis: compensate the task-space Coriolis force.
+        gravity: compensate G_x.
+        viscous: (n,) joint viscous friction compensated [N m s/rad], or None without friction.
+        coulomb: (n,) joint Coulomb friction compensated [N m], or None.
+        velocity_scale: velocity of the Coulomb term's smooth sign [rad/s].
+        stiffness: spring stiffness [N/m] ("spring").
+        x0: (m,) spring rest position [m] ("spring"), else None.
+        normal: (m,) the spring's unit normal, or None (every direction).
+    """
+
+    kind: Literal["force", "spring", "free"]
+    damping: np.ndarray
+    gain: float = 1.0
+    coriolis: bool = True
+    gravity: bool = True
+    viscous: np.ndarray | None = None
+    coulomb: np.ndarray | None = None
+    velocity_scale: float = 0.0
+    stiffness: float = 0.0
+    x0: np.ndarray | None = None
+    normal: np.ndarray | None = None
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CompiledObjective:
+    """An objective as the compiled tick computes it.
+
+    Attributes:
+        kind: "vme" (JBLD matching of J Jᵀ to `desired`, eqs. 3.22–3.23; both compiled routes), "fme"
+            (JBLD matching of the torque-weighted FME to a fixed `desired`, eqs. 6.9–6.10, with weights
+            `w2`; the whole tick) or "barrier" (`rhi.control.JointLimitBarrier` with `barrier`; the whole tick).
+        desired: (m, m) SPD desired ellipsoid ("vme", "fme").
+        w2: (n,) torque weights 1/T_i² [1/(N m)²] ("fme").
+        barrier: (shape "quadratic" | "inverse", margin δ [rad], weight w) ("barrier").
+    """
+
+    kind: Literal["vme", "fme", "barrier"]
+    desired: np.ndarray | None = None
+    w2: np.ndarray | None = None
+    barrier: tuple[str, float, float] | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Route:
+    """Which implementation runs a controller's tick, and why not the whole compiled tick.
+
+    Attributes:
+        name: "whole", "composed" or "reference" (see the module).
+        reason: why not "whole" ("" on the whole tick).
+    """
+
+    name: Literal["whole", "composed", "reference"]
+    reason: str = ""
+
+    def __str__(self) -> str:
+        return self.name if not self.reason else f"{self.name} ({self.reason})"
+
+
+_WARNED: set[str] = set()
+
+
+def warn_route(route: Route) -> None:
+    """Warn (`RouteWarning`), once per process and reason, that a tick that asked for speed runs on `route`."""
+    if route.name == "whole" or route.reason in _WARNED:
+        return
+    _WARNED.add(route.reason)
+    warnings.warn(f"controller: the tick runs on the {route.name} route, not the whole compiled tick: {route.reason}",
+                  RouteWarning, stacklevel=3)
+
+
+__all__ = ["CompiledLaw", "CompiledObjective", "Route", "warn_route"]

@@ -1,0 +1,146 @@
+"""The seam between what an objective means and how it runs fast: `compiled(device)`, the route, its warning.
+
+A toy objective written in a temporary module (as a user's own file would be) runs in a controller
+configuration on the route the controller reports: without ``compiled`` on the composed route (its gradient
+in Python, a `RouteWarning` once), with a ``compiled`` form on the whole compiled tick; the simulation log
+and the run summary name the route.
+"""
+
+from __future__ import annotations
+
+import importlib
+import textwrap
+import warnings
+
+import numpy as np
+import pytest
+
+from rhi.control import (
+    ControllerConfig,
+    ForceRendering,
+    JointLimitBarrier,
+    NullSpaceController,
+    ObjectiveTerm,
+    SpringPalpation,
+    VMEMatching,
+    compiled as compiled_module,
+)
+from rhi.errors import RouteWarning
+from rhi.runtime import SimLink, run
+from rhi.sim import Plant, simulate
+
+TOY = '''
+"""A user's objective in its own file: pull q towards q0 (nu = w/2 |q - q0|^2)."""
+
+import dataclasses
+
+import numpy as np
+
+from rhi.control.compiled import CompiledObjective
+
+
+@dataclasses.dataclass(frozen=True)
+class Centering:
+    q0: tuple
+    weight: float = 1.0
+
+    def value(self, device, q):
+        d = np.asarray(q, dtype=float) - self.q0
+        return 0.5 * self.weight * float(d @ d)
+
+    def gradient(self, device, q):
+        return self.weight * (np.asarray(q, dtype=float) - self.q0)
+
+
+@dataclasses.dataclass(frozen=True)
+class CompiledVME:
+    """VME matching written outside rhi, with the compiled form the kernels know."""
+
+    desired: np.ndarray
+
+    def value(self, device, q):
+        raise NotImplementedError
+
+    def gradient(self, device, q):
+        from rhi.control.objectives import jbld_velocity_gradient
+
+        return jbld_velocity_gradient(self.desired, device.jacobian(q), device.jacobian_derivative(q))
+
+    def compiled(self, device):
+        return CompiledObjective("vme", desired=self.desired)
+'''
+
+Q0 = np.array([0.3, 0.5, 0.2, 0.4])
+
+
+@pytest.fixture
+def toy(tmp_path, monkeypatch):
+    """The toy objectives' module, imported from a temporary folder; route warnings not yet given."""
+    (tmp_path / "toy_objective.py").write_text(textwrap.dedent(TOY))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(compiled_module, "_WARNED", set())
+    return importlib.import_module("toy_objective")
+
+
+def _config(*terms, **kw) -> ControllerConfig:
+    law = ForceRendering(damping=2.0, passivity=None)
+    return ControllerConfig(primary=law, objectives=[ObjectiveTerm(o, 1.0) for o in terms], damping=0.5, **kw)
+
+
+def _torques(ctrl: NullSpaceController) -> np.ndarray:
+    out = []
+    for k in range(20):
+        q = Q0 + 0.05 * np.sin(0.3 * k + np.arange(4))
+        out.append(ctrl.step(1e-3 * k, q, 0.2 * np.cos(0.2 * k + np.arange(4)), {"force": np.array([0.0, -3.0])}))
+    return np.array(out)
+
+
+def test_toy_objective_runs_on_the_route_it_reports(rhi4, toy):
+    """Without `compiled`: the composed route, said and warned once; its gradient acts, as in the reference."""
+    centering = toy.Centering(q0=(0.2, 0.4, 0.3, 0.3), weight=3.0)
+    with pytest.warns(RouteWarning, match=r"composed route.*Centering"):
+        fast = NullSpaceController(rhi4, _config(centering))
+    assert fast.route.name == "composed" and "Centering" in fast.route.reason
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RouteWarning)  # once: a second controller with it says nothing
+        again = NullSpaceController(rhi4, _config(centering))
+        ref = NullSpaceController(rhi4, _config(centering, implementation="reference"))
+    assert again.route == fast.route and ref.route.name == "reference"
+    tau = _torques(fast)
+    np.testing.assert_allclose(tau, _torques(ref), atol=1e-10)
+    without = _torques(NullSpaceController(rhi4, _config()))
+    assert np.max(np.abs(tau - without)) > 1e-3  # the objective acts
+
+
+def test_toy_objective_with_a_compiled_form_runs_compiled(rhi4, toy):
+    """With `compiled`: the whole compiled tick, the torques of the bundled objective it stands for."""
+    bundled = VMEMatching((1.0, 0.0))
+    mine = toy.CompiledVME(bundled.desired())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RouteWarning)
+        ctrl = NullSpaceController(rhi4, _config(mine, JointLimitBarrier(0.1)))
+    assert ctrl.route.name == "whole" and str(ctrl.route) == "whole"
+    ref = NullSpaceController(rhi4, _config(bundled, JointLimitBarrier(0.1), implementation="reference"))
+    np.testing.assert_allclose(_torques(ctrl), _torques(ref), atol=1e-10)
+
+
+def test_off_route_configuration_warns_once_and_the_run_names_it(rhi4, toy):
+    """A configuration off the compiled route (the LP allocation): one warning; the log and summary name the route."""
+    law = SpringPalpation(stiffness=200.0, x0=rhi4.fk(Q0), damping=1.0, passivity=None)
+    cfg = ControllerConfig(primary=law, saturation="lp")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ctrls = [NullSpaceController(rhi4, cfg) for _ in range(3)]
+    said = [w for w in caught if issubclass(w.category, RouteWarning)]
+    assert len(said) == 1 and "allocation 'lp'" in str(said[0].message), [str(w.message) for w in caught]
+    assert ctrls[0].route.name == "reference"
+    plant = Plant(rhi4)
+    plant.reset(Q0)
+    log = simulate(plant, ctrls[0], duration=0.01)
+    assert log.meta["route"].startswith("python loop") and "allocation 'lp'" in log.meta["route"]
+    plant.reset(Q0)
+    res = run(SimLink(plant), ctrls[1], duration=0.01, realtime=False)
+    assert res.summary["route"] == str(ctrls[1].route) and res.log.meta["route"] == str(ctrls[1].route)
+    fast = NullSpaceController(rhi4, ControllerConfig(primary=law))
+    plant.reset(Q0)
+    assert simulate(plant, fast, duration=0.01).meta["route"] == "compiled loop (whole tick)"
