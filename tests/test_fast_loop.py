@@ -33,10 +33,10 @@ from rhi.sim import (
     Plant,
     Wall,
     compose,
-    fast_loop,
     simulate,
     stop,
 )
+from rhi.sim._compiled import fast_loop
 
 Q0 = np.array([-0.63, 0.25, 0.28, 0.09])
 COLUMNS = ["t", "q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "ft", "work", "V", "omega", "alpha", "beta",

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.control.objectives import contract
+from rhi.control.objectives import contract, jbld_velocity_gradient
 from rhi.devices.model import Device, DeviceTerms, inv_small
 from rhi.errors import InvalidInput
 from rhi.metrics import jbld
@@ -173,12 +173,7 @@ class TMIMatching:
 
     def _gradient(self, device: Device, q: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
         J, dJ = penalized(device, q, J, dJ, self.k_q)
-        if self.H is not None:
-            J = self.H @ J
-            dJ = np.einsum("ab,bjk->ajk", self.H, dJ)
-        A = J @ J.T
-        G = inv_small(0.5 * (self.slave_ellipsoid() + A)) - inv_small(A)
-        return (G @ J).reshape(-1) @ dJ.reshape(-1, dJ.shape[-1])
+        return jbld_velocity_gradient(self.slave_ellipsoid(), J, dJ, self.H)
 
 
 

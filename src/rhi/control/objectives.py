@@ -108,10 +108,21 @@ class VMEMatching:
         return CompiledObjective("vme", desired=self.desired())
 
 
-def jbld_velocity_gradient(D: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
-    """∂/∂q of JBLD(D, JJᵀ): 2 Σ (G J)_ij ∂J_ij/∂q_k with G = ½((D + JJᵀ)/2)⁻¹ − ½(JJᵀ)⁻¹ (symmetric). (n,)."""
-    M = J.dot(J.T)
-    return contract((inv_small(0.5 * (D + M)) - inv_small(M)).dot(J), dJ)
+def jbld_velocity_gradient(D: np.ndarray, J: np.ndarray, dJ: np.ndarray, H: np.ndarray | None = None) -> np.ndarray:
+    """∂/∂q of JBLD(D, H J Jᵀ Hᵀ): (n,), the one implementation of the velocity-ellipsoid JBLD gradient.
+
+    2 Σ (Hᵀ G H J)_ij ∂J_ij/∂q_k with G = ½((D + M)/2)⁻¹ − ½ M⁻¹ (symmetric), M = H J Jᵀ Hᵀ (H = I: none).
+
+    Args:
+        D: (m, m) SPD desired ellipsoid.
+        J: (m_J, n) Jacobian.
+        dJ: (m_J, n, n) its derivative ∂J/∂q.
+        H: (m, m_J) map from the Jacobian's rows, or None (identity).
+    """
+    HJ = J if H is None else H.dot(J)
+    M = HJ.dot(HJ.T)
+    G = inv_small(0.5 * (D + M)) - inv_small(M)
+    return contract(G.dot(HJ) if H is None else H.T.dot(G).dot(HJ), dJ)
 
 
 def fme_shape(J_home, torque_max, mu: float = 5.0) -> tuple[float, float]:
@@ -257,12 +268,7 @@ class EllipsoidMatching:
         return CompiledObjective("vme", desired=self.desired) if self.H is None else None
 
     def _gradient(self, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
-        if self.H is None:
-            return jbld_velocity_gradient(self.desired, J, dJ)
-        HJ = self.H.dot(J)
-        M = HJ.dot(HJ.T)
-        G = inv_small(0.5 * (self.desired + M)) - inv_small(M)
-        return contract(self.H.T.dot(G).dot(HJ), dJ)
+        return jbld_velocity_gradient(self.desired, J, dJ, self.H)
 
 
 # ------------------------------------------------------------------------- combinators

@@ -13,7 +13,7 @@ from typing import TypeGuard, get_args
 
 import numpy as np
 
-from rhi.control.allocation import ascm_projector
+from rhi.control.allocation import ascm_projector, ramp_peak
 from rhi.control.controller import Saturation
 from rhi.control.objectives import EllipsoidMatching, VMEMatching
 from rhi.control.saturation import null_basis
@@ -210,7 +210,5 @@ def capabilities(J: np.ndarray, u: np.ndarray, *, torque_min: np.ndarray, torque
     Z = null_basis(J, M if projector == "dynamic" else None)
     P, t = Z @ Z.T, J.T @ u
     b = np.zeros_like(t)
-    best = f_s
-    for f in np.concatenate([np.linspace(f_s, 1.5 * f_lp, samples), [f_lp]]):
-        best = max(best, ascm_projector(f * t, b, P, torque_min=lo, torque_max=hi, rank=Z.shape[1]).alpha * f)
-    return f_s, (min(best, f_lp) if best <= f_lp * (1 + 1e-9) else best), f_lp
+    return f_s, ramp_peak(lambda f: ascm_projector(f * t, b, P, torque_min=lo, torque_max=hi, rank=Z.shape[1]).alpha,
+                          f_s, f_lp, samples), f_lp

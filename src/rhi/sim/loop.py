@@ -278,10 +278,14 @@ def simulate(
     kin = Kinematics(dev, virtual) if (virtual is not None or teleop is not None) else None
     from rhi.sim._compiled import fast_loop
 
-    why = fast_loop.FastLoop.why_not(sess, controller, kin, virtual=virtual, teleop=teleop, record=record)
-    w = LogWriter(layout(n, m, ms), log,
-                  meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate), "source": "simulate",
-                        "environment": describe(virtual), "route": _route(why, controller)})
+    columns = layout(n, m, ms)
+    fast = fast_loop.FastLoop.build(sess, controller, kin, virtual=virtual, teleop=teleop, record=record,
+                                    columns=columns)
+    why = "" if fast is not None else (fast_loop.FastLoop.why_not(sess, controller, kin, virtual=virtual,
+                                                                  teleop=teleop, record=record) or "switched off")
+    w = LogWriter(columns, log, meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate),
+                                      "source": "simulate", "environment": describe(virtual),
+                                      "route": _route(why, controller)})
     c = w.cols
     # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `_compiled.io.log_row`), the scalars
     # from work to alpha_pc, then seq, the timing columns and safety: one write each.
@@ -346,7 +350,6 @@ def simulate(
             progress(k + 1, N)
         return False
 
-    fast = None if why else fast_loop.FastLoop(sess, controller, kin, w)
     fast_loop.last = fast
     try:
         k = 0

@@ -19,7 +19,7 @@ from rhi.control.allocation.base import (
     method_names,
     register,
 )
-from rhi.control.allocation.capability import force_capability
+from rhi.control.allocation.capability import force_capability, ramp_peak
 from rhi.control.allocation.compensation import ascm, ascm_projector
 from rhi.control.allocation.lp import allocate_lp
 from rhi.control.allocation.none import allocate_none
@@ -46,6 +46,7 @@ __all__ = [
     "ascm",
     "ascm_projector",
     "force_capability",
+    "ramp_peak",
     "method_names",
     "register",
 ]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
@@ -53,11 +54,25 @@ def force_capability(
     Z = null_basis(np.asarray(J, dtype=float), M)
     t = np.asarray(J, dtype=float).T @ u
     b = np.zeros_like(t)
+    return ramp_peak(lambda f: strategy.allocate(f * t, b, Z, torque_min=lo, torque_max=hi).alpha, f_s, f_lp, samples)
+
+
+def ramp_peak(alpha: Callable[[float], float], f_s: float, f_lp: float, samples: int) -> float:
+    """The peak output α(f) f over the ramp of requests f from f_s to 1.5 f_lp, then f_lp itself [N].
+
+    The quasi-static force ramp of Fig. 7.1 (`force_capability`); a peak at most round-off above the LP
+    optimum f_lp is f_lp.
+
+    Args:
+        alpha: the force scaling α an allocation gives the request f u [N].
+        f_s: the simple-scaling capability [N] (the ramp's start, and the least peak).
+        f_lp: the LP optimum [N].
+        samples: requests in the ramp.
+    """
     best = f_s
     for f in np.concatenate([np.linspace(f_s, 1.5 * f_lp, samples), [f_lp]]):
-        al = strategy.allocate(f * t, b, Z, torque_min=lo, torque_max=hi)
-        best = max(best, al.alpha * f)
+        best = max(best, alpha(f) * f)
     return min(best, f_lp) if best <= f_lp * (1 + 1e-9) else best
 
 
-__all__ = ["force_capability"]
+__all__ = ["force_capability", "ramp_peak"]

@@ -1,6 +1,6 @@
 """Many ticks of `rhi.sim.simulate` in one compiled call, for the runs it computes exactly.
 
-`FastLoop.why_not` accepts (with "") a run whose every part the kernels know: a `NullSpaceController` whose
+`FastLoop.build` accepts a run whose every part the kernels know: a `NullSpaceController` whose
 whole tick runs compiled (`KernelTick.whole_ok`), a `Hand`, a `MinimumJerkPalpation` or no hand, a
 physical `Wall` or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, no teleoperation
 and no ``record`` hook. `ticks` then runs up to a block
@@ -165,13 +165,13 @@ def whole_args(controller) -> tuple:
 
 
 class FastLoop:
-    """The compiled ticks of one `simulate` run (`build` decides whether they apply).
+    """The compiled ticks of one `simulate` run (`build` decides whether they apply, `why_not` says why not).
 
     Attributes:
         calls: compiled calls made; ticks: ticks they ran (the Python loop ran the others).
     """
 
-    def __init__(self, sess, controller, kin, w) -> None:
+    def __init__(self, sess, controller, kin, columns: list[tuple[str, int]]) -> None:
         plant, kt = sess.plant, controller._kernel
         self.sess, self.ctrl, self.kt = sess, controller, kt
         m = plant.m
@@ -191,8 +191,8 @@ class FastLoop:
         self._hand = (plant._sd, sess._idx, c, sess._F, plant._xfrc, sess._acc, plant._wnum, sess._badv, sess._at)
         self._wargs = whole_args(controller)
         self._cs = (kt._tr, kt._pc, kt._pc_pos, kt._pc_eff, kt._tau, kt._sat, kt._res)
-        names = [name for name, _ in w.columns]
-        at = dict(zip(names, np.cumsum([0] + [width for _, width in w.columns]).tolist()))
+        names = [name for name, _ in columns]
+        at = dict(zip(names, np.cumsum([0] + [width for _, width in columns]).tolist()))
         need = set(controller._sensors)
         self._lay = np.array([at["q"], at["work"], at["seq"], int(kin is not None), int("force" in need),
                               int("ft" in need), 0, 0, 0], dtype=np.int64)
@@ -200,6 +200,13 @@ class FastLoop:
         self._st = np.zeros(N_ST)
         self._F_hand = np.zeros(m)
         self.calls = self.ticks = 0
+
+    @staticmethod
+    def build(sess, controller, kin, *, virtual, teleop, record, columns) -> FastLoop | None:
+        """The compiled loop for this run (log `columns`), or None where some part of it is only Python's (`why_not`)."""
+        if FastLoop.why_not(sess, controller, kin, virtual=virtual, teleop=teleop, record=record):
+            return None
+        return FastLoop(sess, controller, kin, columns)
 
     @staticmethod
     def why_not(sess, controller, kin, *, virtual, teleop, record) -> str:
