@@ -19,7 +19,6 @@ from rhi.control.controller import (
     ControllerState,
     FMESchedule,
     NullSpaceController,
-    ObjectiveTerm,
     output_force,
 )
 from rhi.control.manipulability import Manipulability, TMIMatching
@@ -27,6 +26,7 @@ from rhi.control.objectives import (
     EllipsoidMatching,
     FMEMatching,
     Objective,
+    ObjectiveTerm,
     VMEMatching,
     WeightedSum,
     desired_fme_free,

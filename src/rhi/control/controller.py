@@ -53,7 +53,7 @@ import numpy as np
 from rhi._validate import as_array, scalar
 from rhi.control.allocation import Allocation, AllocationMethod, Saturation, allocation_method
 from rhi.control.compiled import Route, warn_route
-from rhi.control.objectives import FMEMatching, Objective
+from rhi.control.objectives import FMEMatching, Objective, ObjectiveTerm
 from rhi.control.passivity import PassivityController, PassivityState
 from rhi.control.primary import PrimaryLaw
 from rhi.control.reference import reference_terms, reference_tick
@@ -84,17 +84,6 @@ def _finite(v: np.ndarray) -> bool:
 
 DEVICE_SENSOR_WIDTHS = {"ft": 6}
 """Widths of the device sensors a primary law may read (docs/protocol.md, INFO)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class ObjectiveTerm:
-    """A null-space objective with its gradient step size (β of eq. 6.6, Λ of eq. 7.17)."""
-
-    objective: Objective
-    gain: float
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "gain", scalar("gain", self.gain, nonnegative=True))
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -481,6 +470,5 @@ __all__ = [
     "ControllerState",
     "FMESchedule",
     "NullSpaceController",
-    "ObjectiveTerm",
     "output_force",
 ]

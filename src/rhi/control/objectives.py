@@ -16,19 +16,16 @@ evaluated as one product ``Y.ravel() @ dJ.reshape(m n, n)``.
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 
-from rhi._validate import as_array
+from rhi._validate import as_array, scalar
 from rhi.control.compiled import CompiledObjective
 from rhi.devices.model import Device, DeviceTerms, inv_small
 from rhi.errors import InvalidInput
 from rhi.metrics import desired_vme, jbld
 from rhi.metrics.spd import spd_matrix
-
-if TYPE_CHECKING:
-    from rhi.control.controller import ObjectiveTerm
 
 
 class Objective(Protocol):
@@ -52,6 +49,17 @@ class Objective(Protocol):
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """∂ν/∂q: (n,)."""
         ...
+
+
+@dataclasses.dataclass(frozen=True)
+class ObjectiveTerm:
+    """A null-space objective with its gradient step size (β of eq. 6.6, Λ of eq. 7.17)."""
+
+    objective: Objective
+    gain: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "gain", scalar("gain", self.gain, nonnegative=True))
 
 
 def contract(Y: np.ndarray, dJ: np.ndarray) -> np.ndarray:
