@@ -51,6 +51,18 @@ def fd_jacobian(f, q: np.ndarray, eps: float = 1e-6) -> np.ndarray:
     return np.stack(cols, axis=-1)
 
 
+def row(result, start: str, table: int | None = None, *, unique: bool = False):
+    """The first row of `result`'s tables (or of table `table` only) whose quantity starts with `start`.
+
+    Fails naming `start` where there is none, or (``unique``) more than one.
+    """
+    tables = result.tables if table is None else [result.tables[table]]
+    rows = [r for t in tables for r in t.rows if r.quantity.startswith(start)]
+    assert rows, f"no row starting with {start!r}"
+    assert not unique or len(rows) == 1, f"{len(rows)} rows start with {start!r}"
+    return rows[0]
+
+
 def arm3_urdf(name: str = "arm3", *, l1: str = "0.3", tip_com: float = 0.0, tip_inertia: float = 0.0) -> str:
     """A planar 3R arm (links l1, 0.25, 0.15 m; 1.0, 0.6, 0.2 kg), as a user's robot or a lab plugin's.
 

@@ -7,7 +7,7 @@ import math
 import matplotlib
 import numpy as np
 import pytest
-from conftest import fd_jacobian, random_q
+from conftest import fd_jacobian, random_q, row
 
 from rhi.errors import InvalidInput
 from rhi.experiments.ch3 import nullspace as ex
@@ -25,10 +25,6 @@ def short():
     """Reduced run: the first Table 3.1 point from the Rehab-like start, plus eq. 3.21 alone (joint stops)."""
     return ex.nullspace_configurations(2.5, points=[POINTS[0]], starts=("rehab",), hard_stops=True,
                                        progress=lambda k, n: PROGRESS.append((k, n)))
-
-
-def _row(res, start):
-    return next(r for t in res.tables for r in t.rows if r.quantity.startswith(start))
 
 
 def test_barrier_gradient_matches_finite_differences(rhi4, rng):
@@ -83,7 +79,7 @@ def test_controller_converges_with_the_handle_held(short, rhi4):
     assert np.ptp(nu[-50:]) < 1e-3  # last 0.5 s
     # the handle stays put (issue 3: < 0.5 mm)
     assert np.max(a[f"{run}_drift"]) < ex.DRIFT_LIMIT
-    assert _row(short, "max handle drift at (0.49, -0.22) from the rehab start").ours < 0.5
+    assert row(short, "max handle drift at (0.49, -0.22) from the rehab start").ours < 0.5
     # the configuration moved and is a constrained local minimum of the same objective
     assert np.linalg.norm(a[f"{run}_q_end"] - a[f"{run}_q_start"]) > 0.3
     assert np.linalg.norm(a[f"{run}_q_end"] - a[f"{run}_q_polished"]) < 5e-3
@@ -103,8 +99,8 @@ def test_converged_rhi_beats_both_nhis_in_rho(short, rhi4):
 
 
 def test_thesis_configuration_is_not_stationary(short):
-    row = _row(short, "|(I − JᵀJ#ᵀ) ∂ν/∂q| at (0.49, -0.22), thesis's printed")
-    assert row.ours > 0.1
+    found = row(short, "|(I − JᵀJ#ᵀ) ∂ν/∂q| at (0.49, -0.22), thesis's printed")
+    assert found.ours > 0.1
 
 
 def test_joint_stops_push_the_hand(short, rhi4):

@@ -3,7 +3,7 @@
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
-from conftest import random_q
+from conftest import random_q, row
 
 from rhi import thesis as T
 from rhi.control import Manipulability, TMIMatching
@@ -27,12 +27,6 @@ def fixed():
 @pytest.fixture(scope="module")
 def wtraj():
     return ch5.w_trajectory(scale=0.08, settle=1.0, ellipses=5)
-
-
-def _row(result, start):
-    rows = [r for t in result.tables for r in t.rows if r.quantity.startswith(start)]
-    assert len(rows) == 1, start
-    return rows[0]
 
 
 def _fd(f, q, h=1e-6):
@@ -113,17 +107,17 @@ def test_objectives_reject_bad_input(devs):
 
 def test_fixed_point_controller_increases_tme(fixed, devs):
     """Fig. 5.3's claim: with the handle held, the TMI null-space controller enlarges the TME."""
-    inc = _row(fixed, "TME area increase by the TMI").ours
+    inc = row(fixed, "TME area increase by the TMI", unique=True).ours
     assert inc > 0.0  # the direction of §5.4.1's +18.1 % (its size: test_fixed_point_tme_increase_value)
     a = fixed.arrays
     assert a["tmi"][-1] > a["tmi"][0]
-    assert _row(fixed, "ν after").ours < 0.5 * _row(fixed, "ν before").ours
+    assert row(fixed, "ν after", unique=True).ours < 0.5 * row(fixed, "ν before", unique=True).ours
     # the end-effector stays put while the HI reconfigures (null-space motion), within the joint limits
-    assert _row(fixed, "max end-effector drift").ours < 0.5  # mm
+    assert row(fixed, "max end-effector drift", unique=True).ours < 0.5  # mm
     assert np.linalg.norm(a["qT"] - a["q0"]) > 0.1
     assert devs["RHI"].within_limits(a["qT"], tol=1e-3)
     # TME never exceeds the slave's own ME (it is inside the intersection)
-    assert _row(fixed, "TME area λ = σ₁σ₂ after").ours <= _row(fixed, "upper bound of λ").ours + 1e-12
+    assert row(fixed, "TME area λ = σ₁σ₂ after", unique=True).ours <= row(fixed, "upper bound of λ", unique=True).ours + 1e-12
     np.testing.assert_allclose(a["x0"], ch5.setup.X_FIXED, atol=2e-3)  # FK of the thesis's q is (0.48, −0.35)
 
 
@@ -134,37 +128,37 @@ def test_w_trajectory_scenarios(wtraj):
     (the slave's own ME). The effort order of Fig. 5.6 needs the full W (see the report); here the effort accounting
     is checked instead.
     """
-    s1, s2, s3 = (_row(wtraj, f"mean TME area, scenario {i}").ours for i in (1, 2, 3))
-    bound = _row(wtraj, "mean of the slave's own σ₁σ₂").ours
+    s1, s2, s3 = (row(wtraj, f"mean TME area, scenario {i}", unique=True).ours for i in (1, 2, 3))
+    bound = row(wtraj, "mean of the slave's own σ₁σ₂", unique=True).ours
     assert s3 < s2 <= bound and s3 < s1 <= bound
     assert s1 > 0.9 * bound
     for i in (1, 2, 3):
-        assert _row(wtraj, f"slave error to the reference point, RMS, scenario {i}").ours < 5.0  # mm
-        assert _row(wtraj, f"closest approach to a joint limit, scenario {i}").ours > 0.0
+        assert row(wtraj, f"slave error to the reference point, RMS, scenario {i}", unique=True).ours < 5.0  # mm
+        assert row(wtraj, f"closest approach to a joint limit, scenario {i}", unique=True).ours > 0.0
         # user work + actuator work = friction losses + Δ kinetic energy (eq. 5.15's W is accounted for)
-        parts = [_row(wtraj, f"{what}, scenario {i}").ours for what in
+        parts = [row(wtraj, f"{what}, scenario {i}", unique=True).ours for what in
                  ("user work over the W", "actuator work over the W", "energy dissipated by joint friction over the W")]
-        resid = _row(wtraj, f"energy balance residual over the W, scenario {i}").ours
+        resid = row(wtraj, f"energy balance residual over the W, scenario {i}", unique=True).ours
         assert abs(resid) < 0.02 * sum(abs(p) for p in parts)
-        assert _row(wtraj, f"user work over the W, scenario {i}").ours > 0
+        assert row(wtraj, f"user work over the W, scenario {i}", unique=True).ours > 0
     # the work curve of eq. 5.15 starts at 0 when the W starts; the rendered damping is common to all
     a = wtraj.arrays
     assert a["s1_work"][np.argmin(np.abs(a["s1_t"]))] == pytest.approx(0.0, abs=1e-9)
-    damp = [_row(wtraj, f"energy dissipated by the rendered damping B^d over the W, scenario {i}").ours
+    damp = [row(wtraj, f"energy dissipated by the rendered damping B^d over the W, scenario {i}", unique=True).ours
             for i in (1, 2, 3)]
     assert max(damp) / min(damp) < 1.1
 
 
 def test_w_trajectory_reports_the_alternative_readings(wtraj):
     """Issue 23: the plain-J and literal-eq.-5.14 readings of scenarios 1–2 stand beside the headline."""
-    bound = _row(wtraj, "mean of the slave's own σ₁σ₂").ours
-    s3 = _row(wtraj, "mean TME area, scenario 3").ours
+    bound = row(wtraj, "mean of the slave's own σ₁σ₂", unique=True).ours
+    s3 = row(wtraj, "mean TME area, scenario 3", unique=True).ours
     for name in ("reading 'plain J' (k_q = None in eqs. 5.11, 5.14): mean TME area, scenario 1",
                  "reading 'plain J': mean TME area, scenario 2",
                  "reading 'literal eq. 5.14' (τ_N = α ∂μ/∂q, plain J): mean TME area, scenario 2"):
-        assert s3 < _row(wtraj, name).ours <= bound  # an RHI objective beats the Rehab, inside the slave's ME
+        assert s3 < row(wtraj, name, unique=True).ours <= bound  # an RHI objective beats the Rehab, inside the slave's ME
     for name in ("reading 'plain J': scenario 2's mean TME area below", "reading 'literal eq. 5.14': scenario 2's"):
-        assert np.isfinite(_row(wtraj, name).ours)
+        assert np.isfinite(row(wtraj, name, unique=True).ours)
 
 
 def test_w_outside_workspace_raises():
@@ -189,9 +183,9 @@ def test_bad_input():
 
 def test_workspaces():
     res = ch5.workspaces(samples=4000, area_samples=20000)
-    assert _row(res, "RHI workspace larger").ours == 1.0
+    assert row(res, "RHI workspace larger", unique=True).ours == 1.0
     for nm in ("RHI", "Rehab", "slave"):
-        assert _row(res, f"W inside the workspace of the {nm}").ours == 1.0
+        assert row(res, f"W inside the workspace of the {nm}", unique=True).ours == 1.0
     assert res.arrays["workspaces"].shape == (3, 4000, 2)
 
 
@@ -208,11 +202,11 @@ def test_figures_draw(fixed, wtraj):
                                       "optimum and on the joint-limit penalty k_q, which the thesis does not give "
                                       "(ch5 docstring); rhi's is larger than 18.1 %")
 def test_fixed_point_tme_increase_value(fixed):
-    assert T.TME_INCREASE.within(_row(fixed, "TME area increase by the TMI").ours)
+    assert T.TME_INCREASE.within(row(fixed, "TME area increase by the TMI", unique=True).ours)
 
 
 @pytest.mark.xfail(strict=True, reason="Table 5.1's effort order comes from human users feeling the hardware's "
                                       "uncompensated friction; rhi's simulated hand pays mostly the rendered damping "
                                       "B^d, which is the same in every scenario, so the order does not follow")
 def test_table_5_1_effort_order(wtraj):
-    assert _row(wtraj, "effort order 1 < 2 < 3 holds").ours == float(T.EFFORT_ORDER)
+    assert row(wtraj, "effort order 1 < 2 < 3 holds", unique=True).ours == float(T.EFFORT_ORDER)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import fd_jacobian, random_q
+from conftest import fd_jacobian, random_q, row
 
 from rhi import thesis as T
 from rhi.control import FMEMatching, JointLimitBarrier
@@ -17,11 +17,6 @@ from rhi.devices.model import device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments import ch6
 from rhi.experiments.ch6 import capability, setup as S6
-
-
-def _row(res, start, table=None):
-    tables = res.tables if table is None else [res.tables[table]]
-    return next(r for t in tables for r in t.rows if r.quantity.startswith(start))
 
 
 @pytest.fixture(scope="module")
@@ -48,10 +43,10 @@ def trans():
 # ------------------------------------------------------------------ 3-DoF example
 def test_3dof_fme_shape_matches_thesis(ex3):
     # §6.3.1: eigenvalues 2.6 and 5.8 of M̂ at the initial configuration, M_Free = diag(0.2·2.6, 5·5.8)
-    assert _row(ex3, "λ_min").ours == pytest.approx(2.6, abs=0.05)
-    assert _row(ex3, "λ_max").ours == pytest.approx(5.8, abs=0.05)
-    assert _row(ex3, "𝒦").ours == pytest.approx(29.0, abs=0.25)
-    assert _row(ex3, "ζ").ours == pytest.approx(0.52, abs=0.01)
+    assert row(ex3, "λ_min").ours == pytest.approx(2.6, abs=0.05)
+    assert row(ex3, "λ_max").ours == pytest.approx(5.8, abs=0.05)
+    assert row(ex3, "𝒦").ours == pytest.approx(29.0, abs=0.25)
+    assert row(ex3, "ζ").ours == pytest.approx(0.52, abs=0.01)
 
 
 def test_3dof_stiff_renders_full_force_free_does_not(ex3):
@@ -70,7 +65,7 @@ def test_3dof_stiff_renders_full_force_free_does_not(ex3):
     dev = device("planar3r")
     for k in ("free", "stiff"):
         np.testing.assert_allclose(dev.fk(a[f"q_{k}"]), a["x"], atol=1e-9)
-        r = _row(ex3, f"JBLD ν to M_{k.capitalize()}")
+        r = row(ex3, f"JBLD ν to M_{k.capitalize()}")
         assert r.ours < float(r.note.split(":")[1])
 
 
@@ -110,11 +105,11 @@ def test_match_fme_stays_on_manifold_within_limits(rhi4):
 
 # ------------------------------------------------------------------ palpation (Fig. 6.9, Table 6.1)
 def test_palpation_stiff_renders_more_force(palp):
-    f_free = _row(palp, "F_max along u, M_Free^des: simulated").ours
-    f_stiff = _row(palp, "F_max along u, M_Stiff^des: simulated").ours
+    f_free = row(palp, "F_max along u, M_Free^des: simulated").ours
+    f_stiff = row(palp, "F_max along u, M_Stiff^des: simulated").ours
     assert f_free < 0 and f_stiff < 0  # the device pushes back along −u
     assert f_stiff < f_free  # the direction of §6.4: more force with M_Stiff^des (its size: test_palpation_gain_value)
-    gain = _row(palp, "force gain M_Stiff vs M_Free, simulated").ours
+    gain = row(palp, "force gain M_Stiff vs M_Free, simulated").ours
     assert gain == pytest.approx(100 * (f_stiff / f_free - 1))
     print(f"\nTable 6.1 F_max: free {f_free:.3f} N (thesis -5.674), stiff {f_stiff:.3f} N (thesis -8.564), "
           f"gain {gain:.1f} % (thesis 51 %)")
@@ -123,9 +118,9 @@ def test_palpation_stiff_renders_more_force(palp):
 def test_palpation_force_saturates_at_the_static_capability(palp):
     for case in ("free", "stiff"):
         lab = "M_Free^des" if case == "free" else "M_Stiff^des"
-        sim = _row(palp, f"F_max along u, {lab}: simulated").ours
-        fs = _row(palp, f"F_max along u, {lab}: force scaling at the settled").ours
-        lp = _row(palp, f"F_max along u, {lab}: LP").ours
+        sim = row(palp, f"F_max along u, {lab}: simulated").ours
+        fs = row(palp, f"F_max along u, {lab}: force scaling at the settled").ours
+        lp = row(palp, f"F_max along u, {lab}: LP").ours
         # the force-scaling controller saturates at its static capability (friction and
         # reconfiguration during the push: within 5 %), never beyond the LP optimum by more
         assert sim == pytest.approx(fs, rel=0.05)
@@ -139,16 +134,16 @@ def test_palpation_force_saturates_at_the_static_capability(palp):
 
 def test_palpation_table_orders_like_thesis(palp):
     # Table 6.1: inertia, friction and force capability all larger at the M_Stiff^des configuration
-    lam_f = _row(palp, "M_x along u, M_Free").ours
-    lam_s = _row(palp, "M_x along u, M_Stiff").ours
-    phi_f = _row(palp, "Φ along u, M_Free").ours
-    phi_s = _row(palp, "Φ along u, M_Stiff").ours
+    lam_f = row(palp, "M_x along u, M_Free").ours
+    lam_s = row(palp, "M_x along u, M_Stiff").ours
+    phi_f = row(palp, "Φ along u, M_Free").ours
+    phi_s = row(palp, "Φ along u, M_Stiff").ours
     assert lam_s > lam_f > 0 and phi_s > phi_f > 0
-    assert _row(palp, "𝒦").ours == pytest.approx(123.0, abs=0.5)  # §6.4: 123 and 3.3
-    assert _row(palp, "ζ").ours == pytest.approx(3.3, abs=0.05)
+    assert row(palp, "𝒦").ours == pytest.approx(123.0, abs=0.5)  # §6.4: 123 and 3.3
+    assert row(palp, "ζ").ours == pytest.approx(3.3, abs=0.05)
     # the controller holds the matched configuration while the hand holds X₀
     for case in ("free", "stiff"):
-        assert _row(palp, f"|q_settled − q_opt|, {case}").ours < 0.02
+        assert row(palp, f"|q_settled − q_opt|, {case}").ours < 0.02
 
 
 # ------------------------------------------------------------------ transition (Fig. 6.11)
@@ -156,12 +151,12 @@ def test_transition_is_bounded_with_the_method_and_jumps_without(trans):
     a = trans.arrays
     Mf, Ms = a["M_free_des"], a["M_stiff_des"]
     dist = np.linalg.norm(Mf - Ms)
-    assert _row(trans, "full transition time").ours == pytest.approx(0.5, abs=0.01)  # thesis: 0.5 s
+    assert row(trans, "full transition time").ours == pytest.approx(0.5, abs=0.01)  # thesis: 0.5 s
     bound = np.pi * 1e-3 / (2 * S6.RHO)
     assert a["dM_with"].max() <= bound * (1 + 1e-9)
     assert a["dM_without"].max() == pytest.approx(dist, rel=1e-9)  # the whole change in one tick
-    jump_w = _row(trans, "max per-tick jump of τ_S = −β∂ν/∂q from the M_des change, with").ours
-    jump_wo = _row(trans, "max per-tick jump of τ_S from the M_des change, without").ours
+    jump_w = row(trans, "max per-tick jump of τ_S = −β∂ν/∂q from the M_des change, with").ours
+    jump_wo = row(trans, "max per-tick jump of τ_S from the M_des change, without").ours
     assert jump_wo > 20 * jump_w > 0
     for name in ("with", "without"):
         V, om = a[f"V_{name}"], a[f"omega_{name}"]
@@ -181,13 +176,13 @@ def test_transition_lowers_the_handle_disturbance_under_the_literal_reading(tran
     With the torque box read as clipping each joint (eqs. 6.2–6.6 as written), as in the thesis's
     experiment; it also removes the chattering of eq. 6.15.
     """
-    w = _row(trans, "max handle-force disturbance |F_sensor − F_commanded| along u, with (β = 20)").ours
-    wo = _row(trans, "max handle-force disturbance, without (β = 20)").ours
+    w = row(trans, "max handle-force disturbance |F_sensor − F_commanded| along u, with (β = 20)").ours
+    wo = row(trans, "max handle-force disturbance, without (β = 20)").ours
     assert w < wo
-    assert (_row(trans, "desired-FME switches (Ω crossing ½), with").ours
-            <= _row(trans, "desired-FME switches (Ω crossing ½), without").ours)
+    assert (row(trans, "desired-FME switches (Ω crossing ½), with").ours
+            <= row(trans, "desired-FME switches (Ω crossing ½), without").ours)
     # the other reading is reported beside it
-    assert _row(trans, "max handle-force disturbance, without (β = 20, reading 'scaled')").ours > 0
+    assert row(trans, "max handle-force disturbance, without (β = 20, reading 'scaled')").ours > 0
 
 
 # ------------------------------------------------------------------ F_max ratio map (Fig. 6.10)
@@ -204,9 +199,9 @@ def test_ratio_map_at_palpation_point_agrees_with_palpation(palp):
     out = capability._ratio_row(S6.X0[1], np.array([S6.X0[0]]), 3, True)
     fs_free, fs_stiff = out[0, 0], out[1, 0]
     assert fs_stiff / fs_free > 1.3
-    np.testing.assert_allclose(-fs_free, _row(palp, "F_max along u, M_Free^des: force scaling at the static").ours,
+    np.testing.assert_allclose(-fs_free, row(palp, "F_max along u, M_Free^des: force scaling at the static").ours,
                                rtol=1e-6)
-    np.testing.assert_allclose(-fs_stiff, _row(palp, "F_max along u, M_Stiff^des: force scaling at the static").ours,
+    np.testing.assert_allclose(-fs_stiff, row(palp, "F_max along u, M_Stiff^des: force scaling at the static").ours,
                                rtol=1e-6)
 
 
@@ -241,7 +236,7 @@ def test_ch6_figures_draw(ex3, palp, trans, small_map):
                                       "configurations differ from the thesis's (unpublished) ones, and rhi's plant "
                                       "friction and inertias are estimates: the gain is not 51 %")
 def test_palpation_gain_value(palp):
-    assert T.GAIN_6_4.within(_row(palp, "force gain M_Stiff vs M_Free, simulated").ours)
+    assert T.GAIN_6_4.within(row(palp, "force gain M_Stiff vs M_Free, simulated").ours)
 
 
 def test_chapter_6_controllers_run_the_law_as_written(rhi4):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import row
 
 from rhi.errors import InvalidInput
 from rhi.experiments import ch7
@@ -14,20 +15,16 @@ def fig71():
     return ch7.example_3dof(steps=101)
 
 
-def _row(res, start):
-    return next(r for r in res.tables[0].rows if r.quantity.startswith(start))
-
-
 def test_fig7_1_scaling_gap_matches_thesis(fig71):
     # thesis §7.3: simple scaling's peak force is 12 % lower than ASCM's (rounded to 1 %)
-    gap = _row(fig71, "peak force deficit of scaling vs ASCM (pseudoinverse")
+    gap = row(fig71, "peak force deficit of scaling vs ASCM (pseudoinverse")
     assert gap.ours == pytest.approx(12.0, abs=0.5)
     # the dynamically consistent J# of eq. 7.5 (planar3r link masses) does not give the thesis's 12 %:
     # the independent check of issue 13 found 38.4 %
-    assert _row(fig71, "peak force deficit of scaling vs ASCM (dynamic").ours == pytest.approx(38.4, abs=0.05)
-    print(f"\nFig 7.1 peaks (pseudoinverse): none {_row(fig71, 'peak |F_out|, none (pse').ours:.3f} N, "
-          f"scaling {_row(fig71, 'peak |F_out|, scaling (pse').ours:.3f} N, "
-          f"ASCM {_row(fig71, 'peak |F_out|, ascm (pse').ours:.3f} N; gap {gap.ours:.2f} %")
+    assert row(fig71, "peak force deficit of scaling vs ASCM (dynamic").ours == pytest.approx(38.4, abs=0.05)
+    print(f"\nFig 7.1 peaks (pseudoinverse): none {row(fig71, 'peak |F_out|, none (pse').ours:.3f} N, "
+          f"scaling {row(fig71, 'peak |F_out|, scaling (pse').ours:.3f} N, "
+          f"ASCM {row(fig71, 'peak |F_out|, ascm (pse').ours:.3f} N; gap {gap.ours:.2f} %")
 
 
 def test_fig7_1_shapes(fig71):
@@ -41,10 +38,10 @@ def test_fig7_1_shapes(fig71):
     # ASCM renders the full force until two joints are at their limits (α = 1 before that)
     full = a["alpha_ascm"] >= 1 - 1e-12
     np.testing.assert_allclose(a["force_ascm"][full], Fe[full], atol=1e-9)
-    assert _row(fig71, "joints at a torque limit when ASCM first scales").ours == 2
+    assert row(fig71, "joints at a torque limit when ASCM first scales").ours == 2
     # ASCM's peak equals the LP optimum here and beats scaling
-    assert _row(fig71, "peak |F_out|, ascm (pse").ours == pytest.approx(_row(fig71, "LP optimum").ours, rel=1e-9)
-    assert _row(fig71, "peak |F_out|, ascm (dyn").ours > _row(fig71, "peak |F_out|, scaling (dyn").ours
+    assert row(fig71, "peak |F_out|, ascm (pse").ours == pytest.approx(row(fig71, "LP optimum").ours, rel=1e-9)
+    assert row(fig71, "peak |F_out|, ascm (dyn").ours > row(fig71, "peak |F_out|, scaling (dyn").ours
 
 
 def test_fig7_5_deficiency_map_reduced():

@@ -7,6 +7,7 @@ import json
 import matplotlib
 import numpy as np
 import pytest
+from conftest import row
 
 from rhi.errors import InvalidInput
 from rhi.experiments.ch7 import contact as ex
@@ -27,13 +28,9 @@ def short():
                         progress=lambda k, n: PROGRESS.append((k, n)))
 
 
-def _row(res, start):
-    return next(r for t in res.tables for r in t.rows if r.quantity.startswith(start))
-
-
 def test_torques_stay_within_the_programmed_limits(short):
     for sat, proj in CASES:
-        assert _row(short, f"max |τ_i| / limit, {sat} ({proj}").ours <= 1.0 + 1e-12
+        assert row(short, f"max |τ_i| / limit, {sat} ({proj}").ours <= 1.0 + 1e-12
         tau = short.arrays[f"{sat}_{proj}_tau"]
         assert np.all(np.abs(tau) <= np.asarray(ex.TORQUE_MAX) + 1e-12)
     # every case drives at least one joint to its limit: the push exceeds the force capability
@@ -47,7 +44,7 @@ def test_rendered_force_tracks_the_wall_until_saturation(short):
     none).
     """
     for sat, proj in CASES:
-        err = _row(short, f"max |F − K_e δX| in contact (K_e δX ≥ 1 N) before the first torque saturation, "
+        err = row(short, f"max |F − K_e δX| in contact (K_e δX ≥ 1 N) before the first torque saturation, "
                           f"{sat} ({proj}")
         assert err.ours < 0.2
     a = short.arrays
@@ -60,16 +57,16 @@ def test_one_criterion_for_every_case_and_safe_self_motion(short):
 
     With ASCM holding two joints, the null-space damping and limit barrier keep the self-motion <= 1 rad/s.
     """
-    f = {c: _row(short, f"max force before a joint reaches a range limit, {c[0]} ({c[1]}").ours for c in CASES}
+    f = {c: row(short, f"max force before a joint reaches a range limit, {c[0]} ({c[1]}").ours for c in CASES}
     for sat in ("ascm", "lp"):
-        g = _row(short, f"peak force before a joint range limit, {sat} (dynamic) vs none (dynamic)")
+        g = row(short, f"peak force before a joint range limit, {sat} (dynamic) vs none (dynamic)")
         assert g.ours == pytest.approx(100.0 * (f[sat, "dynamic"] / f["none", "dynamic"] - 1.0))
     # without compensation the first clipped tick comes at the simple-scaling capability of the configuration
     assert f["none", "dynamic"] == pytest.approx(float(short.arrays["capability_scaling"]), rel=0.05)
     # the allocations render at least what scaling does (to the plant's uncompensated friction, ~0.1 N)
     assert f["ascm", "dynamic"] > f["none", "dynamic"] - 0.1 and f["lp", "dynamic"] > f["none", "dynamic"] - 0.1
-    held = _row(short, "share of the ticks after the first saturation with two joints held, ascm (dynamic").ours
-    speed = _row(short, "peak self-motion joint speed while the allocation holds two joints, ascm (dynamic").ours
+    held = row(short, "share of the ticks after the first saturation with two joints held, ascm (dynamic").ours
+    speed = row(short, "peak self-motion joint speed while the allocation holds two joints, ascm (dynamic").ours
     assert held > 0.5 and speed <= 1.0
     print(f"\npeak force before a range limit: none {f['none', 'dynamic']:.3f} N, ASCM {f['ascm', 'dynamic']:.3f} N, "
           f"LP {f['lp', 'dynamic']:.3f} N; ASCM holds two joints in {held:.0%} of the ticks after saturation, "
@@ -92,7 +89,7 @@ def test_contact_configuration_is_the_tertiary_optimum(short, rhi4):
     a = short.arrays
     np.testing.assert_allclose(a["q_contact"], a["q_optimum"], atol=2e-3)
     np.testing.assert_allclose(rhi4.fk(a["q_contact"]), ex.X0, atol=1e-9)
-    assert _row(short, "max handle drift while settling").ours < 0.5
+    assert row(short, "max handle drift while settling").ours < 0.5
 
 
 def test_result_serialises_and_figures_draw(short):

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import fd_jacobian
 
 from rhi import thesis as T
 from rhi.control.mobile import (
@@ -83,10 +84,6 @@ def _arm(kin, q):
     return J6[:3], dJ, d2J
 
 
-def _fd(f, q, h=1e-6):
-    return np.stack([(f(q + h * e) - f(q - h * e)) / (2 * h) for e in np.eye(len(q))], axis=-1)
-
-
 # ================================================================= derivatives vs finite differences
 def test_chain_derivatives_match_device_and_finite_differences(wmm, kin):
     rng = np.random.default_rng(1)
@@ -94,7 +91,7 @@ def test_chain_derivatives_match_device_and_finite_differences(wmm, kin):
         J6 = kin.jacobian6(q)[1]
         dJ, d2J = chain_jacobian_derivatives(J6)
         np.testing.assert_allclose(dJ, wmm.jacobian_derivative(q), rtol=0, atol=1e-12)
-        fd = _fd(lambda qq: chain_jacobian_derivatives(kin.jacobian6(qq)[1], second=False)[0], q)
+        fd = fd_jacobian(lambda qq: chain_jacobian_derivatives(kin.jacobian6(qq)[1], second=False)[0], q)
         np.testing.assert_allclose(d2J, fd, rtol=0, atol=1e-8)
         np.testing.assert_allclose(d2J, np.swapaxes(d2J, -1, -2), rtol=0, atol=1e-14)
 
@@ -111,7 +108,7 @@ def test_dm_value_and_gradient_A9(kin):
             def H(qm, q=q, u=u):
                 return dm_value(kin.jacobian6(np.r_[q[:3], qm])[1][:3, 3:], u, W_TAU_LIMITS)
 
-            fd = _fd(H, q[3:])
+            fd = fd_jacobian(H, q[3:])
             np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-7 * abs(h2))
 
 
@@ -146,8 +143,8 @@ def test_det_gradient_and_hessian_B14_B18(kin):
 
         g = manipulability_det_gradient(Jm, dJ)
         H = manipulability_det_hessian(Jm, dJ, d2J)
-        np.testing.assert_allclose(g, _fd(Hq, q[3:]), rtol=1e-6, atol=1e-9)
-        np.testing.assert_allclose(H, _fd(grad, q[3:]), rtol=1e-6, atol=1e-8)
+        np.testing.assert_allclose(g, fd_jacobian(Hq, q[3:]), rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(H, fd_jacobian(grad, q[3:]), rtol=1e-6, atol=1e-8)
         np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-14)
         # the controller's O(m²) path: the same H, ∇H, ∇²H q̇ and σ_min
         v = rng.normal(size=7)

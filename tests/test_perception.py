@@ -13,6 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from conftest import row
 
 from rhi import thesis as T  # noqa: E402
 from rhi.devices.model import device  # noqa: E402
@@ -23,12 +24,6 @@ from rhi.experiments.ch6 import sysid_table_6_1  # noqa: E402
 from rhi.experiments.setups import ZeroTorque  # noqa: E402
 from rhi.metrics import effective_inertia  # noqa: E402
 from rhi.plots import perception as plots  # noqa: E402
-
-
-def _row(result, start):
-    rows = [r for t in result.tables for r in t.rows if r.quantity.startswith(start)]
-    assert rows, f"no row starting with {start!r}"
-    return rows[0]
 
 
 # ------------------------------------------------------------------------------- sysid
@@ -62,7 +57,7 @@ def test_identified_inertia_ordering(table_3_2):
 
 
 def test_table_3_2_rows_carry_thesis_values(table_3_2):
-    r = _row(table_3_2, "M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), Rehab at (0.49, -0.22)")
+    r = row(table_3_2, "M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), Rehab at (0.49, -0.22)")
     assert r.source == "table3_2.Rehab.0" and r.unit == "kg" and np.isfinite(r.ours)
 
 
@@ -70,7 +65,7 @@ def test_table_3_2_rows_carry_thesis_values(table_3_2):
                                       "whose link inertias are estimates (models/rhi4/README.md): Λ differs in value, "
                                       "the ordering RHI ≤ PHANToM < Rehab is what holds")
 def test_table_3_2_rehab_value(table_3_2):
-    r = _row(table_3_2, "M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), Rehab at (0.49, -0.22)")
+    r = row(table_3_2, "M_x identified (eq. 3.24: M_x ẍ + Φ ẋ = F), Rehab at (0.49, -0.22)")
     assert T.TABLE_3_2["Rehab"][0].within(r.ours)
 
 
@@ -82,15 +77,15 @@ def test_sysid_table_6_1(table_6_1):
     free, stiff = a["free_fit"][0], a["stiff_fit"][0]
     assert abs(free / a["free_model"][0] - 1.0) < 0.10
     assert stiff > free  # the M_Stiff^des configuration is heavier along u (Table 6.1: 0.125 vs 0.036 kg)
-    fs = _row(table_6_1, "F_max along u, M_Stiff^des (J#): rhi.metrics.max_force").ours
-    ff = _row(table_6_1, "F_max along u, M_Free^des (J#): rhi.metrics.max_force").ours
+    fs = row(table_6_1, "F_max along u, M_Stiff^des (J#): rhi.metrics.max_force").ours
+    ff = row(table_6_1, "F_max along u, M_Free^des (J#): rhi.metrics.max_force").ours
     assert fs < ff < 0  # signed like Table 6.1: larger capability for M_Stiff^des
     # the ch. 6 controller with the pseudoinverse projector J⁺: its null-space torques are not dynamically
     # consistent and add to the identified inertia (issue 13's check: 0.0555 / 0.1149 kg vs 0.0277 / 0.0488 kg
     # with J# over 10 trials)
     for case in ("free", "stiff"):
         assert a[f"{case}_pinv_fit"][0] > 1.5 * a[f"{case}_fit"][0]
-    assert _row(table_6_1, "F_max along u, M_Stiff^des (J⁺): rhi.metrics.max_force").ours < fs
+    assert row(table_6_1, "F_max along u, M_Stiff^des (J⁺): rhi.metrics.max_force").ours < fs
 
 
 def test_sysid_table_6_1_null_space_torque_leaves_the_mass_alone_unless_clipped(table_6_1):
@@ -187,8 +182,8 @@ def test_psychophysics_pipeline_end_to_end(tiny_study):
     assert a["pse"].shape == a["jnd"].shape == a["wf"].shape == (3, 2)
     assert np.all(np.isfinite(a["pse"])) and np.all(np.isfinite(a["jnd"])) and np.all(a["jnd"] > 0)
     assert np.all((a["pse"] > 30) & (a["pse"] < 70))
-    assert _row(tiny_study, "WF mean, RHI").source == "table3_3.wf.RHI.0"
-    p = _row(tiny_study, "one-way ANOVA on WF: p").ours
+    assert row(tiny_study, "WF mean, RHI").source == "table3_3.wf.RHI.0"
+    p = row(tiny_study, "one-way ANOVA on WF: p").ours
     assert 0.0 <= p <= 1.0
     import json
 
@@ -239,4 +234,4 @@ def test_figures_draw(table_3_2, table_6_1, tiny_study):
 @pytest.mark.xfail(strict=True, reason="Table 3.3 comes from 10 human subjects whose responses the thesis does not "
                                       "publish; rhi's simulated observers have their own Weber fractions")
 def test_table_3_3_wf_rhi(tiny_study):
-    assert T.TABLE_3_3["wf"]["RHI"][0].within(_row(tiny_study, "WF mean, RHI").ours)
+    assert T.TABLE_3_3["wf"]["RHI"][0].within(row(tiny_study, "WF mean, RHI").ours)
