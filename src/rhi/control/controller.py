@@ -440,7 +440,7 @@ class NullSpaceController:
                 tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, (out.F_render, out.F_extra))
                 tau = np.minimum(np.maximum(tau, self.lo), self.hi)
             else:
-                tau, alpha, beta, sat, clipped = out  # type: ignore[misc]
+                tau, alpha, beta, sat, clipped = out
                 if kernel.whole_ok:
                     pc = None  # the whole tick ran the passivity layer
         if pc is not None and _finite(tau):  # time-domain passivity around the whole torque (rhi.control.passivity)

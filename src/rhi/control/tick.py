@@ -168,11 +168,11 @@ class KernelTick:
         #: the whole tick runs in `rhi.control._compiled.whole` (see `whole`)
         self.whole_ok = not why
         if self.whole_ok:
-            law = _law_vector(compiled_law, n, m)  # type: ignore[arg-type]  # not None here
+            law = _law_vector(compiled_law, n, m)
             self._law = law
             rows = limit_rows(dev) if bars else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
             self._obj = _objectives.pack(n, m, static, bars, rows)
-            self._force = compiled_law.kind == "force"  # type: ignore[union-attr]  # reads sensors["force"]
+            self._force = compiled_law.kind == "force"  # reads sensors["force"]
             self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
             self._no_force = np.zeros(m)
             self._x, self._buf = np.empty(m), np.empty(fast.size)
