@@ -6,6 +6,7 @@ import os
 import threading
 import time
 
+import mujoco
 import numpy as np
 import pytest
 
@@ -331,6 +332,9 @@ def test_view_draws_every_bundled_device_at_its_start_pose(name):
         np.testing.assert_allclose(v.scene.handle_position()[v.rows], dev.fk(snap.q), atol=1e-9)
         assert "F_hand" in v.overlays._arrows and "lp" in v.overlays._arrows
         assert v.overlays.frc.visible  # a well-conditioned start: the force ellipsoid is defined and drawn
+        m = v.posed.model
+        solid = m.geom_type != mujoco.mjtGeom.mjGEOM_PLANE
+        assert v.scene.floor < v.posed.data.geom_xpos[solid, 2].min()  # a floor under the device
         straight = v._rest_snapshot()
         lo, hi = dev.joint_limits
         ok = np.isfinite(lo) & np.isfinite(hi)
