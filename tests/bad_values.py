@@ -42,7 +42,7 @@ def bad_vector(n: int, *, none_is_valid: bool = False):
     with_bad = st.tuples(st.lists(finite, min_size=n, max_size=n), st.integers(0, n - 1), NON_FINITE).map(
         lambda t: np.array(t[0][:t[1]] + [t[2]] + t[0][t[1] + 1:]))
     wrong = st.integers(0, 2 * n + 1).filter(lambda k: k != n).map(lambda k: np.ones(k))
-    return st.one_of(with_bad, wrong, st.text(max_size=3), st.just(np.ones((n, 2))),
+    return st.one_of(with_bad, wrong, st.text(max_size=3), st.just(np.ones((2, n + 1))),
                      *([] if none_is_valid else [st.none()]))
 
 

@@ -125,7 +125,7 @@ def _leftovers():
         ("Plant.apply", PLANT.apply, {"tau": np.zeros(4), "force": np.zeros(2)},
          {"tau": bad_vector(4), "force": bad_vector(2, none_is_valid=True)}),
         ("Plant.step", PLANT.step, {"steps": 1}, {"steps": st.one_of(st.integers(max_value=-1), NOT_A_NUMBER,
-                                                                     st.floats(0.5, 3.5))}),
+                                                                     st.floats(0.5, 3.5), st.integers(10**10))}),
         ("Plant.reset", PLANT.reset, {"q": Q4}, {"q": st.one_of(bad_vector(4), st.floats(4.0, 1e6).map(
             lambda v: Q4 + [v, 0, 0, 0]))}),
         ("Wall.force", _WALL.force, {"x": RHI4.fk(Q4), "xdot": np.zeros(2)}, {"x": bad_vector(2), "xdot": bad_vector(2)}),

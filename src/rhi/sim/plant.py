@@ -14,7 +14,7 @@ import math
 import mujoco
 import numpy as np
 
-from rhi._validate import as_array, scalar
+from rhi._validate import MAX_DURATION, as_array, scalar
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput, ModelError
 from rhi.sim.mjcf import PlantFriction, plant_spec
@@ -253,6 +253,9 @@ class Plant:
         """
         if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
             raise InvalidInput(f"steps: expected an integer >= 0, got {steps!r:.60}")
+        if steps * self.model.opt.timestep > MAX_DURATION:
+            raise InvalidInput(f"steps: {steps} steps of {self.model.opt.timestep:g} s exceed {MAX_DURATION:g} s "
+                               "(rhi._validate.MAX_DURATION)")
         m, d, wn = self.model, self.data, self._wnum
         i, j, k = self._bad
         for _ in range(steps):
