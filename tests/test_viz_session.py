@@ -121,7 +121,8 @@ def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
     view = views[0]
     b = browser.Browser(view.url)
     try:
-        assert b.wait_for("document.body.innerText.includes('live')", timeout=120)
+        # the first start may compile the kernels (a cold cache: about 2 min, more on a loaded machine)
+        assert b.wait_for("document.getElementById('rhi-status')?.innerText === 'live'", timeout=400), lines
         # the kick: the gizmo dragged 10 cm away at once; the hand pulls the handle faster than 0.05 m/s
         goal = dev.fk(q0) + np.array([0.1, -0.05])
         msg = _messages.TransformControlsUpdateMessage(name="/hand", wxyz=(1.0, 0.0, 0.0, 0.0),
@@ -281,7 +282,7 @@ def test_live_view_plots_over_time_and_records_a_video(tmp_path):
     need_browser()
     import imageio_ffmpeg
 
-    from rhi.sim import simulate
+    from rhi.runtime import SafetyConfig, SimLink, run
     from rhi.viz.live import demo_setup
     from rhi.viz.remote import RemoteView
 
@@ -298,15 +299,20 @@ def test_live_view_plots_over_time_and_records_a_video(tmp_path):
         click = "[...document.querySelectorAll('button')].find(e => e.innerText.includes('{}')).click()"
         b.evaluate(click.format("record a video"))
         assert b.wait_for("document.getElementById('rhi-record').innerText.startsWith('recording')", timeout=60)
-        simulate(plant, ctrl, duration=2.0, virtual=wall, telemetry=view.telemetry)
+        # 2 s on the wall clock (simulate, as fast as it goes, can end before the view has drawn the few frames that
+        # redraw the charts), limits loose enough for a loaded machine
+        res = run(SimLink(plant), ctrl, duration=2.0, virtual=wall, telemetry=view.telemetry,
+                  safety=SafetyConfig(range_margin=0.3, silence=5.0, stale_ticks=10**6))
+        assert res.fault is None, res.fault
         # the three charts draw the run's series: their canvases gain ink
-        assert b.wait_for(f"{ink}.every((n, i) => n > {before}[i] + 500)", timeout=30), (before, b.evaluate(ink))
+        assert b.wait_for(f"{ink}.every((n, i) => n > {before}[i] + 500)", timeout=60), (before, b.evaluate(ink))
         b.evaluate(click.format("stop and save"))
         assert b.wait_for("document.getElementById('rhi-record').innerText.startsWith('saved')", timeout=60)
         videos = list(tmp_path.glob("view-*.mp4"))
         assert len(videos) == 1
         frames, _ = imageio_ffmpeg.count_frames_and_secs(str(videos[0]))
-        assert frames >= 2.0 * 30 * 0.8  # the 2 s run (frames drawn at the view's rate, written at 30 fps)
+        span = float(res.log.t[-1] - res.log.t[0])  # the run's device time (< 2 s where a loaded machine skips slots)
+        assert frames >= span * 30 * 0.8, (frames, span)  # the run (frames drawn at the view's rate, written at 30 fps)
     finally:
         b.close()
         view.close()
