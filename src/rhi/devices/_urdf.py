@@ -38,11 +38,11 @@ def description_roots() -> list[Path]:
 
 
 def find_package(pkg: str, near: Path | None, package_dirs: Sequence[str | Path] = ()) -> Path | None:
-    """The folder of ROS package `pkg`: in `package_dirs`, ROS_PACKAGE_PATH, above `near`, or installed."""
+    """The folder of ROS package `pkg`: in `package_dirs`, ROS_PACKAGE_PATH, in or above `near`, or installed."""
     roots = [Path(p) for p in package_dirs]
     roots += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
     if near is not None:
-        roots += list(near.resolve().parents)[:6]
+        roots += [near.resolve(), *list(near.resolve().parents)[:6]]  # Pinocchio searches `near` too
     roots += description_roots()
     for root in roots:
         if root.name == pkg and root.is_dir():
