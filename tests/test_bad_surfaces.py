@@ -171,8 +171,8 @@ def test_teleoperation_design_and_sweep_leftovers(tmp_path):
 
 
 # ------------------------------------------------------------------ the experiments (rhi.experiments.arguments)
-def _bad_for(default, optional: bool):
-    """Invalid values for a parameter whose default is `default` (None passing when `optional`)."""
+def _bad_for(default, optional: bool, zero: bool = False):
+    """Invalid values for a parameter whose default is `default` (None passing when `optional`, 0 when `zero`)."""
     none = [] if optional else [st.none()]
     if isinstance(default, bool):
         return st.one_of(st.integers(), st.text(max_size=3), *none)
@@ -183,8 +183,8 @@ def _bad_for(default, optional: bool):
     if isinstance(default, float):
         parts = [NON_FINITE, st.text(max_size=3), st.booleans(), *none]
         if default > 0:
-            parts += [st.floats(max_value=0.0, min_value=-1e300), st.floats(min_value=100 * default, exclude_min=True,
-                                                                            max_value=1e300)]
+            parts += [st.floats(max_value=0.0, exclude_max=zero, min_value=-1e300),
+                      st.floats(min_value=100 * default, exclude_min=True, max_value=1e300)]
         elif default == 0:
             parts.append(st.floats(max_value=0.0, exclude_max=True, min_value=-1e300))
         return st.one_of(*parts)
@@ -209,7 +209,8 @@ def _experiment_arguments():
         for fn in (step.run, step.plan):
             params = inspect.signature(fn).parameters.values() if fn is not None else ()
             bad = {p.name: b for p in params if p.default is not p.empty and p.default is not None
-                   and (b := _bad_for(p.default, "None" in str(p.annotation))) is not None}
+                   and (b := _bad_for(p.default, "None" in str(p.annotation),
+                                      p.name in getattr(fn, "skip_at_zero", ()))) is not None}
             bad.update({"progress": st.one_of(st.text(max_size=2), st.integers())} if "progress" in
                        {p.name for p in params} else {})
             if bad:

@@ -220,7 +220,7 @@ def _dm_phase(ctl: WeightedDistributionController, q0: np.ndarray, t_cart: float
     }
 
 
-@checked
+@checked(skip_at_zero=("t_long",))
 def dm_enhancement(
     dt: float = 0.01,
     t_cartesian: float = 5.0,
@@ -244,7 +244,7 @@ def dm_enhancement(
     return run_plan(dm_enhancement_plan(dt, t_cartesian, t_null, t_long), progress)
 
 
-@checked
+@checked(skip_at_zero=("t_long",))
 def dm_enhancement_plan(dt: float = 0.01, t_cartesian: float = 5.0, t_null: float = 15.0,
                         t_long: float = 100.0) -> Plan:
     """`dm_enhancement` as independent parts, one per run (arguments as `dm_enhancement`)."""

@@ -7,7 +7,8 @@ the same kind and plausible:
 - an int default takes an integer (not a bool): >= 1 when the default is >= 1, else >= 0 (seeds), and at most
   `MAX_FACTOR` times a positive default (sizes, counts, resolutions);
 - a float default takes a finite real number: > 0 when the default is > 0 (durations, gains, stiffnesses), >= 0
-  when it is 0, and at most `MAX_FACTOR` times a positive default;
+  when it is 0 or the parameter is named in ``checked(skip_at_zero=...)`` (0 documented as "skip this part"),
+  and at most `MAX_FACTOR` times a positive default;
 - a str default takes a str (each experiment checks its own choices);
 - a tuple default takes a sequence whose entries are of the kind of the default's first entry (finite numbers,
   strings or sequences);
@@ -43,10 +44,12 @@ def _is_real(v) -> bool:
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
-def _number(name: str, v, default: float, integer: bool) -> None:
+def _number(name: str, v, default: float, integer: bool, zero: bool) -> None:
     kind = "an integer" if integer else "a finite real number"
     if not (_is_int(v) if integer else _is_real(v)) or not math.isfinite(float(v)):
         raise InvalidInput(f"{name}: expected {kind}, got {v!r:.60}")
+    if default > 0 and zero and v == 0:
+        return
     if default > 0:
         low = 1 if integer else 0.0
         if not (v >= low if integer else v > low) or v > MAX_FACTOR * default:
@@ -75,15 +78,15 @@ def _entry_rule(first) -> Callable[[str, Any], None] | None:
     return None
 
 
-def _rule(name: str, default, optional: bool) -> Callable[[Any], None] | None:
-    """The check of parameter `name` from its default, None passing when `optional` (None: no check here)."""
-    rule = _value_rule(name, default)
+def _rule(name: str, default, optional: bool, zero: bool) -> Callable[[Any], None] | None:
+    """The check of parameter `name` from its default, None passing when `optional`, 0 when `zero` (None: no check)."""
+    rule = _value_rule(name, default, zero)
     if rule is None or not optional:
         return rule
     return lambda v: None if v is None else rule(v)
 
 
-def _value_rule(name: str, default) -> Callable[[Any], None] | None:
+def _value_rule(name: str, default, zero: bool) -> Callable[[Any], None] | None:
     if name == "progress":
         def progress(v) -> None:
             if v is not None and not callable(v):
@@ -95,7 +98,7 @@ def _value_rule(name: str, default) -> Callable[[Any], None] | None:
                 raise InvalidInput(f"{name}: expected True or False, got {v!r:.60}")
         return boolean
     if _is_int(default) or isinstance(default, float):
-        return lambda v: _number(name, v, float(default), _is_int(default))
+        return lambda v: _number(name, v, float(default), _is_int(default), zero)
     if isinstance(default, str):
         def text(v) -> None:
             if not isinstance(v, str):
@@ -114,14 +117,17 @@ def _value_rule(name: str, default) -> Callable[[Any], None] | None:
     return None
 
 
-def checked(fn: F) -> F:
+def checked(fn: F | None = None, *, skip_at_zero: tuple[str, ...] = ()) -> Any:
     """`fn` with its arguments checked first by the rules of this module's docstring.
 
-    The wrapper also has ``check(*args, **kwargs)``: the same checks without running `fn`.
+    Used as ``@checked`` or ``@checked(skip_at_zero=("t_long",))`` (those parameters also take 0). The wrapper also
+    has ``check(*args, **kwargs)``: the same checks without running `fn`.
     """
+    if fn is None:
+        return functools.partial(checked, skip_at_zero=skip_at_zero)
     sig = inspect.signature(fn)
     rules = {p.name: r for p in sig.parameters.values() if p.default is not p.empty
-             and (r := _rule(p.name, p.default, "None" in str(p.annotation))) is not None}
+             and (r := _rule(p.name, p.default, "None" in str(p.annotation), p.name in skip_at_zero)) is not None}
 
     def check(*args, **kwargs) -> None:
         try:
@@ -138,7 +144,8 @@ def checked(fn: F) -> F:
         return fn(*args, **kwargs)
 
     wrapper.check = check  # type: ignore[attr-defined]
-    return wrapper  # type: ignore[return-value]
+    wrapper.skip_at_zero = skip_at_zero  # type: ignore[attr-defined]
+    return wrapper
 
 
 __all__ = ["MAX_FACTOR", "checked"]
