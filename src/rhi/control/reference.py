@@ -20,7 +20,7 @@ import numpy as np
 
 from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import null_basis, tertiary
-from rhi.control.tank import tank_blend
+from rhi.control.tank import hold_work, largest_scale, tank_blend
 from rhi.control.transition import aso_volume
 from rhi.devices.model import DeviceTerms
 from rhi.errors import InvalidInput, Singular
@@ -173,7 +173,7 @@ def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau
     if cfg.control and dt > 0.0 and math.isfinite(dt):
         Minv = kin.Minv if motors else kin.JMinv.dot(kin.J.T)
         e0 = effort(tau0)
-        w0 = _work(e0, v, Minv, dt)
+        w0 = hold_work(e0, v, Minv, dt)
         if w0 > E:  # 2. the coming interval would leave E_obs < 0
             Mv = kin.M.dot(v) if motors else kin.Lambda.dot(v)
             ke2 = float(v.dot(Mv))  # 2 × the kinetic energy of the port's motion [J]
@@ -183,40 +183,18 @@ def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau
                 s.alpha = min((w0 - E) / (dt * ke2), a_max)
                 tau_d = -s.alpha * Mv if motors else kin.J.T.dot(-s.alpha * Mv)
                 tau_d = np.minimum(np.maximum(tau_d, lo), hi)
-                s.dissipated -= _work(effort(tau_d), v, Minv, dt)
+                s.dissipated -= hold_work(effort(tau_d), v, Minv, dt)
             if cfg.method == "damper":  # the law untouched
                 tau = tau0 + tau_d
             elif motors:  # 4. the null-space part of the law's torque yields first, then the task part
                 tau_t = kin.J.T.dot(kin.Jsharp.T.dot(tau0))
-                lam_n = _largest_scale(E, tau_t + tau_d, tau0 - tau_t, v, Minv, dt)
-                lam_t = 1.0 if lam_n > 0.0 else _largest_scale(E, tau_d, tau_t, v, Minv, dt)
+                lam_n = largest_scale(E, tau_t + tau_d, tau0 - tau_t, v, Minv, dt)
+                lam_t = 1.0 if lam_n > 0.0 else largest_scale(E, tau_d, tau_t, v, Minv, dt)
                 tau = lam_t * tau_t + lam_n * (tau0 - tau_t) + tau_d
                 s.scale = lam_t
             else:
-                s.scale = _largest_scale(E, effort(tau_d), e0, v, Minv, dt)
+                s.scale = largest_scale(E, effort(tau_d), e0, v, Minv, dt)
                 tau = s.scale * tau0 + tau_d
             tau = np.minimum(np.maximum(tau, lo), hi)
     s.t, s.position, s.effort = t, np.array(pos, dtype=float), effort(tau)
     return tau
-
-
-def _work(e: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
-    """w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e: work [J] of the effort e held for ΔT on a free port moving at v."""
-    return dt * float(e.dot(v)) + 0.5 * dt * dt * float(e.dot(Minv.dot(e)))
-
-
-def _largest_scale(E: float, base: np.ndarray, part: np.ndarray, v: np.ndarray, Minv: np.ndarray,
-                   dt: float) -> float:
-    """The largest λ ∈ [0, 1] with w(base + λ part) ≤ E (0 when even λ = 0 exceeds E).
-
-    w(base + λ part) = A λ² + B λ + C is convex in λ, so the bound is its larger root.
-    """
-    A = 0.5 * dt * dt * float(part.dot(Minv.dot(part)))
-    B = dt * float(part.dot(v)) + dt * dt * float(part.dot(Minv.dot(base)))
-    C = _work(base, v, Minv, dt) - E
-    if A + B + C <= 0.0:
-        return 1.0
-    if C >= 0.0:
-        return 0.0
-    lam = (-B + math.sqrt(max(B * B - 4.0 * A * C, 0.0))) / (2.0 * A) if A > 0.0 else -C / B
-    return min(max(lam, 0.0), 1.0)

@@ -106,8 +106,8 @@ class TankState:
     effort: np.ndarray | None = None
 
 
-def _work(e: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
-    """w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e [J]."""
+def hold_work(e: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
+    """w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e: work [J] of the effort e held for ΔT on a free port moving at v."""
     return dt * float(e.dot(v)) + 0.5 * dt * dt * float(e.dot(Minv.dot(e)))
 
 
@@ -118,7 +118,7 @@ def largest_scale(E: float, base: np.ndarray, part: np.ndarray, v: np.ndarray, M
     """
     A = 0.5 * dt * dt * float(part.dot(Minv.dot(part)))
     B = dt * float(part.dot(v)) + dt * dt * float(part.dot(Minv.dot(base)))
-    C = _work(base, v, Minv, dt) - E
+    C = hold_work(base, v, Minv, dt) - E
     if A + B + C <= 0.0:
         return 1.0
     if C >= 0.0:
@@ -159,7 +159,7 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
     lam, s.damping = 0.0, 0.0
     tau = tau0
     if dt > 0.0 and math.isfinite(dt):
-        deficit = _work(null(tau0) - g_null, dq, Minv, dt) - s.energy
+        deficit = hold_work(null(tau0) - g_null, dq, Minv, dt) - s.energy
         p = float(dq.dot(d))  # |P_c Zᵀ q̇|² ≥ 0: the damper −μ d dissipates μ p
         if deficit > 0.0 and p > 0.0:  # 2. the null-space damper on the deficit, in the box room left
             s.damping = min(deficit / (dt * p), 0.5 / (dt * float(np.trace(Minv))))
@@ -175,4 +175,4 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
     return tau
 
 
-__all__ = ["NullSpaceTank", "TankState", "largest_scale", "tank_blend"]
+__all__ = ["NullSpaceTank", "TankState", "hold_work", "largest_scale", "tank_blend"]
