@@ -144,13 +144,23 @@ def mouse(b: browser.Browser, kind: str, xy: tuple[float, float]) -> None:
 
 
 def follow_path(b: browser.Browser, study: Study, path: np.ndarray) -> None:
-    """Drag the pointer along the path; at each waypoint wait until the slave is there (the machine may be busy)."""
+    """Drag the pointer along the path; at each waypoint wait until the slave is there (the machine may be busy).
+
+    A hand that has not got there within 5 s moves the pointer again by half a pixel (a person's hand is never
+    still), so one mouse event the browser coalesced or dropped under load does not end the test; the failure
+    message shows where the mouse-hand pulls (`hand`, master frame) beside the slave.
+    """
     pts = waypoints(path)
     mouse(b, "mousePressed", pixel(b, path, pts[0]))
     for p in pts:
-        mouse(b, "mouseMoved", pixel(b, path, p))
-        wait(lambda p=p: np.linalg.norm(np.array(study.view()["state"].get("slave_x", [9, 9])) - p) < 0.004, 120,
-             lambda p=p: (p, study.view()["state"]))
+        deadline, k = time.monotonic() + 120, 0
+        while np.linalg.norm(np.array(study.view()["state"].get("slave_x", [9, 9])) - p) >= 0.004:
+            assert time.monotonic() < deadline, f"timed out: {(p, study.view()['state'])}"
+            if k % 100 == 0:
+                u, v = pixel(b, path, p)
+                mouse(b, "mouseMoved", (u + 0.5 * (k // 100 % 2), v))
+            k += 1
+            time.sleep(0.05)
     mouse(b, "mouseReleased", pixel(b, path, pts[-1]))
 
 

@@ -220,7 +220,11 @@ class Haptics:
             self.status = {**self.status, "fault": self.last["fault"]}
 
     def state(self) -> dict[str, Any]:
-        """The newest tick of the probe in progress: x [m], F_env [N], τ [N m], the slave's slave_x [m] if any."""
+        """The newest tick of the probe in progress.
+
+        Keys: x [m], F_env [N], τ [N m], the slave's slave_x [m] if any, and in a mouse dry run hand [m], the point
+        the mouse-hand pulls the handle to.
+        """
         snap = None if self.telemetry is None or not self.running else self.telemetry.latest()
         if snap is None:
             return {}
@@ -228,6 +232,9 @@ class Haptics:
                "tau": np.asarray(snap.tau).tolist(), "safety": snap.safety}
         if hasattr(snap, "slave_x"):
             out["slave_x"] = np.asarray(snap.slave_x).tolist()
+        target = getattr(self._hand, "target", None) if self.mouse else None
+        if target is not None:
+            out["hand"] = np.asarray(target).tolist()
         return out
 
     def stop(self) -> dict[str, Any] | None:
