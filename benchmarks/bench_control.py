@@ -55,8 +55,8 @@ def make(dev: rhi.Device, saturation: str = "ascm", implementation: str = "fast"
     cfg = ControllerConfig(
         ForceRendering(damping=0.01, passivity=None),  # the thesis's law (the passivity layer integrates energy,
         # which carries rounding differences between the two paths beyond 1e-10 N m over hundreds of ticks)
-        objectives=(ObjectiveTerm(VMEMatching(tuple(u), 0.01), 0.5),),
-        fme=FMESchedule(desired_fme_free(u, K, z), desired_fme_stiff(u, K, z), gain=20.0),
+        objectives=(ObjectiveTerm(VMEMatching(tuple(u), 0.01), 0.5),
+                    ObjectiveTerm(FMESchedule(desired_fme_free(u, K, z), desired_fme_stiff(u, K, z)), 20.0)),
         damping=0.1,
         saturation=saturation,
         implementation=implementation,

@@ -73,8 +73,8 @@ def controller(dev: rhi.Device) -> NullSpaceController:
     K, z = fme_shape(dev.jacobian(np.zeros(dev.n)), dev.torque_max, 5.0)
     cfg = ControllerConfig(
         ForceRendering(damping=0.01),
-        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0), 0.01), 0.5),),
-        fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z), gain=20.0),
+        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0), 0.01), 0.5),
+                    ObjectiveTerm(FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)), 20.0)),
         damping=0.1,
         saturation="ascm",
     )

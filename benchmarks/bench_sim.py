@@ -91,6 +91,7 @@ def full_controller():
         FMESchedule,
         ForceRendering,
         NullSpaceController,
+        ObjectiveTerm,
         desired_fme_free,
         desired_fme_stiff,
         fme_shape,
@@ -99,7 +100,8 @@ def full_controller():
     dev = rhi.device("rhi4")
     K, z = fme_shape(dev.jacobian(np.zeros(4)), dev.torque_max, 5.0)
     cfg = ControllerConfig(ForceRendering(damping=0.01),
-                           fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)),
+                           objectives=(ObjectiveTerm(FMESchedule(desired_fme_free([0, 1], K, z),
+                                                                 desired_fme_stiff([0, 1], K, z)), 20.0),),
                            saturation="ascm")
     return NullSpaceController(dev, cfg)
 

@@ -81,11 +81,11 @@ def one(mode: str, duration: float, pin: bool = False, priority: int | None = No
         from rhi.viz.view import View
 
         tel = Telemetry()
-        view = View(dev, tel, virtual=wall, fme=ctrl.config.fme, q0=plant.q, port=0).start()  # the loop's process
+        view = View(dev, tel, virtual=wall, fme=ctrl.schedule[1], q0=plant.q, port=0).start()  # the loop's process
     elif mode == "process":
         from rhi.viz.remote import RemoteView
 
-        view = RemoteView(dev, virtual=wall, fme=ctrl.config.fme, q0=plant.q, port=0, cpus=others)
+        view = RemoteView(dev, virtual=wall, fme=ctrl.schedule[1], q0=plant.q, port=0, cpus=others)
         tel = view.telemetry
     if view is not None:
         client = FrameCounter(view.port, others)

@@ -368,8 +368,8 @@ def _controller(dev, **kw):
     K, z = fme_shape(dev.jacobian(np.array([0.3, 0.5, 0.2, 0.4])[: dev.n]), dev.torque_max)
     cfg = dict(
         primary=ForceRendering(damping=0.01, passivity=None),  # the thesis law (no PC)
-        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.5),),
-        fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z), gain=20.0),
+        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.5),
+                    ObjectiveTerm(FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)), 20.0)),
         damping=0.1,
     )
     cfg.update(kw)
@@ -519,7 +519,7 @@ def test_controller_switches_fme_under_load(rhi4):
     The desired FME changes by at most π dt / (2ρ) per tick (eqs. 6.16–6.19).
     """
     c = _controller(rhi4)
-    fme = c.config.fme
+    fme = c.schedule[1]
     q = np.array([0.3, 0.5, 0.2, 0.4])
     dt = 1e-3
     oms, Ms = [], []
@@ -762,8 +762,8 @@ def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
                ImpedanceControl(damping=0.5, inertia=np.diag([0.2, 0.3]), friction=friction))
     kw = dict(
         primary=primary,
-        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.5), ObjectiveTerm(Manipulability(log=True), 0.05)),
-        fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z), gain=20.0),
+        objectives=(ObjectiveTerm(VMEMatching((0.0, 1.0)), 0.5), ObjectiveTerm(Manipulability(log=True), 0.05),
+                    ObjectiveTerm(FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)), 20.0)),
         saturation=saturation, projector=projector,
     )
     fast = NullSpaceController(dev, ControllerConfig(**kw))

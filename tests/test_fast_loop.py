@@ -20,6 +20,7 @@ from rhi.control import (
     FMESchedule,
     ForceRendering,
     NullSpaceController,
+    ObjectiveTerm,
     SpringPalpation,
     desired_fme_free,
     desired_fme_stiff,
@@ -53,7 +54,8 @@ def palpation(dev, passivity=True):
     K, z = fme_shape(dev.jacobian(np.zeros(4)), dev.torque_max, 5.0)
     law = ForceRendering(damping=0.01) if passivity else ForceRendering(damping=0.01, passivity=None)
     return NullSpaceController(dev, ControllerConfig(
-        law, fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)), saturation="ascm"))
+        law, objectives=(ObjectiveTerm(FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)),
+                                       20.0),), saturation="ascm"))
 
 
 def run(dev, make_controller, *, python: bool, duration: float = 0.4, hand="push", physical=None, virtual=True,

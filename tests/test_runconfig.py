@@ -70,7 +70,7 @@ def _experiment_controller(name: str):
         dev = rhi.device("rhi4")
         _, _, Mf, Ms = ch6.desired_fmes(dev, np.array(ch6.U), ch6.Q_HOME)
         tc = TransitionConfig(eps1=ch6.EPS1, eps2=ch6.EPS2, rho=ch6.RHO, S=ch6.ASO_S)
-        return ch6.palpation_controller(dev, None, FMESchedule(Mf, Ms, gain=ch6.BETA, transition=tc))
+        return ch6.palpation_controller(dev, None, FMESchedule(Mf, Ms, transition=tc))
     if name == "ch7_full":
         return _bench_module().controller(rhi.device("rhi4"))  # the runtime benchmark's full ch7 stack
     from rhi.experiments.ch7 import contact

@@ -21,6 +21,7 @@ from rhi.control import (
     FMESchedule,
     ForceRendering,
     NullSpaceController,
+    ObjectiveTerm,
     desired_fme_free,
     desired_fme_stiff,
     fme_shape,
@@ -38,7 +39,8 @@ def scenario(duration: float = 0.9):
     dev = rhi.device("rhi4")
     K, z = fme_shape(dev.jacobian(np.zeros(4)), dev.torque_max, 5.0)
     cfg = ControllerConfig(ForceRendering(damping=0.01, passivity=None),
-                           fme=FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)),
+                           objectives=(ObjectiveTerm(FMESchedule(desired_fme_free([0, 1], K, z),
+                                                                 desired_fme_stiff([0, 1], K, z)), 20.0),),
                            saturation="ascm")
     plant = Plant(dev)
     plant.reset(Q0)

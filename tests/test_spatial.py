@@ -125,8 +125,8 @@ def test_controller_invariants_3d(spatial, saturation):
     u = np.array([0.0, 0.0, -1.0])
     cfg = ControllerConfig(
         primary=ForceRendering(damping=0.5),
-        objectives=(ObjectiveTerm(VMEMatching((0.3, 0.5, 0.8), 0.01), 0.05),),
-        fme=FMESchedule(desired_fme_free(u, K, zeta), desired_fme_stiff(u, K, zeta), gain=0.5),
+        objectives=(ObjectiveTerm(VMEMatching((0.3, 0.5, 0.8), 0.01), 0.05),
+                    ObjectiveTerm(FMESchedule(desired_fme_free(u, K, zeta), desired_fme_stiff(u, K, zeta)), 0.5)),
         damping=0.1, saturation=saturation, projector="dynamic")
     ctrl = NullSpaceController(spatial, cfg)
     Q = random_q(spatial, rng, CASES)
@@ -161,8 +161,9 @@ def test_fast_equals_reference_3d(spatial):
     rng = np.random.default_rng(6)
     u = np.array([0.0, 1.0, 0.0])
     base = dict(primary=ForceRendering(damping=0.5),
-                objectives=(ObjectiveTerm(VMEMatching(tuple(u), 0.01), 0.1),),
-                fme=FMESchedule(desired_fme_free(u, 100.0, 3.0), desired_fme_stiff(u, 100.0, 3.0), gain=0.5),
+                objectives=(ObjectiveTerm(VMEMatching(tuple(u), 0.01), 0.1),
+                            ObjectiveTerm(FMESchedule(desired_fme_free(u, 100.0, 3.0), desired_fme_stiff(u, 100.0, 3.0)),
+                                          0.5)),
                 saturation="ascm")
     fast = NullSpaceController(spatial, ControllerConfig(**base))
     ref = NullSpaceController(spatial, ControllerConfig(**base, implementation="reference"))

@@ -125,7 +125,7 @@ def test_transition_differs_from_the_literal_eq_6_17_when_V_recovers_midway(fmes
 def test_fme_schedule_tick_uses_the_blended_desired_fme(rhi4, fmes):
     """Ω M_Free + (1 − Ω) M_Stiff (eq. 6.16) reaches the controller's FME term."""
     _, _, Mf, Ms = fmes
-    sched = FMESchedule(Mf, Ms, gain=20.0, transition=TransitionConfig(eps1=EPS1, eps2=EPS2, rho=RHO))
+    sched = FMESchedule(Mf, Ms, transition=TransitionConfig(eps1=EPS1, eps2=EPS2, rho=RHO))
     q = np.array([0.3, 0.5, 0.4, 0.6])
     for om in (1.0, 0.25, 0.0):
         g = sched.objective(om, rhi4.torque_max).gradient(rhi4, q)

@@ -67,8 +67,8 @@ def _config(dev, kind: str, saturation: str = "ascm", projector: str = "dynamic"
     u[1] = 1.0
     K, z = fme_shape(dev.jacobian(np.full(dev.n, 0.3)), dev.torque_max)
     free, stiff = desired_fme_free(u, K, z), desired_fme_stiff(u, K, z)
-    return dict(primary=_law(kind, dev.m), objectives=_objectives(dev, objectives, free, stiff),
-                fme=None if objectives == "static" else FMESchedule(free, stiff, gain=20.0),
+    schedule = () if objectives == "static" else (ObjectiveTerm(FMESchedule(free, stiff), 20.0),)
+    return dict(primary=_law(kind, dev.m), objectives=_objectives(dev, objectives, free, stiff) + schedule,
                 saturation=saturation, projector=projector, **kw)
 
 
@@ -257,7 +257,7 @@ def test_whole_tick_runs_the_experiments_controllers(rhi4, monkeypatch):
 
     monkeypatch.setattr(whole, "whole", counting)
     _, _, Mf, Ms = ch6.desired_fmes(rhi4, np.array(ch6.U), ch6.Q_HOME)
-    schedule = FMESchedule(Mf, Ms, gain=ch6.BETA)
+    schedule = FMESchedule(Mf, Ms)
     q = np.array([0.3, 0.5, 0.2, 0.4])
     for k, ctrl in enumerate((ch6.palpation_controller(rhi4, Ms), ch6.palpation_controller(rhi4, None, schedule),
                               passivity.controller(rhi4, objectives=True, port="motors"))):

@@ -17,7 +17,6 @@ from rhi.control.barrier import JointLimitBarrier
 from rhi.control.controller import (
     ControllerConfig,
     ControllerState,
-    FMESchedule,
     NullSpaceController,
     output_force,
 )
@@ -51,6 +50,7 @@ from rhi.control.saturation import (
     tertiary,
     tertiary_projector,
 )
+from rhi.control.schedule import FMESchedule, ScheduledObjective
 from rhi.control.tank import NullSpaceTank, TankState
 from rhi.control.transition import (
     TransitionConfig,
@@ -82,6 +82,7 @@ __all__ = [
     "PassivityController",
     "PassivityState",
     "PrimaryLaw",
+    "ScheduledObjective",
     "SpringPalpation",
     "TMIMatching",
     "TankState",

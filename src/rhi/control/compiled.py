@@ -65,15 +65,22 @@ class CompiledObjective:
     Attributes:
         kind: "vme" (JBLD matching of J Jᵀ to `desired`, eqs. 3.22–3.23; both compiled routes), "fme"
             (JBLD matching of the torque-weighted FME to a fixed `desired`, eqs. 6.9–6.10, with weights
-            `w2`; the whole tick) or "barrier" (`rhi.control.JointLimitBarrier` with `barrier`; the whole tick).
-        desired: (m, m) SPD desired ellipsoid ("vme", "fme").
+            `w2`; the whole tick), "fme_schedule" (a scheduled objective, `rhi.control.schedule`: FME matching
+            to Ω `desired` + (1 − Ω) `stiff` with the controller's torque weights, Ω from the ASO by `schedule`,
+            eqs. 6.14–6.19; both compiled routes) or "barrier" (`rhi.control.JointLimitBarrier` with `barrier`;
+            the whole tick).
+        desired: (m, m) SPD desired ellipsoid ("vme", "fme"; M_Free^des of "fme_schedule").
         w2: (n,) torque weights 1/T_i² [1/(N m)²] ("fme").
+        stiff: (m, m) SPD M_Stiff^des ("fme_schedule").
+        schedule: (‖M_Free − M_Stiff‖_F, ε₁, ε₂, ρ [s]) of the transition ("fme_schedule", eqs. 6.15–6.19).
         barrier: (shape "quadratic" | "inverse", margin δ [rad], weight w) ("barrier").
     """
 
-    kind: Literal["vme", "fme", "barrier"]
+    kind: Literal["vme", "fme", "fme_schedule", "barrier"]
     desired: np.ndarray | None = None
     w2: np.ndarray | None = None
+    stiff: np.ndarray | None = None
+    schedule: tuple[float, float, float, float] | None = None
     barrier: tuple[str, float, float] | None = None
 
 

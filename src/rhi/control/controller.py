@@ -7,9 +7,9 @@ One tick (`NullSpaceController.step`) computes, from the joint sensors and the s
 2. the primary task-space force (F_render, F_extra) and τ_m = Jᵀ(F_render + F_extra)
    (eqs. 5.4–5.7, 6.5, 7.2–7.4), plus the null-space part (I − JᵀJ#ᵀ) g of the gravity
    torque (the task-space part G_x is the primary law's);
-3. the actuator saturation observer V of τ_m (eq. 6.14) and, when a desired-FME schedule
-   is configured, the hysteresis and cosine transition Ω (eqs. 6.15–6.19) giving
-   M_des = Ω M_Free + (1 − Ω) M_Stiff for the FME-matching objective (eq. 6.10);
+3. the actuator saturation observer V of τ_m (eq. 6.14) and, with a scheduled objective
+   (`rhi.control.schedule`, e.g. `FMESchedule`), its transition Ω (eqs. 6.15–6.19) and the objective
+   it gives for Ω (M_des = Ω M_Free + (1 − Ω) M_Stiff for FME matching, eqs. 6.10, 6.16);
 4. the allocation of τ_m within the torque box by the configured strategy (`rhi.control.allocation`:
    none / simple scaling / ASCM (Algorithm 1) / LP optimum / active set), with force scaling α (eq. 7.9);
 5. the safety torque τ_s = −k_D q̇ − Σ w ∂ν_lim/∂q (null-space damping and every
@@ -53,18 +53,18 @@ import numpy as np
 from rhi._validate import as_array, scalar
 from rhi.control.allocation import Allocation, AllocationMethod, Saturation, allocation_method
 from rhi.control.compiled import Route, warn_route
-from rhi.control.objectives import FMEMatching, Objective, ObjectiveTerm
+from rhi.control.objectives import Objective, ObjectiveTerm
 from rhi.control.passivity import PassivityController, PassivityState
 from rhi.control.primary import PrimaryLaw
 from rhi.control.reference import reference_terms, reference_tick
 from rhi.control.saturation import check_torque_limits
+from rhi.control.schedule import ScheduledObjective, scheduled_term
 from rhi.control.tank import NullSpaceTank, TankState
-from rhi.control.tick import Fallback, KernelTick
-from rhi.control.transition import TransitionConfig, TransitionState, transition_step
+from rhi.control.tick import Fallback, KernelTick, compiled_form
+from rhi.control.transition import TransitionState
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput, RhiError, Singular
 from rhi.metrics import dynamic_pinv, weighted_pinv
-from rhi.metrics.spd import spd_matrix
 
 
 def _reading(name: str, v) -> np.ndarray:
@@ -86,78 +86,14 @@ DEVICE_SENSOR_WIDTHS = {"ft": 6}
 """Widths of the device sensors a primary law may read (docs/protocol.md, INFO)."""
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
-class FMESchedule:
-    """Desired-FME matching switched by the ASO between M_Free^des and M_Stiff^des (thesis §6.3).
-
-    A schedule of objectives: each tick the controller advances it with the ASO volume V
-    (`advance`, eqs. 6.15–6.19) and adds ``gain ×`` the FME-matching objective it gives for that
-    tick's activation Ω (`objective`, eqs. 6.10, 6.16) to the other objective terms. The compiled
-    tick (`rhi.control._compiled.step`) runs the same two steps inside the kernel.
-
-    Attributes:
-        free: (m, m) SPD M_Free^des (eq. 6.12).
-        stiff: (m, m) SPD M_Stiff^des (eq. 6.13).
-        gain: gradient step β of eq. 6.6 (thesis: 20).
-        transition: thresholds ε₁, ε₂, ρ and ASO shape S.
-    """
-
-    free: np.ndarray
-    stiff: np.ndarray
-    gain: float = 20.0
-    transition: TransitionConfig = dataclasses.field(default_factory=TransitionConfig)
-    _distance: float = dataclasses.field(init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        free = spd_matrix("free", self.free)
-        stiff = spd_matrix("stiff", self.stiff)
-        if free.shape != stiff.shape:
-            raise InvalidInput(f"free/stiff: shapes differ, {free.shape} vs {stiff.shape}")
-        object.__setattr__(self, "gain", scalar("gain", self.gain, nonnegative=True))
-        object.__setattr__(self, "free", free)
-        object.__setattr__(self, "stiff", stiff)
-        object.__setattr__(self, "_distance", float(np.linalg.norm(free - stiff)))
-
-    @property
-    def distance(self) -> float:
-        """‖M_Free − M_Stiff‖_F (eq. 6.19)."""
-        return self._distance
-
-    def desired(self, omega: float) -> np.ndarray:
-        """Ω M_Free + (1 − Ω) M_Stiff (eq. 6.16)."""
-        if omega == 1.0:
-            return self.free
-        if omega == 0.0:
-            return self.stiff
-        return omega * self.free + (1.0 - omega) * self.stiff
-
-    def check(self, device: Device) -> None:
-        """Raise InvalidInput unless the desired FMEs are (m, m) for `device`."""
-        if self.free.shape != (device.m, device.m):
-            raise InvalidInput(f"fme: desired FMEs must be ({device.m}, {device.m}), got {self.free.shape}")
-
-    def advance(self, state: TransitionState, t: float, V: float) -> tuple[TransitionState, float]:
-        """The transition state and activation Ω after a tick at t [s] with ASO volume V (eqs. 6.15–6.19)."""
-        return transition_step(state, t, V, self.distance, self.transition)
-
-    def objective(self, omega: float, torque_max: np.ndarray) -> FMEMatching:
-        """The FME-matching objective at activation Ω: JBLD of M̂ to `desired(omega)` (eqs. 6.10, 6.16).
-
-        Args:
-            omega: activation Ω ∈ [0, 1] (1: free, 0: stiff).
-            torque_max: (n,) torque limits T_i [N m] of the weighting W = diag(1/T_i) (eq. 6.9).
-        """
-        return FMEMatching(self.desired(omega), torque_max)
-
-
 @dataclasses.dataclass(frozen=True)
 class ControllerConfig:
     """Everything the controller needs besides the device.
 
     Attributes:
         primary: the task-space law (e.g. `ImpedanceControl`, `ForceRendering`, `SpringPalpation`).
-        objectives: null-space objectives with step sizes (τ_to = −Σ gain ∂ν/∂q).
-        fme: optional ASO-switched FME matching (adds FMEMatching(M_des(t)) to the objectives).
+        objectives: null-space objectives with step sizes (τ_to = −Σ gain ∂ν/∂q); at most one of them
+            scheduled by the ASO (`rhi.control.schedule`, e.g. `FMESchedule`).
         damping: null-space joint damping k_D [N m s/rad] (eqs. 3.20, 6.6).
         saturation: the allocation strategy (`rhi.control.allocation`), by name — "none" | "scaling" |
             "ascm" | "lp" | "active_set" (the LP optimum by an active-set method warm-started at ASCM;
@@ -166,7 +102,7 @@ class ControllerConfig:
         torque_min, torque_max: (n,) limits [N m]; None: the device's.
         gravity_compensation: add the null-space part (I − JᵀJ#ᵀ) g(q) of the gravity torque;
             with a primary law that compensates G_x (eqs. 5.4, 7.2) the whole g(q) is compensated.
-        aso_shape: S of eq. 6.14 when no FME schedule is given.
+        aso_shape: S of eq. 6.14 when no scheduled objective gives its own.
         implementation: "fast" (default) or "reference" (the slow oracle; same torques).
         null_space: how the objectives' null-space torque meets the torque box: "scaled" (Algorithm 2,
             eq. 7.16: scaled by the largest β <= 1 that keeps the box, projected off ASCM's held joints)
@@ -179,7 +115,6 @@ class ControllerConfig:
 
     primary: PrimaryLaw
     objectives: Sequence[ObjectiveTerm] = ()
-    fme: FMESchedule | None = None
     damping: float = 0.1
     saturation: Saturation | AllocationMethod = "ascm"
     projector: Literal["dynamic", "pseudoinverse"] = "dynamic"
@@ -198,8 +133,8 @@ class ControllerState:
 
     Attributes:
         t: time of the last tick [s].
-        transition: FME transition state.
-        omega: activation Ω of the desired FME (1: free, 0: stiff).
+        transition: the scheduled objective's transition state (`rhi.control.schedule`).
+        omega: its activation Ω (1: free, 0: stiff; 1 without one).
         V: ASO volume of the last τ_m.
         alpha: force scaling of the last tick (of the allocation, times the room made for the safety torque).
         beta: tertiary scaling of the last tick (the objectives only; damping and limit barrier act whatever β).
@@ -268,8 +203,11 @@ class NullSpaceController:
         lo = device.torque_min if config.torque_min is None else config.torque_min
         hi = device.torque_max if config.torque_max is None else config.torque_max
         self.lo, self.hi = check_torque_limits(torque_min=lo, torque_max=hi, n=device.n)
-        if config.fme is not None:
-            config.fme.check(device)
+        term = scheduled_term(config.objectives)
+        for t in config.objectives:
+            check = getattr(t.objective, "check", None)
+            if callable(check):
+                check(device)
         primary.check(device)
         self.device = device
         self.config = config
@@ -277,21 +215,25 @@ class NullSpaceController:
         self.allocation = allocation
         self.state = state or ControllerState()
         self._fresh_tank()
+        #: (gain, scheduled objective) of the objective the ASO schedules (`rhi.control.schedule`), or None.
+        self.schedule: tuple[float, ScheduledObjective] | None = (
+            None if term is None else (float(term.gain), term.objective))  # type: ignore[assignment]
         #: S of eq. 6.14 for the ASO.
-        self.aso_shape = config.fme.transition.S if config.fme is not None else config.aso_shape
+        self.aso_shape = config.aso_shape if term is None else float(getattr(term.objective, "aso_shape",
+                                                                             config.aso_shape))
         #: (gain, objective) of the tertiary objectives and of the joint-limit barriers (part of the safety torque).
         self.objectives: list[tuple[float, Objective]] = []
         self.barriers: list[tuple[float, Objective]] = []
-        for term in config.objectives:
-            if term.gain > 0:
-                (self.barriers if getattr(term.objective, "safety", False) else self.objectives).append(
-                    (float(term.gain), term.objective))
+        for t in config.objectives:
+            if t.gain > 0 and t is not term:
+                (self.barriers if getattr(t.objective, "safety", False) else self.objectives).append(
+                    (float(t.gain), t.objective))
         self._sensors = tuple(config.primary.required_sensors())
         pas = getattr(config.primary, "passivity", None)
         self._pc = None if pas is None else PassivityController(pas, reference=config.implementation == "reference")
         self._n = device.n
         self._kernel = (None if config.implementation == "reference" or allocation.kernel is None
-                        else KernelTick(self))
+                        or self._uncompiled_schedule() else KernelTick(self))
         #: A dict to fill with each reference tick's torque by source (`rhi.control.reference.reference_tick`'s
         #: parts; ``implementation="reference"``), or None.
         self.sources: dict[str, np.ndarray] | None = None
@@ -306,7 +248,16 @@ class NullSpaceController:
             return Route("whole") if kt.whole_ok else Route("composed", kt.reason or "the whole tick is switched off")
         if cfg.implementation == "reference":
             return Route("reference", "implementation='reference' asked for")
-        return Route("reference", f"the allocation {self.allocation.name!r} has no compiled branch")
+        if self.allocation.kernel is None:
+            return Route("reference", f"the allocation {self.allocation.name!r} has no compiled branch")
+        return Route("reference", f"the scheduled objective {self._uncompiled_schedule()} has no compiled form")
+
+    def _uncompiled_schedule(self) -> str:
+        """The name of the scheduled objective when it has no compiled form ("" without one or where it has)."""
+        if self.schedule is None:
+            return ""
+        c = compiled_form(self.schedule[1], self.device)
+        return "" if c is not None and c.kind == "fme_schedule" else type(self.schedule[1]).__name__
 
     @property
     def passivity(self) -> PassivityState | None:
@@ -468,7 +419,6 @@ __all__ = [
     "Allocation",
     "ControllerConfig",
     "ControllerState",
-    "FMESchedule",
     "NullSpaceController",
     "output_force",
 ]

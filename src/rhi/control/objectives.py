@@ -5,9 +5,9 @@ configuration optimisers compose objectives without special-casing them. The bun
 objectives also provide `gradient_at(terms)`, the same gradient from a `DeviceTerms`
 snapshot a controller already holds (J and ∂J/∂q from one Pinocchio pass); a
 controller wraps objectives without it once, at construction (`gradient_function`).
-The ASO-switched FME matching of chapter 6 (`rhi.control.controller.FMESchedule`) is a schedule
-of these objectives: each tick it gives the `FMEMatching` for that tick's activation Ω, which
-the controller adds to the other terms.
+The ASO-switched FME matching of chapter 6 (`rhi.control.schedule.FMESchedule`) is a scheduled
+objective: each tick it gives the `FMEMatching` for that tick's activation Ω, which the controller
+follows with the other terms.
 
 Every JBLD gradient below uses ∂ν/∂q_k = Σ_ij (Y)_ij ∂J_ij/∂q_k for an (m, n) matrix Y,
 evaluated as one product ``Y.ravel() @ dJ.reshape(m n, n)``.
@@ -39,7 +39,9 @@ class Objective(Protocol):
       (`rhi.control.compiled`); without it the controller runs its gradient in Python each tick, on the
       composed route, and says so (`NullSpaceController.route`);
     - ``safety = True`` (a class attribute): the term belongs to the safety torque τ_s, which acts
-      whatever the allocation holds (the joint-limit barrier), not to the objectives' τ_to.
+      whatever the allocation holds (the joint-limit barrier), not to the objectives' τ_to;
+    - ``check(device)``: raise InvalidInput where it does not fit the device (the controller calls it when built);
+    - ``advance`` and ``objective``: a scheduled objective (`rhi.control.schedule`).
     """
 
     def value(self, device: Device, q: np.ndarray) -> float:

@@ -71,11 +71,11 @@ def reference_tick(
                        f"F_extra={np.asarray(F_x).tolist()}")
     s.V = aso_volume(tau_m, torque_min=lo, torque_max=hi, S=ctrl.aso_shape)
     objectives = ctrl.objectives
-    fme = cfg.fme
-    if fme is not None:  # the schedule's objective for this tick's Ω joins the others
-        s.transition, s.omega = fme.advance(s.transition, t, s.V)
-        if fme.gain > 0:
-            objectives = [(fme.gain, fme.objective(s.omega, hi)), *objectives]
+    if ctrl.schedule is not None:  # the scheduled objective for this tick's Ω joins the others
+        gain, sched = ctrl.schedule
+        s.transition, s.omega = sched.advance(s.transition, t, s.V)
+        if gain > 0:
+            objectives = [(gain, sched.objective(s.omega, hi)), *objectives]
 
     # a controller's tick always has q̇ (dq is not None)
     tau_s = -cfg.damping * dq - sum((gain * np.asarray(obj.gradient(dev, q)) for gain, obj in ctrl.barriers),  # type: ignore[operator]

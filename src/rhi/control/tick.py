@@ -3,8 +3,8 @@
 `KernelTick` holds what does not change between ticks (limits, parameters, the desired VMEs
 and FMEs, output buffers). It asks the primary law and each objective for its compiled form
 (``compiled(device)``, `rhi.control.compiled`) and recognises no type: objectives whose form the kernels
-compute (VME matching; in the whole tick also static FME matching and the joint-limit barrier) and the
-FME schedule run inside them; in the composed tick every other objective and the barriers run their own
+compute (VME matching and the FME schedule; in the whole tick also static FME matching and the joint-limit
+barrier) run inside them; in the composed tick every other objective and the barriers run their own
 `gradient_at` in Python and enter as two torque vectors.
 
 `KernelTick.whole` is the whole tick in one call of `rhi.control._compiled.whole` (device terms,
@@ -98,8 +98,6 @@ class KernelTick:
         cfg, dev = ctrl.config, ctrl.device
         n, m = dev.n, dev.m
         self.ctrl = ctrl
-        fme = cfg.fme
-        self._fme = fme is not None
         prm = np.zeros(kernels.N_PARAMS)
         prm[kernels.P_DAMPING] = cfg.damping
         prm[kernels.P_ASO_S] = ctrl.aso_shape
@@ -108,20 +106,21 @@ class KernelTick:
         prm[kernels.P_SATURATION] = ctrl.allocation.kernel
         prm[kernels.P_SAFE] = float(ctrl.allocation.safe)
         prm[kernels.P_CLIPPED] = float(cfg.null_space == "clipped")
-        self._free = self._stiff = np.eye(m)
-        if fme is not None:
-            prm[kernels.P_FME] = 1.0
-            prm[kernels.P_FME_GAIN] = fme.gain
-            prm[kernels.P_FME_DIST] = fme.distance
-            prm[kernels.P_EPS1], prm[kernels.P_EPS2], prm[kernels.P_RHO] = (
-                fme.transition.eps1, fme.transition.eps2, fme.transition.rho)
-            self._free, self._stiff = _f64(fme.free), _f64(fme.stiff)
+        self._sch = np.zeros(0)  # the scheduled objective's vector (`rhi.control._compiled.step.schedule_vector`)
+        if ctrl.schedule is not None:
+            gain, sched = ctrl.schedule
+            c = compiled_form(sched, dev)
+            if c is None or c.kind != "fme_schedule" or c.stiff is None or c.schedule is None:
+                raise InvalidInput(f"objectives: the scheduled objective {type(sched).__name__} has no compiled form "
+                                   "(the controller runs it on the reference route)")
+            w2 = ctrl.hi**-2.0 if c.w2 is None else np.broadcast_to(c.w2, (n,))
+            self._sch = kernels.schedule_vector(gain, _f64(w2), _f64(c.desired), _f64(c.stiff), c.schedule)
+        self._scheduled = self._sch.shape[0] != 0
         self._prm = prm
         self._tank = np.zeros(_tank.N_TANK)  # the null-space energy tank's slots, mirrored with `ControllerState.tank`
         self._tank_q, self._tank_e = np.zeros(n), np.zeros(n)
         if cfg.tank is not None:
             self._tank[_tank.TK_ON], self._tank[_tank.TK_CAPACITY] = 1.0, cfg.tank.capacity
-        self._w2 = _f64(ctrl.hi**-2.0)
         vme, gains = [], []
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
         static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
@@ -188,9 +187,8 @@ class KernelTick:
             self._pc_pos, self._pc_eff = np.zeros(k), np.zeros(k)
             self._ps_of: PassivityState | None = None  # the PassivityState the passivity slots mirror
             # the kernel's arguments between `ready` and x, and after buf: the same arrays every tick
-            self._mid = (self._at, law, ctrl.lo, ctrl.hi, self._prm, self._tr, self._free, self._stiff, self._w2,
-                         self._vme, self._vme_gain, self._obj, self._pc, self._pc_pos, self._pc_eff, self._tank,
-                         self._tank_q, self._tank_e)
+            self._mid = (self._at, law, ctrl.lo, ctrl.hi, self._prm, self._tr, self._sch, self._vme, self._vme_gain,
+                         self._obj, self._pc, self._pc_pos, self._pc_eff, self._tank, self._tank_q, self._tank_e)
             self._out = (self._F[0], self._F[1], self._tau, self._sat, self._res)
             # the compiled entry point of `_whole.whole` (`_entry`), found at the first call, and the dispatcher it is of
             self._call: Callable[..., int] | None = None
@@ -198,7 +196,7 @@ class KernelTick:
 
     def _load_transition(self, s: ControllerState) -> list[float] | None:
         """Mirror the state's FME transition into the kernel's tr (if it changed); tr's values before the tick."""
-        if not self._fme:
+        if not self._scheduled:
             return None
         tr = self._tr
         if s.transition is not self._tr_of:
@@ -275,7 +273,7 @@ class KernelTick:
         self._load_tank(s)
         status, alpha, beta, V, omega, clipped = kernels.tick(
             t, buf, self._at, _f64(F_r), _f64(F_x), _f64(kin.q), _f64(kin.dq), ctrl.lo, ctrl.hi, self._prm, tr,
-            self._free, self._stiff, self._w2, self._vme, self._vme_gain, _f64(tau_s), _f64(tau_to),
+            self._sch, self._vme, self._vme_gain, _f64(tau_s), _f64(tau_to),
             self._tank, self._tank_q, self._tank_e, self._tau, self._sat)
         if status != kernels.OK:
             self._tr_of = None  # the kernel may have advanced tr; the state did not
@@ -310,7 +308,7 @@ class KernelTick:
             F = _f64(sensors["force"])
             if F.shape != self._no_force.shape:
                 raise InvalidInput(f"sensors['force']: expected shape {self._no_force.shape}, got {F.shape}")
-        if self._fme and s.transition is not self._tr_of:  # a fresh or replaced state: mirrored into tr
+        if self._scheduled and s.transition is not self._tr_of:  # a fresh or replaced state: mirrored into tr
             T = s.transition
             self._tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
             self._tr_of = T

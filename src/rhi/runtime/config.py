@@ -286,8 +286,7 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
         path = f"controller.objectives[{i}]"
         obj = _objective(path, dev, o, t_hi)
         terms.append(S.prefixed(f"{path}.gain", ObjectiveTerm, obj, o["gain"]))
-    fme = None
-    if c["fme"] is not None:
+    if c["fme"] is not None:  # the ASO-scheduled FME matching (rhi.control.schedule), an objective term
         f = c["fme"]
         _dim("controller.fme.free_direction", f["free_direction"], (dev.m,))
         _dim("controller.fme.contact_direction", f["contact_direction"], (dev.m,))
@@ -295,8 +294,9 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
         tc = S.prefixed("controller.fme.transition", TransitionConfig, **f["transition"])
         free = S.prefixed("controller.fme.free_direction", desired_fme_free, f["free_direction"], K, z)
         stiff = S.prefixed("controller.fme.contact_direction", desired_fme_stiff, f["contact_direction"], K, z)
-        fme = S.prefixed("controller.fme", FMESchedule, free, stiff, gain=f["gain"], transition=tc)
-    cfg = ControllerConfig(primary=_primary(dev, c["primary"]), objectives=tuple(terms), fme=fme, damping=c["damping"],
+        sched = S.prefixed("controller.fme", FMESchedule, free, stiff, transition=tc)
+        terms.append(S.prefixed("controller.fme.gain", ObjectiveTerm, sched, f["gain"]))
+    cfg = ControllerConfig(primary=_primary(dev, c["primary"]), objectives=tuple(terms), damping=c["damping"],
                            saturation=c["saturation"], projector=c["projector"], torque_min=lo, torque_max=hi,
                            gravity_compensation=c["gravity_compensation"], aso_shape=c["aso_shape"],
                            implementation=c["implementation"], null_space=c["null_space"],
@@ -305,14 +305,14 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
     return cfg
 
 
-def _objectives_at_start(dev: Device, cfg: ControllerConfig, q0: np.ndarray) -> None:
-    """Evaluate each objective's value and gradient once at ``sim.q0``.
+def _objectives_at_start(dev: Device, cfg: ControllerConfig, q0: np.ndarray, listed: int) -> None:
+    """Evaluate each objective's value and gradient once at ``sim.q0`` (the first `listed` from ``[[controller.objectives]]``).
 
     What an objective finds only when it runs (a misspelt frame or joint name a plugin looks up, a value it
     cannot use) is then an error of its key path when the file is read, not at the first tick.
     """
     for i, term in enumerate(cfg.objectives):
-        path = f"controller.objectives[{i}]"
+        path = f"controller.objectives[{i}]" if i < listed else "controller.fme"
         try:
             v = float(term.objective.value(dev, q0))
             g = np.asarray(term.objective.gradient(dev, q0), dtype=float)
@@ -431,7 +431,7 @@ def parse_config(data: dict, *, name: str = "config", source: str = "<dict>", de
     if device_name is not None and dev.name != device_name:
         raise InvalidInput(f"device: {name} describes {dev.name!r} ([device]), got {device_name!r}")
     cfg, sim = _controller(dev, d["controller"]), _sim(dev, d["sim"])
-    _objectives_at_start(dev, cfg, sim["q0"])
+    _objectives_at_start(dev, cfg, sim["q0"], len(d["controller"]["objectives"]))
     return RunConfig(name=name, source=source, description=d["description"], device=dev, controller_config=cfg,
                      virtual=_environments("virtual", d["virtual"], dev.m), safety=d["safety"],
                      rate=d["run"]["rate"], duration=d["run"]["duration"], sim=sim)

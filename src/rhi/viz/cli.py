@@ -68,10 +68,11 @@ def _view(args: argparse.Namespace) -> int:
             raise InvalidInput(f"device: the log has {log.q.shape[1]} motors, {dev.name} has {dev.n} (use --device)")
         fme = virtual = None
         if args.config is not None:
+            from rhi.control.schedule import schedule_of
             from rhi.runtime.config import load_config
 
             cfg = load_config(args.config, device_name=dev.name)
-            fme, virtual = cfg.controller_config.fme, cfg.virtual
+            fme, virtual = schedule_of(cfg.controller_config.objectives), cfg.virtual
         view = View(dev, log, host=args.host, port=args.port, fme=fme, virtual=virtual, q0=args.q0)
         print(f"rhi view: {args.log} ({log.t[-1] - log.t[0]:.2f} s) at {view.url}, paused at its start: press "
               "play in the page", flush=True)
@@ -139,6 +140,7 @@ def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False,
     With `mouse`, the simulated link's hand becomes a `SharedDraggableHand` moved by the browser's gizmo.
     With `loop_cpu` (the control loop's CPU), the view runs on the other CPUs.
     """
+    from rhi.control.schedule import schedule_of
     from rhi.viz.remote import RemoteView, SharedDraggableHand
 
     hand = None
@@ -147,8 +149,8 @@ def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False,
             raise InvalidInput("--mouse: only a simulated link (--link sim) has a hand to move")
         hand = link.hand = SharedDraggableHand(cfg.device.m)
     others = None if loop_cpu is None else set(os.sched_getaffinity(0)) - {loop_cpu}
-    view = RemoteView(cfg.device, hand=hand, virtual=cfg.virtual, fme=cfg.controller_config.fme, q0=cfg.sim["q0"],
-                      port=port, cpus=others or None)
+    view = RemoteView(cfg.device, hand=hand, virtual=cfg.virtual, fme=schedule_of(cfg.controller_config.objectives),
+                      q0=cfg.sim["q0"], port=port, cpus=others or None)
     print(f"rhi run: view at {view.url}", flush=True)
     return view
 

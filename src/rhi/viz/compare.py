@@ -181,6 +181,7 @@ def compare(devices: list[Device], *, duration: float | None = 3600.0, host: str
     Returns:
         Per device, the `RunResult` of every run.
     """
+    from rhi.control.schedule import schedule_of
     from rhi.viz.live import demo_setup
     from rhi.viz.session import supervise
 
@@ -189,7 +190,8 @@ def compare(devices: list[Device], *, duration: float | None = 3600.0, host: str
     lead = SharedDraggableHand(devices[0].m)
     hands: list[DraggableHand] = [lead] + [FollowingHand(lead, x0[0], x) for x in x0[1:]]
     page = RemoteCompare(devices, [s[3] for s in setups], hand=lead, host=host, port=port,
-                         kws=[dict(virtual=wall, fme=ctrl.config.fme, fps=FPS) for _, ctrl, wall, _ in setups])
+                         kws=[dict(virtual=wall, fme=schedule_of(ctrl.config.objectives), fps=FPS)
+                              for _, ctrl, wall, _ in setups])
     results: list[list] = [[] for _ in devices]
 
     def session(i: int) -> None:

@@ -24,6 +24,7 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
+from rhi.control.schedule import schedule_of
 from rhi.devices.mobile_base import BASE_JOINTS
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput
@@ -47,8 +48,8 @@ def demo_setup(dev: Device, q0=None) -> tuple[Plant, NullSpaceController, Wall, 
     K, z = fme_shape(dev.jacobian(q0), dev.torque_max, 5.0)
     cfg = ControllerConfig(
         ForceRendering(damping=0.01),
-        objectives=(ObjectiveTerm(VMEMatching(tuple(u), 0.01), 0.5),),
-        fme=FMESchedule(desired_fme_free(u, K, z), desired_fme_stiff(u, K, z), gain=20.0),
+        objectives=(ObjectiveTerm(VMEMatching(tuple(u), 0.01), 0.5),
+                    ObjectiveTerm(FMESchedule(desired_fme_free(u, K, z), desired_fme_stiff(u, K, z)), 20.0)),
         damping=0.1,
         saturation="ascm",
     )
@@ -83,7 +84,7 @@ def live(dev: Device, *, duration: float | None = 3600.0, host: str = "127.0.0.1
 
     plant, ctrl, wall, q0 = demo_setup(dev, q0)
     hand = SharedDraggableHand(dev.m)
-    view = RemoteView(dev, hand=hand, virtual=wall, fme=ctrl.config.fme, q0=q0, host=host, port=port)
+    view = RemoteView(dev, hand=hand, virtual=wall, fme=schedule_of(ctrl.config.objectives), q0=q0, host=host, port=port)
     links = [SimLink(plant, hand=hand)]
     try:
         if on_start is not None:

@@ -105,7 +105,8 @@ class Overlays:
         device: the device (its task axes, Jacobian, limits).
         size: the drawn device's size [m] (sets the display scales).
         virtual: the rendered environment (`Wall`, `Spring`, `Fixture`, or a `compose` of them), or None.
-        fme: a desired-FME schedule (`rhi.control.FMESchedule`) whose M_des(Ω) is drawn, or None.
+        fme: a desired-FME schedule (`rhi.control.FMESchedule`) whose M_des(Ω) is drawn, or None (also a
+            scheduled objective without ``desired(omega)``: nothing to draw).
 
     Attributes:
         force_scale: [m/N] of the force ellipsoid, capability and force arrows: 0.35 of the device's size per the
@@ -120,7 +121,7 @@ class Overlays:
         self.rows = [_AXES[a] for a in device.task_axes]
         self.m = device.m
         self.size = float(size)
-        self.virtual, self.fme = virtual, fme
+        self.virtual, self.fme = virtual, fme if callable(getattr(fme, "desired", None)) else None
         self.force_scale: float | None = None
         self.velocity_scale: float | None = None
         self._f_ref = 0.0  # the force [N] that force_scale draws at 0.35 of the device's size
@@ -129,7 +130,7 @@ class Overlays:
         self.vel = self._ellipsoid(f"{root}/velocity", VELOCITY_RGB, 0.25)
         self.frc = self._ellipsoid(f"{root}/force", FORCE_RGB, 0.3)
         self.des = self._ellipsoid(f"{root}/desired", DESIRED_RGB, 0.9, wireframe=True)
-        self.des.visible = fme is not None
+        self.des.visible = self.fme is not None
         self._arrows: dict = {}
         self._env_drawn = False
         self._springs: list = []

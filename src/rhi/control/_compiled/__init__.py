@@ -18,23 +18,18 @@ from rhi.control._compiled.step import (
     P_CLIPPED,
     P_DAMPING,
     P_DYNAMIC,
-    P_EPS1,
-    P_EPS2,
-    P_FME,
-    P_FME_DIST,
-    P_FME_GAIN,
     P_GRAVITY,
-    P_RHO,
     P_SAFE,
     P_SATURATION,
     SCALING,
     SINGULAR,
     aso_volume,
+    schedule_vector,
     tick,
 )
 
 __all__ = [
-    "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_CLIPPED", "P_DAMPING", "P_DYNAMIC", "P_EPS1",
-    "P_EPS2", "P_FME", "P_FME_DIST", "P_FME_GAIN", "P_GRAVITY", "P_RHO", "P_SAFE", "P_SATURATION", "SCALING", "SINGULAR",
-    "active_set", "active_set_result", "active_set_start", "ascm", "aso_volume", "tertiary", "tick",
+    "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_CLIPPED", "P_DAMPING", "P_DYNAMIC",
+    "P_GRAVITY", "P_SAFE", "P_SATURATION", "SCALING", "SINGULAR", "active_set", "active_set_result", "active_set_start",
+    "ascm", "aso_volume", "schedule_vector", "tertiary", "tick",
 ]

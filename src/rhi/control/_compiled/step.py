@@ -50,9 +50,27 @@ OK, FALLBACK, SINGULAR = 0, 1, 2
 #: Saturation codes of `tick`.
 NONE, SCALING, ASCM, ACTIVE_SET = 0, 1, 2, 3
 #: Indices of the parameter vector of `tick`.
-(P_DAMPING, P_ASO_S, P_GRAVITY, P_DYNAMIC, P_SATURATION, P_SAFE, P_FME, P_FME_GAIN, P_FME_DIST, P_EPS1, P_EPS2,
- P_RHO, P_CLIPPED) = range(13)
-N_PARAMS = 13
+P_DAMPING, P_ASO_S, P_GRAVITY, P_DYNAMIC, P_SATURATION, P_SAFE, P_CLIPPED = range(7)
+N_PARAMS = 7
+#: Head slots of the FME-schedule vector of `tick` (empty: no schedule): its gain, ‖M_Free − M_Stiff‖_F,
+#: ε₁, ε₂, ρ [s]; then the torque weights 1/T_i² (n), M_Free (m × m), M_Stiff (m × m) (`schedule_vector`).
+SCH_GAIN, SCH_DIST, SCH_EPS1, SCH_EPS2, SCH_RHO = range(5)
+N_SCH = 5
+
+
+def schedule_vector(gain: float, w2: np.ndarray, free: np.ndarray, stiff: np.ndarray,
+                    schedule: tuple[float, float, float, float]) -> np.ndarray:
+    """The FME-schedule vector of `tick` for a compiled "fme_schedule" objective (`rhi.control.compiled`).
+
+    Args:
+        gain: its step β [N m] (eq. 6.6).
+        w2: (n,) torque weights 1/T_i² [1/(N m)²].
+        free: (m, m) M_Free^des.
+        stiff: (m, m) M_Stiff^des.
+        schedule: (‖M_Free − M_Stiff‖_F, ε₁, ε₂, ρ [s]).
+    """
+    return np.ascontiguousarray(np.concatenate([np.array([gain, *schedule], dtype=float), w2, free.ravel(),
+                                                stiff.ravel()]), dtype=np.float64)
 
 
 @jit
@@ -147,8 +165,8 @@ def transition(tr, t, V, distance, eps1, eps2, rho):
 
 
 @jit
-def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2,
-         vme_D, vme_gain, tau_s_extra, tau_to_extra, tank, tank_q, tank_e, tau_out, sat):
+def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, tau_s_extra, tau_to_extra, tank, tank_q,
+         tank_e, tau_out, sat):
     """Steps 2–6 of one controller tick (see `rhi.control.controller`).
 
     Args:
@@ -163,9 +181,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2
         hi: (n,) upper torque limits [N m].
         prm: (N_PARAMS,) parameters (P_* indices).
         tr: (4,) FME transition state (stiff, Ω_start, t0, tf), advanced in place.
-        fme_free: (m, m) desired free-motion FME M_Free.
-        fme_stiff: (m, m) desired contact FME M_Stiff.
-        w2: (n,) 1/T_max² [1/(N m)²].
+        sch: the FME schedule (SCH_* slots, `schedule_vector`), or empty without one.
         vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
         vme_gain: (k,) their gradient steps.
         tau_s_extra: (n,) −Σ gain ∂ν_lim/∂q of the joint-limit barriers [N m].
@@ -195,18 +211,21 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff, w2
     omega = 1.0
     tau_s = axpy(-prm[P_DAMPING], dq, tau_s_extra)
     tau_to = tau_s
-    if prm[P_FME] != 0.0:
-        omega = transition(tr, t, V, prm[P_FME_DIST], prm[P_EPS1], prm[P_EPS2], prm[P_RHO])
-        if prm[P_FME_GAIN] > 0.0:
-            D = fme_free
+    if sch.shape[0] != 0:
+        omega = transition(tr, t, V, sch[SCH_DIST], sch[SCH_EPS1], sch[SCH_EPS2], sch[SCH_RHO])
+        if sch[SCH_GAIN] > 0.0:
+            w2 = sch[N_SCH:N_SCH + n]
+            free = sch[N_SCH + n:N_SCH + n + m * m].reshape((m, m))
+            stiff = sch[N_SCH + n + m * m:N_SCH + n + 2 * m * m].reshape((m, m))
+            D = free
             if omega == 0.0:
-                D = fme_stiff
+                D = stiff
             elif omega != 1.0:
                 D = np.empty((m, m))
                 for i in range(m):
                     for j in range(m):
-                        D[i, j] = omega * fme_free[i, j] + (1.0 - omega) * fme_stiff[i, j]
-            tau_to = axpy(-prm[P_FME_GAIN], fme_gradient(D, J, dJ, w2), tau_to)
+                        D[i, j] = omega * free[i, j] + (1.0 - omega) * stiff[i, j]
+            tau_to = axpy(-sch[SCH_GAIN], fme_gradient(D, J, dJ, w2), tau_to)
     for i in range(vme_gain.shape[0]):
         tau_to = axpy(-vme_gain[i], vme_gradient(vme_D[i], J, dJ), tau_to)
     tau_to = add(tau_to, tau_to_extra)

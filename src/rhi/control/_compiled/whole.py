@@ -80,7 +80,7 @@ def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
 
 @jit
 def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
-          lo, hi, prm, tr, fme_free, fme_stiff, w2, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
+          lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
           x, buf, F_r, F_x, tau_out, sat, res):
     """One whole tick; the status of `rhi.control._compiled.step.tick` (OK, FALLBACK, SINGULAR).
 
@@ -105,9 +105,7 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         hi: (n,) upper torque limits [N m].
         prm: parameters of `rhi.control._compiled.step.tick` (P_* slots).
         tr: (4,) FME transition state, advanced in place.
-        fme_free: (m, m) desired free-motion FME.
-        fme_stiff: (m, m) desired contact FME.
-        w2: (n,) 1/T_max² [1/(N m)²].
+        sch: the FME schedule of `rhi.control._compiled.step.tick` (empty: none).
         vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
         vme_gain: (k,) their gradient steps.
         obj: the static FME-matching objectives and joint-limit barriers (`rhi.control._compiled.objectives.pack`).
@@ -143,8 +141,8 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
     if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
         objectives(obj, q, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
     tr0, tr1, tr2, tr3 = tr[0], tr[1], tr[2], tr[3]
-    status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, q, dq, lo, hi, prm, tr, fme_free, fme_stiff,
-                                                  w2, vme_D, vme_gain, tau_s, tau_to, tank, tank_q, tank_e, tau_out, sat)
+    status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain,
+                                                  tau_s, tau_to, tank, tank_q, tank_e, tau_out, sat)
     res[R_ALPHA], res[R_BETA], res[R_V], res[R_OMEGA], res[R_CLIPPED] = alpha, beta, V, omega, 1.0 if clipped else 0.0
     res[R_PC] = 0.0
     res[R_TR] = 0.0 if tr[0] == tr0 and tr[1] == tr1 and tr[2] == tr2 and tr[3] == tr3 else 1.0

@@ -54,7 +54,7 @@ CASES = ("free", "stiff", "schedule", "stiff_ascm")
 def _controller(dev, x0, u, case: str, Mf, Ms) -> NullSpaceController:
     """The ch. 6 palpation controller in 3-D (gravity compensated) for `case` (see `CASES`)."""
     if case == "schedule":
-        sched = FMESchedule(Mf, Ms, gain=ch6.BETA, transition=TransitionConfig(ch6.EPS1, ch6.EPS2, ch6.RHO, ch6.ASO_S))
+        sched = FMESchedule(Mf, Ms, transition=TransitionConfig(ch6.EPS1, ch6.EPS2, ch6.RHO, ch6.ASO_S))
         return ch6.palpation_controller(dev, None, sched, x0=x0, u=u, gravity=True)
     return ch6.palpation_controller(dev, Mf if case == "free" else Ms, x0=x0, u=u, gravity=True,
                                     saturation="ascm" if case == "stiff_ascm" else "scaling")

@@ -191,7 +191,7 @@ def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMES
         desired: (m, m) desired FME of the matching term (None: no FME-matching term).
         schedule: the ASO-driven `FMESchedule` (eqs. 6.14–6.19), or None.
         limits: add the joint-limit barrier (`BARRIER`, gain `LIMIT_GAIN`) after the other terms.
-        beta: β of the FME-matching term.
+        beta: β of the FME-matching term (of the schedule's too).
         projector: "dynamic" (J#, eq. 6.6 as the thesis writes it) or "pseudoinverse" (J⁺).
         objectives: further null-space terms before the barrier (e.g. an intent-driven FME term).
         x0: (m,) the spring's rest point [m] (§6.4: X₀ = [0.5, 0.1] m).
@@ -212,7 +212,9 @@ def palpation_controller(dev: Device, desired: np.ndarray | None, schedule: FMES
         terms += controller_terms(desired, dev.torque_max, limits=False, beta=beta)
     if limits:
         terms.append(ObjectiveTerm(BARRIER, LIMIT_GAIN))
-    cfg = ControllerConfig(primary=law, objectives=tuple(terms), fme=schedule, damping=K_D, saturation=saturation,
+    if schedule is not None:
+        terms.append(ObjectiveTerm(schedule, beta))
+    cfg = ControllerConfig(primary=law, objectives=tuple(terms), damping=K_D, saturation=saturation,
                            projector=projector, aso_shape=ASO_S, null_space=null_space)
     return NullSpaceController(dev, cfg)
 

@@ -203,8 +203,8 @@ def _transition_run(dev: Device, Mf: np.ndarray, Ms: np.ndarray, tc: TransitionC
     also reported (the blend's duration, the same for both variants).
     """
     u, x0 = np.array(U), np.array(X0)
-    schedule = FMESchedule(Mf, Ms, gain=beta, transition=tc)
-    ctrl = palpation_controller(dev, None, schedule, limits=limits, null_space=null_space)
+    schedule = FMESchedule(Mf, Ms, transition=tc)
+    ctrl = palpation_controller(dev, None, schedule, beta=beta, limits=limits, null_space=null_space)
     hand = InOutHand(x0, u, motion["depth"], motion["speed"], motion["settle"], motion["hold"], motion["stiffness"],
                   motion["damping"])
     log = run(dev, ctrl, hand, q_start, motion["duration"], progress, offset, total)
