@@ -17,6 +17,7 @@ import pytest
 
 from rhi.control import (
     ControllerConfig,
+    FMESchedule,
     ForceRendering,
     JointLimitBarrier,
     NullSpaceController,
@@ -25,7 +26,7 @@ from rhi.control import (
     VMEMatching,
     compiled as compiled_module,
 )
-from rhi.errors import RouteWarning
+from rhi.errors import InvalidInput, RouteWarning
 from rhi.runtime import SimLink, run
 from rhi.sim import Plant, simulate
 
@@ -37,6 +38,7 @@ import dataclasses
 import numpy as np
 
 from rhi.control.compiled import CompiledObjective
+from rhi.control.schedule import FMESchedule
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,6 +70,13 @@ class CompiledVME:
 
     def compiled(self, device):
         return CompiledObjective("vme", desired=self.desired)
+
+
+class PlainSchedule(FMESchedule):
+    """The FME schedule without a compiled form: a scheduled objective the kernels do not know."""
+
+    def compiled(self, device):
+        return None
 '''
 
 Q0 = np.array([0.3, 0.5, 0.2, 0.4])
@@ -144,3 +153,24 @@ def test_off_route_configuration_warns_once_and_the_run_names_it(rhi4, toy):
     fast = NullSpaceController(rhi4, ControllerConfig(primary=law))
     plant.reset(Q0)
     assert simulate(plant, fast, duration=0.01).meta["route"] == "compiled loop (whole tick)"
+
+
+def test_scheduled_objective_is_a_term_and_its_route_is_reported(rhi4, toy):
+    """The FME schedule is one objective term: compiled on the whole tick (= reference), or without its compiled
+    form on the reference route, said and warned; a second scheduled term is refused."""
+    free, stiff = np.diag([3.0, 120.0]), np.diag([120.0, 3.0])
+    sched = FMESchedule(free, stiff)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RouteWarning)
+        fast = NullSpaceController(rhi4, _config(sched, VMEMatching((0.0, 1.0))))
+    assert fast.route.name == "whole" and fast.schedule == (1.0, sched)
+    ref = NullSpaceController(rhi4, _config(sched, VMEMatching((0.0, 1.0)), implementation="reference"))
+    np.testing.assert_allclose(_torques(fast), _torques(ref), atol=1e-10)
+    assert fast.state.transition == ref.state.transition and fast.state.omega == ref.state.omega
+    plain = toy.PlainSchedule(free, stiff)
+    with pytest.warns(RouteWarning, match=r"reference route.*PlainSchedule has no compiled form"):
+        slow = NullSpaceController(rhi4, _config(plain, VMEMatching((0.0, 1.0))))
+    assert slow.route.name == "reference" and "PlainSchedule" in slow.route.reason
+    np.testing.assert_allclose(_torques(slow), _torques(ref), atol=1e-10)
+    with pytest.raises(InvalidInput, match="at most one scheduled objective"):
+        NullSpaceController(rhi4, _config(sched, plain))

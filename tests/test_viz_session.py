@@ -288,7 +288,7 @@ def test_live_view_plots_over_time_and_records_a_video(tmp_path):
 
     dev = rhi.device("rhi4")
     plant, ctrl, wall, q0 = demo_setup(dev)
-    view = RemoteView(dev, virtual=wall, fme=ctrl.config.fme, q0=q0, port=0, every=5, record_folder=tmp_path)
+    view = RemoteView(dev, virtual=wall, fme=ctrl.schedule[1], q0=q0, port=0, every=5, record_folder=tmp_path)
     b = browser.Browser(view.url)
     try:
         assert b.wait_for("document.querySelectorAll('.uplot').length === 3", timeout=60)

@@ -101,7 +101,7 @@ def test_view_replays_a_saved_log(run_log, tmp_path):
     path = tmp_path / "run.csv"
     log.to_csv(path)
     loaded = Log.load(path)
-    v = View(dev, loaded, virtual=wall, fme=ctrl.config.fme, port=0)  # frames drawn by hand: no thread
+    v = View(dev, loaded, virtual=wall, fme=ctrl.schedule[1], port=0)  # frames drawn by hand: no thread
     try:
         v.player.seek(0.45)
         assert v.step() and not v.step()  # a new frame once, then nothing new while paused
@@ -228,7 +228,7 @@ def test_browser_opens_a_replayed_log(live_view, run_log, tmp_path):
     dev, log, wall, ctrl = run_log
     log.to_csv(tmp_path / "run.csv")
     _, _, _, _, b = live_view
-    v = View(dev, Log.load(tmp_path / "run.csv"), virtual=wall, fme=ctrl.config.fme, port=0).start()
+    v = View(dev, Log.load(tmp_path / "run.csv"), virtual=wall, fme=ctrl.schedule[1], port=0).start()
     try:
         b.call("Page.navigate", url=v.url)
         assert b.wait_for("document.body.innerText.includes('time [s]') && "

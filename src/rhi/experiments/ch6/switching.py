@@ -56,7 +56,7 @@ def transition(
 ) -> Result:
     """Fig. 6.11: the desired-FME transition driven by the ASO, with and without the cosine blend.
 
-    The palpation of `palpation` with `FMESchedule(M_Free^des, M_Stiff^des, β)`, from the
+    The palpation of `palpation` with `ObjectiveTerm(FMESchedule(M_Free^des, M_Stiff^des), β)`, from the
     M_Free^des-matched configuration: the hand holds X₀ for `settle` seconds (V = 1, Ω = 1),
     pushes in by `depth` at `speed` (the ASO V of τ_m drains; below ε₁ the desired FME
     moves to M_Stiff^des), holds for `hold` seconds, returns to X₀ and stays there for
