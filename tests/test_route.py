@@ -156,8 +156,10 @@ def test_off_route_configuration_warns_once_and_the_run_names_it(rhi4, toy):
 
 
 def test_scheduled_objective_is_a_term_and_its_route_is_reported(rhi4, toy):
-    """The FME schedule is one objective term: compiled on the whole tick (= reference), or without its compiled
-    form on the reference route, said and warned; a second scheduled term is refused."""
+    """The FME schedule is one objective term, compiled on the whole tick (= reference).
+
+    Without its compiled form it runs on the reference route, said and warned; a second scheduled term is refused.
+    """
     free, stiff = np.diag([3.0, 120.0]), np.diag([120.0, 3.0])
     sched = FMESchedule(free, stiff)
     with warnings.catch_warnings():
