@@ -2,6 +2,8 @@
 
 import json
 
+from conftest import child_env
+
 from rhi.cli import main
 
 
@@ -32,14 +34,12 @@ def test_bad_input_exits_2(capsys):
 
 
 def test_python_m_rhi_and_version():
-    import os
     import subprocess
     import sys
-    from pathlib import Path
 
     import rhi
 
-    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    env = child_env()
     res = subprocess.run([sys.executable, "-m", "rhi", "--version"], capture_output=True, text=True, env=env, check=True)
     assert res.stdout.strip() == f"rhi {rhi.__version__}"
 

@@ -7,7 +7,6 @@ optimiser settings and misspelled parameters are refused.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -16,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import child_env
 
-import rhi
 from rhi.design import EvalCache
 from rhi.errors import InvalidInput
 
@@ -110,7 +109,7 @@ for i in range(40):
 def test_two_writers_of_one_checkpoint_both_finish_and_leave_a_valid_file(tmp_path):
     """The first-run crash: two experiments saving one checkpoint at once (the fixed `.tmp` name raced)."""
     path = tmp_path / "shared.json"
-    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    env = child_env()
     procs = [subprocess.Popen([sys.executable, "-c", WRITER, str(path), str(k)], env=env, stderr=subprocess.PIPE,
                               text=True) for k in (1, 2)]
     errs = [p.communicate(timeout=120)[1] for p in procs]
@@ -145,7 +144,7 @@ list(it)
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc to inspect processes")
 def test_killing_a_pooled_run_leaves_no_orphan_workers(tmp_path):
-    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    env = child_env()
     proc = subprocess.Popen([sys.executable, "-c", SCRIPT], stdout=subprocess.PIPE, text=True, env=env)
     try:
         workers = [int(p) for p in proc.stdout.readline().split()]

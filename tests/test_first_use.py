@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from conftest import child_env
 
 from rhi import cli_help, jit
 from rhi.cli import main
@@ -72,7 +72,7 @@ def test_a_cold_cache_says_so_once(tmp_path):
     """A process compiling an rhi kernel prints the one line; one loading it from the cache prints nothing."""
     code = ("import numpy as np\nfrom rhi.design.planar import planar_indices\nr = np.random.default_rng(0)\n"
             "print(planar_indices(r.normal(size=(4, 2, 3)), r.normal(size=(4, 2, 3)), np.ones(4, bool), np.ones(4)))")
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src"), "NUMBA_CACHE_DIR": str(tmp_path)}
+    env = {**child_env(), "NUMBA_CACHE_DIR": str(tmp_path)}
     cold = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     warm = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert cold.returncode == 0 and warm.returncode == 0, cold.stderr + warm.stderr

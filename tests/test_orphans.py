@@ -16,8 +16,8 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import child_env
 
-import rhi
 from rhi.errors import RhiError
 from rhi.sim import Log
 
@@ -41,7 +41,7 @@ def _session(sid: int) -> list[tuple[int, str]]:
 
 
 def _start(*args: str, stdout=subprocess.DEVNULL) -> subprocess.Popen:
-    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1]), "MPLBACKEND": "Agg"}
+    env = {**child_env(), "MPLBACKEND": "Agg"}
     return subprocess.Popen([sys.executable, "-m", "rhi", *args], start_new_session=True, env=env,
                             stdout=stdout, stderr=subprocess.PIPE, text=True)
 

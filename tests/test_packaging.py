@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import tomllib
 from pathlib import Path
 
 import pytest
+from conftest import child_env
 
 import rhi
 
@@ -37,7 +37,7 @@ NO_EXTRAS = _blocker(EXTRAS)
 
 
 def _python(code: str, **env: str) -> subprocess.CompletedProcess[str]:
-    environ = {**os.environ, "PYTHONPATH": str(ROOT / "src"), **env}
+    environ = {**child_env(), **env}
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=environ, timeout=120)
 
 
@@ -95,7 +95,7 @@ def test_one_version_string() -> None:
 
 def test_python_dash_m_rhi() -> None:
     out = subprocess.run([sys.executable, "-m", "rhi", "devices"], capture_output=True, text=True, timeout=120,
-                         env={**os.environ, "PYTHONPATH": str(ROOT / "src")})
+                         env=child_env())
     assert out.returncode == 0, out.stderr
     assert "rhi4" in out.stdout
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import json
-import os
 import re
 import signal
 import subprocess
@@ -15,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import child_env
 
 import rhi
 from rhi.cli import main
@@ -263,7 +263,7 @@ def test_cli_bad_arguments_exit_2(args, message, capsys):
 @contextlib.contextmanager
 def _device_server(*args: str):
     """`rhi device-server ARGS --lockstep --port 0` in a process; yields its port."""
-    env = {**os.environ, "PYTHONPATH": str(Path(rhi.__file__).parents[1])}
+    env = child_env()
     p = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", *args, "--lockstep", "--port", "0"],
                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
     try:

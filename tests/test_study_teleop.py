@@ -23,6 +23,7 @@ from pathlib import Path
 import browser  # noqa: E402  (tests/browser.py)
 import numpy as np
 import pytest
+from conftest import child_env
 
 from rhi.devices.model import device
 from rhi.experiments.ch5.setup import distance_to_polyline
@@ -74,7 +75,7 @@ class Study:
     """`rhi study run --mouse` as a child process (its own process group), with the URL of its pages."""
 
     def __init__(self, protocol: Path, study: Path) -> None:
-        env = {**os.environ, "PYTHONPATH": SRC, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
+        env = {**child_env(), "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "rhi", "study", "run", str(protocol), "--participant", "P01", "--study",
              str(study), "--port", "0", "--field", "handedness=right", "--rate", "500", "--mouse"],
@@ -233,7 +234,7 @@ def test_the_master_over_udp_drives_the_slave(tmp_path):
     p = parse_protocol(tomllib.loads(text), name="udp", text=text)
     x0 = sl.master_path(p).points[0]
     q0 = device("rehab").ik(x0, np.array([0.3, 0.9]))
-    env = {**os.environ, "PYTHONPATH": SRC}
+    env = child_env()
     dev = subprocess.Popen([sys.executable, "-m", "rhi", "device-server", "rehab", "--port", "0", "--q0",
                             ",".join(map(repr, q0.tolist())), "--watchdog-ms", "1000"],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
