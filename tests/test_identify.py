@@ -135,9 +135,7 @@ def test_identify_over_udp_against_a_device_server_recovers_friction_and_inertia
     """
     cfg = tmp_path / "ident.toml"
     cfg.write_text(f"""description = "identification test: known plant friction"
-[controller.primary]  # for rhi device-server's reading of the file (rhi identify needs no controller)
-law = "force_rendering"
-[safety]
+[safety]  # no [controller]: neither rhi identify nor rhi device-server needs one
 stale_ticks = 100
 silence = 1.0
 max_age = 1.0

@@ -19,7 +19,7 @@ from rhi import __version__, cli_args as A, cli_help, plugins
 from rhi._validate import writable_file
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_identify import add_commands as add_identify_command
-from rhi.cli_link import Status as _Status, add_realtime as _add_realtime, link as _link
+from rhi.cli_link import NO_CONTROLLER, Status as _Status, add_realtime as _add_realtime, link as _link
 from rhi.cli_log import add_commands as add_log_commands
 from rhi.cli_study import add_commands as add_study_commands
 from rhi.cli_warmup import add_commands as add_warmup_command
@@ -121,7 +121,7 @@ def _device_server(args: argparse.Namespace) -> int:
     from rhi.sim import Plant
 
     if args.config is not None:  # the device side of a run configuration: its [sim] start, hand and world
-        cfg = _config(args)
+        cfg = _config(args, defaults=NO_CONTROLLER)
         dev, link = cfg.device, cfg.sim_link(rate=args.rate)
         if args.q0 is not None:
             link.plant.reset(args.q0)
@@ -143,12 +143,13 @@ def _device_server(args: argparse.Namespace) -> int:
     return 0
 
 
-def _config(args: argparse.Namespace):
+def _config(args: argparse.Namespace, defaults: dict | None = None):
     """The run configuration of `--config`, on the device of the command line (a name or a source option)."""
     from rhi.runtime.config import load_config
 
     table = device_table(args)
-    return load_config(args.config, device_name=args.device if table is None else None, device=table)
+    return load_config(args.config, device_name=args.device if table is None else None, device=table,
+                       defaults=defaults)
 
 
 # ------------------------------------------------------------------------------------------ rhi run

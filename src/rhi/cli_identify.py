@@ -17,7 +17,7 @@ from pathlib import Path
 from rhi import cli_args as A
 from rhi._validate import writable_file
 from rhi.cli_device import add_device_options, device_table
-from rhi.cli_link import Status, add_realtime, link as link_from
+from rhi.cli_link import NO_CONTROLLER, Status, add_realtime, link as link_from
 from rhi.errors import InvalidInput
 
 _EXAMPLE = """example:
@@ -25,10 +25,6 @@ _EXAMPLE = """example:
   rhi identify rhi4 --link udp://127.0.0.1:5005 --config ch6_fme_aso --out out/ident
   rhi identify rhi4 --link sim --config ch6_fme_aso --trials 5          # the simulated plant, in this process
 """
-
-
-#: a configuration for `rhi identify` needs no [controller]: the identification programme is the controller
-_NO_CONTROLLER = {"controller": {"primary": {"law": "force_rendering"}}}
 
 
 def _identify(args: argparse.Namespace) -> int:
@@ -43,11 +39,11 @@ def _identify(args: argparse.Namespace) -> int:
     table = device_table(args)
     name = args.device if table is None else None
     if args.config is not None:
-        cfg = load_config(args.config, device_name=name, device=table, defaults=_NO_CONTROLLER)
+        cfg = load_config(args.config, device_name=name, device=table, defaults=NO_CONTROLLER)
     elif table is None and args.device is None:
         raise InvalidInput("device: give a bundled device (rhi devices) or --urdf, --mjcf or --description")
     else:
-        cfg = parse_config(_NO_CONTROLLER, name="identify", device_name=name, device=table)
+        cfg = parse_config(NO_CONTROLLER, name="identify", device_name=name, device=table)
     dev = cfg.device
     u = np.asarray(args.direction, dtype=float).reshape(-1)
     if u.shape != (dev.m,) or not np.linalg.norm(u) > 0:

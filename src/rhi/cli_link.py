@@ -10,6 +10,10 @@ import time
 from rhi import cli_args as A, plugins
 from rhi.errors import InvalidInput
 
+#: the device side of a run configuration needs no [controller] (`rhi device-server`; `rhi identify`, whose
+#: programme is the controller)
+NO_CONTROLLER = {"controller": {"primary": {"law": "force_rendering"}}}
+
 
 def link(url: str, rate: float, cfg, realtime: bool, spin: bool = False, device_name: str | None = None,
           takeover: bool = False):
