@@ -6,7 +6,9 @@ All timings are taken in the same run and printed as ratios against the baseline
   (`Device.jacobian` / `rhi.devices.batch.terms` and `rhi.metrics`) against a plain Pinocchio loop that per
   configuration computes θ = A q + b, `computeFrameJacobian` (and `crba`), and then with NumPy
   ρ = (uᵀ(JJᵀ)⁻¹u)^(-1/2) (eq. 3.6), Λ = (uᵀ J M⁻¹ Jᵀ u)⁻¹ (eq. 3.13) and μ = √det(JJᵀ) (eq. 4.7).
-  Both give the same numbers (checked to 1e-10 relative). Columns: J + ρ, and J, M + ρ, Λ, μ.
+  Both give the same numbers (checked to 1e-10 relative). Columns: J + ρ, and J, M + ρ, Λ, μ, and the
+  measures alone (ρ, Λ, μ from given J, M: the closed forms of `rhi.metrics`) per configuration, so that
+  m = 3 can be compared with m = 2.
 * rhi4, ρ + Λ: the same against our own per-configuration loop and the Robotics Toolbox, whose model is
   the same URDF with the same actuation map applied (J_q = J_θ A, M_q = Aᵀ M_θ A).
 
@@ -87,10 +89,16 @@ def batch_measures(dev, Q, u, dynamics: bool) -> np.ndarray:
         out[:, 0] = metrics.effective_manipulability(dev.jacobian(Q), u)
         return out
     t = batch.terms(dev, Q, ("J", "M"))
-    out[:, 0] = metrics.effective_manipulability(t["J"], u)
-    out[:, 1] = metrics.effective_inertia(t["J"], t["M"], u)
-    out[:, 2] = metrics.manipulability(t["J"])
+    out[:] = measures_of(t["J"], t["M"], u)
     return out
+
+
+def measures_of(J, M, u) -> np.ndarray:
+    """(B, 3) ρ, Λ, μ of J (B, m, n) and M (B, n, n) along u (m,) from `rhi.metrics`."""
+    from rhi import metrics
+
+    return np.stack([metrics.effective_manipulability(J, u), metrics.effective_inertia(J, M, u),
+                     metrics.manipulability(J)], axis=-1)
 
 
 def every_device(n: int, loop_n: int) -> None:
@@ -98,7 +106,9 @@ def every_device(n: int, loop_n: int) -> None:
     print(f"Batch measures for {n} configurations vs a plain Pinocchio loop (timed on {loop_n}, scaled); "
           "ratios are loop / batch")
     print(f"{'device':<15}{'n':>3}{'m':>3}{'J + rho':>12}{'loop':>12}{'ratio':>8}"
-          f"{'J,M + rho,Lambda,mu':>22}{'loop':>12}{'ratio':>8}")
+          f"{'J,M + rho,Lambda,mu':>22}{'loop':>12}{'ratio':>8}{'rho,Lambda,mu alone':>22}")
+    from rhi.devices import batch
+
     for dev in devices():
         rng = np.random.default_rng(0)
         Q = rng.uniform(np.maximum(dev.q_min, -np.pi), np.minimum(dev.q_max, np.pi), size=(n, dev.n))
@@ -112,7 +122,9 @@ def every_device(n: int, loop_n: int) -> None:
             t_b = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: batch_measures(dev, Q, u, dyn), 20)
             t_l = best_of(lambda dev=dev, Q=Q, u=u, dyn=dyn: pinocchio_loop(dev, Q[:loop_n], u, dyn), 3) * n / loop_n
             cells.append(f"{t_b * 1e3:9.2f} ms{t_l * 1e3:9.1f} ms{t_l / t_b:7.1f}x")
-        print(f"{dev.name:<15}{dev.n:>3}{dev.m:>3}{cells[0]:>32}{cells[1]:>42}")
+        t = batch.terms(dev, Q, ("J", "M"))
+        t_m = best_of(lambda t=t, u=u: measures_of(t["J"], t["M"], u), 20)
+        print(f"{dev.name:<15}{dev.n:>3}{dev.m:>3}{cells[0]:>32}{cells[1]:>42}{t_m / n * 1e9:15.0f} ns/conf")
     print()
 
 

@@ -281,6 +281,33 @@ def test_compiled_jacobi_svd_matches_lapack(rng, m, n):
     assert rm.effective_manipulability(np.concatenate([B[900:950]] * 2), lost).max() == 0.0
 
 
+@pytest.mark.parametrize("m, n", [(2, 2), (2, 4), (3, 3), (3, 7), (3, 10), (4, 6)])
+def test_triangle_measures_equal_the_svd_route(rng, m, n):
+    """ρ and μ of large batches from the Gram–Schmidt triangle equal the SVD's (regular maps) or are the SVD's (others)."""
+    from rhi.metrics._common import principal_axes_of_map, radius_along, radius_of_map, singular_values, volume_of_map
+
+    B = rng.normal(size=(2000, m, n))
+    B[:300, -1] = B[:300, 0] * rng.normal(size=(300, 1)) + 10.0 ** rng.uniform(-14, -2, (300, 1)) * rng.normal(
+        size=(300, n))  # condition numbers from 1e2 to 1e14: both routes
+    B[300:350] = 0.0
+    B[350:400, 0] = 0.0
+    B[400:450, 1] = B[400:450, 0]  # an exactly lost direction
+    B[450:500] *= 1e200
+    B[500:550] *= 1e-200
+    u = random_unit(rng, m, (2000,))
+    u[400:425] = (np.eye(m)[0] - np.eye(m)[1]) / np.sqrt(2.0)  # along the lost direction: ρ = 0
+    s, U = principal_axes_of_map(B)
+    rho, mu = radius_of_map(B, u), volume_of_map(B)
+    top = np.where(s[:, 0] > 0, s[:, 0], 1.0)
+    np.testing.assert_allclose(rho / top, radius_along(s, U, u) / top, rtol=1e-11, atol=1e-15)
+    keep = np.r_[0:450, 550:2000]  # μ of the 1e±200 maps over- or underflows (as the SVD's product)
+    ref_mu = singular_values(B[keep]).prod(axis=-1)
+    np.testing.assert_allclose(mu[keep] / top[keep]**m, ref_mu / top[keep]**m, rtol=1e-11, atol=1e-15)
+    assert rho[400:425].max() == 0.0 and mu[300:350].max() == 0.0
+    np.testing.assert_allclose(rm.effective_manipulability(B, u), rho, rtol=1e-14)  # u normalised again
+    np.testing.assert_array_equal(rm.manipulability(B), mu)
+
+
 def test_compiled_whitening_matches_lapack(rng):
     """Λ and M_x of large batches (the compiled Cholesky) equal the per-matrix LAPACK path; bad M raises NotSPD."""
     from rhi.metrics._common import SMALL_BATCH_MIN

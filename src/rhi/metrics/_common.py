@@ -125,6 +125,29 @@ def whitened(name: str, J: FloatArray, M: FloatArray) -> FloatArray:
     return B.reshape(lead + (m, n))
 
 
+def inertia_along(name: str, J: FloatArray, M: FloatArray, u: FloatArray) -> FloatArray:
+    """Λ (...,) = (uᵀ J M⁻¹ Jᵀ u)⁻¹ of a large batch by the compiled kernel of `rhi.metrics._small`.
+
+    As ``1 / |Bᵀu|²`` with ``B = whitened(name, J, M)`` (inf where ``|Bᵀu| <= SINGULAR_RTOL |B|_F``).
+    J (..., m, n), M (..., n, n) and unit u (..., m) broadcast over their batch axes; `NotSPD` naming ``name``.
+    """
+    from rhi.metrics._small import inertia_along as kernel  # Numba: imported on the first large batch
+
+    m, n = J.shape[-2:]
+    lead = np.broadcast_shapes(J.shape[:-2], M.shape[:-2], u.shape[:-1])
+    Jb = np.ascontiguousarray(np.broadcast_to(J, lead + (m, n)), dtype=float).reshape(-1, m, n)
+    Mb = np.ascontiguousarray(np.broadcast_to(M, lead + (n, n)), dtype=float).reshape(-1, n, n)
+    ub = np.ascontiguousarray(np.broadcast_to(u, lead + (m,)), dtype=float).reshape(-1, m)
+    lam = np.empty(Jb.shape[0])
+    bad = np.empty(Jb.shape[0], dtype=np.int8)
+    kernel(Jb, Mb, ub, SYMMETRY_RTOL, SINGULAR_RTOL, lam, bad)
+    if (bad == 1).any():
+        raise NotSPD(f"{name}: not symmetric{_first_bad((bad == 1).reshape(lead))}")
+    if bad.any():
+        raise NotSPD(f"{name}: not positive definite")
+    return lam.reshape(lead)
+
+
 def frobenius_norm(A: FloatArray) -> FloatArray:
     """Frobenius norm over the last two axes of ``A`` (..., m, n)."""
     return np.sqrt((A * A).sum(axis=(-2, -1)))
@@ -206,6 +229,50 @@ def _svd_rows(B: FloatArray, want_u: bool) -> tuple[FloatArray, FloatArray]:
     U = np.empty((flat.shape[0], m, m) if want_u else (0, m, m))
     svd_rows(flat, want_u, s, U)
     return s.reshape(B.shape[:-1]), U.reshape(B.shape[:-2] + (m, m)) if want_u else U
+
+
+#: `radius_rows` takes the triangle's values where ‖L‖_F ‖L⁻¹‖_F (>= the condition number) is at most this; the
+#: SVD takes the others (far from `SINGULAR_RTOL`: the two agree to ~1e-16 times it, relative).
+_TRIANGLE_COND_MAX = 1e4
+
+
+def _triangular(B: FloatArray) -> bool:
+    """Whether B (..., m, n) is a batch of maps with 2 <= m <= n large enough for the compiled triangle."""
+    return 2 <= B.shape[-2] <= B.shape[-1] and _batch_count(B) >= SMALL_BATCH_MIN
+
+
+def _triangle_measures(B: FloatArray, u: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+    """(ρ along u (...,) or None, μ (...,)) of a `_triangular` batch B (..., m, n), as the SVD path gives them."""
+    from rhi.metrics._small import radius_rows  # Numba: imported on the first large batch
+
+    m, n = B.shape[-2:]
+    lead = B.shape[:-2] if u is None else np.broadcast_shapes(B.shape[:-2], u.shape[:-1])
+    flat = np.ascontiguousarray(np.broadcast_to(B, lead + (m, n)), dtype=float).reshape(-1, m, n)
+    uf = (np.empty((0, m)) if u is None
+          else np.ascontiguousarray(np.broadcast_to(u, lead + (m,)), dtype=float).reshape(-1, m))
+    rho, mu, hard = np.empty(flat.shape[0]), np.empty(flat.shape[0]), np.empty(flat.shape[0], dtype=np.int8)
+    radius_rows(flat, uf, _TRIANGLE_COND_MAX, rho, mu, hard)
+    k = np.flatnonzero(hard)
+    if k.size:
+        s, U = principal_axes_of_map(flat[k])
+        mu[k] = s.prod(axis=-1)
+        if u is not None:
+            rho[k] = radius_along(s, U, uf[k])
+    return (None if u is None else rho.reshape(lead)), mu.reshape(lead)
+
+
+def radius_of_map(B: FloatArray, u: FloatArray) -> FloatArray:
+    """Radius (uᵀ(BBᵀ)⁻¹u)^(-1/2) along unit u (..., m) of the ellipsoid BBᵀ, B (..., m, n): `radius_along` its axes."""
+    if _triangular(B):
+        return _triangle_measures(B, u)[0]
+    return radius_along(*principal_axes_of_map(B), u)
+
+
+def volume_of_map(B: FloatArray) -> FloatArray:
+    """Product of the semi-axes (..., ) of the ellipsoid BBᵀ, B (..., m, n): √det(BBᵀ), 0 when n < m."""
+    if _triangular(B):
+        return _triangle_measures(B, None)[1]
+    return singular_values(B).prod(axis=-1)
 
 
 def singular_values(B: FloatArray) -> FloatArray:

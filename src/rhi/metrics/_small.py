@@ -13,7 +13,11 @@ compiled loop walks the batch:
   between the values.
 * `whiten`: ``B = J L⁻ᵀ`` with the Cholesky factor ``M = L Lᵀ`` (the factor by the same
   column order as LAPACK's ``potrf``, the solve by forward substitution), and a flag per
-  matrix that is not symmetric or not positive definite (a pivot <= 0, as ``potrf`` reports).
+  matrix that is not symmetric or not positive definite (a pivot <= 0, as ``potrf`` reports);
+  `inertia_along` the same factor and solve reduced to Λ along u in the same loop.
+* `radius_rows`: ρ along u and μ from the triangle L of ``B = L E`` alone (a triangular solve and a
+  product of pivots instead of the Jacobi sweeps), for the clearly regular maps; the caller takes
+  `svd_rows` for the few others, whose lost axes need the singular vectors.
 
 Numba is imported with this module, on the first large batch, not with ``import rhi.metrics``.
 """
@@ -31,6 +35,56 @@ _MAX_SWEEPS = 40
 #: Matrices per block: the block's work arrays stay in the L1 cache and each step is a SIMD loop over the block.
 BLOCK = 32
 _TINY = np.finfo(np.float64).tiny
+
+
+@jit
+def _lower(B, i0, nb, scale, E, L, d):
+    """B[i0 + b] · scale[b] = L[:, :, b] E[:, :, b] for the block's b < nb, by Gram–Schmidt.
+
+    L (m, m, K) lower triangular with L_rr >= 0, E (m, n, K) orthonormal rows (zero where B loses rank),
+    scale[b] = 1 / max |B[i0 + b]| (1 for a zero B). One re-orthogonalisation; the rows are scaled first (no
+    overflow or underflow in the squares). d (K,) is work.
+    """
+    m, n = B.shape[1], B.shape[2]
+    for b in range(nb):
+        scale[b] = 0.0
+    for r in range(m):
+        for c in range(n):
+            for b in range(nb):
+                scale[b] = max(scale[b], abs(B[i0 + b, r, c]))
+    for b in range(nb):
+        scale[b] = 1.0 / scale[b] if scale[b] > 0.0 else 1.0
+    for r in range(m):
+        for c in range(n):
+            for b in range(nb):
+                E[r, c, b] = B[i0 + b, r, c] * scale[b]
+        for k in range(m):
+            for b in range(nb):
+                L[r, k, b] = 0.0
+        for _ in range(2):
+            for k in range(r):
+                for b in range(nb):
+                    d[b] = 0.0
+                for c in range(n):
+                    for b in range(nb):
+                        d[b] += E[r, c, b] * E[k, c, b]
+                for c in range(n):
+                    for b in range(nb):
+                        E[r, c, b] -= d[b] * E[k, c, b]
+                for b in range(nb):
+                    L[r, k, b] += d[b]
+        for b in range(nb):
+            d[b] = 0.0
+        for c in range(n):
+            for b in range(nb):
+                d[b] += E[r, c, b] * E[r, c, b]
+        for b in range(nb):
+            d[b] = np.sqrt(d[b])
+            L[r, r, b] = d[b]
+            d[b] = 1.0 / d[b] if d[b] > 0.0 else 0.0
+        for c in range(n):
+            for b in range(nb):
+                E[r, c, b] *= d[b]
 
 
 @jit
@@ -56,46 +110,11 @@ def svd_rows(B, want_u, s, U):
     tol = _ORTHO_TOL * m
     for i0 in range(0, K, nb_max):
         nb = min(nb_max, K - i0)
-        for b in range(nb):
-            scale[b] = 0.0
+        _lower(B, i0, nb, scale, E, L, d)
         for r in range(m):
-            for c in range(n):
-                for b in range(nb):
-                    scale[b] = max(scale[b], abs(B[i0 + b, r, c]))
-        for b in range(nb):
-            scale[b] = 1.0 / scale[b] if scale[b] > 0.0 else 1.0
-        for r in range(m):  # Gram–Schmidt with one re-orthogonalisation: B / scale = L E, L lower triangular
-            for c in range(n):
-                for b in range(nb):
-                    E[r, c, b] = B[i0 + b, r, c] * scale[b]  # scaled: no overflow or underflow in the squares
             for k in range(m):
                 for b in range(nb):
-                    L[r, k, b] = 0.0
                     W[r, k, b] = 1.0 if r == k else 0.0
-            for _ in range(2):
-                for k in range(r):
-                    for b in range(nb):
-                        d[b] = 0.0
-                    for c in range(n):
-                        for b in range(nb):
-                            d[b] += E[r, c, b] * E[k, c, b]
-                    for c in range(n):
-                        for b in range(nb):
-                            E[r, c, b] -= d[b] * E[k, c, b]
-                    for b in range(nb):
-                        L[r, k, b] += d[b]
-            for b in range(nb):
-                d[b] = 0.0
-            for c in range(n):
-                for b in range(nb):
-                    d[b] += E[r, c, b] * E[r, c, b]
-            for b in range(nb):
-                d[b] = np.sqrt(d[b])
-                L[r, r, b] = d[b]
-                d[b] = 1.0 / d[b] if d[b] > 0.0 else 0.0
-            for c in range(n):
-                for b in range(nb):
-                    E[r, c, b] *= d[b]
         for _ in range(_MAX_SWEEPS):  # one-sided Jacobi on the rows of L; converged pairs rotate by 0
             rotated = 0
             for p in range(m - 1):
@@ -148,6 +167,86 @@ def svd_rows(B, want_u, s, U):
 
 
 @jit
+def radius_rows(B, u, cond_max, rho, mu, hard):
+    """ρ = (uᵀ(BBᵀ)⁻¹u)^(-1/2) and μ = √det(BBᵀ) of B (K, m, n), m <= n, from B = L E without an SVD.
+
+    With B·scale = L E (`_lower`): ρ = 1 / (scale |L⁻¹u|) and μ = Π L_rr / scale^m. u (K, m) unit directions,
+    or (0, m): ρ not computed. hard (K,) int8 is 1 where L is not clearly regular (‖L‖_F ‖L⁻¹‖_F > cond_max or a
+    zero pivot): ρ and μ are then unspecified and the caller takes the SVD, which knows the lost axes.
+    """
+    K, m, n = B.shape
+    E = np.empty((m, n, BLOCK))
+    L = np.empty((m, m, BLOCK))
+    scale = np.empty(BLOCK)
+    d = np.empty(BLOCK)
+    Li = np.empty((m, m))
+    want_rho = u.shape[0] > 0
+    for i0 in range(0, K, BLOCK):
+        nb = min(BLOCK, K - i0)
+        _lower(B, i0, nb, scale, E, L, d)
+        for b in range(nb):
+            i = i0 + b
+            det, big, small = 1.0, 0.0, 0.0
+            for r in range(m):
+                det *= L[r, r, b]
+                for c in range(r + 1):
+                    big += L[r, c, b] * L[r, c, b]
+            hard[i] = 0 if det > 0.0 else 1
+            if hard[i]:
+                continue
+            for c in range(m):  # columns of L⁻¹ by forward substitution
+                for r in range(m):
+                    e = 1.0 if r == c else 0.0
+                    for k in range(c, r):
+                        e -= L[r, k, b] * Li[k, c]
+                    Li[r, c] = e / L[r, r, b] if r >= c else 0.0
+                    small += Li[r, c] * Li[r, c]
+            if big * small > cond_max * cond_max:
+                hard[i] = 1
+                continue
+            mu[i] = det / scale[b] ** m
+            if want_rho:
+                q = 0.0
+                for r in range(m):
+                    e = 0.0
+                    for c in range(r + 1):
+                        e += Li[r, c] * u[i, c]
+                    q += e * e
+                rho[i] = 1.0 / (scale[b] * np.sqrt(q))
+
+
+@jit
+def _cholesky(M, i, sym_rtol, L):
+    """L (n, n) lower with M[i] = L Lᵀ (the factor of the symmetric part ½(M + Mᵀ)), and a flag.
+
+    Returns 1 where M[i] is not symmetric to ``sym_rtol`` relative to its largest entry, 2 where it is not
+    positive definite (a pivot <= 0), else 0.
+    """
+    n = M.shape[1]
+    asym = big = 0.0
+    for r in range(n):
+        for c in range(n):
+            asym = max(asym, abs(M[i, r, c] - M[i, c, r]))
+            big = max(big, abs(M[i, r, c]))
+    if asym > sym_rtol * max(big, _TINY):
+        return 1
+    for j in range(n):  # Cholesky–Crout, column by column
+        d = M[i, j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 0.0:
+            return 2
+        ljj = np.sqrt(d)
+        L[j, j] = ljj
+        for r in range(j + 1, n):
+            e = 0.5 * (M[i, r, j] + M[i, j, r])
+            for k in range(j):
+                e -= L[r, k] * L[j, k]
+            L[r, j] = e / ljj
+    return 0
+
+
+@jit
 def whiten(J, M, sym_rtol, B, bad):
     """B (K, m, n) = J L⁻ᵀ with M = L Lᵀ for J (K, m, n), M (K, n, n) symmetric positive definite.
 
@@ -157,28 +256,7 @@ def whiten(J, M, sym_rtol, B, bad):
     K, m, n = J.shape
     L = np.empty((n, n))
     for i in range(K):
-        asym = big = 0.0
-        for r in range(n):
-            for c in range(n):
-                asym = max(asym, abs(M[i, r, c] - M[i, c, r]))
-                big = max(big, abs(M[i, r, c]))
-        bad[i] = 1 if asym > sym_rtol * max(big, _TINY) else 0
-        if bad[i]:
-            continue
-        for j in range(n):  # Cholesky–Crout, column by column
-            d = M[i, j, j]
-            for k in range(j):
-                d -= L[j, k] * L[j, k]
-            if not d > 0.0:
-                bad[i] = 2
-                break
-            ljj = np.sqrt(d)
-            L[j, j] = ljj
-            for r in range(j + 1, n):
-                e = 0.5 * (M[i, r, j] + M[i, j, r])
-                for k in range(j):
-                    e -= L[r, k] * L[j, k]
-                L[r, j] = e / ljj
+        bad[i] = _cholesky(M, i, sym_rtol, L)
         if bad[i]:
             continue
         for r in range(m):  # row r of B solves L bᵀ = J[r]ᵀ
@@ -187,3 +265,78 @@ def whiten(J, M, sym_rtol, B, bad):
                 for k in range(j):
                     e -= L[j, k] * B[i, r, k]
                 B[i, r, j] = e / L[j, j]
+
+
+@jit
+def inertia_along(J, M, u, sym_rtol, zero_rtol, lam, bad):
+    """Λ (K,) = (uᵀ J M⁻¹ Jᵀ u)⁻¹ for J (K, m, n), M (K, n, n) symmetric positive definite, u (K, m) unit.
+
+    With M = L Lᵀ (the factor of ½(M + Mᵀ), as `whiten`) and B = J L⁻ᵀ: Λ = 1 / |Bᵀu|², inf where
+    |Bᵀu| <= zero_rtol |B|_F. bad (K,) int8 as `whiten` (Λ then unspecified). Blocks of `BLOCK` matrices,
+    batch index last.
+    """
+    K, m, n = J.shape
+    Mt = np.empty((n, n, BLOCK))
+    L = np.empty((n, n, BLOCK))
+    Bt = np.empty((n, BLOCK))
+    v = np.empty((n, BLOCK))
+    e = np.empty(BLOCK)
+    fro = np.empty(BLOCK)
+    asym = np.empty(BLOCK)
+    big = np.empty(BLOCK)
+    for i0 in range(0, K, BLOCK):
+        nb = min(BLOCK, K - i0)
+        for b in range(nb):
+            asym[b] = big[b] = fro[b] = 0.0
+        for r in range(n):
+            for c in range(n):
+                for b in range(nb):
+                    Mt[r, c, b] = M[i0 + b, r, c]
+        for r in range(n):
+            for c in range(n):
+                for b in range(nb):
+                    asym[b] = max(asym[b], abs(Mt[r, c, b] - Mt[c, r, b]))
+                    big[b] = max(big[b], abs(Mt[r, c, b]))
+        for b in range(nb):
+            bad[i0 + b] = 1 if asym[b] > sym_rtol * max(big[b], _TINY) else 0
+        for j in range(n):  # Cholesky–Crout, column by column; a failed pivot is flagged and replaced by 1
+            for b in range(nb):
+                e[b] = Mt[j, j, b]
+            for k in range(j):
+                for b in range(nb):
+                    e[b] -= L[j, k, b] * L[j, k, b]
+            for b in range(nb):
+                if not e[b] > 0.0:
+                    bad[i0 + b] = 2 if bad[i0 + b] == 0 else bad[i0 + b]
+                    e[b] = 1.0
+                L[j, j, b] = np.sqrt(e[b])
+            for r in range(j + 1, n):
+                for b in range(nb):
+                    e[b] = 0.5 * (Mt[r, j, b] + Mt[j, r, b])
+                for k in range(j):
+                    for b in range(nb):
+                        e[b] -= L[r, k, b] * L[j, k, b]
+                for b in range(nb):
+                    L[r, j, b] = e[b] / L[j, j, b]
+        for j in range(n):
+            for b in range(nb):
+                v[j, b] = 0.0
+        for r in range(m):  # row r of B solves L bᵀ = J[r]ᵀ; v += u_r b
+            for j in range(n):
+                for b in range(nb):
+                    e[b] = J[i0 + b, r, j]
+                for k in range(j):
+                    for b in range(nb):
+                        e[b] -= L[j, k, b] * Bt[k, b]
+                for b in range(nb):
+                    Bt[j, b] = e[b] / L[j, j, b]
+                    fro[b] += Bt[j, b] * Bt[j, b]
+                    v[j, b] += u[i0 + b, r] * Bt[j, b]
+        for b in range(nb):
+            e[b] = 0.0
+        for j in range(n):
+            for b in range(nb):
+                e[b] += v[j, b] * v[j, b]
+        for b in range(nb):
+            nv = np.sqrt(e[b])
+            lam[i0 + b] = np.inf if nv <= zero_rtol * np.sqrt(fro[b]) else 1.0 / (nv * nv)

@@ -18,12 +18,12 @@ from rhi.metrics._common import (
     inverse_gram,
     inverse_norm,
     jacobian,
-    principal_axes_of_map,
     principal_axes_of_psd,
-    radius_along,
+    radius_of_map,
     singular_values,
     square,
     torque_weights,
+    volume_of_map,
 )
 
 
@@ -62,8 +62,7 @@ def effective_manipulability(J: ArrayLike, u: ArrayLike) -> FloatArray:
     """
     J = jacobian("J", J)
     u = direction("u", u, J.shape[-2])
-    s, U = principal_axes_of_map(J)
-    return radius_along(s, U, u)
+    return radius_of_map(J, u)
 
 
 def velocity_transmission(J: ArrayLike, u: ArrayLike) -> FloatArray:
@@ -114,7 +113,7 @@ def manipulability(J: ArrayLike) -> FloatArray:
         (...,) μ >= 0 (product of the singular values of ``J``); 0 at a singularity and
         whenever ``n < m``.
     """
-    return singular_values(jacobian("J", J)).prod(axis=-1)
+    return volume_of_map(jacobian("J", J))
 
 
 def isotropy(J: ArrayLike) -> FloatArray:

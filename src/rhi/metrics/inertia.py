@@ -7,9 +7,11 @@ from numpy.typing import ArrayLike
 
 from rhi.errors import InvalidInput
 from rhi.metrics._common import (
+    SMALL_BATCH_MIN,
     FloatArray,
     direction,
     frobenius_norm,
+    inertia_along,
     inverse_gram,
     inverse_norm,
     jacobian,
@@ -18,8 +20,8 @@ from rhi.metrics._common import (
 )
 
 
-def _whitened_jacobian(J: ArrayLike, M: ArrayLike) -> FloatArray:
-    """Return ``B = J L⁻ᵀ`` with ``M = L Lᵀ``, so that ``B Bᵀ = J M⁻¹ Jᵀ``."""
+def _checked(J: ArrayLike, M: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """J (..., m, n) and M (..., n, n) as float arrays whose batch shapes broadcast."""
     J = jacobian("J", J)
     M = square("M", M)
     if M.shape[-1] != J.shape[-1]:
@@ -28,7 +30,12 @@ def _whitened_jacobian(J: ArrayLike, M: ArrayLike) -> FloatArray:
         np.broadcast_shapes(J.shape[:-2], M.shape[:-2])
     except ValueError:
         raise InvalidInput(f"M: batch shape {M.shape[:-2]} does not broadcast with J's {J.shape[:-2]}") from None
-    return whitened("M", J, M)
+    return J, M
+
+
+def _whitened_jacobian(J: ArrayLike, M: ArrayLike) -> FloatArray:
+    """Return ``B = J L⁻ᵀ`` with ``M = L Lᵀ``, so that ``B Bᵀ = J M⁻¹ Jᵀ``."""
+    return whitened("M", *_checked(J, M))
 
 
 def apparent_inertia(J: ArrayLike, M: ArrayLike) -> FloatArray:
@@ -68,8 +75,12 @@ def effective_inertia(J: ArrayLike, M: ArrayLike, u: ArrayLike) -> FloatArray:
         InvalidInput: bad shapes, non-finite entries or zero-length ``u``.
         NotSPD: ``M`` is not symmetric positive definite.
     """
-    B = _whitened_jacobian(J, M)
-    u = direction("u", u, B.shape[-2])
+    J, M = _checked(J, M)
+    u = direction("u", u, J.shape[-2])
+    lead = np.broadcast_shapes(J.shape[:-2], M.shape[:-2], u.shape[:-1])
+    if int(np.prod(lead, dtype=np.int64)) >= SMALL_BATCH_MIN:
+        return inertia_along("M", J, M, u)
+    B = whitened("M", J, M)
     v = np.einsum("...ij,...i->...j", B, u)
     r = inverse_norm(v, frobenius_norm(B))
     return r * r
