@@ -89,7 +89,7 @@ def stages(kernels: bool) -> dict:
     import bench_sim as bs
 
     import rhi
-    from rhi.sim import fast_loop
+    from rhi.sim._compiled import fast_loop
 
     dev = rhi.device("rhi4")
     a = bc.ticks(3)[1]

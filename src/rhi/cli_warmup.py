@@ -41,6 +41,7 @@ def _batch() -> None:
     t = terms(dev, _mid(dev) + np.random.default_rng(0).uniform(-0.1, 0.1, (64, dev.n)), ("J", "M"))
     metrics.effective_manipulability(t["J"], [0.0, 0.0, 1.0])
     metrics.effective_inertia(t["J"], t["M"], [0.0, 0.0, 1.0])
+    metrics.apparent_inertia(t["J"], t["M"])  # the Cholesky whitening and the Jacobi SVD
 
 
 def _controllers() -> None:
