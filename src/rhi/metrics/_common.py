@@ -242,7 +242,7 @@ def _triangular(B: FloatArray) -> bool:
 
 
 def _triangle_measures(B: FloatArray, u: FloatArray | None) -> tuple[FloatArray, FloatArray]:
-    """(ρ along u (...,) or None, μ (...,)) of a `_triangular` batch B (..., m, n), as the SVD path gives them."""
+    """(ρ along u (...,), empty without u; μ (...,)) of a `_triangular` batch B (..., m, n), as the SVD route gives them."""
     from rhi.metrics._small import radius_rows  # Numba: imported on the first large batch
 
     m, n = B.shape[-2:]
@@ -258,7 +258,7 @@ def _triangle_measures(B: FloatArray, u: FloatArray | None) -> tuple[FloatArray,
         mu[k] = s.prod(axis=-1)
         if u is not None:
             rho[k] = radius_along(s, U, uf[k])
-    return (None if u is None else rho.reshape(lead)), mu.reshape(lead)
+    return (np.empty(0) if u is None else rho.reshape(lead)), mu.reshape(lead)
 
 
 def radius_of_map(B: FloatArray, u: FloatArray) -> FloatArray:
