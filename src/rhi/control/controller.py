@@ -235,7 +235,7 @@ class NullSpaceController:
         self._kernel = (None if config.implementation == "reference" or allocation.kernel is None
                         or self._uncompiled_schedule() else KernelTick(self))
         #: A dict to fill with each reference tick's torque by source (`rhi.control.reference.reference_tick`'s
-        #: parts; ``implementation="reference"``), or None.
+        #: parts: every tick with ``implementation="reference"``, a fast controller's fallback ticks), or None.
         self.sources: dict[str, np.ndarray] | None = None
         if config.implementation == "fast":
             warn_route(self.route)
@@ -388,7 +388,8 @@ class NullSpaceController:
                 out = kernel(t, kin, sensors)
             if type(out) is Fallback:  # the kernel cannot decide this held set accurately: the basis form
                 kin = out.kin
-                tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, (out.F_render, out.F_extra))
+                tau, alpha, beta, sat, clipped = reference_tick(self, t, kin, sensors, (out.F_render, out.F_extra),
+                                                               parts=self.sources)
                 tau = np.minimum(np.maximum(tau, self.lo), self.hi)
             else:
                 tau, alpha, beta, sat, clipped = out

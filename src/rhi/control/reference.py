@@ -81,8 +81,9 @@ def reference_tick(
     tau_s = -cfg.damping * dq - sum((gain * np.asarray(obj.gradient(dev, q)) for gain, obj in ctrl.barriers),  # type: ignore[operator]
                                     np.zeros(dev.n))
     tau_to = tau_s
-    for gain, obj in objectives:
-        tau_to = tau_to - gain * np.asarray(obj.gradient(dev, q), dtype=float)
+    pushes = [-gain * np.asarray(obj.gradient(dev, q), dtype=float) for gain, obj in objectives]  # −gain ∂ν/∂q each
+    for push in pushes:
+        tau_to = tau_to + push
 
     M = kin.M if cfg.projector == "dynamic" else None
     Z = null_basis(J, M)
@@ -114,16 +115,17 @@ def reference_tick(
                          al.tau + delta0 if beta0 else al.tau, tau, d, lo, hi)
     if parts is not None:
         lam, mu = (1.0, 0.0) if s.tank is None else (s.tank.scale, s.tank.damping)
-        _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, al.tau, gamma, tau_s, objectives, (1.0 - lam) * beta0 + lam * beta,
-               lam * beta, -mu * d, np.minimum(np.maximum(tau, lo), hi))
+        _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, al.tau, gamma, tau_s, objectives, pushes,
+               (1.0 - lam) * beta0 + lam * beta, lam * beta, -mu * d, np.minimum(np.maximum(tau, lo), hi))
     return tau, gamma * al.alpha, beta, al.saturated, al.clipped
 
 
-def _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, tau_al, gamma, tau_s, objectives, beta_s, beta_o, damper, tau):
-    """Fill `parts` with the tick's torque τ (n,) [N m] by source (see `reference_tick`)."""
-    dev, q, dq = ctrl.device, kin.q, kin.dq
+def _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, tau_al, gamma, tau_s, objectives, pushes, beta_s, beta_o, damper,
+           tau):
+    """Fill `parts` with the tick's torque τ (n,) [N m] by source (see `reference_tick`; pushes: each objective's −gain ∂ν/∂q)."""
+    dq = kin.dq
     sat = al0.saturated
-    inf = np.full(dev.n, np.inf)
+    inf = np.full(dq.shape[0], np.inf)
 
     def share(x: np.ndarray) -> np.ndarray:  # Algorithm 2's projection Π x (β = 1)
         return tertiary(tau_al, sat, Z, x, torque_min=-inf, torque_max=inf, N=N)[0]
@@ -141,8 +143,8 @@ def _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, tau_al, gamma, tau_s, obje
     parts["damping"] = k * hd + beta_s * share(damp)
     parts["barrier"] = k * hb + beta_s * share(bar)
     parts["tank damper"] = damper
-    for i, (gain, obj) in enumerate(objectives):
-        parts[f"objective {i}: {type(obj).__name__}"] = beta_o * share(-gain * np.asarray(obj.gradient(dev, q), float))
+    for i, ((_, obj), push) in enumerate(zip(objectives, pushes)):
+        parts[f"objective {i}: {type(obj).__name__}"] = beta_o * share(push)
     parts["box clip"] = tau - sum(parts.values())
 
 

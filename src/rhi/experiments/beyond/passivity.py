@@ -75,7 +75,7 @@ CASES: dict[str, tuple[bool, Port | None, Saturation, Method, bool]] = {
     "objectives_pc_handle": (True, "handle", "ascm", "damper_bounding", False),
     "scaling": (True, None, "scaling", "damper_bounding", False),
 }
-#: Cases whose energy is split by torque source (`rhi.experiments.beyond.sources`: a reference replay of every tick).
+#: Cases whose energy is split by torque source (`rhi.experiments.beyond.sources`: a replay of every tick).
 SPLIT_CASES = ("objectives", "objectives_damper", "objectives_tank", "objectives_tank_damper")
 STIFF_CASES = ("objectives", "objectives_pc")
 #: Window of the moving average that separates chatter from the palpation motion [s].
@@ -357,7 +357,7 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
         lab = _LABEL[c]
         if m["sources"]:
             src_rows += sources.rows(m["sources"], lab)
-            src_rows.append(Row(f"largest replay error of the reference twin, {lab}", None, m["replay_error"], "N m",
+            src_rows.append(Row(f"largest replay error of the twin, {lab}", None, m["replay_error"], "N m",
                                 "the twin sends the logged torque"))
         if CASES[c][4]:
             src_rows += [Row(f"tank energy T at the end (lowest), {lab}", None, m["tank_end"], "J",

@@ -6,8 +6,9 @@ null-space objective, the null-space energy tank's damper; the passivity layer i
 sent torque adds to them). Each is held over the sample like the whole torque, so its work
 on the mechanism over the interval is exactly ``part(k)ᵀ(q(k+1) − q(k))`` with the encoders'
 displacement measured in the plant. `source_work` replays a logged run's inputs
-(t, q, q̇, the rendered force) through a reference twin of its controller, checks that the
-twin sends the logged torque, and integrates each source's work.
+(t, q, q̇, the rendered force) through a twin of its controller (its compiled tick split by
+`rhi.control.sources`, or the reference), checks that the twin sends the logged torque, and
+integrates each source's work.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import dataclasses
 import numpy as np
 
 from rhi.control import ControllerConfig, NullSpaceController
+from rhi.control.sources import TickSources
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Row
@@ -30,9 +32,13 @@ SAFETY = ("damping", "barrier")
 def source_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, float], float]:
     """The work [J] of each torque source over a logged run, and the largest replay error [N m].
 
+    The twin is the controller itself (its whole compiled tick, split by `rhi.control.sources.TickSources`;
+    its fallback ticks by the reference), else (a tick the compiled split cannot decide, a controller
+    whose tick is not the whole compiled one) a reference twin (``implementation="reference"``).
+
     Args:
         dev: the controller's device.
-        config: the controller's configuration (replayed with ``implementation="reference"``).
+        config: the controller's configuration.
         log: the run's `rhi.sim.Log` (t, q, q̇, τ and the rendered force F_env of every tick).
 
     Returns:
@@ -43,6 +49,9 @@ def source_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, f
     """
     if len(log.t) < 2:
         raise InvalidInput("log: needs at least two ticks to book any work")
+    compiled = _compiled_work(dev, config, log)
+    if compiled is not None:
+        return compiled
     twin = NullSpaceController(dev, dataclasses.replace(config, implementation="reference"))
     twin.sources = {}
     dq_step = np.diff(log.q, axis=0)
@@ -56,6 +65,37 @@ def source_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, f
             work[name] = work.get(name, 0.0) + float(p @ dq_step[k])
         err = max(err, float(np.max(np.abs(tau - log.tau[k]))))
     return work, err
+
+
+def _compiled_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, float], float] | None:
+    """`source_work` with the controller's own compiled tick as the twin; None where a tick is not split there."""
+    twin = NullSpaceController(dev, config)
+    split = TickSources(twin)
+    if split.reason:
+        return None
+    names = split.names
+    N = len(log.t) - 1
+    parts = np.zeros((N, len(names) + 1, dev.n))
+    row = np.zeros((len(names), dev.n))  # a stopped controller's tick keeps the last parts (as the reference twin)
+    err = 0.0
+    state = twin.state
+    for k in range(N):
+        q, dq = log.q[k], log.dq[k]
+        twin.sources = {}
+        ticks = state.ticks
+        tau = twin.step(float(log.t[k]), q, dq, {"force": log.F_env[k], "ft": log.ft[k]})
+        if twin.sources:  # the controller's fallback: the reference ran this tick
+            row = np.array([twin.sources[name] for name in names])
+        elif state.ticks != ticks:
+            out = split(q, dq)
+            if out is None:
+                return None
+            row = out
+        parts[k, :-1] = row
+        parts[k, -1] = tau - row.sum(axis=0)
+        err = max(err, float(np.max(np.abs(tau - log.tau[k]))))
+    totals = np.einsum("ksn,kn->s", parts, np.diff(log.q, axis=0))
+    return dict(zip([*names, PASSIVITY], totals.tolist())), err
 
 
 def objective_work(work: dict[str, float]) -> float:
