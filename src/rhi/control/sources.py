@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.control._compiled import P_CLIPPED, P_FME
+from rhi.control._compiled import P_CLIPPED
 from rhi.control._compiled.sources import OK, split
 from rhi.control._compiled.tank import TK_DAMPING, TK_ON, TK_SCALE
 from rhi.control.controller import NullSpaceController
@@ -40,8 +40,8 @@ class TickSources:
         why = []
         if kt is None or not kt.whole_ok:
             why.append("the controller's tick is not the whole compiled tick")
-        elif kt._prm[P_FME] != 0.0 or kt._prm[P_CLIPPED] != 0.0:
-            why.append("an FME schedule or null_space='clipped'")
+        elif kt._scheduled or kt._prm[P_CLIPPED] != 0.0:
+            why.append("a scheduled objective or null_space='clipped'")
         self.reason = "; ".join(why)
         if self.reason or kt is None:
             return

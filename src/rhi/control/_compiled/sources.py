@@ -90,7 +90,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
         F_x: (m,) its extra force [N].
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
-        prm: the tick's parameters (`rhi.control._compiled.step` P_* slots; no FME schedule, null_space="scaled").
+        prm: the tick's parameters (`rhi.control._compiled.step` P_* slots; no scheduled objective, null_space="scaled").
         obj: the static FME-matching objectives and barriers (`rhi.control._compiled.objectives.pack`).
         vme_D: (k_v, m, m) desired VMEs of the VME-matching objectives.
         vme_gain: (k_v,) their gradient steps.
