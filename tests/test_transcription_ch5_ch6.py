@@ -181,3 +181,51 @@ def test_scaled_tick_keeps_the_torque_in_the_null_space_where_the_transcription_
     tau_tr = tr.ThesisPalpation(rhi4, Mf, Ms, lambda t, V: 1.0, x0=x0, u=u, beta=20.0, k_d=K_D).step(0.0, q, np.zeros(4))
     assert np.any(np.abs(tau_tr) >= rhi4.torque_max - 1e-12)
     assert np.max(np.abs(tau - tau_tr)) > 0.1
+
+
+# ------------------------------------------------------------------------------ §5.4.1, Fig. 5.3
+def test_tmi_matching_is_eq_5_11_and_the_tick_is_eq_5_9(rng):
+    """Scenario 1 (§5.4.1): rhi's ν and tick are eqs. 5.11 and 5.9.
+
+    ν of eq. 5.11 (k_q = None: ᵐM = JJᵀ as printed; k_q = 10: J^q of eq. 4.19) and its gradient equal the
+    transcription's (1e-10, FD 1e-6), and one tick of ch. 5's controller is eq. 5.9, τ_m + (I − JᵀJ#ᵀ)(−α∂ν/∂q
+    − k_D q̇), each joint clipped at its limit (1e-6 N m, saturated ticks included; τ_m from the same controller
+    without objective and damping). Chapter 7's scaling of the null-space torque into the box would fail it.
+    """
+    import design_transcription as dtr
+
+    from rhi.control import TMIMatching
+    from rhi.experiments.ch5.setup import GAIN, NULL_DAMPING, Q_FIXED, SLAVE_SEED, controller, devices
+
+    devs = devices()
+    dev, slave = devs["RHI"], devs["slave"]
+    compared = clipped = 0
+    qs = slave.ik(dev.fk(Q_FIXED), SLAVE_SEED)
+    Js = slave.jacobian(qs)
+    for k_q, gain in ((None, GAIN), (10.0, GAIN), (None, 20.0 * GAIN)):  # the last one saturates joints
+        obj = TMIMatching(slave, qs, k_q=k_q)
+        ctrl = controller(dev, obj, gain, NULL_DAMPING)
+
+        def nu(q, k_q=k_q):
+            J = dev.jacobian(q)
+            if k_q is not None:
+                J = J * dtr.penalty(q, dev.q_min, dev.q_max, k_q)[None, :]
+            return tr.jbld(Js @ Js.T, J @ J.T)
+
+        for q in [Q_FIXED, *random_q(dev, rng, 12)]:
+            assert obj.value(dev, q) == pytest.approx(nu(q), rel=1e-10, abs=1e-12)
+            g_tr = tr.gradient_fd(nu, q)
+            np.testing.assert_allclose(obj.gradient(dev, q), g_tr, rtol=1e-6, atol=1e-8)
+            dq = rng.normal(0.0, 0.3, dev.n)
+            sensors = {"ft": np.zeros(6), "force": np.zeros(2)}
+            tau = ctrl.step(0.0, q, dq, sensors)
+            tau_m = controller(dev, None, 0.0, 0.0).step(0.0, q, dq, sensors)  # the impedance part alone
+            if np.any(np.abs(tau_m) >= dev.torque_max - 1e-9):
+                continue
+            J = dev.jacobian(q)
+            P = np.eye(dev.n) - J.T @ tr.jsharp(J, dev.mass_matrix(q)).T
+            tau_tr = np.clip(tau_m + P @ (-gain * g_tr - NULL_DAMPING * dq), dev.torque_min, dev.torque_max)
+            np.testing.assert_allclose(tau, tau_tr, atol=1e-6)
+            compared += 1
+            clipped += bool(np.any(np.abs(tau_tr) >= dev.torque_max - 1e-9))
+    assert compared >= 24 and clipped >= 3

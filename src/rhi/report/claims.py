@@ -87,6 +87,10 @@ _DTAU = ("max per-tick ‖Δτ_N‖ of the applied null-space torque, with (β =
          "max per-tick ‖Δτ_N‖ of the applied null-space torque, without (β = 20)")
 _DIST = ("max handle-force disturbance |F_sensor − F_commanded| along u, with (β = 20)",
          "max handle-force disturbance, without (β = 20)")
+_PUSH_FORCE = "box push, static: push force at which ‖W_τ τ‖ reaches 40 N m at q0"
+_PUSH_FIRST = "box push, static: first arm joint to reach its limit"
+_PUSH_MAX = {k: f"box push, static: largest arm joint torque at that force after the DM enhancement ({v})"
+             for k, v in (("literal", "eq. A.19 as printed"), ("ortho", "orthogonal projector"))}
 _HUMAN = ("rests on the responses of 10 human subjects, which the thesis does not publish; rhi's simulated observers "
           "give {ours:.3g}")
 
@@ -279,6 +283,18 @@ CLAIMS: list[Claim] = [
           "eq. A.19 as printed (weighted J†): {ours:.3f}; with the orthogonal projector {ortho:.3f}; the gradient "
           "ascent raises DM by construction, so only the size is judged", BASE,
           details=lambda r: {"ortho": r("appa.dm_enhancement", "DM along x after the null-space phase (t")},
+          variant="eq. A.19 as printed; the orthogonal-projector variant is in the dossier"),
+    Claim("Fig. A.8", "without DM enhancement joint 4 is the one that saturates in the box push",
+          T.PUSH_JOINT4_FIRST, ("appa.dm_enhancement",), lambda r: _holds(r("appa.dm_enhancement", _PUSH_FIRST) == 4),
+          "read statically (a pure x force at the handle at q0, {F:.0f} N, which brings ‖W_τ τ‖ to the thesis's "
+          "'almost 40' N m): joint {j:.0f} reaches its limit first", BASE, shown="joint 4",
+          details=lambda r: {"F": r("appa.dm_enhancement", _PUSH_FORCE), "j": r("appa.dm_enhancement", _PUSH_FIRST)}),
+    Claim("Fig. A.8", "with DM enhancement no joint torque exceeds 20 N m in the box push", T.PUSH_WITHIN_20,
+          ("appa.dm_enhancement",), lambda r: _holds(r("appa.dm_enhancement", _PUSH_MAX["literal"]) <= 20.0),
+          "at the same push force after the DM enhancement: largest joint torque {lit:.1f} N m (eq. A.19 as "
+          "printed), {ortho:.1f} N m with the orthogonal projector", BASE, shown="≤ 20 N m",
+          details=lambda r: {"lit": r("appa.dm_enhancement", _PUSH_MAX["literal"]),
+                             "ortho": r("appa.dm_enhancement", _PUSH_MAX["ortho"])},
           variant="eq. A.19 as printed; the orthogonal-projector variant is in the dossier"),
     # ---- appendix B
     Claim("§B.4.2", "without avoidance the arm is singular at ≈ 8.35 s", T.SINGULAR_TIME_B, ("appb.singularity",),

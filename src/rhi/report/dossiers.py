@@ -74,6 +74,8 @@ class Dossier:
             ``{0}``, ``{1}``, ... stand for this run's `evidence` values.
         missing: data the thesis does not publish that the value rests on (named), where it does.
         evidence: (experiment, quantity prefix) of rows whose values `inconsistent` quotes.
+        checked: how rhi's implementation of the claim's equations was checked against an independent
+            transcription of the thesis (the test and its tolerance), where it was.
     """
 
     key: str
@@ -83,6 +85,7 @@ class Dossier:
     inconsistent: str = ""
     missing: str = ""
     evidence: tuple[tuple[str, str], ...] = ()
+    checked: str = ""
 
     def __post_init__(self) -> None:
         if not (self.readings or self.missing or self.inconsistent):
@@ -160,6 +163,7 @@ def to_html(cases: Sequence[Case]) -> str:
             f"<td>{html.escape(v.ours_text)}</td><td>{html.escape(v.verdict)}</td></tr>{items}</table>"
             + (f"<p><b>Not published</b>: {html.escape(d.missing)}</p>" if d.missing and d.missing not in c.conclusion
                else "")
+            + (f"<p><b>Implementation checked</b>: {html.escape(d.checked)}</p>" if d.checked else "")
             + f"<p><b>Conclusion</b>: {html.escape(c.conclusion)}</p></section>")
     return "\n".join(parts)
 
@@ -179,6 +183,6 @@ def to_markdown(cases: Sequence[Case], header: str = "") -> str:
                 f"| **literal** (the headline) | {cell(d.literal)} | {cell(v.ours_text)} | {v.verdict} |"]
         out += [f"| {cell(rd.name)} | {cell(rd.sentence)} | {cell(_fmt(x, v))} | {verdict} |"
                 for rd, x, verdict in c.readings]
-        out += [""] + ([f"- **Not published**: {d.missing}"] if d.missing and d.missing not in c.conclusion else []) + [
-            f"- **Conclusion**: {c.conclusion}", ""]
+        out += [""] + ([f"- **Not published**: {d.missing}"] if d.missing and d.missing not in c.conclusion else []) + (
+            [f"- **Implementation checked**: {d.checked}"] if d.checked else []) + [f"- **Conclusion**: {c.conclusion}", ""]
     return "\n".join(out)

@@ -61,6 +61,32 @@ FIT_WHY = ("§3.3 (line 497): the inertias come from [23] Çavuşoğlu et al. 20
            "cites but does not print; the calibrated model fits them to the thesis's inertia-dependent numbers")
 SUBJECTS = "the 10 subjects' per-trial responses (§3.5–3.6); only means, standard deviations and test statistics are printed"
 
+PUSH_MISSING = ("the box push itself: the contact point and force direction on the box, the floor's friction, the "
+                "person's push profile through the haptic interface, the arm's configuration during the push and the "
+                "Gen3's joint-level controller (Fig. A.8 plots measured torques only)")
+
+# How the implementation behind each claim was checked against a second, independent transcription (issue 23 item 2).
+_TR = "an independent plain-NumPy transcription of the thesis"
+CH4_CHECKED = (f"rhi's GM_M, GC_M, GM_T, C1 and C2 at the thesis's four designs (θz = 89° and 2°, Table 4.1's C1 and C2) "
+               f"equal {_TR} (eqs. 4.7–4.20, 4.25–4.26, its own IK; tests/test_transcription_ch4.py) to 1e-9: the "
+               "difference lies in the set-up the thesis does not publish, not in the equations")
+ENERGY_CHECKED = ("‖q̇‖² of eqs. 4.21–4.22 (under both readings of Λ_T) along A → B at the thesis's C2 design equals "
+                  f"{_TR} to 1e-9 (tests/test_transcription_ch4.py)")
+CH5_FIXED_CHECKED = (f"ν of eq. 5.11 (with and without eq. 4.20's penalty) and its gradient equal {_TR} (1e-10, finite "
+                     "differences 1e-6), and so does the null-space part of one tick of eq. 5.9 "
+                     "(tests/test_transcription_ch5_ch6.py)")
+CH5_W_CHECKED = (f"the TMI of eqs. 4.11–4.17 (1e-10) and the gradient of eq. 5.14's μ (1e-6) equal {_TR} "
+                 "(tests/test_transcription_ch5_ch6.py)")
+CH6_CHECKED = (f"one tick of the §6.4 controller equals {_TR} (eqs. 6.2–6.6, 6.9–6.10) inside the torque box (1e-6 N m) "
+               "and, with each joint clipped at its programmed limit, in saturation at β = 20 "
+               "(tests/test_transcription_ch5_ch6.py)")
+CH7_CHECKED = ("rhi's ASCM with J⁺ equals Algorithm 1 as printed to 1e-9 N m; with J# the static capability and Fig. "
+               "7.1's deficit equal Algorithm 1's (tests/test_transcription_ch7.py)")
+APPA_CHECKED = (f"the App. A controller equals {_TR} (eqs. A.5–A.21) to 1e-6 rad/s on every sampled state of the "
+                "circle and of the DM phases, under each reading (tests/test_transcription_wmm.py)")
+APPB_CHECKED = (f"the AMD equals {_TR} (eqs. B.6–B.19) on every sampled state of the R = 0.1 m circle, the base "
+                "decisions included (tests/test_transcription_wmm.py)")
+
 _D = [
     # ---- chapter 3
     Dossier("eq3_19.a2_below_a1", "§3.3 eqs. 3.16–3.19, Figs 3.2–3.3 (lines 529–553)",
@@ -118,29 +144,35 @@ _D = [
             "θz maximising C1 over D = {θz} in rhi's §4.4 set-up",
             (Reading("the mirror design −θz", "C1 is symmetric in θz (row 'max |C1(θz) − C1(−θz)|'), so both signs "
                      "are optima of the printed C1", "ch4.theta_z_design", "θz maximising C1", _neg),),
-            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only)"),
+            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only)",
+            checked=CH4_CHECKED),
     Dossier("s4_4.theta_z.C2", "§4.4 first round, Fig. 4.4 caption (line 927)",
             "θz maximising C2 over D = {θz} in rhi's §4.4 set-up", (),
-            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only)"),
+            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only)",
+            checked=CH4_CHECKED),
     Dossier("table4_1.C2.l2", "§4.4 second round, Table 4.1 (line 929)",
             "l2 of rhi's C2 optimum over D = {l2, θz, Z_PH}, K2/K1 as Table 4.1 implies", (),
-            missing="the slave workspace W, r0 and K2/K1 (§4.4 gives them only in part)"),
+            missing="the slave workspace W, r0 and K2/K1 (§4.4 gives them only in part)",
+            checked=CH4_CHECKED),
     Dossier("table4_1.C2.GM_T", "§4.4, Table 4.1 (line 929), eq. 4.18",
             "GM_T of eq. 4.18 at the thesis's printed C2 design in rhi's set-up", (),
-            missing="the slave workspace W over which the global index is averaged"),
+            missing="the slave workspace W over which the global index is averaged",
+            checked=CH4_CHECKED),
     Dossier("fig4_7.energy_order", "§4.4, Fig. 4.7 (line 968), eq. 4.22",
             "mean ‖q̇‖² along A → B at 0.01 m/s (eq. 4.22 with Λ_T = diag(σ_I)), C2's below C1's in both rounds",
             (Reading("Λ_T = diag(σ²): eq. 4.21's ẋᵀ(J_T J_Tᵀ)⁻¹ẋ",
                      "line 953: 'joints kinetic energy, defined as ‖q̇‖² by using (4.21)'; eq. 4.21 (line 857) is "
                      "ẋᵀ(J_T J_Tᵀ)⁻¹ẋ, whose eigenvalues are the squared semi-axes where eq. 4.22 prints diag(σ)",
                      "ch4.full_design", "", measure=_energy_order_squared),),
-            missing="the designs' energies are drawn only; Fig. 4.7 prints no number"),
+            missing="the designs' energies are drawn only; Fig. 4.7 prints no number",
+            checked=ENERGY_CHECKED),
     # ---- chapter 5
     Dossier("s5_4_1.tme_increase", "§5.4.1, Fig. 5.3 (line 1121)",
             "TME area σ₁σ₂ after / before the TMI null-space controller, from q_i = [−0.63, 0.25, 0.28, 0.09] rad",
             (Reading("the penalised TMI (eq. 4.17 with J^q)", "line 847: the joint-limit penalty of eq. 4.20 enters "
                      "the TMI the controller maximises", "ch5.fixed_point", "penalised TMI"),),
-            missing="the penalty's k_q (eq. 4.20 gives only its form)"),
+            missing="the penalty's k_q (eq. 4.20 gives only its form)",
+            checked=CH5_FIXED_CHECKED),
     Dossier("s5_4_1.s2_below_s1", "§5.4.1 (line 1134), Fig. 5.5, eq. 5.14",
             "100 (1 − mean TME area of scenario 2 / scenario 1) along rhi's W, scenario 2 by eq. 5.14 as printed: "
             "τ_N = α ∂μ/∂q, μ = √det(J Jᵀ)",
@@ -150,7 +182,8 @@ _D = [
              Reading("both scenarios on the plain J (k_q = None in eqs. 5.11, 5.14)", "eq. 4.20's penalty is a "
                      "design-chapter device; eqs. 5.11 and 5.14 print the plain J", "ch5.w_trajectory",
                      "reading 'plain J': scenario 2's mean TME area below scenario 1's")),
-            missing="the W trajectory's coordinates (Fig. 5.5 draws it only)"),
+            missing="the W trajectory's coordinates (Fig. 5.5 draws it only)",
+            checked=CH5_W_CHECKED),
     Dossier("table5_1.effort_order", "§5.4.1, Fig. 5.6 (line 1163), eq. 5.15",
             "the user's work of eq. 5.15 over the W, scenario 1 < 2 < 3, same B^d in all", (),
             missing="the W trajectory's coordinates and the hand's motion along it"),
@@ -162,7 +195,8 @@ _D = [
                      "force gain, force scaling at the settled"),
              Reading(J_PLUS, J_PLUS_WHY, "ch6.palpation", "force gain M_Stiff vs M_Free, simulated sensor peak, "
                      "controller with J⁺")),
-            missing="the hardware's friction and the human hand's stiffness during the palpation"),
+            missing="the hardware's friction and the human hand's stiffness during the palpation",
+            checked=CH6_CHECKED),
     *[Dossier(f"table6_1.{c}.F_max", "§6.4, Table 6.1 (line 1442)",
               f"peak simulated F/T-sensor force along u with M_{c.capitalize()}^des, J#",
               (Reading("static force scaling at the settled configuration", "Table 6.1 caption: 'maximum force "
@@ -171,7 +205,8 @@ _D = [
                Reading("LP with null-space torques at the settled configuration", "§7.2's F_max (eq. 7.4) is an LP "
                        "over the torque box", "ch6.palpation", f"F_max along u, M_{c.capitalize()}^des: LP with "
                        "null-space torques")),
-              missing="the hardware's friction and the human hand's stiffness during the palpation")
+              missing="the hardware's friction and the human hand's stiffness during the palpation",
+              checked=CH6_CHECKED)
       for c in ("free", "stiff")],
     Dossier("table6_1.M_x_ratio", "§6.4, Table 6.1 (line 1442)",
             "identified M_x(M_Stiff)/M_x(M_Free), eq. 3.24 on the simulated plant, J#",
@@ -181,7 +216,8 @@ _D = [
              Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "",
                      measure=lambda r: r(CAL, "Table 6.1 M_x, M_Stiff^des: thesis-fit")
                      / r(CAL, "Table 6.1 M_x, M_Free^des: thesis-fit"))),
-            missing="the link inertias (cited, not printed) and the hardware's friction"),
+            missing="the link inertias (cited, not printed) and the hardware's friction",
+            checked=CH6_CHECKED),
     *[Dossier(f"table6_1.{c}.M_x", "§6.4, Table 6.1 (line 1442), eq. 3.24",
               f"M_x identified by eq. 3.24 on the simulated plant with M_{c.capitalize()}^des, J# null-space "
               "projector (the text's)",
@@ -191,7 +227,8 @@ _D = [
                        "ch6.palpation", f"M_x along u, M_{c.capitalize()}^des: our model's Λ"),
                Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL,
                        f"Table 6.1 M_x, M_{c.capitalize()}^des: thesis-fit")),
-              missing="the link inertias (cited, not printed)")
+              missing="the link inertias (cited, not printed)",
+              checked=CH6_CHECKED)
       for c in ("free", "stiff")],
     Dossier("s6_5.t_f", "§6.4 (line 1462), eqs. 6.16–6.19",
             "the full transition time ρ‖M_Free − M_Stiff‖_F with ρ = 0.003",
@@ -217,7 +254,8 @@ _D = [
     Dossier("fig7_1.scaling_gap", "§7.3, Fig. 7.1 (line 1627)",
             "peak force of simple scaling below ASCM's, J# null-space projector (the text's) with rhi's planar3r masses",
             (Reading(J_PLUS, J_PLUS_WHY, "ch7.example_3dof", "peak force deficit of scaling vs ASCM (pseudoinverse"),),
-            missing="the 3-DoF example's link masses, which J# needs (line 1627 gives lengths and torque bounds only)"),
+            missing="the 3-DoF example's link masses, which J# needs (line 1627 gives lengths and torque bounds only)",
+            checked=CH7_CHECKED),
     Dossier("s7_5.gain", "§7.5, Fig. 7.6 (line 1714); J# of §7.2 (line 1510) in eq. 7.5 and Algorithm 1 (line 1564)",
             "peak force before a joint range limit, ASCM over no compensation, J#",
             (Reading("the static capability at the contact configuration, J# (Algorithm 1 as printed reaches the same "
@@ -234,7 +272,8 @@ _D = [
                                                   "(dynamic") / r("ch7.palpation", "max force over the run (joint stops "
                                                                   "included), none (dynamic") - 1.0))),
             missing="the RHI's configuration at contact (the static gain changes across the workspace, Fig. 7.5), the "
-                    "hardware's friction and the hand's stiffness"),
+                    "hardware's friction and the hand's stiffness",
+            checked=CH7_CHECKED),
     # ---- appendix A
     *[Dossier(f"sA_4_2.rms_ratio.{c}", "§A.4.2, Table A.1 (line 2161), line 2194",
               f"RMS {name} commanded, proposed / traditional, on the 0.25 m circle with K_x = 10 I, ε = 0.2, "
@@ -249,7 +288,8 @@ _D = [
               inconsistent=("Table A.1's proposed max |v_xb| = 2.8 cm/s with the base moving only 7.15–20.35 s bounds "
                             "its RMS over a 40 s turn by 2.8·√(13.2/40) = 1.61 cm/s, below the printed 1.68"
                             if c == "vx" else ""),
-              missing="the wheel-ground slip and the motion-capture noise of the experiment")
+              missing="the wheel-ground slip and the motion-capture noise of the experiment",
+              checked=APPA_CHECKED)
       for c, name in (("vx", "v_xb"), ("w", "ω_b"))],
     Dossier("sA_4_2.base_interval.0", "§A.4.2, Fig. A.6 (line 2194)",
             "first time the proposed controller commands the base", (),
@@ -269,9 +309,21 @@ _D = [
                             f"position (rhi's Gen3, SLSQP), below the printed {thesis}; with the base free the most is "
                             "{1}"),
               evidence=(("appa.dm_enhancement", f"largest DM along {ax} the arm's self-motion can reach"),
-                        ("appa.dm_enhancement", f"largest DM along {ax} with the base free")))
+                        ("appa.dm_enhancement", f"largest DM along {ax} with the base free")),
+              checked=APPA_CHECKED)
       for ax, i, line, phase, thesis in (("z", 1, 2202, "enhancement", "4.031"),
                                          ("x", 2, 2212, "the null-space phase", "5.88"))],
+    Dossier("figA_8.joint4_first", "§A.4.3, Fig. A.8(a) (line 2210)",
+            "the first arm joint to reach its limit (32 N m joints 1–4, 13 N m joints 5–7, line 2210) under a pure x "
+            "force at the handle at q0, no DM enhancement, of the size that brings ‖W_τ τ‖ to the 'almost 40' N m of "
+            "line 2212; gravity left out, as the thesis subtracts it",
+            missing=PUSH_MISSING, checked=APPA_CHECKED),
+    Dossier("figA_8.within_20", "§A.4.3, Fig. A.8(b) (line 2210)",
+            "the largest arm joint torque under the same push force after the DM enhancement (5 s Cartesian, 15 s "
+            "null space), eq. A.19 as printed (weighted J†)",
+            (Reading(ORTHO, ORTHO_WHY, "appa.dm_enhancement", "box push, static: largest arm joint torque at that "
+                     "force after the DM enhancement (orthogonal projector)", lambda v: float(v <= 20.0)),),
+            missing=PUSH_MISSING, checked=APPA_CHECKED),
     # ---- appendix B
     Dossier("sB_4_2.singular_t", "§B.4.2, Fig. B.7 (line 2483)",
             "first time σ_min(J_m) < 0.05 without avoidance",
@@ -289,7 +341,8 @@ _D = [
                          "best σ_min(J_m) = {1} (rhi), below the stated σ_m,min = 0.15, so the base must be enabled",
             evidence=(("appb.tracking", "largest circle radius within the arm's workspace at q0 (far point reachable, "
                                         "base fixed; vs §A.4.2)"),
-                      ("appb.tracking", "best σ_min(J_m) the arm alone"))),
+                      ("appb.tracking", "best σ_min(J_m) the arm alone")),
+            checked=APPB_CHECKED),
     *[Dossier(key, "§B.5 conclusion (line 2555), §B.4.3", literal, (),
               missing="the wheel-ground slip of the experiment")
       for key, literal in (("sB_5.err_reduction.0", "100 (1 − max error x proposed / traditional), beyond"),

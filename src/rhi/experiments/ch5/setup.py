@@ -71,7 +71,9 @@ def controller(dev: Device, objective, gain: float, damping: float, *,
     """Eq. 5.9 with the impedance law of eq. 5.6 plus the null-space objective (eq. 5.10).
 
     F_m = −B^d ẋ + C_x ẋ + G_x; friction is not compensated: the plant's friction is the
-    residual of eq. 5.13.
+    residual of eq. 5.13. Eq. 5.9 as written: τ = τ_m + (I − JᵀJ#ᵀ)(τ_N − k_D q̇), each joint then
+    clipped at its limit (``null_space="clipped"``, as chapter 6's law); chapter 7's scaling of the
+    null-space torque into the torque box (Algorithm 2) is not part of chapter 5.
 
     Args:
         dev: the master device.
@@ -82,7 +84,7 @@ def controller(dev: Device, objective, gain: float, damping: float, *,
     """
     terms = ([ObjectiveTerm(objective, gain)] if objective is not None else []) + list(extra)
     cfg = ControllerConfig(primary=ImpedanceControl(damping=B_D * np.eye(dev.m)), objectives=terms, damping=damping,
-                           saturation="none")
+                           saturation="none", null_space="clipped")
     return NullSpaceController(dev, cfg)
 
 
