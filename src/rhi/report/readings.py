@@ -144,7 +144,11 @@ _D = [
             "θz maximising C1 over D = {θz} in rhi's §4.4 set-up",
             (Reading("the mirror design −θz", "C1 is symmetric in θz (row 'max |C1(θz) − C1(−θz)|'), so both signs "
                      "are optima of the printed C1", "ch4.theta_z_design", "θz maximising C1", _neg),),
-            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only)",
+            missing="the slave workspace W and the placement radius r0 of the design (§4.4 draws them only). rhi's W, "
+                    "a square rotated about its centre, makes C1 even and 90°-periodic in θz (C1(89°) = C1(−1°); "
+                    "GM_M varies 1 % over all θz, < 0.01 % from −1° to 2°), while the thesis's GM_M goes from 0.0433 "
+                    "at 89° to 0.0428 at 2° (−1.2 %): the thesis's W is not symmetric under a quarter turn about the "
+                    "rotation centre",
             checked=CH4_CHECKED),
     Dossier("s4_4.theta_z.C2", "§4.4 first round, Fig. 4.4 caption (line 927)",
             "θz maximising C2 over D = {θz} in rhi's §4.4 set-up", (),
@@ -168,9 +172,14 @@ _D = [
             checked=ENERGY_CHECKED),
     # ---- chapter 5
     Dossier("s5_4_1.tme_increase", "§5.4.1, Fig. 5.3 (line 1121)",
-            "TME area σ₁σ₂ after / before the TMI null-space controller, from q_i = [−0.63, 0.25, 0.28, 0.09] rad",
+            "TME area σ₁σ₂ after / before the null-space controller of eq. 5.9 minimising ν of eq. 5.11 on the "
+            "penalised J^q (k_q = 10, rhi's choice), from q_i = [−0.63, 0.25, 0.28, 0.09] rad",
             (Reading("the penalised TMI (eq. 4.17 with J^q)", "line 847: the joint-limit penalty of eq. 4.20 enters "
-                     "the TMI the controller maximises", "ch5.fixed_point", "penalised TMI"),),
+                     "the TMI the controller maximises", "ch5.fixed_point", "penalised TMI"),
+             Reading("eq. 5.11 as printed: ᵐM = JJᵀ, no penalty", "line 1058: 'The manipulability ellipsoid, M = JJᵀ' "
+                     "in eq. 5.11 (the headline follows line 1064's 'by using the index penalized Jacobian', k_q = 10, "
+                     "a value the thesis does not give)", "ch5.fixed_point",
+                     "TME area increase, plain eq. 5.11 (ᵐM = JJᵀ, no penalty)")),
             missing="the penalty's k_q (eq. 4.20 gives only its form)",
             checked=CH5_FIXED_CHECKED),
     Dossier("s5_4_1.s2_below_s1", "§5.4.1 (line 1134), Fig. 5.5, eq. 5.14",
