@@ -105,7 +105,10 @@ _D = [
                      f"ρ RHI at {P1} (our optimum of eq. 3.22)"),),
             inconsistent="at (0.49, −0.14) the printed q and the printed ρ_RHI = 0.387 agree under eq. 3.6 with the "
                          "published link lengths; at (0.49, −0.22) the printed q gives a different ρ than the printed "
-                         "0.371 (rhi's number in the literal row)"),
+                         "0.371 (rhi's number in the literal row)",
+            checked="eq. 3.6 on the closed-form Jacobian the thesis prints for the RHI (eq. 5.12a), plain NumPy, equals "
+                    "rhi's ρ at both printed configurations to 1e-12; both reach their points within 1 mm "
+                    "(tests/test_transcription_ch3.py)"),
     Dossier("table3_1.lambda.RHI.0", "§3.5, Table 3.1 (line 638), eq. 3.13",
             "Λ = (uᵀM_x⁻¹u)⁻¹ (eq. 3.13) at the printed q with rhi's estimated link inertias",
             (Reading("the RHI at rhi's own optimum of eq. 3.22", "line 640 (as for ρ)", "ch3.table_3_1",
