@@ -73,8 +73,8 @@ CH4_CHECKED = (f"rhi's GM_M, GC_M, GM_T, C1 and C2 at the thesis's four designs 
 ENERGY_CHECKED = ("‖q̇‖² of eqs. 4.21–4.22 (under both readings of Λ_T) along A → B at the thesis's C2 design equals "
                   f"{_TR} to 1e-9 (tests/test_transcription_ch4.py)")
 CH5_FIXED_CHECKED = (f"ν of eq. 5.11 (with and without eq. 4.20's penalty) and its gradient equal {_TR} (1e-10, finite "
-                     "differences 1e-6), and so does the null-space part of one tick of eq. 5.9 "
-                     "(tests/test_transcription_ch5_ch6.py)")
+                     "differences 1e-6), and so does one tick of eq. 5.9, each joint clipped at its limit, saturated "
+                     "ticks included (1e-6 N m; tests/test_transcription_ch5_ch6.py)")
 CH5_W_CHECKED = (f"the TMI of eqs. 4.11–4.17 (1e-10) and the gradient of eq. 5.14's μ (1e-6) equal {_TR} "
                  "(tests/test_transcription_ch5_ch6.py)")
 CH6_CHECKED = (f"one tick of the §6.4 controller equals {_TR} (eqs. 6.2–6.6, 6.9–6.10) inside the torque box (1e-6 N m) "
