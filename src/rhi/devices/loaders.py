@@ -109,7 +109,7 @@ def device_from_urdf(
     dev = _finish(model, info, own, name or stem, where, ee_frame=ee_frame, task=task, ee_offset=ee_offset, lock=lock,
                   armature=armature, torque_min=torque_min, torque_max=torque_max, friction=friction)
     dirs = ([str(near)] if near is not None else []) + [str(d) for d in package_dirs]
-    dev.visual_description = (text, tuple(dirs))
+    dev.visual_description = ("urdf", text, tuple(dirs))
     return dev
 
 
@@ -130,7 +130,8 @@ def device_from_mjcf(
 
     Torque limits default to the model's actuators (gear × ctrlrange, forcerange) or the joints'
     `actuatorfrcrange`; armature, damping and frictionloss default to the joints' own values.
-    `ee_frame` is a body or site name. Equality constraints are not modelled.
+    `ee_frame` is a body or site name. Equality constraints are not modelled. The file's visible geoms are the
+    device's drawing (`rhi.sim.geometry.add_mjcf_visuals`).
     """
     import mujoco
 
@@ -182,8 +183,10 @@ def device_from_mjcf(
         if lim:
             own["effort"][jn] = min(lim) if own["effort"][jn] == 0 else min(lim + [own["effort"][jn]])
     info = JointInfo(mimic={}, continuous=set(), no_effort=set())
-    return _finish(model, info, own, name or path.stem, where, ee_frame=ee_frame, task=task, ee_offset=ee_offset,
-                   lock=lock, armature=armature, torque_min=torque_min, torque_max=torque_max, friction=friction)
+    dev = _finish(model, info, own, name or path.stem, where, ee_frame=ee_frame, task=task, ee_offset=ee_offset,
+                  lock=lock, armature=armature, torque_min=torque_min, torque_max=torque_max, friction=friction)
+    dev.visual_description = ("mjcf", str(path.resolve()), ())
+    return dev
 
 
 def description_path(robot: str) -> Path:

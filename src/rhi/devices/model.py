@@ -136,8 +136,9 @@ class Device:
                                  else self._positive("acceleration_max", acceleration_max, n))
         self.params = dict(params or {})
         self.spec: DeviceSpec | None = None
-        #: (URDF XML, folders for its mesh paths) of the description, for drawing its visuals (rhi.viz); or None
-        self.visual_description: tuple[str, tuple[str, ...]] | None = None
+        #: the description whose visuals are drawn (rhi.viz), or None: ("urdf", its XML, folders for its mesh
+        #: paths) or ("mjcf", the file's path, ())
+        self.visual_description: tuple[str, str, tuple[str, ...]] | None = None
         self.locked_joints: dict[str, float] = {}
 
     @staticmethod
@@ -489,5 +490,5 @@ def from_spec(spec: DeviceSpec, **params: float | str) -> Device:
         acceleration_max=spec.acceleration_max,
     )
     dev.spec = spec
-    dev.visual_description = (urdf.read_text(), (str(spec.folder),))
+    dev.visual_description = ("urdf", urdf.read_text(), (str(spec.folder),))
     return dev

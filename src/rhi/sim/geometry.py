@@ -4,6 +4,8 @@ A device whose URDF has ``<visual>`` elements is drawn from them (meshes, boxes,
 spheres; ``package://`` and relative mesh paths resolved by Pinocchio's URDF geometry loader,
 the mesh vertices handed to MuJoCo through `MjSpec`), in the URDF's colours, or else in the mesh
 files' own material colours part by part (`mesh_parts`: a DAE's or an OBJ's, read by trimesh).
+A device from an MJCF is drawn from the geoms MuJoCo's viewer shows of it (groups 0–2: meshes,
+primitives and planes, in their rgba or material colours; `add_mjcf_visuals`).
 Otherwise every link is a capsule from its joint to each child joint (or to the handle) — the real link lengths — with a cylinder
 at each revolute joint along its axis, a pedestal under the first joint and a ball at the
 handle. Geometry is visual only (no contacts, no mass: the bodies carry Pinocchio's inertias)
@@ -26,6 +28,8 @@ JOINT_RGBA = (0.18, 0.2, 0.24, 1.0)
 BASE_RGBA = (0.35, 0.35, 0.38, 1.0)
 HANDLE_RGBA = (0.95, 0.55, 0.1, 1.0)
 WHEEL_RGBA = (0.12, 0.12, 0.12, 1.0)
+#: the material of a floor (a checker texture), in every drawable model
+FLOOR_MATERIAL = "grid"
 
 _G = mujoco.mjtGeom
 
@@ -133,12 +137,24 @@ def add_handle(add: GeomAdder, handle_body, radius: float) -> None:
         rgba=HANDLE_RGBA)
 
 
+def add_visuals(add: GeomAdder, device, bodies: dict) -> bool:
+    """The device's own visual geometry (its URDF's or its MJCF's) on `bodies`; False where it has none."""
+    desc = getattr(device, "visual_description", None)
+    if desc is not None and desc[0] == "mjcf":
+        return add_mjcf_visuals(add, device, desc[1], bodies)
+    shapes = urdf_visuals(device)
+    if shapes is None:
+        return False
+    add_urdf_visuals(add, shapes, bodies)
+    return True
+
+
 def urdf_visuals(device) -> pin.GeometryModel | None:
     """The URDF's visual geometry (meshes resolved), or None when it declares none or the device has no URDF."""
     desc = getattr(device, "visual_description", None)
-    if desc is None:
+    if desc is None or desc[0] != "urdf":
         return None
-    text, dirs = desc
+    _, text, dirs = desc
     try:
         geom = pin.buildGeomFromUrdfString(device.model, text, pin.GeometryType.VISUAL, package_dirs=list(dirs))
     except (RuntimeError, ValueError) as exc:
@@ -175,6 +191,66 @@ def add_urdf_visuals(add: GeomAdder, geom: pin.GeometryModel, bodies: dict) -> N
                 add(body, _G.mjGEOM_MESH, meshname=name, rgba=ci, **at)
         else:
             raise ModelError(f"urdf: visual {go.name!r} has geometry {kind} that rhi cannot draw")
+
+
+def geom_rgba(model: mujoco.MjModel, g: int) -> np.ndarray:
+    """Colour (4,) of geom g as MuJoCo draws it: its material's where it has one and keeps the default rgba."""
+    mat = int(model.geom_matid[g])
+    if mat >= 0 and np.allclose(model.geom_rgba[g], [0.5, 0.5, 0.5, 1.0]):
+        return model.mat_rgba[mat]
+    return model.geom_rgba[g]
+
+
+#: MJCF geoms drawn as themselves (the compiled model's sizes carry over)
+_PRIMITIVES = {int(k) for k in (_G.mjGEOM_PLANE, _G.mjGEOM_SPHERE, _G.mjGEOM_CAPSULE, _G.mjGEOM_ELLIPSOID,
+                                 _G.mjGEOM_CYLINDER, _G.mjGEOM_BOX)}
+
+
+def add_mjcf_visuals(add: GeomAdder, device, path: str, bodies: dict) -> bool:
+    """The geoms MuJoCo's viewer shows of an MJCF file (groups 0–2), on the bodies of their joints.
+
+    Each geom keeps its pose in its MJCF body, placed through that body's frame in the device's Pinocchio
+    model (`pinocchio.buildModelFromMJCF` names body frames after the bodies), its size or mesh (the compiled
+    vertices) and its colour (`geom_rgba`); a texture is left out. Returns False where none is visible.
+
+    Raises:
+        ModelError: the file no longer loads, a body has no frame in the device's model, or a geom is of a
+            kind rhi cannot draw (height fields, SDFs).
+    """
+    try:
+        mj = mujoco.MjModel.from_xml_path(str(path))
+    except ValueError as exc:
+        raise ModelError(f"mjcf: cannot load the visual geometry of {device.name} from {path}: {exc}") from None
+    model, spec, drawn = device.model, add.spec, False
+    for g in range(mj.ngeom):
+        if mj.geom_group[g] > 2:
+            continue
+        b = int(mj.geom_bodyid[g])
+        joint, M = 0, pin.SE3.Identity()
+        if b != 0:
+            name = mj.body(b).name
+            if not model.existFrame(name, pin.FrameType.BODY):
+                raise ModelError(f"mjcf: body {name!r} of {path} has no frame in {device.name}'s model")
+            fr = model.frames[model.getFrameId(name, pin.FrameType.BODY)]
+            joint, M = fr.parentJoint, fr.placement
+        quat = mj.geom_quat[g]
+        G = M * pin.SE3(pin.Quaternion(*quat).toRotationMatrix(), np.array(mj.geom_pos[g], dtype=float))
+        at = {"pos": list(G.translation), "quat": quat_wxyz(G.rotation)}
+        rgba, kind = tuple(float(c) for c in geom_rgba(mj, g)), int(mj.geom_type[g])
+        if kind in _PRIMITIVES:
+            add(bodies[joint], _G(kind), size=list(mj.geom_size[g]), rgba=rgba, **at)
+        elif kind == int(_G.mjGEOM_MESH):
+            i = mj.geom_dataid[g]
+            va, vn, fa, fn = mj.mesh_vertadr[i], mj.mesh_vertnum[i], mj.mesh_faceadr[i], mj.mesh_facenum[i]
+            mesh = f"mjcf_mesh{g}"
+            spec.add_mesh(name=mesh, uservert=mj.mesh_vert[va:va + vn].ravel().tolist(),
+                          userface=mj.mesh_face[fa:fa + fn].ravel().tolist())
+            add(bodies[joint], _G.mjGEOM_MESH, meshname=mesh, rgba=rgba, **at)
+        else:
+            raise ModelError(f"mjcf: geom {mj.geom(g).name or g!r} of {path} is a {_G(kind).name}, which rhi cannot "
+                             "draw (meshes, planes and primitives)")
+        drawn = True
+    return drawn
 
 
 def mesh_parts(path: str, scale, vertices: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, tuple]] | None:
@@ -233,19 +309,18 @@ def add_mecanum_base(add: GeomAdder, body, *, wheel_radius: float, half_length: 
 
 
 def add_floor(add: GeomAdder, spec: mujoco.MjSpec, z: float, half: float = 2.0) -> None:
-    """A checker floor plane at height z [m] (visual)."""
-    tex = spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D,
-                           builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
-                           rgb1=[0.82, 0.84, 0.86], rgb2=[0.74, 0.76, 0.78])
-    mat = spec.add_material(name="grid", texrepeat=[8, 8])
-    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
+    """A checker floor plane at height z [m] (visual; the material `add_scenery` made)."""
     g = add(spec.worldbody, _G.mjGEOM_PLANE, pos=[0, 0, z], size=[half, half, 0.05], rgba=(1, 1, 1, 1))
-    g.material = "grid"
-
+    g.material = FLOOR_MATERIAL
 
 
 def add_scenery(spec: mujoco.MjSpec) -> None:
-    """A light background, a head light and a light from above, so that renders read on paper."""
+    """A light background, a head light, a light from above and the floor's checker material (`FLOOR_MATERIAL`)."""
+    tex = spec.add_texture(name=FLOOR_MATERIAL, type=mujoco.mjtTexture.mjTEXTURE_2D,
+                           builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
+                           rgb1=[0.82, 0.84, 0.86], rgb2=[0.74, 0.76, 0.78])
+    mat = spec.add_material(name=FLOOR_MATERIAL, texrepeat=[8, 8])
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
     spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
                      width=64, height=64, rgb1=[1.0, 1.0, 1.0], rgb2=[0.86, 0.89, 0.93])
     hl = spec.visual.headlight

@@ -33,11 +33,10 @@ from rhi.sim.geometry import (
     add_handle,
     add_scenery,
     add_skeleton,
-    add_urdf_visuals,
+    add_visuals,
     joint_axis,
     link_radius,
     quat_wxyz,
-    urdf_visuals,
 )
 
 _MIN_MASS = 1e-6  # [kg] MuJoCo needs mass on bodies with joints; used where Pinocchio has none
@@ -174,11 +173,8 @@ def plant_spec(device: Device, friction: PlantFriction | None = None, *, timeste
     if visual:
         add = GeomAdder(spec, collision=collision)
         add_scenery(spec)
-        shapes = urdf_visuals(device)
-        if shapes is None:
+        if not add_visuals(add, device, bodies):
             add_skeleton(add, device, bodies)
-        else:
-            add_urdf_visuals(add, shapes, bodies)
         add_handle(add, handle, link_radius(device))
 
     def fixed(name: str, coef: np.ndarray):

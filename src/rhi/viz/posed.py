@@ -23,6 +23,8 @@ from rhi.sim.plant import Plant
 WELL_CONDITIONED = 0.1
 #: a parallelogram's crank as a fraction of the link it parallels (`Posed.linkages`)
 CRANK = 0.3
+#: the floor's distance under the device's lowest point where the model has no floor of its own [m]
+FLOOR_GAP = 0.02
 
 
 def parallelograms(device: Device) -> list[tuple[int, int]]:
@@ -140,6 +142,18 @@ class Posed:
         else:
             self.data.qpos[self._qadr] = q
         mujoco.mj_kinematics(self.model, self.data)
+
+    def floor(self, lowest: float | None = None) -> float:
+        """z of the floor the device stands on [m]: the model's own plane, else `FLOOR_GAP` under `lowest`.
+
+        Args:
+            lowest: z of the lowest point to stand under [m] (default: the drawn geometry's at the current pose).
+        """
+        m = self.model
+        planes = np.flatnonzero(m.geom_type == mujoco.mjtGeom.mjGEOM_PLANE)
+        if planes.size:
+            return float(np.min(self.data.geom_xpos[planes, 2]))
+        return (float(self.bounds()[0][2]) if lowest is None else float(lowest)) - FLOOR_GAP
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned box of the drawn geometry at the current pose (floor planes left out): (3,), (3,) [m]."""

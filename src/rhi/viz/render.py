@@ -19,7 +19,7 @@ from rhi._gl import has_display
 from rhi._validate import as_array, writable_file
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput, RhiError
-from rhi.sim.geometry import LINK_RGBA, link_radius
+from rhi.sim.geometry import FLOOR_MATERIAL, LINK_RGBA, link_radius
 from rhi.viz.posed import Posed
 
 
@@ -27,15 +27,20 @@ class RenderUnavailable(RhiError):
     """No OpenGL backend could be created for offscreen rendering."""
 
 
-def _camera(posed: Posed, azimuth: float | None, elevation: float | None, Q=None) -> mujoco.MjvCamera:
-    """A free camera on the device at its current pose, or framing every pose of Q: (k, n) (then back at Q[0])."""
-    lo, hi = posed.bounds()
-    if Q is not None:
-        for q in Q[np.linspace(0, len(Q) - 1, min(20, len(Q))).astype(int)]:
-            posed.set(q)
-            a, b = posed.bounds()
-            lo, hi = np.minimum(lo, a), np.maximum(hi, b)
-        posed.set(Q[0])
+def _span(posed: Posed, Q) -> tuple[np.ndarray, np.ndarray]:
+    """The box (3,), (3,) [m] around the drawn device over up to 20 poses of Q: (k, n) (left at Q[0])."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for q in Q[np.linspace(0, len(Q) - 1, min(20, len(Q))).astype(int)]:
+        posed.set(q)
+        a, b = posed.bounds()
+        lo, hi = np.minimum(lo, a), np.maximum(hi, b)
+    posed.set(Q[0])
+    return lo, hi
+
+
+def _camera(posed: Posed, azimuth: float | None, elevation: float | None, lo: np.ndarray,
+            hi: np.ndarray) -> mujoco.MjvCamera:
+    """A free camera framing the box lo, hi: (3,), (3,) [m]."""
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     cam.lookat[:] = 0.5 * (lo + hi)
@@ -97,16 +102,35 @@ def frames(posed: Posed, Q, *, width: int = 800, height: int = 600, azimuth: flo
     try:
         opt = mujoco.MjvOption()
         opt.geomgroup[:] = 1
-        cam = _camera(posed, azimuth, elevation, Q)
+        lo, hi = _span(posed, Q)
+        cam = _camera(posed, azimuth, elevation, lo, hi)
+        floor = None if (m.geom_type == mujoco.mjtGeom.mjGEOM_PLANE).any() else posed.floor(float(lo[2]))
         for i, q in enumerate(Q):
             posed.set(q)
             renderer.update_scene(posed.data, camera=cam, scene_option=opt)
+            if floor is not None:
+                add_floor(renderer.scene, posed, floor, float(np.max(hi - lo)), 0.5 * (lo + hi))
             add_linkages(renderer.scene, posed)
             if decorate is not None:
                 decorate(renderer.scene, i)
             yield renderer.render().copy()
     finally:
         renderer.close()
+
+
+def add_floor(scene: mujoco.MjvScene, posed: Posed, z: float, size: float, centre: np.ndarray) -> None:
+    """Add a checker floor at height z [m] under a device of `size` [m] centred at `centre` (3,) to a scene.
+
+    As the browser's (`rhi.viz.scene.DeviceScene`): 40 cells of 10^⌊log10(size/4)⌋ m a side.
+    """
+    if scene.ngeom >= scene.maxgeom:
+        return
+    cell = 10 ** np.floor(np.log10(max(size, 1e-3) / 4))
+    g = scene.geoms[scene.ngeom]
+    mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_PLANE, np.array([20 * cell, 20 * cell, cell]),
+                        np.array([centre[0], centre[1], z]), np.eye(3).ravel(), np.ones(4, dtype=np.float32))
+    g.matid = posed.model.material(FLOOR_MATERIAL).id
+    scene.ngeom += 1
 
 
 def add_linkages(scene: mujoco.MjvScene, posed: Posed) -> None:

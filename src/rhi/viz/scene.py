@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 import trimesh
 
-from rhi.sim.geometry import LINK_RGBA, link_radius
+from rhi.sim.geometry import LINK_RGBA, geom_rgba, link_radius
 from rhi.viz.posed import Posed
 
 _G = mujoco.mjtGeom
@@ -44,14 +44,6 @@ def geom_mesh(model: mujoco.MjModel, g: int) -> trimesh.Trimesh | None:
         fa, fn = model.mesh_faceadr[i], model.mesh_facenum[i]
         return trimesh.Trimesh(model.mesh_vert[va:va + vn].copy(), model.mesh_face[fa:fa + fn].copy(), process=False)
     return None
-
-
-def geom_rgba(model: mujoco.MjModel, g: int) -> np.ndarray:
-    """Colour (4,) of geom g as MuJoCo draws it: its material's where it has one and keeps the default rgba."""
-    mat = int(model.geom_matid[g])
-    if mat >= 0 and np.allclose(model.geom_rgba[g], [0.5, 0.5, 0.5, 1.0]):
-        return model.mat_rgba[mat]
-    return model.geom_rgba[g]
 
 
 def z_to(v: np.ndarray) -> np.ndarray:
@@ -83,12 +75,10 @@ class DeviceScene:
         self.frames: dict[int, Any] = {}
         self.meshes: dict[str, Any] = {}
         self._bodies = np.array(sorted(moving), dtype=int)
-        floor = None
         mujoco.mj_kinematics(m, posed.data)
         for g in range(m.ngeom):
             b = int(m.geom_bodyid[g])
-            if m.geom_type[g] == _G.mjGEOM_PLANE:
-                floor = float(m.geom_pos[g][2])
+            if m.geom_type[g] == _G.mjGEOM_PLANE:  # drawn as the floor's plate and grid
                 continue
             mesh = geom_mesh(m, g)
             if mesh is None:
@@ -109,7 +99,7 @@ class DeviceScene:
             self._mesh(f"{root}/link{k}/capsule", capsule, LINK_RGBA)
         self._pose_links()
         lo, hi = posed.bounds()
-        self.floor = floor if floor is not None else float(lo[2]) - 0.02
+        self.floor = posed.floor()
         size = float(np.max(hi - lo))
         cell = 10 ** np.floor(np.log10(max(size, 1e-3) / 4))
         centre = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]))
