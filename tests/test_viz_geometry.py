@@ -149,6 +149,88 @@ def test_render_shows_the_device(name):
     assert 0.005 < device_px.mean() < 0.6
     orange = (img[..., 0] > 180) & (img[..., 1] > 80) & (img[..., 1] < 170) & (img[..., 2] < 90)
     assert orange.sum() > 10  # the handle
+    assert empty[-30:].astype(float).mean(axis=-1).std() > 3.0  # a checker floor, not the sky's smooth gradient
+
+
+def test_renders_stand_on_a_floor(rhi4):
+    """MuJoCo's pictures and videos get the browser's floor: a checker plane under the lowest point drawn."""
+    from rhi.sim.geometry import FLOOR_MATERIAL
+    from rhi.viz.posed import FLOOR_GAP
+    from rhi.viz.render import RenderUnavailable, frames
+
+    posed = Posed(rhi4)
+    Q = np.array([rest_configuration(rhi4), [0.3, 1.2, -0.4, 0.9]])
+    lowest, seen = [], []
+    for q in Q:
+        posed.set(q)
+        lowest.append(posed.bounds()[0][2])
+
+    def look(scene, i):
+        planes = [scene.geoms[k] for k in range(scene.ngeom) if scene.geoms[k].type == mujoco.mjtGeom.mjGEOM_PLANE]
+        seen.append([(float(g.pos[2]), int(g.matid)) for g in planes])
+
+    try:
+        list(frames(posed, Q, width=64, height=48, decorate=look))
+    except RenderUnavailable as exc:
+        if os.environ.get("CI"):
+            raise
+        pytest.skip(f"no OpenGL backend here: {exc}")
+    grid = posed.model.material(FLOOR_MATERIAL).id
+    assert seen == [[(pytest.approx(min(lowest) - FLOOR_GAP), grid)]] * 2
+    wmm = Posed(rhi.device("wmm"))  # a model with a floor of its own keeps it, and only it
+    assert wmm.floor() == pytest.approx(float(wmm.data.geom_xpos[wmm.model.geom_type == mujoco.mjtGeom.mjGEOM_PLANE][0, 2]))
+
+
+_MJCF_ARM = """<mujoco>
+ <asset><material name="red" rgba="0.8 0.1 0.1 1"/>
+  <mesh name="tet" vertex="0 0 0  0.1 0 0  0 0.1 0  0 0 0.1"/></asset>
+ <worldbody>
+  <geom type="box" size=".1 .1 .02" pos="0 0 -0.05" rgba="0.2 0.6 0.2 1"/>
+  <body name="a" pos="0 0 0.1" euler="0 0 0.2"><joint name="j1" type="hinge" axis="0 0 1" actuatorfrcrange="-5 5"/>
+   <geom type="capsule" fromto="0 0 0 0.5 0 0" size=".03" material="red" mass="1"/>
+   <body name="b" pos="0.5 0 0" euler="0 0 0.3"><joint name="j2" type="hinge" axis="0 0 1" pos="0.01 0 0"
+     actuatorfrcrange="-5 5"/>
+    <geom type="mesh" mesh="tet" pos="0.2 0 0" euler="0.3 0 0" rgba="0.1 0.1 0.8 1" mass="1"/>
+    <geom type="sphere" size=".02" group="3" pos="0.1 0 0"/>
+    <body name="c" pos="0.3 0 0"><geom type="cylinder" size=".02 .05" rgba="0.9 0.9 0.1 1" mass="0.1"/></body>
+    <site name="tip" pos="0.4 0 0"/></body></body></worldbody></mujoco>"""
+
+
+def test_user_mjcf_is_drawn_from_its_own_geoms(tmp_path):
+    """An --mjcf robot is drawn as MuJoCo shows it (groups 0-2, in place, in its colours), not as a skeleton."""
+    from rhi.sim.geometry import HANDLE_RGBA
+    from rhi.viz.view import View
+
+    path = tmp_path / "arm.xml"
+    path.write_text(_MJCF_ARM)
+    dev = rhi.device_from_mjcf(path, ee_frame="tip", task="xy")
+    posed = Posed(dev)
+    m, q = posed.model, np.array([0.4, -0.7])
+    posed.set(q)
+    mj = mujoco.MjModel.from_xml_path(str(path))
+    md = mujoco.MjData(mj)
+    md.qpos[:] = q
+    mujoco.mj_kinematics(mj, md)
+    drawn = [g for g in range(m.ngeom) if not np.allclose(m.geom_rgba[g], HANDLE_RGBA)]
+    shown = [g for g in range(mj.ngeom) if mj.geom_group[g] <= 2]  # the group-3 sphere is left out
+    assert len(drawn) == len(shown) == 4
+    for g, h in zip(drawn, shown):
+        assert m.geom_type[g] == mj.geom_type[h]
+        np.testing.assert_allclose(posed.data.geom_xpos[g], md.geom_xpos[h], atol=1e-12)
+        np.testing.assert_allclose(posed.data.geom_xmat[g], md.geom_xmat[h], atol=1e-12)
+    np.testing.assert_allclose(m.geom_rgba[drawn], [[0.2, 0.6, 0.2, 1], [0.8, 0.1, 0.1, 1], [0.1, 0.1, 0.8, 1],
+                                                    [0.9, 0.9, 0.1, 1]], atol=1e-7)  # the material's red
+    mesh = drawn[2]
+    i, k = m.geom_dataid[mesh], mj.geom_dataid[shown[2]]
+    W = posed.data.geom_xpos[mesh] + m.mesh_vert[m.mesh_vertadr[i]:][:4] @ posed.data.geom_xmat[mesh].reshape(3, 3).T
+    Wj = md.geom_xpos[shown[2]] + mj.mesh_vert[mj.mesh_vertadr[k]:][:4] @ md.geom_xmat[shown[2]].reshape(3, 3).T
+    np.testing.assert_allclose(np.sort(W, axis=0), np.sort(Wj, axis=0), atol=1e-9)  # the tetrahedron in place
+    v = View(dev, None, port=0)  # the browser draws the same parts in the same colours
+    try:
+        colours = {tuple(h.color) for name, h in v.scene.meshes.items() if "/g" in name}
+        assert {tuple(int(round(255 * float(c))) for c in m.geom_rgba[g, :3]) for g in drawn} <= colours, colours
+    finally:
+        v.close()
 
 
 def test_render_rejects_bad_size(rhi4):
