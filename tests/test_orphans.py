@@ -112,6 +112,26 @@ def test_sigkill_of_compare_view_leaves_no_page():
     _kill_leader_and_check(proc)
 
 
+@pytest.mark.parametrize("when", ["warming up", "live"])
+def test_sigterm_of_compare_view_stops_every_loop_and_its_page(when):
+    """`rhi view --compare`: SIGTERM while it warms up or runs ends every device's loop and the page's process;
+    the exit code is the shell's for SIGTERM (143, as `rhi run` and `rhi view`, docs/runtime.md)."""
+    proc = _start("view", "--compare", "rhi4", "phantom", "--port", "0", "--duration", "120", stdout=subprocess.PIPE)
+    seen = []
+    for line in iter(proc.stdout.readline, ""):
+        seen.append(line)
+        if f"rhi view: {when}" in line:
+            break
+    assert _view_child(proc.pid), (seen, _session(proc.pid))
+    if when == "live":
+        time.sleep(1.0)  # the loops run
+    _kill_leader_and_check(proc, signal.SIGTERM)
+    out = "".join(seen) + proc.stdout.read()
+    assert proc.returncode == 128 + signal.SIGTERM, out + (proc.stderr.read() if proc.stderr else "")
+    if when == "live":  # each device's loop ended and said how it ran
+        assert "rhi view: rhi4: 1 run(s)" in out and "rhi view: phantom: 1 run(s)" in out, out
+
+
 def test_sigterm_of_run_is_an_estop_with_log_and_summary_on_disk(tmp_path):
     log, summary = tmp_path / "run.rhilog", tmp_path / "summary.json"
     proc = _start("run", "rhi4", "--config", "ch7_full", "--duration", "120", "--log", str(log),
