@@ -1,14 +1,16 @@
 """`rhi study run` in headless Chromium: a scripted participant, a kill mid-way, the resume, the analysis.
 
-The participant answers through the participant's page (its buttons and its keys), each answer drawn from a
-cumulative-Gaussian observer of the stimulus the trial renders; `rhi study run` runs as its own process on the
-simulated devices and is SIGKILLed in the middle of a trial, then started again with the same command.
+The participant answers through the participant's page (its buttons and its keys), each answer from rhi's
+observer model, the one `rhi study simulate` and `ch3.psychophysics` use (`simulated_observers`: the §3.5 observer,
+K̂ of a MuJoCo palpation through the condition's simulated device with Weber noise, by enrolment index and in
+presentation order); `rhi study run` runs as its own process on the simulated devices and is SIGKILLed in the
+middle of a trial, then started again with the same command. The answers given are therefore those of
+`rhi study simulate` of the same protocol and seed, trial for trial.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
 import signal
 import subprocess
@@ -21,7 +23,9 @@ import numpy as np
 import pytest
 
 from rhi.analysis import psychophysics as pp
+from rhi.study.protocol import load_protocol
 from rhi.study.session import read_responses
+from rhi.study.simulate import simulate
 
 pytest.importorskip("psignifit")
 
@@ -95,10 +99,19 @@ class Study:
         self.proc.wait(timeout=30)
 
 
-def observer_answer(rng: np.random.Generator, stimulus: float) -> bool:
-    """The scripted participant: P(comparison stiffer) = Φ((c − 50) / σ), JND 6 N/m (σ = JND / z₀.₇₅)."""
-    p = 0.5 * (1.0 + math.erf((stimulus - 50.0) / (6.0 / pp.Z75) / math.sqrt(2.0)))
-    return bool(rng.random() < p)
+#: enrolment index of each participant of the test (the order they start in)
+INDEX = {"P01": 0, "P02": 1}
+#: stroke durations of the observers' lookup [s] (ch3.psychophysics has four; two keep the test short)
+DURATIONS = (0.6, 1.3)
+
+
+def observers(protocol: Path, monkeypatch):
+    """rhi's §3.5 observers of the protocol's two participants (12 MuJoCo palpations, in this process)."""
+    from rhi.design import executors
+    from rhi.experiments.participants import simulated_observers
+
+    monkeypatch.setitem(executors.DEFAULTS, "executor", "serial")  # 12 short simulations: no pool
+    return lambda: simulated_observers(load_protocol(str(protocol)), len(INDEX), durations=DURATIONS)
 
 
 def key(b: browser.Browser, k: str) -> None:
@@ -107,7 +120,8 @@ def key(b: browser.Browser, k: str) -> None:
         b.call("Input.dispatchKeyEvent", type=kind, key=k, code=code, text=k if kind == "keyDown" else "")
 
 
-def play(b: browser.Browser, study: Study, rng, decisions: dict, phases: list, *, kill_at: int | None = None) -> str:
+def play(b: browser.Browser, study: Study, observer, decisions: dict, phases: list, *,
+         kill_at: int | None = None) -> str:
     """Work through the participant's page until done (or kill `study` during the second sample of `kill_at`).
 
     The session's own state (the experimenter's view) says what happens now; the script acts once the
@@ -143,7 +157,7 @@ def play(b: browser.Browser, study: Study, rng, decisions: dict, phases: list, *
                 study.kill()
                 return "killed"
             t = view["trial"]
-            stiffer = observer_answer(rng, t["stimulus"])
+            stiffer = bool(observer.answer(INDEX[view["participant"]], t["condition"], t["stimulus"]))
             which = "first" if stiffer == t["comparison_first"] else "second"
             decisions[(view["participant"], k)] = (t["condition"], t["stimulus"], int(stiffer))
             if k % 3 == 0:
@@ -164,11 +178,12 @@ def play(b: browser.Browser, study: Study, rng, decisions: dict, phases: list, *
     raise AssertionError("the session did not finish")
 
 
-def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path):
+def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path, monkeypatch):
     proto = tmp_path / "small_2afc.toml"
     proto.write_text(PROTOCOL)
     folder = tmp_path / "study"
-    rng = np.random.default_rng(11)
+    make_observer = observers(proto, monkeypatch)
+    observer = make_observer()
     decisions: dict = {}
     phases: list = []
     s = Study(proto, folder, "P01")
@@ -177,15 +192,15 @@ def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path):
         # the participant's page shows nothing the protocol does not allow: no stimulus, no condition
         text = b.evaluate("document.body.innerText")
         assert "RHI" not in text and "Rehab" not in text and "N/m" not in text
-        assert play(b, s, rng, decisions, phases, kill_at=7) == "killed"
+        assert play(b, s, observer, decisions, phases, kill_at=7) == "killed"
         assert [int(r["trial"]) for r in read_responses(folder / "P01" / "responses.csv")] == list(range(7))
         s = Study(proto, folder, "P01")  # the same command resumes
         b.call("Page.navigate", url=s.url)
-        assert play(b, s, rng, decisions, phases) == "done"
+        assert play(b, s, observer, decisions, phases) == "done"
         s.proc.wait(timeout=60)
         s2 = Study(proto, folder, "P02")
         b.call("Page.navigate", url=s2.url)
-        assert play(b, s2, rng, decisions, phases) == "done"
+        assert play(b, s2, observer, decisions, phases) == "done"
         s2.proc.wait(timeout=60)
     # every trial exactly once, answers as given; the rests where the protocol puts them (before trials 5, 10)
     assert {k for k, ph in phases if ph == "rest"} == {5, 10}
@@ -204,6 +219,12 @@ def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path):
         logs = sorted(p.name for p in (folder / pid / "trials").glob("trial-*-[ab].rhilog"))
         assert len(logs) == 24  # one log per probe
     assert list((folder / "P01" / "trials").glob("trial-0007-*.interrupted-1.rhilog"))
+    # the observer answered in presentation order, the killed trial once: the answers of `rhi study simulate`
+    simulated = simulate(load_protocol(str(proto)), len(INDEX), make_observer())
+    assert [(r["trial"], r["condition"], r["stimulus"], r["response"]) for r in simulated] == \
+        [(int(r["trial"]), r["condition"], float(r["stimulus"]), int(r["response"])) for pid in INDEX
+         for r in read_responses(folder / pid / "responses.csv")]
+    assert 0 < np.mean(resp) < 1  # both answers occur
     # rhi study analyze = the analysis fed the same responses directly
     out = tmp_path / "analysis"
     env = {**os.environ, "PYTHONPATH": SRC}

@@ -2,8 +2,8 @@
 
 `simulated_study` runs `rhi study simulate`: it builds the stimulus lookup of `rhi.experiments.ch3.discrimination`
 (one MuJoCo palpation through each condition's device per comparison stiffness and stroke duration), lets a
-`WeberObserver` answer every trial of every participant's protocol sequence (`rhi.study.simulate.simulate`,
-written into participant folders when asked), and analyses the responses as `rhi study analyze` does
+`WeberObserver` (`simulated_observers`) answer every trial of every participant's protocol sequence
+(`rhi.study.simulate.simulate`, written into participant folders when asked), and analyses the responses as `rhi study analyze` does
 (`rhi.study.results.fit_conditions`). For the §3.6 protocol and the same seed, the trials, answers and numbers
 are those of `rhi.experiments.ch3.psychophysics`. The power of the one-way ANOVA at Table 3.3's effect size
 (its WF means and s.d.) for the simulated number of participants per condition comes with it.
@@ -79,6 +79,51 @@ def stimulus_grid(protocol: Protocol) -> list[float]:
     return pct
 
 
+def simulated_observers(
+    protocol: Protocol,
+    participants: int,
+    *,
+    weber_mean: float = 0.08,
+    weber_sd: float = 0.02,
+    lapse: float = 0.0,
+    durations: Sequence[float] = DURATIONS,
+    table: dict[str, np.ndarray] | None = None,
+    progress: Progress | None = None,
+) -> WeberObserver:
+    """The §3.5 observers of a discrimination protocol's participants, feeling its conditions' simulated devices.
+
+    One `WeberObserver` (seeded by the protocol's seed) answers every trial of `participants` participants in
+    presentation order, by condition name, from the lookup of one MuJoCo palpation per (condition's device,
+    comparison stiffness, stroke duration) (`stimulus_table`; its ``table`` attribute, keyed by condition).
+
+    Args:
+        protocol: a discrimination protocol whose conditions are the §3.5 devices.
+        participants: how many participants it answers for (enrolment indices 0, 1, ...).
+        weber_mean: mean intrinsic Weber fraction of the observers.
+        weber_sd: its s.d.
+        lapse: the observers' lapse rate.
+        durations: stroke durations of the lookup [s].
+        table: a precomputed lookup keyed by condition (skips the simulations).
+        progress: callback(done, total) over the simulations.
+
+    Raises:
+        InvalidInput: not a discrimination protocol, or conditions the §3.5 set-up does not simulate.
+    """
+    if protocol.kind != "discrimination_2afc":
+        raise InvalidInput(f"protocol: simulated participants exist for discrimination tasks; {protocol.name} is a "
+                           f"{protocol.kind} task")
+    names = _palpation_names(protocol)
+    if table is None:
+        conds = protocol.condition_names
+        lookup = stimulus_table(tuple(names[c] for c in conds), reference=protocol.stimulus["reference"],
+                                comparison_percent=stimulus_grid(protocol), durations=durations, progress=progress)
+        table = {k: v for k, v in lookup.items() if k in ("stiffness", "durations")}
+        for c in conds:
+            table[c], table[f"{c}_speed"] = lookup[names[c]], lookup[f"{names[c]}_speed"]
+    return WeberObserver(table, participants, reference=protocol.stimulus["reference"], weber_mean=weber_mean,
+                         weber_sd=weber_sd, lapse=lapse, seed=protocol.seed)
+
+
 def simulated_study(
     protocol: Protocol,
     participants: int = 10,
@@ -106,26 +151,16 @@ def simulated_study(
         table: a precomputed lookup keyed by condition (skips the simulations).
         progress: callback(done, total) over simulations, then fits.
     """
-    if protocol.kind != "discrimination_2afc":
-        raise InvalidInput(f"protocol: simulated participants exist for discrimination tasks; {protocol.name} is a "
-                           f"{protocol.kind} task")
-    names = _palpation_names(protocol)
-    conds = protocol.condition_names
-    if table is None:
-        lookup = stimulus_table(tuple(names[c] for c in conds), reference=protocol.stimulus["reference"],
-                                comparison_percent=stimulus_grid(protocol), durations=durations, progress=progress)
-        table = {k: v for k, v in lookup.items() if k in ("stiffness", "durations")}
-        for c in conds:
-            table[c], table[f"{c}_speed"] = lookup[names[c]], lookup[f"{names[c]}_speed"]
-    obs = WeberObserver(table, participants, reference=protocol.stimulus["reference"], weber_mean=weber_mean,
-                        weber_sd=weber_sd, lapse=lapse, seed=protocol.seed)
+    obs = simulated_observers(protocol, participants, weber_mean=weber_mean, weber_sd=weber_sd, lapse=lapse,
+                              durations=durations, table=table, progress=progress)
     rows = simulate(protocol, participants, obs, out=out)
     rows_text = [{k: "" if v is None else str(v) for k, v in r.items()} | {"completion_time": ""} for r in rows]
-    analysis = fit_conditions(responses_of(rows_text), conditions=conds, overdispersion=overdispersion)
+    analysis = fit_conditions(responses_of(rows_text), conditions=protocol.condition_names,
+                              overdispersion=overdispersion)
     wf = T.TABLE_3_3["wf"]
     f = cohens_f([float(v[0]) for v in wf.values()], [float(v[1]) for v in wf.values()])
     power = anova_power(f, len(wf), participants) if participants >= 2 else float("nan")
-    return SimulatedStudy(rows=rows, analysis=analysis, weber=obs.weber, table=table, power=power)
+    return SimulatedStudy(rows=rows, analysis=analysis, weber=obs.weber, table=obs.table, power=power)
 
 
 #: the ch. 5 scenario (`rhi.experiments.ch5.tracking.w_scenario`) of a condition: by its run configuration and device.
@@ -232,4 +267,5 @@ def simulated_path_study(protocol: Protocol, participants: int = 8, *, out: str 
     return SimulatedTaskStudy(rows=rows, analysis=analysis, speed=speed, power=power)
 
 
-__all__ = ["SimulatedStudy", "SimulatedTaskStudy", "simulated_path_study", "simulated_study", "stimulus_grid"]
+__all__ = ["SimulatedStudy", "SimulatedTaskStudy", "simulated_observers", "simulated_path_study", "simulated_study",
+           "stimulus_grid"]
