@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import tomllib
 from pathlib import Path
@@ -293,6 +295,38 @@ def test_cli_simulate_then_analyze_reproduces_ch3_psychophysics_quick(tmp_path):
         assert got[k] == pytest.approx(v, rel=1e-12, abs=1e-15), k
     page = (tmp_path / "an" / "report.html").read_text()  # a study report judges no thesis claim
     assert "Headline claims" not in page and not (tmp_path / "an" / "fidelity.md").exists()
+
+
+@pytest.mark.realtime  # Ray's start-up waits for its processes on the wall clock: run with the real-process tests
+def test_cli_simulate_on_ray_gives_the_numbers_of_the_serial_executor(tmp_path):
+    """`rhi study simulate --executor ray`: the palpations and the fits run as Ray tasks (a local instance of two
+    workers); the answers and every printed number are those of the serial executor's run."""
+    pytest.importorskip("ray")
+    text = load_protocol("ch3_stiffness_2afc").text.replace(
+        "[-35.0, -25.0, -15.0, -5.0, 0.0, 5.0, 15.0, 25.0, 35.0]", "[-35.0, 0.0, 35.0]").replace(
+        "repetitions = 10", "repetitions = 3")
+    proto = tmp_path / "tiny.toml"
+    proto.write_text(text)
+    ray_dir = Path(tempfile.mkdtemp(prefix="rhi-ray-", dir="/tmp"))  # short: Ray's socket paths must fit 107 bytes
+    env = {**os.environ, "PYTHONPATH": SRC, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa"),
+           "RAY_TMPDIR": str(ray_dir)}
+    out = {}
+    try:
+        for executor, workers in (("ray", "2"), ("serial", "1")):
+            r = subprocess.run([sys.executable, "-m", "rhi", "study", "simulate", str(proto), "--participants", "2",
+                                "--fast", "--durations", "1.0", "--out", str(tmp_path / executor), "--executor",
+                                executor, "--workers", workers], capture_output=True, text=True, env=env, timeout=900)
+            assert r.returncode == 0, r.stdout + r.stderr
+            out[executor] = r.stdout.replace(str(tmp_path / executor), "OUT")
+        # Ray's workers ran rhi's tasks (their logs name the task function)
+        ran = [f for f in ray_dir.glob("ray/session_*/logs/worker-*.out") if "_ray_apply" in f.read_text()]
+        assert ran, sorted(p.name for p in ray_dir.rglob("*"))[:40]
+    finally:
+        shutil.rmtree(ray_dir, ignore_errors=True)
+    assert out["ray"] == out["serial"] and "one-way ANOVA on WF" in out["ray"]
+    for pid in ("S01", "S02"):
+        assert (tmp_path / "ray" / pid / "responses.csv").read_text() == \
+            (tmp_path / "serial" / pid / "responses.csv").read_text()
 
 
 def test_simulated_users_refuse_another_teleoperation():
