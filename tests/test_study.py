@@ -251,6 +251,32 @@ def test_simulate_reproduces_ch3_psychophysics_and_analyze_reads_it_back(tmp_pat
     assert 0 < sim.power < 1
 
 
+def test_ten_simulated_participants_of_the_shipped_protocol_are_ch3_psychophysics(tmp_path, monkeypatch):
+    """The acceptance's study: `ch3_stiffness_2afc` as shipped (seed 0, 270 trials each), 10 simulated participants,
+    ch3.psychophysics's own MuJoCo lookup (108 palpations): `rhi study simulate` + `rhi study analyze` give every
+    number of Table 3.3 and the §3.6 statistics of `ch3.psychophysics(subjects=10)` to 1e-12.
+
+    psignifit without overdispersion (`--fast`) keeps the 90 fits affordable; the fits with it are the same code.
+    """
+    from rhi.design import executors
+    from rhi.experiments.ch3.discrimination import psychophysics, stimulus_table
+    from rhi.experiments.participants import simulated_study
+    from rhi.report.study import study_result
+
+    monkeypatch.setitem(executors.DEFAULTS, "executor", "serial")  # short tasks: no pool on a busy machine
+    p = load_protocol("ch3_stiffness_2afc")
+    table = stimulus_table(("RHI", "PHANToM", "Rehab"))
+    sim = simulated_study(p, 10, table=table, overdispersion=False, out=tmp_path / "sim")
+    ref = psychophysics(subjects=10, seed=p.seed, overdispersion=False, table=table)
+    assert len(sim.rows) == 10 * 270
+    ours = {r.quantity: r.ours for t in study_result(tmp_path / "sim", overdispersion=False).tables for r in t.rows}
+    theirs = {r.quantity: r.ours for t in ref.tables[:2] for r in t.rows}
+    assert len(theirs) == 24 and set(theirs) <= set(ours)
+    for k, v in theirs.items():
+        assert ours[k] == pytest.approx(v, rel=1e-12, abs=1e-15), k
+    np.testing.assert_array_equal(sim.weber, ref.arrays["weber"])
+
+
 def test_a_discrimination_task_needs_its_fixture():
     text = load_protocol("ch3_stiffness_2afc").text
     a, b = text.index("[fixture]"), text.index("[display]")
@@ -263,8 +289,8 @@ def test_a_discrimination_task_needs_its_fixture():
 def test_cli_simulate_then_analyze_reproduces_ch3_psychophysics_quick(tmp_path):
     """`rhi study simulate` (MuJoCo lookup, observers) + `rhi study analyze` = `ch3.psychophysics`, same seed.
 
-    A small study (3 participants, 3 comparisons, one stroke duration) for the test's time; the full one
-    (`rhi study simulate ch3_stiffness_2afc --participants 10`) was compared the same way and is equal too.
+    A small study (3 participants, 3 comparisons, one stroke duration) through the commands; the shipped protocol
+    with 10 participants is compared through the API (`test_ten_simulated_participants_...`).
     """
     import json
 
