@@ -114,8 +114,10 @@ def test_sigkill_of_compare_view_leaves_no_page():
 
 @pytest.mark.parametrize("when", ["warming up", "live"])
 def test_sigterm_of_compare_view_stops_every_loop_and_its_page(when):
-    """`rhi view --compare`: SIGTERM while it warms up or runs ends every device's loop and the page's process;
-    the exit code is the shell's for SIGTERM (143, as `rhi run` and `rhi view`, docs/runtime.md)."""
+    """`rhi view --compare`: SIGTERM, while it warms up or runs, ends every device's loop and the page's process.
+
+    The exit code is the shell's for SIGTERM (143, as `rhi run` and `rhi view`, docs/runtime.md).
+    """
     proc = _start("view", "--compare", "rhi4", "phantom", "--port", "0", "--duration", "120", stdout=subprocess.PIPE)
     seen = []
     for line in iter(proc.stdout.readline, ""):

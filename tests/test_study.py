@@ -252,9 +252,11 @@ def test_simulate_reproduces_ch3_psychophysics_and_analyze_reads_it_back(tmp_pat
 
 
 def test_ten_simulated_participants_of_the_shipped_protocol_are_ch3_psychophysics(tmp_path, monkeypatch):
-    """The acceptance's study: `ch3_stiffness_2afc` as shipped (seed 0, 270 trials each), 10 simulated participants,
-    ch3.psychophysics's own MuJoCo lookup (108 palpations): `rhi study simulate` + `rhi study analyze` give every
-    number of Table 3.3 and the §3.6 statistics of `ch3.psychophysics(subjects=10)` to 1e-12.
+    """The acceptance's study: the shipped protocol with 10 simulated participants is ch3.psychophysics to 1e-12.
+
+    `ch3_stiffness_2afc` as shipped (seed 0, 270 trials each) and ch3.psychophysics's own MuJoCo lookup
+    (108 palpations): `rhi study simulate` + `rhi study analyze` give every number of Table 3.3 and the §3.6
+    statistics of `ch3.psychophysics(subjects=10)`.
 
     psignifit without overdispersion (`--fast`) keeps the 90 fits affordable; the fits with it are the same code.
     """
@@ -325,8 +327,10 @@ def test_cli_simulate_then_analyze_reproduces_ch3_psychophysics_quick(tmp_path):
 
 @pytest.mark.realtime  # Ray's start-up waits for its processes on the wall clock: run with the real-process tests
 def test_cli_simulate_on_ray_gives_the_numbers_of_the_serial_executor(tmp_path):
-    """`rhi study simulate --executor ray`: the palpations and the fits run as Ray tasks (a local instance of two
-    workers); the answers and every printed number are those of the serial executor's run."""
+    """`rhi study simulate --executor ray` prints the serial executor's numbers and writes the same answers.
+
+    The palpations and the fits run as Ray tasks (a local instance of two workers).
+    """
     pytest.importorskip("ray")
     text = load_protocol("ch3_stiffness_2afc").text.replace(
         "[-35.0, -25.0, -15.0, -5.0, 0.0, 5.0, 15.0, 25.0, 35.0]", "[-35.0, 0.0, 35.0]").replace(

@@ -106,7 +106,7 @@ DURATIONS = (0.6, 1.3)
 
 
 def observers(protocol: Path, monkeypatch):
-    """rhi's §3.5 observers of the protocol's two participants (12 MuJoCo palpations, in this process)."""
+    """The §3.5 observers (rhi's observer model) of the protocol's two participants (12 MuJoCo palpations, in this process)."""
     from rhi.design import executors
     from rhi.experiments.participants import simulated_observers
 

@@ -3,10 +3,11 @@
 `simulated_study` runs `rhi study simulate`: it builds the stimulus lookup of `rhi.experiments.ch3.discrimination`
 (one MuJoCo palpation through each condition's device per comparison stiffness and stroke duration), lets a
 `WeberObserver` (`simulated_observers`) answer every trial of every participant's protocol sequence
-(`rhi.study.simulate.simulate`, written into participant folders when asked), and analyses the responses as `rhi study analyze` does
-(`rhi.study.results.fit_conditions`). For the §3.6 protocol and the same seed, the trials, answers and numbers
-are those of `rhi.experiments.ch3.psychophysics`. The power of the one-way ANOVA at Table 3.3's effect size
-(its WF means and s.d.) for the simulated number of participants per condition comes with it.
+(`rhi.study.simulate.simulate`, written into participant folders when asked), and analyses the responses as
+`rhi study analyze` does (`rhi.study.results.fit_conditions`). For the §3.6 protocol and the same seed, the
+trials, answers and numbers are those of `rhi.experiments.ch3.psychophysics`. The power of the one-way ANOVA
+at Table 3.3's effect size (its WF means and s.d.) for the simulated number of participants per condition
+comes with it.
 """
 
 from __future__ import annotations

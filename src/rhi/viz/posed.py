@@ -144,7 +144,7 @@ class Posed:
         mujoco.mj_kinematics(self.model, self.data)
 
     def floor(self, lowest: float | None = None) -> float:
-        """z of the floor the device stands on [m]: the model's own plane, else `FLOOR_GAP` under `lowest`.
+        """Height of the floor the device stands on [m]: the model's own plane, else `FLOOR_GAP` under `lowest`.
 
         Args:
             lowest: z of the lowest point to stand under [m] (default: the drawn geometry's at the current pose).
