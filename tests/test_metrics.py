@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import fd_jacobian, random_q
 
 import rhi.metrics as rm
 from rhi.errors import InfeasibleLimits, InvalidInput, NotSPD, RhiError, Singular
@@ -882,3 +883,17 @@ def test_radius_along_is_scale_invariant(rng, scale):
     flat[:, 1] = 1e-9 * flat[:, 0]  # rank 1: lost along the second axis, the rule unchanged by the scale
     np.testing.assert_array_equal(rm.effective_manipulability(scale * flat, u) == 0,
                                   rm.effective_manipulability(flat, u) == 0)
+
+
+def test_log_det_gradient_matches_finite_differences(rhi4, phantom, rng):
+    """∇ log det(JJᵀ) against central differences, batched; a singular JJᵀ is `Singular`, a misshapen dJ named."""
+    for dev in (rhi4, phantom):
+        Q = random_q(dev, rng, 3)
+        got = rm.log_det_gradient(dev.jacobian(Q), dev.jacobian_derivative(Q))
+        for q, g in zip(Q, got):
+            want = fd_jacobian(lambda x: np.linalg.slogdet(dev.jacobian(x) @ dev.jacobian(x).T)[1], q)
+            np.testing.assert_allclose(g, want, rtol=1e-5, atol=1e-6)
+    with pytest.raises(Singular, match="J"):
+        rm.log_det_gradient(np.zeros((2, 3)), np.zeros((2, 3, 3)))
+    with pytest.raises(InvalidInput, match="dJ"):
+        rm.log_det_gradient(np.eye(2, 3), np.zeros((2, 3)))

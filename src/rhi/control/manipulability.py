@@ -10,10 +10,10 @@ import dataclasses
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.control.objectives import contract, jbld_velocity_gradient
-from rhi.devices.model import Device, DeviceTerms, inv_small
+from rhi.control.objectives import jbld_velocity_gradient
+from rhi.devices.model import Device, DeviceTerms
 from rhi.errors import InvalidInput
-from rhi.metrics import jbld
+from rhi.metrics import jbld, log_det_gradient
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,9 +56,8 @@ class Manipulability:
 
     def _gradient(self, device: Device, q: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
         J, dJ = penalized(device, q, J, dJ, self.k_q)
-        A = J.dot(J.T)
-        g = contract(inv_small(A).T.dot(J), dJ)
-        return -g if self.log else -np.sqrt(np.linalg.det(A)) * g
+        g = 0.5 * log_det_gradient(J, dJ)  # ∇ log μ
+        return -g if self.log else -np.sqrt(np.linalg.det(J.dot(J.T))) * g
 
 
 def penalty(q: np.ndarray, *, q_min: np.ndarray, q_max: np.ndarray, k_q: float) -> tuple[np.ndarray, np.ndarray]:

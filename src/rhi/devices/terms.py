@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from rhi._linalg import torque_null_projector
 from rhi.errors import InvalidInput
 
 if TYPE_CHECKING:
@@ -275,7 +276,7 @@ class DeviceTerms:
     @term
     def N(self) -> np.ndarray:
         """(n, n) dynamically consistent torque null-space projector I − Jᵀ J#ᵀ (eqs. 3.20, 5.9, 7.5)."""
-        return eye(self.J.shape[1]) - self.J.T.dot(self.Jsharp.T)
+        return torque_null_projector(self.J, self.Jsharp)
 
     @term
     def Cx(self) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rhi.errors import InvalidInput
+from rhi.errors import InvalidInput, Singular
 from rhi.metrics._common import (
     FloatArray,
     direction,
@@ -114,6 +114,35 @@ def manipulability(J: ArrayLike) -> FloatArray:
         whenever ``n < m``.
     """
     return volume_of_map(jacobian("J", J))
+
+
+def log_det_gradient(J: ArrayLike, dJ: ArrayLike) -> FloatArray:
+    """``∇_q log det(J Jᵀ) = 2 Σ_ij ((J Jᵀ)⁻¹ J)_ij ∂J_ij/∂q`` = 2 ∇ log μ (thesis eqs. 5.14, B.14).
+
+    The one implementation of this gradient: `rhi.control.Manipulability` (½ of it: log μ) and the
+    mobile controllers' ∇ det(J Jᵀ) (det(J Jᵀ) times it) use it.
+
+    Args:
+        J: (..., m, n) Jacobian of full row rank.
+        dJ: (..., m, n, n) its derivative, [..., i, j, k] = ∂J_ij/∂q_k.
+
+    Returns:
+        (..., n) the gradient.
+
+    Raises:
+        InvalidInput: misshapen or non-finite input.
+        Singular: J J ᵀ is singular.
+    """
+    J = jacobian("J", J)
+    dJ = np.asarray(dJ, dtype=float)
+    if dJ.shape[-3:] != J.shape[-2:] + (J.shape[-1],) or not np.isfinite(dJ).all():
+        raise InvalidInput(f"dJ: expected finite values of shape (..., {J.shape[-2]}, {J.shape[-1]}, {J.shape[-1]}), "
+                           f"got {dJ.shape}")
+    try:
+        W = np.linalg.solve(J @ np.swapaxes(J, -1, -2), J)  # (J Jᵀ)⁻¹ J
+    except np.linalg.LinAlgError:
+        raise Singular("J: J Jᵀ is singular") from None
+    return 2.0 * np.einsum("...ij,...ijk->...k", W, dJ)
 
 
 def isotropy(J: ArrayLike) -> FloatArray:

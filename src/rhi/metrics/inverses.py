@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from rhi._linalg import torque_null_projector
 from rhi.errors import InvalidInput
 from rhi.metrics._common import FloatArray, cholesky, full_row_rank_pinv, jacobian, square, whiten
 
@@ -88,8 +89,7 @@ def nullspace_projector(J: ArrayLike, M: ArrayLike | None = None) -> FloatArray:
         Singular: ``J`` does not have full row rank.
     """
     J, Jinv = _weighted(J, M, "M")
-    n = J.shape[-1]
-    return np.eye(n) - np.swapaxes(Jinv @ J, -1, -2)
+    return torque_null_projector(J, Jinv)
 
 
 def velocity_nullspace_projector(J: ArrayLike, Q: ArrayLike | None = None) -> FloatArray:

@@ -16,7 +16,7 @@ import numpy as np
 
 from rhi._validate import as_array, unit_vector
 from rhi.errors import InvalidInput
-from rhi.metrics import directional_manipulability, manipulability
+from rhi.metrics import directional_manipulability, log_det_gradient, manipulability
 
 
 def dm_value(J, u, torque_max) -> np.ndarray:
@@ -111,11 +111,8 @@ def manipulability_det_gradient(J, dJ) -> np.ndarray:
     """
     J = as_array("J", J, ndim_min=2)
     dJ = as_array("dJ", dJ, shape_tail=J.shape[-2:] + (J.shape[-1],))
-    Psi = J @ np.swapaxes(J, -1, -2)
-    W = np.linalg.solve(Psi, J)  # Ψ⁻¹J, (..., r, m)
-    # tr(Ψ⁻¹ ∂_kΨ) = 2 Σ_aj (Ψ⁻¹J)_aj ∂_k J_aj
-    g = 2.0 * np.einsum("...aj,...ajk->...k", W, dJ)
-    return np.linalg.det(Psi)[..., None] * g
+    # tr(Ψ⁻¹ ∂_kΨ) = ∇ log det Ψ
+    return np.linalg.det(J @ np.swapaxes(J, -1, -2))[..., None] * log_det_gradient(J, dJ)
 
 
 def manipulability_det_hessian(J, dJ, d2J) -> np.ndarray:
