@@ -891,7 +891,7 @@ def test_log_det_gradient_matches_finite_differences(rhi4, phantom, rng):
         Q = random_q(dev, rng, 3)
         got = rm.log_det_gradient(dev.jacobian(Q), dev.jacobian_derivative(Q))
         for q, g in zip(Q, got):
-            want = fd_jacobian(lambda x: np.linalg.slogdet(dev.jacobian(x) @ dev.jacobian(x).T)[1], q)
+            want = fd_jacobian(lambda x, d=dev: np.linalg.slogdet(d.jacobian(x) @ d.jacobian(x).T)[1], q)
             np.testing.assert_allclose(g, want, rtol=1e-5, atol=1e-6)
     with pytest.raises(Singular, match="J"):
         rm.log_det_gradient(np.zeros((2, 3)), np.zeros((2, 3, 3)))
