@@ -3,7 +3,8 @@
 The import graph is read with `ast` from the source (nothing is imported): an edge A → B for every
 ``import rhi.B`` / ``from rhi.B import x`` / ``from rhi import B`` in A, at module level *and* inside
 functions (a deferred import still ties the modules together; hiding an edge in a function does not
-break a cycle). ``if TYPE_CHECKING:`` imports are not edges (they never run).
+break a cycle). ``if TYPE_CHECKING:`` imports never run, but a cycle through them still ties the modules'
+types together: the graph with them has no cycle either.
 """
 
 from __future__ import annotations
@@ -31,12 +32,15 @@ def _type_checking_block(node: ast.AST) -> bool:
     return isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
 
 
-def _imports(tree: ast.AST, name: str, is_package: bool, known: set[str]) -> set[str]:
-    """The rhi modules imported anywhere in `tree` (module `name`), resolved to the longest known module."""
+def _imports(tree: ast.AST, name: str, is_package: bool, known: set[str], *, type_checking: bool = False) -> set[str]:
+    """The rhi modules imported anywhere in `tree` (module `name`), resolved to the longest known module.
+
+    ``if TYPE_CHECKING:`` imports count only with `type_checking`.
+    """
     found: set[str] = set()
     skip: set[int] = set()
     for node in ast.walk(tree):
-        if _type_checking_block(node):
+        if not type_checking and _type_checking_block(node):
             skip.update(id(n) for n in ast.walk(node))
     for node in ast.walk(tree):
         if id(node) in skip:
@@ -60,13 +64,14 @@ def _imports(tree: ast.AST, name: str, is_package: bool, known: set[str]) -> set
     return found
 
 
-def import_graph() -> dict[str, set[str]]:
-    """{module: rhi modules it imports}, package ``__init__`` re-exports included."""
+def import_graph(*, type_checking: bool = False) -> dict[str, set[str]]:
+    """{module: rhi modules it imports}, package ``__init__`` re-exports included; ``TYPE_CHECKING`` ones too if asked."""
     mods = modules()
     known = set(mods)
     graph = {}
     for name, path in mods.items():
-        graph[name] = _imports(ast.parse(path.read_text()), name, path.name == "__init__.py", known)
+        graph[name] = _imports(ast.parse(path.read_text()), name, path.name == "__init__.py", known,
+                               type_checking=type_checking)
     return graph
 
 
@@ -120,6 +125,12 @@ def test_no_import_cycle() -> None:
     assert not found, f"import cycles between rhi modules: {found}"
 
 
+def test_no_import_cycle_through_type_checking_imports() -> None:
+    """Types do not go round in circles either: a module typed against a higher one uses a protocol instead."""
+    found = cycles(_package_edges(import_graph(type_checking=True)))
+    assert not found, f"import cycles between rhi modules through TYPE_CHECKING imports: {found}"
+
+
 def test_the_cycle_check_finds_a_cycle() -> None:
     """The checker itself: a planted cycle and a relative import are found (else the test above cannot fail)."""
     known = {"rhi.a", "rhi.b", "rhi.c", "rhi"}
@@ -129,6 +140,9 @@ def test_the_cycle_check_finds_a_cycle() -> None:
                  "rhi.c", False, known)
     assert (a, b, c) == ({"rhi.b"}, {"rhi.c"}, {"rhi.a"})
     assert cycles({"rhi.a": a, "rhi.b": b, "rhi.c": c}) == [["rhi.a", "rhi.b", "rhi.c"]]
+    typed = _imports(ast.parse("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import rhi.b\n"), "rhi.c", False,
+                     known, type_checking=True)
+    assert typed == {"rhi.b"} and cycles({"rhi.b": {"rhi.c"}, "rhi.c": typed}) == [["rhi.b", "rhi.c"]]
 
 
 def test_design_names_every_module() -> None:

@@ -176,7 +176,7 @@ def test_null_space_tank_from_the_file():
 def test_every_saturation_method_of_the_controller_is_accepted():
     import typing
 
-    from rhi.control.controller import Saturation
+    from rhi.control.allocation import Saturation
 
     for method in typing.get_args(Saturation):
         d = _doc()

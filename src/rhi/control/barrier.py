@@ -11,12 +11,13 @@ import numpy as np
 
 from rhi.control.compiled import CompiledObjective
 from rhi.devices.model import Device, DeviceTerms
+from rhi.devices.terms import DeviceModel
 from rhi.errors import InvalidInput
 
 _LIMIT_ROWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def limit_rows(device: Device) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def limit_rows(device: DeviceModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(C, lower, upper) with lower ≤ C q ≤ upper for every limited row: (k, n), (k,), (k,); cached per device.
 
     Rows: the box limits q_min ≤ q ≤ q_max (joints with at least one finite bound), then the
@@ -79,7 +80,7 @@ class JointLimitBarrier:
         if self.kind not in ("quadratic", "inverse"):
             raise InvalidInput(f"kind: expected 'quadratic' or 'inverse', got {self.kind!r}")
 
-    def distances(self, device: Device, q: np.ndarray) -> np.ndarray:
+    def distances(self, device: DeviceModel, q: np.ndarray) -> np.ndarray:
         """Distances (2k,) of q: (n,) [rad] to every lower then every upper limit [rad] (inf where unlimited)."""
         C, lower, upper = limit_rows(device)
         c = C @ np.asarray(q, dtype=float)
@@ -95,7 +96,7 @@ class JointLimitBarrier:
         r = self.margin / np.maximum(d[a], 1e-3 * self.margin)
         return float(self.weight * np.sum((r - 1.0) ** 2))
 
-    def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
+    def gradient(self, device: DeviceModel, q: np.ndarray) -> np.ndarray:
         """∂ν_lim/∂q = Cᵀ (∂ν/∂d_lo − ∂ν/∂d_hi): (n,) [1/rad]."""
         d = self.distances(device, q)
         if self.kind == "quadratic":

@@ -12,6 +12,7 @@ import numpy as np
 from rhi._validate import as_array
 from rhi.control.objectives import jbld_velocity_gradient
 from rhi.devices.model import Device, DeviceTerms
+from rhi.devices.terms import DeviceModel
 from rhi.errors import InvalidInput
 from rhi.metrics import jbld, log_det_gradient
 
@@ -54,7 +55,7 @@ class Manipulability:
         """`gradient` from a terms snapshot: (n,)."""
         return self._gradient(terms.device, terms.q, terms.J, terms.dJ)
 
-    def _gradient(self, device: Device, q: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+    def _gradient(self, device: DeviceModel, q: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
         J, dJ = penalized(device, q, J, dJ, self.k_q)
         g = 0.5 * log_det_gradient(J, dJ)  # ∇ log μ
         return -g if self.log else -np.sqrt(np.linalg.det(J.dot(J.T))) * g
@@ -78,7 +79,7 @@ def penalty(q: np.ndarray, *, q_min: np.ndarray, q_max: np.ndarray, k_q: float) 
     return np.where(finite, np.clip(p, 0.0, 1.0), 1.0), np.where(inside, dp, 0.0)
 
 
-def penalized(device: Device, q: np.ndarray, J: np.ndarray, dJ: np.ndarray, k_q: float | None):
+def penalized(device: DeviceModel, q: np.ndarray, J: np.ndarray, dJ: np.ndarray, k_q: float | None):
     """(J^q, ∂J^q/∂q) with J^q = J diag(P(q)) (eq. 4.19): ∂J^q_k = ∂J_k diag(P) + J_k P'_k e_kᵀ."""
     if k_q is None:
         return J, dJ
@@ -170,7 +171,7 @@ class TMIMatching:
         """`gradient` from a controller's `DeviceTerms` snapshot (J, ∂J/∂q already computed): (n,)."""
         return self._gradient(terms.device, terms.q, terms.J, terms.dJ)
 
-    def _gradient(self, device: Device, q: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
+    def _gradient(self, device: DeviceModel, q: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
         J, dJ = penalized(device, q, J, dJ, self.k_q)
         return jbld_velocity_gradient(self.slave_ellipsoid(), J, dJ, self.H)
 

@@ -82,7 +82,7 @@ from typing import Literal
 import numpy as np
 
 from rhi.control._compiled import passivity as _kernel
-from rhi.control.reference import reference_passivity
+from rhi.control.tank import hold_work, largest_scale
 from rhi.devices.model import DeviceTerms
 from rhi.errors import InvalidInput
 
@@ -164,7 +164,7 @@ class PassivityController:
 
     Args:
         config: the settings.
-        reference: run the readable composition (`rhi.control.reference.reference_passivity`)
+        reference: run the readable composition (`reference_passivity`)
             instead of the compiled kernel (`rhi.control._compiled.passivity`); equal to rounding.
     """
 
@@ -225,4 +225,55 @@ class PassivityController:
         return tau
 
 
-__all__ = ["Method", "Passivity", "PassivityController", "PassivityState", "Port"]
+def reference_passivity(pc: PassivityController, t: float, kin: DeviceTerms, tau0: np.ndarray, lo: np.ndarray,
+                        hi: np.ndarray) -> np.ndarray:
+    """`PassivityController.apply` (steps 1–4 of its docstring), one equation per line.
+
+    The oracle of `rhi.control._compiled.passivity.apply` (``PassivityController(reference=True)`` runs it).
+    Returns the torque to send (n,) [N m]; advances ``pc.state``.
+    """
+    s, cfg = pc.state, pc.config
+    motors = cfg.port == "motors"
+    pos, v = (kin.q, kin.dq) if motors else (kin.x, kin.xdot)
+    if v is None:
+        raise InvalidInput("dq: the passivity controller needs the joint velocity; call Device.terms(q, dq)")
+    if s.position is not None and s.effort is not None:  # 1. PO: the held effort's exact work over the interval
+        s.energy -= float(s.effort.dot(pos - s.position))
+    E, dt = s.energy, t - s.t
+    s.alpha, s.scale = 0.0, 1.0
+    tau = tau0
+
+    def effort(tau: np.ndarray) -> np.ndarray:  # τ at the motor port, J#ᵀτ (eq. 7.5) at the handle
+        return tau if motors else kin.Jsharp.T.dot(tau)
+
+    if cfg.control and dt > 0.0 and math.isfinite(dt):
+        Minv = kin.Minv if motors else kin.JMinv.dot(kin.J.T)
+        e0 = effort(tau0)
+        w0 = hold_work(e0, v, Minv, dt)
+        if w0 > E:  # 2. the coming interval would leave E_obs < 0
+            Mv = kin.M.dot(v) if motors else kin.Lambda.dot(v)
+            ke2 = float(v.dot(Mv))  # 2 × the kinetic energy of the port's motion [J]
+            tau_d = np.zeros_like(tau0)
+            if ke2 > 0.0 and cfg.method != "bounding":  # 3. the series damper
+                a_max = 0.5 / dt if cfg.alpha_max is None else cfg.alpha_max
+                s.alpha = min((w0 - E) / (dt * ke2), a_max)
+                tau_d = -s.alpha * Mv if motors else kin.J.T.dot(-s.alpha * Mv)
+                tau_d = np.minimum(np.maximum(tau_d, lo), hi)
+                s.dissipated -= hold_work(effort(tau_d), v, Minv, dt)
+            if cfg.method == "damper":  # the law untouched
+                tau = tau0 + tau_d
+            elif motors:  # 4. the null-space part of the law's torque yields first, then the task part
+                tau_t = kin.J.T.dot(kin.Jsharp.T.dot(tau0))
+                lam_n = largest_scale(E, tau_t + tau_d, tau0 - tau_t, v, Minv, dt)
+                lam_t = 1.0 if lam_n > 0.0 else largest_scale(E, tau_d, tau_t, v, Minv, dt)
+                tau = lam_t * tau_t + lam_n * (tau0 - tau_t) + tau_d
+                s.scale = lam_t
+            else:
+                s.scale = largest_scale(E, effort(tau_d), e0, v, Minv, dt)
+                tau = s.scale * tau0 + tau_d
+            tau = np.minimum(np.maximum(tau, lo), hi)
+    s.t, s.position, s.effort = t, np.array(pos, dtype=float), effort(tau)
+    return tau
+
+
+__all__ = ["Method", "Passivity", "PassivityController", "PassivityState", "Port", "reference_passivity"]

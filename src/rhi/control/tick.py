@@ -28,13 +28,13 @@ from rhi.control._compiled import objectives as _objectives, tank as _tank, whol
 from rhi.control.barrier import limit_rows
 from rhi.control.compiled import CompiledLaw
 from rhi.control.objectives import gradient_function
+from rhi.control.settings import ControllerParts, ControllerState
 from rhi.control.transition import TransitionState
 from rhi.devices.model import DeviceTerms
 from rhi.devices.terms import TERMS, layout
 from rhi.errors import InvalidInput, Singular
 
 if TYPE_CHECKING:
-    from rhi.control.controller import ControllerState, NullSpaceController
     from rhi.control.passivity import PassivityState
 
 def _f64(v) -> np.ndarray:
@@ -94,7 +94,7 @@ class KernelTick:
         ctrl: the controller (its device, configuration, limits and objectives).
     """
 
-    def __init__(self, ctrl: NullSpaceController) -> None:
+    def __init__(self, ctrl: ControllerParts) -> None:
         cfg, dev = ctrl.config, ctrl.device
         n, m = dev.n, dev.m
         self.ctrl = ctrl
@@ -312,8 +312,7 @@ class KernelTick:
             T = s.transition
             self._tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
             self._tr_of = T
-        pc = ctrl._pc
-        ps = None if pc is None else pc.state
+        ps = ctrl.passivity
         if ps is not None and ps is not self._ps_of:
             self._load_passivity(ps)
         self._load_tank(s)

@@ -6,19 +6,14 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from rhi._validate import as_array
-from rhi.devices.terms import eye
+from rhi.devices.terms import DeviceModel, eye
 from rhi.errors import InvalidInput, Unreachable
 
-if TYPE_CHECKING:
-    from rhi.devices.model import Device
 
-
-def ik(device: Device, x, q0, *, weights=None, tol: float = 1e-9, max_iter: int = 200, k_null: float = 0.1,
+def ik(device: DeviceModel, x, q0, *, weights=None, tol: float = 1e-9, max_iter: int = 200, k_null: float = 0.1,
        restarts: int = 8) -> np.ndarray:
     """Inverse kinematics by the weighted pseudoinverse with a null-space term (thesis eq. 3.3–3.4).
 
@@ -72,7 +67,7 @@ def ik(device: Device, x, q0, *, weights=None, tol: float = 1e-9, max_iter: int 
     )
 
 
-def _ik_from(dev: Device, x, q, Qinv, tol, max_iter, k_null, centering) -> tuple[np.ndarray, float]:
+def _ik_from(dev: DeviceModel, x, q, Qinv, tol, max_iter, k_null, centering) -> tuple[np.ndarray, float]:
     q = np.clip(q, dev.q_min, dev.q_max)
     err = np.inf
     At, b = dev.A.T, dev.b
@@ -92,7 +87,7 @@ def _ik_from(dev: Device, x, q, Qinv, tol, max_iter, k_null, centering) -> tuple
     return q, err
 
 
-def _ik_step(dev: Device, J, e, Qinv, q, k_null, centering):
+def _ik_step(dev: DeviceModel, J, e, Qinv, q, k_null, centering):
     """One step of eq. 3.4 with joints blocked at a bound removed from the solve (active set).
 
     Returns (step, null-space part), each (n,).
@@ -128,7 +123,7 @@ def _centering_gradient(q: np.ndarray, constants) -> np.ndarray:
     return g
 
 
-def _centering_constants(dev: Device):
+def _centering_constants(dev: DeviceModel):
     """Constant parts of `_centering_gradient` (finite mask, mid-ranges, squared ranges)."""
     finite = np.isfinite(dev.q_min) & np.isfinite(dev.q_max)
     lo, hi = np.where(finite, dev.q_min, 0.0), np.where(finite, dev.q_max, 0.0)

@@ -15,7 +15,7 @@ import dataclasses
 import math
 import re
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 import pinocchio as pin
@@ -24,7 +24,7 @@ from rhi._linalg import torque_null_projector
 from rhi.errors import InvalidInput
 
 if TYPE_CHECKING:
-    from rhi.devices.model import Device
+    from rhi.devices.spec import LinearLimits
 
 #: one-DoF joints whose kinematic Hessian has the closed form used by `Device.terms`
 ONE_DOF_JOINT = re.compile(r"JointModel(R[XYZ]|P[XYZ]|RevoluteUnaligned|PrismaticUnaligned|Helical\w*)$")
@@ -107,6 +107,55 @@ def eye(n: int) -> np.ndarray:
     return eye_n
 
 
+class DeviceModel(Protocol):
+    """What the per-state terms, their readers and the inverse kinematics use of a device.
+
+    `rhi.devices.model.Device` is the one implementation; the terms and `rhi.devices.ik` are typed
+    against this protocol so that the model imports them and they do not import the model.
+    """
+
+    name: str
+    n: int
+    m: int
+    model: pin.Model
+    data: pin.Data
+    ee_frame_id: int
+    A: np.ndarray
+    b: np.ndarray
+    armature: np.ndarray
+    q_min: np.ndarray
+    q_max: np.ndarray
+    torque_min: np.ndarray
+    torque_max: np.ndarray
+    joint_names: list[str]
+    linear_limits: LinearLimits | None
+
+    @property
+    def task_rows(self) -> list[int]:
+        """World-axis indices of the task coordinates."""
+        ...
+
+    def coriolis(self, q, dq) -> np.ndarray:
+        """C_q(q, q̇) (n, n)."""
+        ...
+
+    def coriolis_theta(self, th: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """C_q at chain coordinates θ (n, n)."""
+        ...
+
+    def fk_theta(self, th: np.ndarray) -> np.ndarray:
+        """End-effector position (m,) [m] at chain coordinates θ."""
+        ...
+
+    def jacobian_theta(self, th: np.ndarray) -> np.ndarray:
+        """Task Jacobian (m, n) at chain coordinates θ."""
+        ...
+
+    def within_limits(self, q, tol: float = 1e-9) -> np.ndarray:
+        """Whether q satisfies the joint limits: (...,) bool."""
+        ...
+
+
 def inv_small(A: np.ndarray) -> np.ndarray:
     """Inverse of a small square float matrix: closed form for 2 × 2, LAPACK otherwise.
 
@@ -173,7 +222,7 @@ class DeviceTerms:
 
     def __init__(
         self,
-        device: Device,
+        device: DeviceModel,
         q: np.ndarray,
         dq: np.ndarray | None,
         *,
@@ -192,7 +241,7 @@ class DeviceTerms:
     _layout: dict = {}
 
     @classmethod
-    def from_buffer(cls, device: Device, q: np.ndarray, dq: np.ndarray | None, x: np.ndarray, theta: np.ndarray,
+    def from_buffer(cls, device: DeviceModel, q: np.ndarray, dq: np.ndarray | None, x: np.ndarray, theta: np.ndarray,
                     buf: np.ndarray, layout: dict[str, tuple[int, int, tuple[int, ...]]]) -> DeviceTerms:
         """A snapshot whose terms are views into `buf`, the flat output of `rhi.devices._compiled.terms.task_terms`.
 
@@ -339,7 +388,7 @@ def fast_maps(model: pin.Model, frame_id: int, A: np.ndarray, b: np.ndarray, arm
     )
 
 
-def compiled_terms(device: Device, fast: FastMaps, kernel: Callable, q: np.ndarray, dq: np.ndarray | None,
+def compiled_terms(device: DeviceModel, fast: FastMaps, kernel: Callable, q: np.ndarray, dq: np.ndarray | None,
                    th: np.ndarray) -> DeviceTerms:
     """Every term of one state, the task-space dynamics included, from compiled kernels.
 

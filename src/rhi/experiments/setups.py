@@ -13,8 +13,7 @@ from typing import TypeGuard, get_args
 
 import numpy as np
 
-from rhi.control.allocation import ascm_projector, ramp_peak
-from rhi.control.controller import Saturation
+from rhi.control.allocation import Saturation, ascm_projector, ramp_peak
 from rhi.control.objectives import EllipsoidMatching, VMEMatching
 from rhi.control.saturation import null_basis
 from rhi.devices.model import Device

@@ -28,27 +28,10 @@ from typing import Any
 import numpy as np
 
 from rhi.errors import InvalidInput
-from rhi.sim.log_formats import TIMING, write_log
+from rhi.sim.log_formats import TIMING, Event, write_log
 
 MAGIC = b"RHILOG1\n"
 
-
-
-@dataclasses.dataclass
-class Event:
-    """Something that happened during a run (a safety fault, a clamp, an e-stop, a reset).
-
-    Attributes:
-        t: device time [s] of the tick it happened at.
-        kind: short machine-readable name (e.g. "stale", "torque_limit", "estop").
-        detail: one human-readable sentence.
-        tick: tick index.
-    """
-
-    t: float
-    kind: str
-    detail: str
-    tick: int = -1
 
 
 @dataclasses.dataclass

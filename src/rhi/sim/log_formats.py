@@ -37,14 +37,40 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from rhi.errors import InvalidInput
 
-if TYPE_CHECKING:
-    from rhi.sim.log import Event, Log
+
+@dataclasses.dataclass
+class Event:
+    """Something that happened during a run (a safety fault, a clamp, an e-stop, a reset).
+
+    Attributes:
+        t: device time [s] of the tick it happened at.
+        kind: short machine-readable name (e.g. "stale", "torque_limit", "estop").
+        detail: one human-readable sentence.
+        tick: tick index.
+    """
+
+    t: float
+    kind: str
+    detail: str
+    tick: int = -1
+
+class Recorded(Protocol):
+    """What `write_log` reads of a run log (`rhi.sim.Log` is one)."""
+
+    fault: str | None
+    events: list[Event]
+    meta: dict
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The log's columns by name, each (N, ...)."""
+        ...
+
 
 #: Per-tick timing columns [s]: wall time since the run's start, read, controller step,
 #: write, whole tick, and how late the tick started against its absolute deadline.
@@ -308,7 +334,7 @@ def _sink(to: str, path: Path, columns: list[tuple[str, int]], meta: dict) -> _S
 
 
 # ------------------------------------------------------------------------------------------ front doors
-def write_log(log: Log, path, to: str) -> Path:
+def write_log(log: Recorded, path, to: str) -> Path:
     """Write `log` (all its columns, events and fault) to `path` as `to` ("mcap", "parquet" or "csv")."""
     cols = [(name, int(np.prod(np.shape(v)[1:], dtype=int))) for name, v in log.columns().items()]
     out = Path(path)
@@ -329,4 +355,4 @@ def sink(to: str, path: Path, columns: list[tuple[str, int]], meta: dict) -> _Si
     return _sink(to, path, columns, meta)
 
 
-__all__ = ["COLUMNS", "FORMATS", "SUFFIX", "TIMING", "scalar_names", "sink", "unit", "write_log"]
+__all__ = ["COLUMNS", "FORMATS", "SUFFIX", "TIMING", "Event", "Recorded", "scalar_names", "sink", "unit", "write_log"]

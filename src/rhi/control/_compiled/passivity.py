@@ -1,6 +1,6 @@
 """The passivity observer and controller of one tick, compiled (equations: `rhi.control.passivity`).
 
-`apply` is what `PassivityController.apply` runs at 1 kHz; `rhi.control.reference.reference_passivity`
+`apply` is what `PassivityController.apply` runs at 1 kHz; `rhi.control.passivity.reference_passivity`
 is its readable oracle (equal to rounding, `tests/test_passivity.py`).
 """
 

@@ -40,7 +40,7 @@ from rhi.control import (
     Passivity,
     WeightedSum,
 )
-from rhi.control.controller import Saturation
+from rhi.control.allocation import Saturation
 from rhi.control.passivity import Method, Port
 from rhi.devices import batch
 from rhi.devices.model import Device, device

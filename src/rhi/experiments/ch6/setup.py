@@ -22,8 +22,8 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
+from rhi.control.allocation import Saturation
 from rhi.control.configuration import optimal_configuration
-from rhi.control.controller import Saturation
 from rhi.devices.model import Device
 from rhi.errors import Unreachable
 from rhi.metrics import nullspace_projector

@@ -62,10 +62,9 @@ from rhi.control import (
     NullSpaceController,
     ObjectiveTerm,
 )
-from rhi.control.allocation import force_capability
+from rhi.control.allocation import Saturation, force_capability
 from rhi.control.barrier import limit_rows
 from rhi.control.configuration import optimal_configuration
-from rhi.control.controller import Saturation
 from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
