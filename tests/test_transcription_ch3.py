@@ -52,6 +52,17 @@ def test_table_3_1_rho_at_the_printed_configurations():
     assert not T.TABLE_3_1_RHO["RHI"][0].within(theirs[0]) and theirs[0] == pytest.approx(0.3752, abs=1e-4)
 
 
+def test_table_3_1_lambda_is_eq_3_13():
+    """Λ_RHI of rhi = (uᵀ J M⁻¹ Jᵀ u)⁻¹ (eq. 3.13) on eq. 5.12a at the printed q, rhi's M(q) as data (1e-12)."""
+    dev = ch3.measures.devices()["RHI"]
+    u = np.asarray(ch3.measures.U, dtype=float)
+    for q in ch3.measures.THESIS_Q:
+        q = np.asarray(q, dtype=float)
+        J, M = j_rhi(q), dev.mass_matrix(q)
+        lam = 1.0 / float(u @ J @ np.linalg.solve(M, J.T) @ u)
+        assert float(metrics.effective_inertia(dev.jacobian(q), M, u)) == pytest.approx(lam, rel=1e-12)
+
+
 def test_eq_3_19_bounds_the_part_beyond_m1_not_the_modulus():
     """Eqs. 3.17 and 3.19 at s = jω bound |A2 − M1| by |A1 − M1|, not |A2| by |A1|.
 

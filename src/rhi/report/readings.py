@@ -67,6 +67,9 @@ PUSH_MISSING = ("the box push itself: the contact point and force direction on t
 
 # How the implementation behind each claim was checked against a second, independent transcription (issue 23 item 2).
 _TR = "an independent plain-NumPy transcription of the thesis"
+LAMBDA_CHECKED = ("Λ = (uᵀJM⁻¹Jᵀu)⁻¹ of eq. 3.13 on the closed-form Jacobian of eq. 5.12a, plain NumPy with rhi's mass "
+                  "matrix as data, equals rhi's Λ at Table 3.1's printed configurations to 1e-12 "
+                  "(tests/test_transcription_ch3.py): the difference is in the estimated inertias, not the formula")
 CH4_CHECKED = (f"rhi's GM_M, GC_M, GM_T, C1 and C2 at the thesis's four designs (θz = 89° and 2°, Table 4.1's C1 and C2) "
                f"equal {_TR} (eqs. 4.7–4.20, 4.25–4.26, its own IK; tests/test_transcription_ch4.py) to 1e-9: the "
                "difference lies in the set-up the thesis does not publish, not in the equations")
@@ -96,7 +99,10 @@ _D = [
                      "multiplies B1/s, the part of A1 beyond M1", "ch3.apparent_inertia_example",
                      "fraction with |A2 − M1| ≤ |A1 − M1|", _all),
              Reading("the mass part: Re A2 ≤ Re A1", "line 540: A1 'is the apparent inertia' (its real part M1 is "
-                     "the mass)", "ch3.apparent_inertia_example", "fraction with Re A2 ≤ Re A1", _all))),
+                     "the mass)", "ch3.apparent_inertia_example", "fraction with Re A2 ≤ Re A1", _all)),
+            checked="eqs. 3.17 and 3.19 in plain NumPy (tests/test_transcription_ch3.py): |A2 − M1| ≤ |A1 − M1| on "
+                    "every sample, |A2| > |A1| where B1/ω is small against M2 (M1 = M2 = 1 kg, B1 = 0.1 N s/m, B2 = 0, "
+                    "ω = 1 rad/s); the MuJoCo plant agrees with both formulas (ch3.apparent_inertia_example)"),
     Dossier("table3_1.rho.RHI.0", "§3.5, Table 3.1 (line 638), eq. 3.6; the configuration printed below it (line 648)",
             "ρ = (uᵀ(JJᵀ)†u)^(−1/2) (eq. 3.6) at the printed q = [0.125, 0.022, 0.298, 0.175] rad",
             (Reading("the RHI at rhi's own optimum of eq. 3.22",
@@ -114,7 +120,8 @@ _D = [
             (Reading("the RHI at rhi's own optimum of eq. 3.22", "line 640 (as for ρ)", "ch3.table_3_1",
                      f"Λ RHI at {P1} (our optimum of eq. 3.22)"),
              Reading(FIT, FIT_WHY, CAL, f"Table 3.1 Λ RHI at {P1}: thesis-fit")),
-            missing="the link masses and inertias of the PHANToM and the Rehab halves: cited ([23], [45]), not printed"),
+            missing="the link masses and inertias of the PHANToM and the Rehab halves: cited ([23], [45]), not printed",
+            checked=LAMBDA_CHECKED),
     Dossier("table3_1.lambda_order", "§3.5, Table 3.1 (line 638), text line 648",
             "Λ_RHI < Λ_PHANToM < Λ_Rehab by eq. 3.13 at both points, the RHI at the printed q, rhi's inertias",
             (Reading(FIT, FIT_WHY, CAL, "", measure=_fit_order("3.1")),),
@@ -132,12 +139,17 @@ _D = [
                      "eq. 3.12: M_x,RHI = (M_x,NHI⁻¹ + M̂_x⁻¹)⁻¹ — the proof's NHI is the RHI's own PHANToM chain at "
                      "the same joint angles", "ch3.ratio_maps",
                      "fraction of points with Λ_r ≤ 1, the RHI at the PHANToM's angles", _all),),
-            missing="the link masses and inertias: cited ([23], [45]), not printed"),
+            missing="the link masses and inertias: cited ([23], [45]), not printed",
+            checked=LAMBDA_CHECKED),
     Dossier("table3_2.order", "§3.5, Table 3.2 (line 652), eq. 3.24",
             "Λ identified by least squares (eq. 3.24) on the simulated plant, ordered RHI ≤ PHANToM < Rehab at both "
             "points",
             (Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "", measure=_fit_order("3.2")),),
-            missing="the hardware's friction and the force-sensor records of the identification (line 656)"),
+            missing="the hardware's friction and the force-sensor records of the identification (line 656)",
+            checked="not transcribed; the run compares the least-squares fit with eq. 3.13's Λ of the same simulated "
+                    "plant (ch3.sysid_table_3_2 rows 'largest |identified − eq. 3.13|' and '… Λ/(1 − k)'), and the "
+                    "plant's Λ at the second point differs by < 0.01 % between the RHI and the PHANToM (rows 'Λ eq. 3.13 at "
+                    "the plant's configuration'), so the order there rests on the fit's noise"),
     *[Dossier(key, "§3.5–3.6, Table 3.3 (line 691), line 699", literal, missing=SUBJECTS)
       for key, literal in (("table3_3.wf_order", "mean WF over the subjects, RHI < PHANToM < Rehab"),
                            ("s3_6.anova.p", "one-way ANOVA on the subjects' WF, p"),
