@@ -51,3 +51,21 @@ def test_names_in_the_docs_exist() -> None:
     missing = sorted((page, n) for page, n in named if "__main__" not in n and not _resolves(n))
     assert not missing, f"names in the docs that do not exist: {missing}"
     assert len(named) > 50  # the pages do name the code
+
+
+def test_contributing_points_to_what_exists() -> None:
+    """CONTRIBUTING.md's paths exist, each `name` it places in or of a file is defined there, its tests exist."""
+    import re
+
+    text = (ROOT / "CONTRIBUTING.md").read_text()
+    paths = set(re.findall(r"`((?:src|tests|benchmarks|examples)/[\w./<>-]+)`", text))
+    missing = sorted(p for p in paths if "<" not in p and not (ROOT / p).exists())
+    assert not missing, f"CONTRIBUTING.md names files that do not exist: {missing}"
+    placed = re.findall(r"`(\w+)`\s+(?:in|of)\s+`((?:src|tests|benchmarks)/[\w./-]+\.py)`", text)
+    absent = sorted((name, path) for name, path in placed
+                    if not re.search(rf"^\s*(?:def |class )?{name}\b\s*[:=(]", (ROOT / path).read_text(), re.M))
+    assert not absent, f"CONTRIBUTING.md places names where they are not: {absent}"
+    tests = set(re.findall(r"`(test_\w+)`", text))
+    source = "\n".join(p.read_text() for p in (ROOT / "tests").glob("test_*.py"))
+    assert not {t for t in tests if f"def {t}(" not in source}, "CONTRIBUTING.md names tests that do not exist"
+    assert len(paths) > 15 and len(placed) >= 4 and len(tests) >= 5  # the guide does point to the code

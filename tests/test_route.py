@@ -9,6 +9,7 @@ and the run summary name the route.
 from __future__ import annotations
 
 import importlib
+import sys
 import textwrap
 import warnings
 
@@ -25,9 +26,11 @@ from rhi.control import (
     SpringPalpation,
     VMEMatching,
     compiled as compiled_module,
+    registry,
 )
 from rhi.errors import InvalidInput, RouteWarning
 from rhi.runtime import SimLink, run
+from rhi.runtime.config import load_config
 from rhi.sim import Plant, simulate
 
 TOY = '''
@@ -38,6 +41,7 @@ import dataclasses
 import numpy as np
 
 from rhi.control.compiled import CompiledObjective
+from rhi.control.registry import POSITIVE, REQUIRED, VECTOR, ObjectiveType, register
 from rhi.control.schedule import FMESchedule
 
 
@@ -61,7 +65,10 @@ class CompiledVME:
     desired: np.ndarray
 
     def value(self, device, q):
-        raise NotImplementedError
+        from rhi.metrics import jbld
+
+        J = device.jacobian(q)
+        return float(jbld(self.desired, J @ J.T))
 
     def gradient(self, device, q):
         from rhi.control.objectives import jbld_velocity_gradient
@@ -70,6 +77,21 @@ class CompiledVME:
 
     def compiled(self, device):
         return CompiledObjective("vme", desired=self.desired)
+
+
+def _centering(device, torque_max, *, q0, weight):
+    return Centering(tuple(q0), weight)
+
+
+def _compiled_vme(device, torque_max, *, u):
+    from rhi.metrics import desired_vme
+
+    return CompiledVME(desired_vme(u, 0.01))
+
+
+# its registration line: usable in a configuration file as [[controller.objectives]] type = "centering"
+register(ObjectiveType("centering", _centering, {"q0": (VECTOR, REQUIRED), "weight": (POSITIVE, 1.0)}))
+register(ObjectiveType("compiled_vme", _compiled_vme, {"u": (VECTOR, REQUIRED)}))
 
 
 class PlainSchedule(FMESchedule):
@@ -84,10 +106,15 @@ Q0 = np.array([0.3, 0.5, 0.2, 0.4])
 
 @pytest.fixture
 def toy(tmp_path, monkeypatch):
-    """The toy objectives' module, imported from a temporary folder; route warnings not yet given."""
+    """The toy objectives' module, imported from a temporary folder; route warnings not yet given.
+
+    Its registrations go with the test (a copy of the registry is restored afterwards).
+    """
     (tmp_path / "toy_objective.py").write_text(textwrap.dedent(TOY))
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setattr(compiled_module, "_WARNED", set())
+    monkeypatch.setattr(registry, "_TYPES", dict(registry.objective_types()))
+    monkeypatch.delitem(sys.modules, "toy_objective", raising=False)
     return importlib.import_module("toy_objective")
 
 
@@ -176,3 +203,51 @@ def test_scheduled_objective_is_a_term_and_its_route_is_reported(rhi4, toy):
     np.testing.assert_allclose(_torques(slow), _torques(ref), atol=1e-10)
     with pytest.raises(InvalidInput, match="at most one scheduled objective"):
         NullSpaceController(rhi4, _config(sched, plain))
+
+
+CONFIG = """
+description = "a toy objective from its own file, by its registered type"
+[device]
+name = "rhi4"
+[controller]
+damping = 0.5
+[controller.primary]
+law = "spring"
+stiffness = 200.0
+x0 = [0.5, 0.1]
+passivity = "off"
+{objectives}
+[sim]
+q0 = [0.3, 0.5, 0.2, 0.4]
+"""
+
+
+def test_toy_objective_from_a_configuration_file(toy, tmp_path):
+    """A registered type is usable in TOML with no line in rhi.runtime.config; the run names the route it takes."""
+    path = tmp_path / "toy.toml"
+    path.write_text(CONFIG.format(objectives='[[controller.objectives]]\ntype = "centering"\ngain = 2.0\n'
+                                             "q0 = [0.2, 0.4, 0.3, 0.3]\nweight = 3.0\n"))
+    with pytest.warns(RouteWarning, match=r"composed route.*Centering"):  # said when the file is read
+        cfg = load_config(path)
+    (term,) = cfg.controller_config.objectives
+    assert isinstance(term.objective, toy.Centering) and term.gain == 2.0 and term.objective.weight == 3.0
+    ctrl = cfg.controller()
+    res = run(cfg.sim_link(), ctrl, duration=0.02, realtime=False)
+    assert res.summary["route"] == str(ctrl.route) and ctrl.route.name == "composed" and res.log.fault is None
+    # a key it does not declare, and a value of the wrong kind, are refused by their key path
+    path.write_text(CONFIG.format(objectives='[[controller.objectives]]\ntype = "centering"\ngain = 2.0\n'
+                                             "q0 = [0.2, 0.4, 0.3, 0.3]\ncolour = 1\n"))
+    with pytest.raises(InvalidInput, match=r"controller.objectives\[0\].colour: unknown key"):
+        load_config(path)
+    path.write_text(CONFIG.format(objectives='[[controller.objectives]]\ntype = "centering"\ngain = 2.0\nq0 = "x"\n'))
+    with pytest.raises(InvalidInput, match=r"controller.objectives\[0\].q0: expected"):
+        load_config(path)
+    # with a compiled form: the whole compiled tick, no warning
+    path.write_text(CONFIG.format(objectives='[[controller.objectives]]\ntype = "compiled_vme"\ngain = 0.5\n'
+                                             "u = [0.0, 1.0]\n"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RouteWarning)
+        cfg = load_config(path)
+        ctrl = cfg.controller()
+    res = run(cfg.sim_link(), ctrl, duration=0.02, realtime=False)
+    assert ctrl.route.name == "whole" and res.summary["route"] == "whole"

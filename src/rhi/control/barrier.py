@@ -10,6 +10,7 @@ from typing import ClassVar, Literal
 import numpy as np
 
 from rhi.control.compiled import CompiledObjective
+from rhi.control.registry import POSITIVE, REQUIRED, Key, ObjectiveType, register
 from rhi.devices.model import Device, DeviceTerms
 from rhi.devices.terms import DeviceModel
 from rhi.errors import InvalidInput
@@ -123,6 +124,12 @@ class JointLimitBarrier:
             return None
         return CompiledObjective("barrier", barrier=(self.kind, self.margin, self.weight))
 
+
+
+register(ObjectiveType("joint_limits", lambda device, torque_max, *, margin, weight, kind: JointLimitBarrier(
+    margin, weight, kind=kind), {"margin": (Key("number", low=0.0, strict=True, high=math.pi), REQUIRED),
+                                 "weight": (POSITIVE, 1.0), "kind": (Key("choice", options=("quadratic", "inverse")),
+                                                                     "quadratic")}))
 
 
 __all__ = ["JointLimitBarrier", "limit_rows"]

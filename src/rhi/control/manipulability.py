@@ -11,9 +11,10 @@ import numpy as np
 
 from rhi._validate import as_array
 from rhi.control.objectives import jbld_velocity_gradient
-from rhi.devices.model import Device, DeviceTerms
+from rhi.control.registry import BOOLEAN, MATRIX, NUMBERS, POSITIVE, REQUIRED, STRING, VECTOR, ObjectiveType, register
+from rhi.devices.model import Device, DeviceTerms, device as load_device
 from rhi.devices.terms import DeviceModel
-from rhi.errors import InvalidInput
+from rhi.errors import InvalidInput, RhiError
 from rhi.metrics import jbld, log_det_gradient
 
 
@@ -175,6 +176,21 @@ class TMIMatching:
         J, dJ = penalized(device, q, J, dJ, self.k_q)
         return jbld_velocity_gradient(self.slave_ellipsoid(), J, dJ, self.H)
 
+
+
+def _tmi(device: Device, torque_max, *, slave: str, slave_params: dict, slave_q, k_q, penalize_slave: bool,
+         H) -> TMIMatching:
+    try:
+        model = load_device(slave, **slave_params)
+    except RhiError as exc:
+        raise type(exc)(f"slave: {exc}") from None
+    return TMIMatching(model, slave_q, k_q=k_q, penalize_slave=penalize_slave, H=H)
+
+
+register(ObjectiveType("tmi", _tmi, {"slave": (STRING, REQUIRED), "slave_params": (NUMBERS, {}), "slave_q": (VECTOR, REQUIRED),
+                                     "k_q": (POSITIVE, None), "penalize_slave": (BOOLEAN, False), "H": (MATRIX, None)}))
+register(ObjectiveType("manipulability", lambda device, torque_max, *, log, k_q: Manipulability(log=log, k_q=k_q),
+                       {"log": (BOOLEAN, False), "k_q": (POSITIVE, None)}))
 
 
 __all__ = ["Manipulability", "TMIMatching", "penalized", "penalty"]

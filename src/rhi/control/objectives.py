@@ -22,6 +22,7 @@ import numpy as np
 
 from rhi._validate import as_array, scalar
 from rhi.control.compiled import CompiledObjective
+from rhi.control.registry import MATRIX, POSITIVE, REQUIRED, VECTOR, Key, ObjectiveType, register, shaped
 from rhi.devices.model import Device, DeviceTerms, inv_small
 from rhi.errors import InvalidInput
 from rhi.metrics import desired_vme, jbld
@@ -155,6 +156,12 @@ def fme_shape(J_home, torque_max, mu: float = 5.0) -> tuple[float, float]:
         raise InvalidInput(f"mu: must be finite and > 0, got {mu!r}")
     lam = np.linalg.eigvalsh(force_ellipsoid(J_home, torque_max))
     return float(mu * lam[-1]), float(lam[0] / mu)
+
+
+def fme_axes(device: Device, torque_max, mu: float = 5.0, home=None) -> tuple[float, float]:
+    """(𝒦, ζ) of `fme_shape` at the home configuration `home` (n,) [rad] (None: q = 0) of `device`."""
+    home = np.zeros(device.n) if home is None else shaped("home", home, (device.n,))
+    return fme_shape(device.jacobian(home), torque_max, mu)
 
 
 def desired_fme_free(u, K: float, zeta: float) -> np.ndarray:
@@ -308,3 +315,28 @@ class WeightedSum:
         for t in self.terms:
             g = g + t.gain * np.asarray(t.objective.gradient(device, q), dtype=float)
         return g
+
+
+# ------------------------------------------------------------------------- configuration files (rhi.control.registry)
+def _vme(device: Device, torque_max, *, u, beta: float) -> VMEMatching:
+    return VMEMatching(tuple(shaped("u", u, (device.m,))), beta)
+
+
+def _ellipsoid(device: Device, torque_max, *, desired, H) -> EllipsoidMatching:
+    return EllipsoidMatching(shaped("desired", desired, (device.m, device.m)), H)
+
+
+def _fme(device: Device, torque_max, *, desired, shape, direction, mu: float, home) -> FMEMatching:
+    if (desired is None) == (shape is None) or (shape is not None and direction is None):
+        raise InvalidInput("give either desired (a matrix) or shape and direction")
+    if desired is None:
+        K, z = fme_axes(device, torque_max, mu, home)
+        desired = (desired_fme_free if shape == "free" else desired_fme_stiff)(shaped("direction", direction, (device.m,)),
+                                                                               K, z)
+    return FMEMatching(shaped("desired", desired, (device.m, device.m)), torque_max)
+
+
+register(ObjectiveType("vme", _vme, {"u": (VECTOR, REQUIRED), "beta": (POSITIVE, 0.01)}))
+register(ObjectiveType("ellipsoid", _ellipsoid, {"desired": (MATRIX, REQUIRED), "H": (MATRIX, None)}))
+register(ObjectiveType("fme", _fme, {"desired": (MATRIX, None), "shape": (Key("choice", options=("free", "stiff")), None),
+                                     "direction": (VECTOR, None), "mu": (POSITIVE, 5.0), "home": (VECTOR, None)}))

@@ -19,8 +19,8 @@ A file holds these tables (every key optional unless marked; the shipped files i
   parameters (``damping``, ``coriolis``, ``gravity``, ``[controller.primary.friction]``, ...; the rendering
   laws take ``passivity`` = "motors" (default) | "handle" | "off", `rhi.control.passivity`);
   ``[[controller.objectives]]``, each with ``type`` = "vme" | "ellipsoid" | "fme" | "tmi" | "manipulability" |
-  "joint_limits" or an installed plugin's type (`rhi.runtime.objective_plugins`), its parameters and its step
-  ``gain``;
+  "joint_limits" (or any type registered with `rhi.control.registry`, whose keys it declares) or an installed
+  plugin's type (`rhi.runtime.objective_plugins`), its parameters and its step ``gain``;
   ``[controller.fme]``: the ASO-switched desired-FME schedule (``free_direction``, ``contact_direction``, ``mu``,
   ``home``, ``gain``, ``[controller.fme.transition]`` eps1, eps2, rho, S).
 - ``[[virtual]]``: the rendered environment, each with ``type`` = "wall" | "spring" | "fixture" | "stop".
@@ -46,9 +46,9 @@ not guard anything). A document nested too deeply is refused as well.
 from __future__ import annotations
 
 import dataclasses
-import math
 import tomllib
 import typing
+from collections.abc import Iterator, Mapping
 from importlib import resources
 from pathlib import Path
 
@@ -56,28 +56,23 @@ import numpy as np
 
 from rhi.control import (
     ControllerConfig,
-    EllipsoidMatching,
-    FMEMatching,
     FMESchedule,
     ForceRendering,
     ImpedanceControl,
     JointFriction,
-    JointLimitBarrier,
-    Manipulability,
     NullSpaceController,
     NullSpaceTank,
     ObjectiveTerm,
     Passivity,
     SpringPalpation,
-    TMIMatching,
     TransitionConfig,
-    VMEMatching,
     desired_fme_free,
     desired_fme_stiff,
-    fme_shape,
 )
 from rhi.control.allocation import method_names
-from rhi.devices.model import Device, device
+from rhi.control.objectives import fme_axes
+from rhi.control.registry import REQUIRED, Key, objective_type, objective_types
+from rhi.devices.model import Device
 from rhi.devices.source import SOURCES, device_from_table
 from rhi.errors import InvalidInput, RhiError
 from rhi.runtime import objective_plugins, schema as S
@@ -104,18 +99,35 @@ _PRIMARY: dict[str, S.Spec] = {
                "passivity": (_PASSIVITY, "motors")},
 }
 _GAIN = {"gain": (S.number(low=0.0, high=1e6), R)}
-_BUNDLED_OBJECTIVES: dict[str, S.Spec] = {
-    "vme": {**_GAIN, "u": (_vec, R), "beta": (_pos, 0.01)},
-    "ellipsoid": {**_GAIN, "desired": (S.matrix, R), "H": (S.matrix, None)},
-    "fme": {**_GAIN, "desired": (S.matrix, None), "shape": (S.choice("free", "stiff"), None),
-            "direction": (_vec, None), "mu": (_pos, 5.0), "home": (_vec, None)},
-    "tmi": {**_GAIN, "slave": (S.string, R), "slave_params": (S.numbers_table, {}), "slave_q": (_vec, R),
-            "k_q": (_pos, None), "penalize_slave": (S.boolean, False), "H": (S.matrix, None)},
-    "manipulability": {**_GAIN, "log": (S.boolean, False), "k_q": (_pos, None)},
-    "joint_limits": {**_GAIN, "margin": (S.number(low=0.0, strict=True, high=math.pi), R), "weight": (_pos, 1.0),
-                     "kind": (S.choice("quadratic", "inverse"), "quadratic")},
-}
-_OBJECTIVES = ObjectiveSpecs(_BUNDLED_OBJECTIVES, _GAIN)  # and the installed plugins' types (rhi.objectives)
+
+
+def _check(key: Key) -> S.Check:
+    """The schema check of a registered objective key (`rhi.control.registry.Key`)."""
+    if key.kind == "number":
+        return S.number(low=key.low, strict=key.strict, high=key.high)
+    if key.kind == "choice":
+        return S.choice(*key.options)
+    return {"vector": _vec, "matrix": S.matrix, "boolean": S.boolean, "string": S.string,
+            "numbers": S.numbers_table}[key.kind]
+
+
+class _Registered(Mapping):
+    """{type: spec} of the registered objective types (`rhi.control.registry`), read when asked."""
+
+    def __getitem__(self, kind: str) -> S.Spec:
+        t = objective_type(kind)
+        if t is None:
+            raise KeyError(kind)
+        return {**_GAIN, **{k: (_check(key), S.REQUIRED if d is REQUIRED else d) for k, (key, d) in t.keys.items()}}
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(objective_types())
+
+    def __len__(self) -> int:
+        return len(objective_types())
+
+
+_OBJECTIVES = ObjectiveSpecs(_Registered(), _GAIN)  # and the installed plugins' types (rhi.objectives)
 _TRANSITION = {"eps1": (_num, 0.7), "eps2": (_num, 0.95), "rho": (_num, 0.003), "S": (_num, 50.0)}
 _FME = {"free_direction": (_vec, R), "contact_direction": (_vec, R), "mu": (_pos, 5.0), "home": (_vec, None),
         "gain": (_nonneg, 20.0), "transition": (S.table(_TRANSITION), {})}
@@ -230,43 +242,26 @@ def _primary(dev: Device, p: dict):
     return S.prefixed("controller.primary", cls, **p)
 
 
-def _desired_fmes(path: str, dev: Device, mu: float, home, hi: np.ndarray) -> tuple[float, float]:
-    """(𝒦, ζ) of the desired FMEs from the torque-weighted FME at `home` (thesis §6.3.1)."""
-    home = np.zeros(dev.n) if home is None else home
-    _dim(f"{path}.home", home, (dev.n,))
-    return S.prefixed(path, fme_shape, dev.jacobian(home), hi, mu)
+def _keyed(path: str, keys, fn, *args, **kwargs):
+    """fn(*args, **kwargs); an `RhiError` it raises is re-raised with `path` before it.
+
+    As ``path.key: ...`` where its message starts with one of `keys`, else ``path: ...``.
+    """
+    try:
+        return fn(*args, **kwargs)
+    except RhiError as exc:
+        msg = str(exc)
+        head = msg.partition(":")[0]
+        raise type(exc)(f"{path}.{msg}" if head in keys else f"{path}: {msg}") from None
 
 
 def _objective(path: str, dev: Device, o: dict, hi: np.ndarray):
-    kind, m = o["type"], dev.m
-
-    def make(cls, *a, **kw):
-        return S.prefixed(path, cls, *a, **kw)
-
-    if kind == "vme":
-        _dim(f"{path}.u", o["u"], (m,))
-        return make(VMEMatching, tuple(o["u"]), o["beta"])
-    if kind == "ellipsoid":
-        _dim(f"{path}.desired", o["desired"], (m, m))
-        return make(EllipsoidMatching, o["desired"], o["H"])
-    if kind == "fme":
-        if (o["desired"] is None) == (o["shape"] is None) or (o["shape"] is not None and o["direction"] is None):
-            raise InvalidInput(f"{path}: give either desired (a matrix) or shape and direction")
-        desired = o["desired"]
-        if desired is None:
-            _dim(f"{path}.direction", o["direction"], (m,))
-            K, z = _desired_fmes(path, dev, o["mu"], o["home"], hi)
-            desired = make(desired_fme_free if o["shape"] == "free" else desired_fme_stiff, o["direction"], K, z)
-        _dim(f"{path}.desired", desired, (m, m))
-        return make(FMEMatching, desired, hi)
-    if kind == "tmi":
-        slave = S.prefixed(f"{path}.slave", device, o["slave"], **o["slave_params"])
-        return make(TMIMatching, slave, o["slave_q"], k_q=o["k_q"], penalize_slave=o["penalize_slave"], H=o["H"])
-    if kind == "manipulability":
-        return make(Manipulability, log=o["log"], k_q=o["k_q"])
-    if kind == "joint_limits":
-        return make(JointLimitBarrier, o["margin"], o["weight"], kind=o["kind"])
-    return objective_plugins.build(path, kind, dev, o)
+    """The objective of a ``[[controller.objectives]]`` table: a registered type (`rhi.control.registry`) or a plugin's."""
+    kind = o["type"]
+    t = objective_type(kind)
+    if t is None:
+        return objective_plugins.build(path, kind, dev, o)
+    return _keyed(path, t.keys, t.build, dev, hi, **{k: o[k] for k in t.keys})
 
 
 def _controller(dev: Device, c: dict) -> ControllerConfig:
@@ -290,7 +285,7 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
         f = c["fme"]
         _dim("controller.fme.free_direction", f["free_direction"], (dev.m,))
         _dim("controller.fme.contact_direction", f["contact_direction"], (dev.m,))
-        K, z = _desired_fmes("controller.fme", dev, f["mu"], f["home"], t_hi)
+        K, z = _keyed("controller.fme", ("mu", "home"), fme_axes, dev, t_hi, f["mu"], f["home"])
         tc = S.prefixed("controller.fme.transition", TransitionConfig, **f["transition"])
         free = S.prefixed("controller.fme.free_direction", desired_fme_free, f["free_direction"], K, z)
         stiff = S.prefixed("controller.fme.contact_direction", desired_fme_stiff, f["contact_direction"], K, z)
