@@ -276,3 +276,39 @@ def test_self_motion_goes_on_without_a_joint_held_at_its_bound(wmm):
     assert abs(cmd.dq[6]) < 1e-9 and np.abs(cmd.dq[3:]).max() > 1e-3
     assert np.abs(wmm.jacobian(q) @ cmd.dq).max() < 1e-9
     assert tr.H2(q + 0.01 * cmd.dq) > tr.H2(q)
+
+
+def test_traditional_B_matches_the_transcription_beyond_the_workspace(wmm):
+    """§B.4.3's traditional controller equals the transcription on App. B's 'beyond' circle.
+
+    q̈ = J†(ẍ − J̇q̇) + (I − J†J) q̈_A with J† = Jᵀ(JJᵀ)⁻¹ and q̈_A of eq. B.13 (line 2489), finite-difference J̇q̇
+    and ∇²H q̇ (1e-4 rad/s²) on the R = 0.25 m circle; with limit="clip" each joint is then clipped at its bound
+    (B.7–B.8), which the thesis's baseline does not mention.
+    """
+    from amd_transcription import AMDTranscription
+
+    from rhi.control.mobile import PinvAccelConfig, PinvAccelController
+    from rhi.sim.mobile import circle, simulate_mobile
+
+    traj = circle(wmm.fk(Q0), 0.25, duration=20.0, dt=0.005)
+    log = simulate_mobile(PinvAccelController(wmm, PinvAccelConfig(dt=0.005)), traj, Q0)
+    tr = AMDTranscription(wmm)
+    worst = {"none": 0.0, "clip": 0.0}
+    mine = np.zeros(wmm.n)
+    for k in range(0, log.t.size, 200):
+        q, dq = log.q[k], (log.dq[k - 1] if k else np.zeros(wmm.n))
+        J = wmm.jacobian(q)
+        ddx = traj.ddx[k] + tr.kd * (traj.dx[k] - J @ dq) + tr.kp * (traj.x[k] - wmm.fk(q))
+        Jp = J.T @ np.linalg.inv(J @ J.T)
+        mine = Jp @ (ddx - tr.drift(q, dq)) + (np.eye(wmm.n) - Jp @ J) @ tr.qdd_A(q, dq)
+        lo, hi = tr.accel_limits(q, dq)
+        for limit, want in (("none", mine), ("clip", np.clip(mine, lo, hi))):
+            cmd = PinvAccelController(wmm, PinvAccelConfig(dt=0.005, limit=limit)).step(
+                float(log.t[k]), q, dq, traj.x[k], traj.dx[k], traj.ddx[k])
+            worst[limit] = max(worst[limit], float(np.abs(cmd.ddq - want).max()))
+    assert worst["none"] < 1e-4 and worst["clip"] < 1e-4, worst
+    # and it can fail: the same controller without the null-space term (I − J†J) q̈_A differs from it
+    k = log.t.size - 1 - (log.t.size - 1) % 200  # the last state compared above (`mine` is its command)
+    cmd = PinvAccelController(wmm, PinvAccelConfig(dt=0.005, manipulability=False, limit="none")).step(
+        float(log.t[k]), log.q[k], log.dq[k - 1], traj.x[k], traj.dx[k], traj.ddx[k])
+    assert np.abs(cmd.ddq - mine).max() > 1e-3

@@ -65,6 +65,10 @@ PUSH_MISSING = ("the box push itself: the contact point and force direction on t
                 "person's push profile through the haptic interface, the arm's configuration during the push and the "
                 "Gen3's joint-level controller (Fig. A.8 plots measured torques only)")
 
+APPB_BEYOND_CHECKED = ("both controllers of the comparison equal an independent plain-NumPy transcription: the AMD "
+                       "(eqs. B.6–B.19) on the sampled states of the R = 0.1 m circle, the traditional J†(ẍ − J̇q̇) + "
+                       "(I − J†J) q̈_A of line 2489 on those of the R = 0.25 m circle (1e-4 rad/s², "
+                       "tests/test_transcription_wmm.py)")
 # How the implementation behind each claim was checked against a second, independent transcription (issue 23 item 2).
 _TR = "an independent plain-NumPy transcription of the thesis"
 LAMBDA_CHECKED = ("Λ = (uᵀJM⁻¹Jᵀu)⁻¹ of eq. 3.13 on the closed-form Jacobian of eq. 5.12a, plain NumPy with rhi's mass "
@@ -368,7 +372,7 @@ _D = [
                       ("appb.tracking", "best σ_min(J_m) the arm alone")),
             checked=APPB_CHECKED),
     *[Dossier(key, "§B.5 conclusion (line 2555), §B.4.3", literal, (),
-              missing="the wheel-ground slip of the experiment")
+              missing="the wheel-ground slip of the experiment", checked=APPB_BEYOND_CHECKED)
       for key, literal in (("sB_5.err_reduction.0", "100 (1 − max error x proposed / traditional), beyond"),
                            ("sB_5.err_reduction.1", "100 (1 − max error y proposed / traditional), beyond"),
                            ("sB_5.base_time_reduction", "100 (1 − base motion time proposed / traditional), beyond"))],
