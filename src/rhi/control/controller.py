@@ -217,7 +217,7 @@ class NullSpaceController:
         """Give the state a full-of-`initial` tank when the configuration has one and the state has none."""
         tank = self.config.tank
         if tank is not None and self.state.tank is None:
-            self.state.tank = TankState(energy=float(tank.initial))
+            self.state.tank = TankState(energy=float(tank.initial), allocation=float(tank.initial))
 
     def _stop(self, why: str) -> np.ndarray:
         s = self.state

@@ -19,7 +19,7 @@ import numpy as np
 from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import null_basis, tertiary
 from rhi.control.settings import ControllerParts
-from rhi.control.tank import tank_blend
+from rhi.control.tank import damper_direction, tank_blend
 from rhi.control.transition import aso_volume
 from rhi.devices.model import DeviceTerms
 from rhi.errors import Singular
@@ -100,14 +100,8 @@ def reference_tick(
     beta0, d = beta, np.zeros(dev.n)
     if cfg.tank is not None and s.tank is not None:  # the objectives spend only what the tank holds (rhi.control.tank)
         delta0, beta0 = tertiary(al.tau, al.saturated, Z, tau_s, torque_min=lo, torque_max=hi, N=N)
-        c = np.zeros(Z.shape[1])
-        if dev.n - int(np.count_nonzero(al.saturated)) > dev.m:  # the damper's direction: q̇ on the allowed torques
-            c = Z.T @ dq
-            if al.saturated.any():
-                ZS = Z[al.saturated]
-                c = c - np.linalg.pinv(ZS) @ (ZS @ c)
-        d = Z @ c
-        tau = tank_blend(cfg.tank, s.tank, t, q, np.asarray(dq), J, kin.Jsharp, kin.Minv, g_null,
+        d = damper_direction(Z, np.asarray(dq), al.saturated, al.tau)
+        tau = tank_blend(cfg.tank, s.tank, t, q, np.asarray(dq), J, kin.Jsharp, kin.Minv, g_null, al.tau,
                          al.tau + delta0 if beta0 else al.tau, tau, d, lo, hi)
     if parts is not None:
         lam, mu = (1.0, 0.0) if s.tank is None else (s.tank.scale, s.tank.damping)

@@ -87,23 +87,69 @@ class NullSpaceTank:
 
 @dataclasses.dataclass
 class TankState:
-    """The tank after a tick.
+    """The tank's two accounts after a tick.
 
     Attributes:
-        energy: T [J] (negative only when the allocation and the barrier alone drained it).
+        energy: T_O [J], the objectives' account (negative only when the safety shares alone drained it).
+        allocation: T_A [J], the allocation's account (negative: a deficit the damper could not yet take out).
         scale: λ of the last tick, the factor on the objectives' torque (1: untouched).
-        damping: μ of the last tick, the null-space damper's gain [N m s/rad] (0: idle).
+        damping: μ of the last tick, the allocation damper's gain [N m s/rad] (0: idle).
         t: time of the last tick [s].
         position: (n,) q of the last tick [rad].
-        effort: (n,) the metered null-space torque e sent at the last tick [N m].
+        effort: (2, n) the metered null-space torques e_O, e_A sent at the last tick [N m].
     """
 
     energy: float = 0.0
+    allocation: float = 0.0
     scale: float = 1.0
     damping: float = 0.0
     t: float = -math.inf
     position: np.ndarray | None = None
     effort: np.ndarray | None = None
+
+
+#: Smallest eigenvalue of Z_A Z_Aᵀ a face of the damper's cone must have to be used (as ASCM's projector form).
+FACE_TOL = 1e-4
+#: How far [rad/s] a damper direction may point out of the box at a held joint and still count as inward (rounding).
+INWARD_TOL = 1e-12
+
+
+def damper_direction(Z: np.ndarray, dq: np.ndarray, held: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """The damper direction d (n,) [rad/s]: q̇ on the null-space torques whose damper −μ d pushes no held joint out.
+
+    The null-space torques are Z c (Z (n, r) orthonormal, J#ᵀZ = 0); at a held joint i the damper −μ (Z c)_i
+    must not push τ_i further out (sign(τ_i) (Z c)_i ≥ 0). c is the Euclidean projection of g = Zᵀq̇ onto
+    that polyhedral cone, found among the projections onto its faces {(Z c)_A = 0}, A ⊆ held: the feasible
+    one closest to g. Its power is q̇ᵀd = ‖c‖² ≥ 0, so −μ d only dissipates; with every held joint's entry
+    pinned (A = held) it is the equality-constrained direction, which the cone contains.
+
+    Args:
+        Z: (n, r) orthonormal null-space basis.
+        dq: (n,) joint velocities [rad/s].
+        held: (n,) bool, ASCM's held joints.
+        tau: (n,) the torque whose held entries are at their limits [N m] (their signs say which way is out).
+    """
+    g = Z.T @ dq
+    H = np.flatnonzero(held)
+    best, p_best = np.zeros(Z.shape[0]), 0.0
+    for mask in range(1 << len(H)):
+        A = [int(H[j]) for j in range(len(H)) if mask >> j & 1]
+        if len(A) >= Z.shape[1]:  # as many pinned entries as null-space directions: nothing left to damp
+            continue
+        c = g
+        if A:
+            ZA = Z[A]
+            G = ZA @ ZA.T
+            if np.linalg.eigvalsh(G).min() <= FACE_TOL:
+                continue
+            c = g - ZA.T @ np.linalg.solve(G, ZA @ g)
+        d = Z @ c
+        if any(math.copysign(1.0, tau[i]) * d[i] < -INWARD_TOL for i in H if int(i) not in A):
+            continue
+        p = float(dq @ d)
+        if p > p_best:
+            best, p_best = d, p
+    return best
 
 
 def hold_work(e: np.ndarray, v: np.ndarray, Minv: np.ndarray, dt: float) -> float:
@@ -128,9 +174,9 @@ def largest_scale(E: float, base: np.ndarray, part: np.ndarray, v: np.ndarray, M
 
 
 def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: np.ndarray, J: np.ndarray,
-               Jsharp: np.ndarray, Minv: np.ndarray, g_null: np.ndarray, tau0: np.ndarray, tau1: np.ndarray,
-               d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Book the last interval, damp a deficit, choose λ: the torque to send (n,) [N m] (steps 1–4 of the module).
+               Jsharp: np.ndarray, Minv: np.ndarray, g_null: np.ndarray, tau_a: np.ndarray, tau0: np.ndarray,
+               tau1: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Book the last interval, damp the allocation's deficit, choose λ: the torque to send (n,) [N m] (steps 1–4).
 
     Args:
         tank: the settings.
@@ -142,15 +188,18 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
         Jsharp: (n, m) its dynamically consistent inverse J#.
         Minv: (n, n) M⁻¹.
         g_null: (n,) the null-space part of the gravity compensation in the torque [N m] (zeros without).
+        tau_a: (n,) the allocation's torque (the task, the allocation's null-space torque and the safety
+            torques' held part, before Algorithm 2) [N m].
         tau0: (n,) the tick's torque without the objectives [N m], in the box.
         tau1: (n,) the tick's torque with them [N m], in the box.
-        d: (n,) the damper's direction Π q̇: q̇ projected onto the null-space torques that leave the
-            held joints unchanged (zeros when no redundancy is left) [rad/s].
+        d: (n,) the damper's direction (`damper_direction`) [rad/s].
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
     """
-    if s.position is not None and s.effort is not None:  # 1. the held null-space torque's exact work
-        s.energy = min(s.energy - float(s.effort.dot(q - s.position)), tank.capacity)
+    if s.position is not None and s.effort is not None:  # 1. each account books its held torque's exact work
+        dqk = q - s.position
+        s.energy = min(s.energy - float(s.effort[0].dot(dqk)), tank.capacity)
+        s.allocation = min(s.allocation - float(s.effort[1].dot(dqk)), tank.capacity)
     dt = t - s.t
 
     def null(tau: np.ndarray) -> np.ndarray:  # N τ, N = I − JᵀJ#ᵀ
@@ -158,21 +207,25 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
 
     lam, s.damping = 0.0, 0.0
     tau = tau0
+    e_a = null(tau_a) - g_null
     if dt > 0.0 and math.isfinite(dt):
-        deficit = hold_work(null(tau0) - g_null, dq, Minv, dt) - s.energy
-        p = float(dq.dot(d))  # |P_c Zᵀ q̇|² ≥ 0: the damper −μ d dissipates μ p
-        if deficit > 0.0 and p > 0.0:  # 2. the null-space damper on the deficit, in the box room left
+        deficit = hold_work(e_a, dq, Minv, dt) - s.allocation
+        p = float(dq.dot(d))  # ‖c‖² ≥ 0: the damper −μ d dissipates μ p
+        if deficit > 0.0 and p > 0.0:  # 2. the allocation's damper on its account's deficit, in the box room left
             s.damping = min(deficit / (dt * p), 0.5 / (dt * float(np.trace(Minv))))
             sigma = scaling_alpha(-s.damping * d, tau0, lo=lo, hi=hi)
             s.damping = 0.0 if sigma is None else s.damping * sigma
             tau = tau0 - s.damping * d
-        diff = tau1 - tau0  # 3. the objectives' share, by what the tank holds and the box leaves
-        lam = largest_scale(s.energy, null(tau) - g_null, null(diff), dq, Minv, dt)
+        diff = tau1 - tau0  # 3. the objectives' share, by what their account holds and the box leaves
+        lam = largest_scale(s.energy, null(tau0) - g_null - e_a, null(diff), dq, Minv, dt)
         room = scaling_alpha(diff, tau, lo=lo, hi=hi) if lam > 0.0 else 0.0
         lam = min(lam, 0.0 if room is None else room)
     tau = np.minimum(np.maximum(tau + lam * (tau1 - tau0), lo), hi)
-    s.scale, s.t, s.position, s.effort = lam, t, np.array(q, dtype=float), null(tau) - g_null  # 4. recorded
+    e_a = e_a - s.damping * null(d)  # 4. recorded: the allocation's account holds its damper, the other the rest
+    s.scale, s.t, s.position = lam, t, np.array(q, dtype=float)
+    s.effort = np.array([null(tau) - g_null - e_a, e_a])
     return tau
 
 
-__all__ = ["NullSpaceTank", "TankState", "hold_work", "largest_scale", "tank_blend"]
+__all__ = ["FACE_TOL", "INWARD_TOL", "NullSpaceTank", "TankState", "damper_direction", "hold_work", "largest_scale",
+           "tank_blend"]

@@ -118,7 +118,7 @@ class KernelTick:
         self._scheduled = self._sch.shape[0] != 0
         self._prm = prm
         self._tank = np.zeros(_tank.N_TANK)  # the null-space energy tank's slots, mirrored with `ControllerState.tank`
-        self._tank_q, self._tank_e = np.zeros(n), np.zeros(n)
+        self._tank_q, self._tank_e = np.zeros(n), np.zeros((2, n))
         if cfg.tank is not None:
             self._tank[_tank.TK_ON], self._tank[_tank.TK_CAPACITY] = 1.0, cfg.tank.capacity
         vme, gains = [], []
@@ -236,7 +236,8 @@ class KernelTick:
         ts = s.tank
         if ts is not None:
             v = self._tank
-            v[_tank.TK_ENERGY], v[_tank.TK_T], v[_tank.TK_PREV] = ts.energy, ts.t, float(ts.position is not None)
+            v[_tank.TK_ENERGY], v[_tank.TK_ALLOCATION] = ts.energy, ts.allocation
+            v[_tank.TK_T], v[_tank.TK_PREV] = ts.t, float(ts.position is not None)
             if ts.position is not None and ts.effort is not None:
                 self._tank_q[:], self._tank_e[:] = ts.position, ts.effort
 
@@ -246,6 +247,7 @@ class KernelTick:
         if ts is not None:
             v = self._tank.tolist()
             ts.energy, ts.scale, ts.damping, ts.t = v[_tank.TK_ENERGY], v[_tank.TK_SCALE], v[_tank.TK_DAMPING], v[_tank.TK_T]
+            ts.allocation = v[_tank.TK_ALLOCATION]
             ts.position, ts.effort = self._tank_q.copy(), self._tank_e.copy()
 
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):

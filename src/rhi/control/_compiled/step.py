@@ -41,7 +41,7 @@ from rhi.control._compiled.allocation import (
     tertiary,
     well_conditioned,
 )
-from rhi.control._compiled.tank import TK_ON, blend
+from rhi.control._compiled.tank import TK_ON, blend, direction
 from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
 from rhi.jit import jit
 
@@ -188,7 +188,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         tau_to_extra: (n,) −Σ gain ∂ν/∂q of the objectives computed outside the kernel [N m].
         tank: (N_TANK,) the null-space energy tank's settings and state (`rhi.control._compiled.tank`), advanced.
         tank_q: (n,) its q of the previous tick, written.
-        tank_e: (n,) its metered torque of the previous tick, written.
+        tank_e: (2, n) its metered torques (objectives, allocation) of the previous tick, written.
         tau_out: (n,) the torque, written [N m].
         sat: (n,) bool, the held joints, written.
 
@@ -315,22 +315,15 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
     S, k = held_set(sat)
-    d = np.zeros(n)
-    if k < r:
-        if not have_P:
-            P, ok = null_projector(JMinv)
-            if not ok:
-                return SINGULAR, 1.0, 0.0, V, omega, False
-        d = mv(P, dq)
-        if k:
-            rr = np.empty(k)
-            for i in range(k):
-                rr[i] = d[S[i]]
-            d = sub(d, held_torque(P, S, k, rr))
+    if not have_P:
+        P, ok = null_projector(JMinv)
+        if not ok:
+            return SINGULAR, 1.0, 0.0, V, omega, False
+    d = direction(P, dq, S, k, r, tau)
     g_null = np.zeros(n)
     if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
         g_null = sub(g, mtv(J, Gx))
     Minv = terms[at[4]:at[4] + n * n].reshape((n, n))
-    blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, add(tau, delta0) if beta0 != 0.0 else tau, tau1, d,
-          lo, hi, tau_out)
+    blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau, add(tau, delta0) if beta0 != 0.0 else tau,
+          tau1, d, lo, hi, tau_out)
     return OK, gamma * alpha, beta, V, omega, clipped

@@ -1,7 +1,8 @@
 """The null-space energy tank of one tick, compiled (equations: `rhi.control.tank`).
 
-`blend` is what `rhi.control.tank.tank_blend` computes, run inside `rhi.control._compiled.step.tick`;
-the reference is its oracle (equal to rounding, `tests/test_tank.py`).
+`blend` is what `rhi.control.tank.tank_blend` computes and `direction` what `rhi.control.tank.damper_direction`
+computes (from the projector P = Z Zᵀ instead of the basis Z), run inside `rhi.control._compiled.step.tick`;
+the reference is their oracle (equal to rounding, `tests/test_tank.py`).
 """
 
 from __future__ import annotations
@@ -10,14 +11,18 @@ import math
 
 import numpy as np
 
-from rhi.control._compiled.allocation import scaling_alpha
+from rhi.control._compiled.allocation import above, held_torque, scaling_alpha
 from rhi.control._compiled.passivity import _largest_scale, _work
-from rhi.devices._compiled.terms import dot, mtv
+from rhi.devices._compiled.terms import dot, mtv, mv
 from rhi.jit import jit
 
-#: Slots of the tank vector: settings (on, capacity [J]), then state (T [J], a previous tick, its time [s], λ, μ).
-TK_ON, TK_CAPACITY, TK_ENERGY, TK_PREV, TK_T, TK_SCALE, TK_DAMPING = range(7)
-N_TANK = 7
+#: Slots of the tank vector: settings (on, capacity [J]), then state (T_O [J], a previous tick, its time [s], λ, μ,
+#: T_A [J]).
+TK_ON, TK_CAPACITY, TK_ENERGY, TK_PREV, TK_T, TK_SCALE, TK_DAMPING, TK_ALLOCATION = range(8)
+N_TANK = 8
+#: As `rhi.control.tank.FACE_TOL` and `INWARD_TOL`.
+_FACE_TOL = 1e-4
+_INWARD_TOL = 1e-12
 
 
 @jit
@@ -27,13 +32,62 @@ def _null(J, Jsharp, tau, g_null):
 
 
 @jit
-def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau0, tau1, d, lo, hi, tau_out):
+def direction(P, dq, S, k, r, tau):
+    """`rhi.control.tank.damper_direction` from P = Z Zᵀ (n, n): (n,) [rad/s].
+
+    Args:
+        P: (n, n) orthogonal projector onto the null-space torques.
+        dq: (n,) joint velocities [rad/s].
+        S: (n,) int, the held joints in S[:k].
+        k: how many joints are held.
+        r: n − m, the null space's dimension.
+        tau: (n,) the torque whose held entries are at their limits [N m].
+    """
+    n = dq.shape[0]
+    Pdq = mv(P, dq)
+    best = np.zeros(n)
+    p_best = 0.0
+    A = np.empty(n, np.int64)
+    for mask in range(1 << k):
+        ka = 0
+        for j in range(k):
+            if mask >> j & 1:
+                A[ka] = S[j]
+                ka += 1
+        if ka >= r:
+            continue
+        d = Pdq
+        if ka:
+            G = np.empty((ka, ka))
+            rr = np.empty(ka)
+            for i in range(ka):
+                rr[i] = Pdq[A[i]]
+                for j in range(ka):
+                    G[i, j] = P[A[i], A[j]]
+            if not above(G, _FACE_TOL):
+                continue
+            d = Pdq - held_torque(P, A, ka, rr)
+        ok = True
+        for j in range(k):
+            if not (mask >> j & 1) and math.copysign(1.0, tau[S[j]]) * d[S[j]] < -_INWARD_TOL:
+                ok = False
+        if not ok:
+            continue
+        p = dot(dq, d)
+        if p > p_best:
+            best = d
+            p_best = p
+    return best
+
+
+@jit
+def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, tau0, tau1, d, lo, hi, tau_out):
     """Steps 1–4 of `rhi.control.tank.tank_blend`; writes the torque to send into tau_out and advances the tank.
 
     Args:
         tank: (N_TANK,) settings and state (TK_* slots), advanced in place.
         tank_q: (n,) q of the previous tick [rad], written.
-        tank_e: (n,) the metered null-space torque of the previous tick [N m], written.
+        tank_e: (2, n) the metered null-space torques e_O, e_A of the previous tick [N m], written.
         t: time [s].
         q: (n,) joint positions [rad].
         dq: (n,) joint velocities [rad/s].
@@ -41,23 +95,26 @@ def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau0, tau1, d
         Jsharp: (n, m) J#.
         Minv: (n, n) M⁻¹.
         g_null: (n,) null-space part of the gravity compensation [N m].
+        tau_a: (n,) the allocation's torque [N m].
         tau0: (n,) the tick without the objectives [N m].
         tau1: (n,) the tick with them [N m].
-        d: (n,) the damper's direction Π q̇ [rad/s].
+        d: (n,) the damper's direction (`direction`) [rad/s].
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
         tau_out: (n,) the torque to send, written [N m].
     """
     n = q.shape[0]
     if tank[TK_PREV] != 0.0:
-        tank[TK_ENERGY] = min(tank[TK_ENERGY] - dot(tank_e, q - tank_q), tank[TK_CAPACITY])
-    E = tank[TK_ENERGY]
+        dqk = q - tank_q
+        tank[TK_ENERGY] = min(tank[TK_ENERGY] - dot(tank_e[0], dqk), tank[TK_CAPACITY])
+        tank[TK_ALLOCATION] = min(tank[TK_ALLOCATION] - dot(tank_e[1], dqk), tank[TK_CAPACITY])
     dt = t - tank[TK_T]
     lam, mu = 0.0, 0.0
     tau = tau0.copy()
     diff = tau1 - tau0
+    e_a = _null(J, Jsharp, tau_a, g_null)
     if dt > 0.0 and math.isfinite(dt):
-        deficit = _work(_null(J, Jsharp, tau0, g_null), dq, Minv, dt) - E
+        deficit = _work(e_a, dq, Minv, dt) - tank[TK_ALLOCATION]
         p = dot(dq, d)
         if deficit > 0.0 and p > 0.0:
             tr = 0.0
@@ -67,12 +124,15 @@ def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau0, tau1, d
             sigma = scaling_alpha(-mu * d, tau0, lo, hi, np.ones(n, np.bool_))
             mu = mu * sigma if sigma > 0.0 else 0.0
             tau = tau0 - mu * d
-        lam = _largest_scale(E, _null(J, Jsharp, tau, g_null), _null(J, Jsharp, diff, np.zeros(n)), dq, Minv, dt)
+        lam = _largest_scale(tank[TK_ENERGY], _null(J, Jsharp, tau0, g_null) - e_a,
+                             _null(J, Jsharp, diff, np.zeros(n)), dq, Minv, dt)
         if lam > 0.0:
             room = scaling_alpha(diff, tau, lo, hi, np.ones(n, np.bool_))
             lam = min(lam, room if room > 0.0 else 0.0)
     for i in range(n):
         tau_out[i] = min(max(tau[i] + lam * diff[i], lo[i]), hi[i])
     tank[TK_SCALE], tank[TK_DAMPING], tank[TK_PREV], tank[TK_T] = lam, mu, 1.0, t
+    e_a = e_a - mu * _null(J, Jsharp, d, np.zeros(n))
     tank_q[:] = q
-    tank_e[:] = _null(J, Jsharp, tau_out, g_null)
+    tank_e[1, :] = e_a
+    tank_e[0, :] = _null(J, Jsharp, tau_out, g_null) - e_a

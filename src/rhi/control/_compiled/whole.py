@@ -114,7 +114,7 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         pc_eff: (k,) its port effort at the previous tick, written.
         tank: (N_TANK,) the null-space energy tank (`rhi.control._compiled.tank`), advanced in place.
         tank_q: (n,) its q of the previous tick, written.
-        tank_e: (n,) its metered torque of the previous tick, written.
+        tank_e: (2, n) its metered torques (objectives, allocation) of the previous tick, written.
         x: (m,) handle position [m], written unless ready.
         buf: the device terms (`rhi.devices.terms.layout`), written unless ready.
         F_r: (m,) the law's rendered force, written [N].
