@@ -11,30 +11,34 @@ self-motion with the handle (`rhi.experiments.beyond.passivity` measures every s
 What. An energy tank (Ferraguti, Secchi and Fantuzzi, "A tank-based approach to impedance
 control with variable stiffness", ICRA 2013; in the null space of a redundant robot as
 Dietrich, Wu, Bussmann, Ott and Albu-Schäffer, "Passive hierarchical impedance control via
-energy tanks", RA-L 2017): a store T ≥ 0 [J] of energy the null space may spend. It meters,
-exactly under the zero-order hold, the work of the controller's whole null-space torque
-``e = N(τ − g_N)``, ``N = I − JᵀJ#ᵀ`` (the part of the sent torque τ that puts no force at the
-handle, J#ᵀe = 0, less the null-space part g_N of the gravity compensation, which only cancels
-the plant's gravity), over each hold interval:
+energy tanks", RA-L 2017) with two accounts, each a store [J] that meters, exactly under the
+zero-order hold, the work of its share of the controller's null-space torque over each hold
+interval (N = I − JᵀJ#ᵀ; a null-space torque puts no force at the handle, J#ᵀN = 0; g_N, the
+null-space part of the gravity compensation, only cancels the plant's gravity and is left out):
 
     T(k) = min(T(k−1) − e(k−1)ᵀ(q(k) − q(k−1)), capacity),    T(0) = ``initial``.
 
-So the tank is fed by what the null-space damping −k_D q̇ and the plant's motion dissipate
-against the null-space torque (its work is negative) and drained by what the allocation,
-the objectives and the joint-limit barrier put in. Each tick (`tank_blend`):
+- The *allocation's account* T_A meters e_A = N τ_a − g_N − μ d: the allocation's null-space torque
+  (ASCM's Z y, eq. 7.8, with the safety torques' part its held joints carry), and its damper.
+- The *objectives' account* T_O meters the rest, e_O = N τ − g_N − e_A: the safety torques' shares
+  in Algorithm 2 (the null-space damping −k_D q̇, which fills it, and the joint-limit barrier) and the
+  objectives, which draw on it. So the objectives spend only what the damping has dissipated.
 
-1. Book the last hold interval (above).
-2. Predict the coming interval's work of the null-space torque without the objectives, e₀, as
-   ``w(e) = ΔT eᵀq̇ + ½ ΔT² eᵀ M⁻¹ e`` (the work of a held torque on the free mechanism, as in
-   `rhi.control.passivity`). If it exceeds T (the allocation alone draws more than the tank
-   holds), a *null-space damper* −μ Π q̇ takes out the deficit: Π q̇ is the joint velocity
-   projected onto the null-space torques that leave ASCM's held joints unchanged (so its
-   power −μ‖P_c Zᵀq̇‖² is never positive and it puts no force at the handle),
-   ``μ = deficit / (ΔT q̇ᵀΠq̇)``, bounded by ``0.5 / (ΔT tr M⁻¹)`` (a sampled damper that does
-   not overshoot) and by the room the torque box leaves. It adds a dissipative torque; it scales nothing.
-3. Scale the objectives' share d (what Algorithm 2 adds with the objectives, run once with them
-   and once without) by the largest λ ∈ [0, 1] with ``w(e₀' + λ d) ≤ T`` that keeps the box.
-4. Send ``τ₀ − μΠq̇ + λ d`` and record its null-space part for step 1.
+Each tick (`tank_blend`):
+
+1. Book the last hold interval in both accounts (above).
+2. The allocation's damper (Hannaford and Ryu's series passivity controller, on the allocation's
+   account only): predict the coming interval's work of e_A as ``w(e) = ΔT eᵀq̇ + ½ ΔT² eᵀ M⁻¹ e``
+   (the work of a held torque on the free mechanism, as in `rhi.control.passivity`). If it exceeds
+   T_A, the damper −μ d takes out the deficit, ``μ = deficit / (ΔT q̇ᵀd)`` bounded by
+   ``0.5 / (ΔT tr M⁻¹)`` (a sampled damper that does not overshoot) and by the room the torque box
+   leaves; what is left is carried (T_A < 0). d (`damper_direction`) is q̇ projected onto the
+   null-space torques that move no held joint's torque out of its limit: it puts no force at the
+   handle, its power −μ q̇ᵀd is never positive, and it may take torque off a held joint.
+3. Scale the objectives' share (what Algorithm 2 adds with the objectives, run once with them
+   and once without) by the largest λ ∈ [0, 1] with ``w(e_O0 + λ N(τ₁ − τ₀)) ≤ T_O`` that keeps
+   the box (e_O0: the safety shares).
+4. Send ``τ₀ − μ d + λ (τ₁ − τ₀)`` and record each account's null-space torque for step 1.
 
 The primary task torque (the rendered wall, its damping and compensation) and the allocation
 are never scaled, nor are the safety torques (null-space damping, joint-limit barrier): their
@@ -42,15 +46,14 @@ held part is the same in τ₀ and τ₁, and their share in Algorithm 2 is (1 �
 β₁: Algorithm 2's box scaling without and with the objectives). With λ = 0 and the damper
 idle the tick is exactly the tick without objectives; with λ = 1, the thesis's tick.
 
-What it guarantees, and what not. The objectives only spend energy the tank holds. The
-allocation is metered too but never scaled: where its null-space torque draws more than the
-tank holds and the damper cannot take the deficit out — ASCM holds so many joints that no
-redundancy is left (Π = 0: on rhi4, two held joints), or the bound on μ or the box stops
-it — the deficit is booked (T < 0) and the objectives stay off until the damping has
-refilled the tank. The null-space side is then *not* passive: the remaining source is ASCM's
-null-space torque with no redundancy left, which only a smaller rendered force (simple
-scaling's, α of eq. 7.9) would remove. ``capacity`` bounds how much stored energy a later
-burst may release. `rhi.experiments.beyond.passivity` measures every source from the plant's signals.
+What it guarantees, and what not. The objectives spend only what their account holds. The
+allocation's account is kept ≥ 0 by a dissipative torque, not by scaling: where the damper
+cannot take the whole deficit out — every null-space torque would push a held joint out of
+its limit (the cone of step 2 is {0}), or the bound on μ or the box stops it — the deficit is
+carried (T_A < 0) and taken out in the next samples. The barrier draws on the objectives'
+account (it is never scaled: a barrier that overdraws it leaves the objectives off until the
+damping has refilled it). ``capacity`` bounds how much stored energy a later burst may release.
+`rhi.experiments.beyond.passivity` measures every source from the plant's signals.
 """
 
 from __future__ import annotations

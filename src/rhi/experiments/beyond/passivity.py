@@ -91,8 +91,9 @@ def _passivity_state(ctrl: NullSpaceController) -> dict[str, float]:
     s, pc = ctrl.state, ctrl.passivity
     return {"pc_scale": math.nan if pc is None else pc.scale,
             "held": 0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated)))),
-            "tank": math.nan if s.tank is None else s.tank.energy,
-            "tank_scale": math.nan if s.tank is None else s.tank.scale}
+            "tank": math.nan if s.tank is None else s.tank.energy + s.tank.allocation,
+            "tank_scale": math.nan if s.tank is None else s.tank.scale,
+            "tank_damping": math.nan if s.tank is None else s.tank.damping}
 
 
 def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: Saturation = "ascm",
@@ -187,6 +188,7 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
         "tank_end": float(log.extra["tank"][-1]),
         "tank_min": float(np.min(log.extra["tank"])),
         "tank_off": float(np.mean(log.extra["tank_scale"] < 1)),
+        "tank_damped": float(np.mean(log.extra["tank_damping"] > 0)),
     }
     series = {"t": log.t, "W": log.work, "F": F, "F_des": F_des, "pen": pen, "E_obs": E,
               "alpha_pc": alpha_pc, "xdot": xd}
@@ -360,9 +362,10 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
             src_rows.append(Row(f"largest replay error of the twin, {lab}", None, m["replay_error"], "N m",
                                 "the twin sends the logged torque"))
         if CASES[c][4]:
-            src_rows += [Row(f"tank energy T at the end (lowest), {lab}", None, m["tank_end"], "J",
+            src_rows += [Row(f"tank energy T_O + T_A at the end (lowest), {lab}", None, m["tank_end"], "J",
                              f"lowest {m['tank_min']:.3g} J; objectives scaled (λ < 1) on "
-                             f"{100 * m['tank_off']:.0f} % of the ticks")]
+                             f"{100 * m['tank_off']:.0f} % of the ticks, the allocation's damper on "
+                             f"{100 * m['tank_damped']:.0f} %")]
         if m["sources"]:
             src_rows.append(Row(f"ticks with no redundancy left (ASCM holds n − m joints), {lab}", None,
                                 100.0 * m["held_full"], "%"))
@@ -454,8 +457,9 @@ def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
                 f"{_LABEL[c][0].upper()}{_LABEL[c][1:]}: the objectives did {m['objective_work']:.3g} J of work "
                 f"(without the tank {m0['objective_work']:.3g} J) and the null-space side {m['null_work']:.3g} J net "
                 f"({m0['null_work']:.3g} J); the allocation's null-space torque did {m['sources']['allocation']:.3g} J "
-                f"and ASCM left no redundancy on {100 * m['held_full']:.0f} % of the ticks, where neither the tank's "
-                f"λ nor its damper can act (the tank ended at {m['tank_end']:.3g} J). Hand's work W = {m['W']:.3g} J "
+                f"and its damper {m['sources']['tank damper']:.3g} J (acting on {100 * m['tank_damped']:.0f} % of the "
+                f"ticks; ASCM left no redundancy on {100 * m['held_full']:.0f} %); both accounts together ended at "
+                f"{m['tank_end']:.3g} J. Hand's work W = {m['W']:.3g} J "
                 f"(lowest {m['W_min']:.2g} J); peak force {m['force_peak']:.1f} N vs {m0['force_peak']:.1f} N without "
                 f"a PC, RMS force error {m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N.")
     if "objectives_pc_handle" in res:
