@@ -168,39 +168,45 @@ def test_objective_term_gain_zero_is_not_an_objective(rhi4):
 
 
 def test_damper_direction_is_the_projection_on_the_inward_cone():
-    """damper_direction: q̇ projected on the null-space torques that push no held joint out; the compiled twin equal.
+    """damper_direction: N M q̇ projected on the null-space torques that push no held joint out; compiled twin equal.
 
-    The cone projection is checked against SciPy's SLSQP on min ‖c − Zᵀq̇‖² s.t. sign(τ_i)(Z c)_i ≥ 0 (i held): the
-    direction only dissipates (q̇ᵀd ≥ 0), lies in the null space and beats the equality-pinned direction.
+    The cone projection in the kinetic metric M⁻¹ is checked against SciPy's SLSQP on
+    min (Zc − NMq̇)ᵀM⁻¹(Zc − NMq̇) s.t. sign(τ_i)(Z c)_i ≥ 0 (i held): the direction only dissipates (q̇ᵀd ≥ 0),
+    puts no force at the handle (J#ᵀd = 0) and, unconstrained, is H&R's inertia-weighted damping of the self-motion.
     """
     from scipy.optimize import minimize
 
     from rhi.control._compiled.allocation import held_set
-    from rhi.control._compiled.tank import direction
+    from rhi.control._compiled.tank import direction, null_inertia
+    from rhi.control.saturation import null_basis
     from rhi.control.tank import damper_direction
 
     rng = np.random.default_rng(7)
-    better = 0
+    pinned = 0
     for _ in range(60):
-        n, r = 5, int(rng.integers(1, 4))
-        Z = np.linalg.qr(rng.normal(size=(n, r)))[0]
+        n, m = 5, int(rng.integers(2, 5))
+        J = rng.normal(size=(m, n))
+        R = rng.normal(size=(n, n))
+        M = R @ R.T + 0.5 * np.eye(n)
+        Mi = np.linalg.inv(M)
+        Jsharp = Mi @ J.T @ np.linalg.inv(J @ Mi @ J.T)
+        Q = (np.eye(n) - J.T @ Jsharp.T) @ M
+        np.testing.assert_allclose(null_inertia(J, Jsharp, M), Q, atol=1e-12)
+        np.testing.assert_allclose(Q, Q.T, atol=1e-10)
+        Z = null_basis(J, M)
         dq, tau = rng.normal(size=n), rng.normal(size=n)
         held = np.zeros(n, bool)
-        held[rng.choice(n, int(rng.integers(0, r + 1)), replace=False)] = True
-        d = damper_direction(Z, dq, held, tau)
+        held[rng.choice(n, int(rng.integers(0, n - m + 1)), replace=False)] = True
+        d = damper_direction(Q, dq, held, tau)
         S, k = held_set(held)
-        np.testing.assert_allclose(direction(Z @ Z.T, dq, S, k, r, tau), d, atol=1e-12)
-        g = Z.T @ dq
+        np.testing.assert_allclose(direction(Q, dq, S, k, tau), d, atol=1e-12)
+        target = Q @ dq
         cons = [{"type": "ineq", "fun": (lambda c, i=i: np.sign(tau[i]) * (Z @ c)[i])} for i in np.flatnonzero(held)]
-        best = minimize(lambda c: float((c - g) @ (c - g)), np.zeros(r), constraints=cons, method="SLSQP",
-                        options={"ftol": 1e-14, "maxiter": 500}).x
-        np.testing.assert_allclose(d, Z @ best, atol=1e-6)
+        best = minimize(lambda c: float((Z @ c - target) @ Mi @ (Z @ c - target)), np.zeros(n - m),
+                        constraints=cons, method="SLSQP", options={"ftol": 1e-15, "maxiter": 500}).x
+        np.testing.assert_allclose(d, Z @ best, atol=1e-5)
         assert float(dq @ d) >= -1e-12
         assert np.all(np.sign(tau[held]) * d[held] >= -1e-12)
-        np.testing.assert_allclose(Z @ (Z.T @ d), d, atol=1e-12)  # a null-space torque
-        c = g
-        if held.any():
-            ZS = Z[held]
-            c = g - np.linalg.pinv(ZS) @ (ZS @ g)
-        better += float(dq @ d) > float(dq @ (Z @ c)) + 1e-9
-    assert better > 5  # the cone often damps where pinning every held joint leaves nothing
+        np.testing.assert_allclose(Jsharp.T @ d, 0.0, atol=1e-10)
+        pinned += bool(held.any()) and not np.allclose(d, target)
+    assert pinned > 5  # the held joints' cone shaped the direction

@@ -100,7 +100,7 @@ def reference_tick(
     beta0, d = beta, np.zeros(dev.n)
     if cfg.tank is not None and s.tank is not None:  # the objectives spend only what the tank holds (rhi.control.tank)
         delta0, beta0 = tertiary(al.tau, al.saturated, Z, tau_s, torque_min=lo, torque_max=hi, N=N)
-        d = damper_direction(Z, np.asarray(dq), al.saturated, al.tau)
+        d = damper_direction(N @ kin.M, np.asarray(dq), al.saturated, al.tau)
         tau = tank_blend(cfg.tank, s.tank, t, q, np.asarray(dq), J, kin.Jsharp, kin.Minv, g_null, al.tau,
                          al.tau + delta0 if beta0 else al.tau, tau, d, lo, hi)
     if parts is not None:

@@ -18,7 +18,7 @@ null-space part of the gravity compensation, only cancels the plant's gravity an
 
     T(k) = min(T(k−1) − e(k−1)ᵀ(q(k) − q(k−1)), capacity),    T(0) = ``initial``.
 
-- The *allocation's account* T_A meters e_A = N τ_a − g_N − μ d: the allocation's null-space torque
+- The *allocation's account* T_A meters e_A = N τ_a − g_N − α d: the allocation's null-space torque
   (ASCM's Z y, eq. 7.8, with the safety torques' part its held joints carry), and its damper.
 - The *objectives' account* T_O meters the rest, e_O = N τ − g_N − e_A: the safety torques' shares
   in Algorithm 2 (the null-space damping −k_D q̇, which fills it, and the joint-limit barrier) and the
@@ -30,15 +30,16 @@ Each tick (`tank_blend`):
 2. The allocation's damper (Hannaford and Ryu's series passivity controller, on the allocation's
    account only): predict the coming interval's work of e_A as ``w(e) = ΔT eᵀq̇ + ½ ΔT² eᵀ M⁻¹ e``
    (the work of a held torque on the free mechanism, as in `rhi.control.passivity`). If it exceeds
-   T_A, the damper −μ d takes out the deficit, ``μ = deficit / (ΔT q̇ᵀd)`` bounded by
-   ``0.5 / (ΔT tr M⁻¹)`` (a sampled damper that does not overshoot) and by the room the torque box
-   leaves; what is left is carried (T_A < 0). d (`damper_direction`) is q̇ projected onto the
-   null-space torques that move no held joint's torque out of its limit: it puts no force at the
-   handle, its power −μ q̇ᵀd is never positive, and it may take torque off a held joint.
+   T_A, the damper −α d takes out the deficit, ``α = deficit / (ΔT q̇ᵀd)`` bounded by ``0.5 / ΔT``
+   (H&R's sampled damper that does not overshoot) and by the room the torque box leaves; what is
+   left is carried (T_A < 0). d (`damper_direction`) is the inertia-weighted self-motion damping
+   N M q̇ projected onto the null-space torques that move no held joint's torque out of its limit:
+   it puts no force at the handle, its power −α q̇ᵀd is never positive, and it may take torque off
+   a held joint.
 3. Scale the objectives' share (what Algorithm 2 adds with the objectives, run once with them
    and once without) by the largest λ ∈ [0, 1] with ``w(e_O0 + λ N(τ₁ − τ₀)) ≤ T_O`` that keeps
    the box (e_O0: the safety shares).
-4. Send ``τ₀ − μ d + λ (τ₁ − τ₀)`` and record each account's null-space torque for step 1.
+4. Send ``τ₀ − α d + λ (τ₁ − τ₀)`` and record each account's null-space torque for step 1.
 
 The primary task torque (the rendered wall, its damping and compensation) and the allocation
 are never scaled, nor are the safety torques (null-space damping, joint-limit barrier): their
@@ -49,7 +50,7 @@ idle the tick is exactly the tick without objectives; with λ = 1, the thesis's 
 What it guarantees, and what not. The objectives spend only what their account holds. The
 allocation's account is kept ≥ 0 by a dissipative torque, not by scaling: where the damper
 cannot take the whole deficit out — every null-space torque would push a held joint out of
-its limit (the cone of step 2 is {0}), or the bound on μ or the box stops it — the deficit is
+its limit (the cone of step 2 is {0}), or the bound on α or the box stops it — the deficit is
 carried (T_A < 0) and taken out in the next samples. The barrier draws on the objectives'
 account (it is never scaled: a barrier that overdraws it leaves the objectives off until the
 damping has refilled it). ``capacity`` bounds how much stored energy a later burst may release.
@@ -96,7 +97,7 @@ class TankState:
         energy: T_O [J], the objectives' account (negative only when the safety shares alone drained it).
         allocation: T_A [J], the allocation's account (negative: a deficit the damper could not yet take out).
         scale: λ of the last tick, the factor on the objectives' torque (1: untouched).
-        damping: μ of the last tick, the allocation damper's gain [N m s/rad] (0: idle).
+        damping: α of the last tick, the allocation damper's rate [1/s] (0: idle).
         t: time of the last tick [s].
         position: (n,) q of the last tick [rad].
         effort: (2, n) the metered null-space torques e_O, e_A sent at the last tick [N m].
@@ -111,42 +112,42 @@ class TankState:
     effort: np.ndarray | None = None
 
 
-#: Smallest eigenvalue of Z_A Z_Aᵀ a face of the damper's cone must have to be used (as ASCM's projector form).
-FACE_TOL = 1e-4
-#: How far [rad/s] a damper direction may point out of the box at a held joint and still count as inward (rounding).
+#: A face of the damper's cone is used when the smallest eigenvalue of Q_AA exceeds FACE_TOL tr Q (conditioning).
+FACE_TOL = 1e-6
+#: How far [N m s] a damper direction may point out of the box at a held joint and still count as inward (rounding).
 INWARD_TOL = 1e-12
 
 
-def damper_direction(Z: np.ndarray, dq: np.ndarray, held: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """The damper direction d (n,) [rad/s]: q̇ on the null-space torques whose damper −μ d pushes no held joint out.
+def damper_direction(Q: np.ndarray, dq: np.ndarray, held: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """The damper direction d (n,) [N m s]: H&R's inertia-weighted null-space damping, no held joint pushed out.
 
-    The null-space torques are Z c (Z (n, r) orthonormal, J#ᵀZ = 0); at a held joint i the damper −μ (Z c)_i
-    must not push τ_i further out (sign(τ_i) (Z c)_i ≥ 0). c is the Euclidean projection of g = Zᵀq̇ onto
-    that polyhedral cone, found among the projections onto its faces {(Z c)_A = 0}, A ⊆ held: the feasible
-    one closest to g. Its power is q̇ᵀd = ‖c‖² ≥ 0, so −μ d only dissipates; with every held joint's entry
-    pinned (A = held) it is the equality-constrained direction, which the cone contains.
+    Unconstrained, d = Q q̇ with Q = N M = M − JᵀΛJ (the null-space inertia: symmetric, positive
+    semi-definite, J#ᵀQ = 0), so the damper −α d (α [1/s]) is Hannaford and Ryu's α M q̇ restricted
+    to the self-motion: it puts no force at the handle and, sampled, slows the self-motion velocity
+    by the factor α ΔT in every mode at once. At a held joint i the damper must not push τ_i further
+    out (sign(τ_i) d_i ≥ 0): d is the projection of Q q̇ onto that polyhedral cone of null-space
+    torques in the kinetic metric M⁻¹, found among the projections onto its faces {d_A = 0},
+    ``d = Q q̇ − Q_{:A} Q_AA⁻¹ (Q q̇)_A`` (A ⊆ held): the feasible one of largest power q̇ᵀd, which is
+    ‖d‖²_{M⁻¹} ≥ 0, so −α d only dissipates.
 
     Args:
-        Z: (n, r) orthonormal null-space basis.
+        Q: (n, n) the null-space inertia N M [kg m²].
         dq: (n,) joint velocities [rad/s].
         held: (n,) bool, ASCM's held joints.
         tau: (n,) the torque whose held entries are at their limits [N m] (their signs say which way is out).
     """
-    g = Z.T @ dq
+    base = Q @ dq
     H = np.flatnonzero(held)
-    best, p_best = np.zeros(Z.shape[0]), 0.0
+    tol = FACE_TOL * float(np.trace(Q))
+    best, p_best = np.zeros(Q.shape[0]), 0.0
     for mask in range(1 << len(H)):
         A = [int(H[j]) for j in range(len(H)) if mask >> j & 1]
-        if len(A) >= Z.shape[1]:  # as many pinned entries as null-space directions: nothing left to damp
-            continue
-        c = g
+        d = base
         if A:
-            ZA = Z[A]
-            G = ZA @ ZA.T
-            if np.linalg.eigvalsh(G).min() <= FACE_TOL:
+            G = Q[np.ix_(A, A)]
+            if np.linalg.eigvalsh(G).min() <= tol:  # as many pinned entries as null-space directions, or nearly
                 continue
-            c = g - ZA.T @ np.linalg.solve(G, ZA @ g)
-        d = Z @ c
+            d = base - Q[:, A] @ np.linalg.solve(G, base[A])
         if any(math.copysign(1.0, tau[i]) * d[i] < -INWARD_TOL for i in H if int(i) not in A):
             continue
         p = float(dq @ d)
@@ -195,7 +196,7 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
             torques' held part, before Algorithm 2) [N m].
         tau0: (n,) the tick's torque without the objectives [N m], in the box.
         tau1: (n,) the tick's torque with them [N m], in the box.
-        d: (n,) the damper's direction (`damper_direction`) [rad/s].
+        d: (n,) the damper's direction (`damper_direction`) [N m s].
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
     """
@@ -213,9 +214,9 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
     e_a = null(tau_a) - g_null
     if dt > 0.0 and math.isfinite(dt):
         deficit = hold_work(e_a, dq, Minv, dt) - s.allocation
-        p = float(dq.dot(d))  # ‖c‖² ≥ 0: the damper −μ d dissipates μ p
+        p = float(dq.dot(d))  # ‖d‖²_{M⁻¹} ≥ 0: the damper −α d dissipates α p
         if deficit > 0.0 and p > 0.0:  # 2. the allocation's damper on its account's deficit, in the box room left
-            s.damping = min(deficit / (dt * p), 0.5 / (dt * float(np.trace(Minv))))
+            s.damping = min(deficit / (dt * p), 0.5 / dt)
             sigma = scaling_alpha(-s.damping * d, tau0, lo=lo, hi=hi)
             s.damping = 0.0 if sigma is None else s.damping * sigma
             tau = tau0 - s.damping * d

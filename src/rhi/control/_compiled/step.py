@@ -41,7 +41,7 @@ from rhi.control._compiled.allocation import (
     tertiary,
     well_conditioned,
 )
-from rhi.control._compiled.tank import TK_ON, blend, direction
+from rhi.control._compiled.tank import TK_ON, blend, direction, null_inertia
 from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
 from rhi.jit import jit
 
@@ -315,11 +315,8 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
     S, k = held_set(sat)
-    if not have_P:
-        P, ok = null_projector(JMinv)
-        if not ok:
-            return SINGULAR, 1.0, 0.0, V, omega, False
-    d = direction(P, dq, S, k, r, tau)
+    M = terms[at[2]:at[2] + n * n].reshape((n, n))
+    d = direction(null_inertia(J, Jsharp, M), dq, S, k, tau)
     g_null = np.zeros(n)
     if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
         g_null = sub(g, mtv(J, Gx))

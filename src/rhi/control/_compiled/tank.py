@@ -1,7 +1,7 @@
 """The null-space energy tank of one tick, compiled (equations: `rhi.control.tank`).
 
 `blend` is what `rhi.control.tank.tank_blend` computes and `direction` what `rhi.control.tank.damper_direction`
-computes (from the projector P = Z Zᵀ instead of the basis Z), run inside `rhi.control._compiled.step.tick`;
+computes, run inside `rhi.control._compiled.step.tick`;
 the reference is their oracle (equal to rounding, `tests/test_tank.py`).
 """
 
@@ -21,7 +21,7 @@ from rhi.jit import jit
 TK_ON, TK_CAPACITY, TK_ENERGY, TK_PREV, TK_T, TK_SCALE, TK_DAMPING, TK_ALLOCATION = range(8)
 N_TANK = 8
 #: As `rhi.control.tank.FACE_TOL` and `INWARD_TOL`.
-_FACE_TOL = 1e-4
+_FACE_TOL = 1e-6
 _INWARD_TOL = 1e-12
 
 
@@ -32,19 +32,32 @@ def _null(J, Jsharp, tau, g_null):
 
 
 @jit
-def direction(P, dq, S, k, r, tau):
-    """`rhi.control.tank.damper_direction` from P = Z Zᵀ (n, n): (n,) [rad/s].
+def null_inertia(J, Jsharp, M):
+    """Q = N M (n, n) [kg m²], the null-space inertia of `rhi.control.tank.damper_direction`."""
+    n = M.shape[0]
+    Q = np.empty((n, n))
+    z = np.zeros(n)
+    for j in range(n):
+        Q[:, j] = _null(J, Jsharp, M[:, j].copy(), z)
+    return Q
+
+
+@jit
+def direction(Q, dq, S, k, tau):
+    """`rhi.control.tank.damper_direction`: (n,) [N m s].
 
     Args:
-        P: (n, n) orthogonal projector onto the null-space torques.
+        Q: (n, n) the null-space inertia N M [kg m²].
         dq: (n,) joint velocities [rad/s].
         S: (n,) int, the held joints in S[:k].
         k: how many joints are held.
-        r: n − m, the null space's dimension.
         tau: (n,) the torque whose held entries are at their limits [N m].
     """
     n = dq.shape[0]
-    Pdq = mv(P, dq)
+    base = mv(Q, dq)
+    tr = 0.0
+    for i in range(n):
+        tr += Q[i, i]
     best = np.zeros(n)
     p_best = 0.0
     A = np.empty(n, np.int64)
@@ -54,19 +67,17 @@ def direction(P, dq, S, k, r, tau):
             if mask >> j & 1:
                 A[ka] = S[j]
                 ka += 1
-        if ka >= r:
-            continue
-        d = Pdq
+        d = base
         if ka:
             G = np.empty((ka, ka))
             rr = np.empty(ka)
             for i in range(ka):
-                rr[i] = Pdq[A[i]]
+                rr[i] = base[A[i]]
                 for j in range(ka):
-                    G[i, j] = P[A[i], A[j]]
-            if not above(G, _FACE_TOL):
+                    G[i, j] = Q[A[i], A[j]]
+            if not above(G, _FACE_TOL * tr):
                 continue
-            d = Pdq - held_torque(P, A, ka, rr)
+            d = base - held_torque(Q, A, ka, rr)
         ok = True
         for j in range(k):
             if not (mask >> j & 1) and math.copysign(1.0, tau[S[j]]) * d[S[j]] < -_INWARD_TOL:
@@ -98,7 +109,7 @@ def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, tau0, 
         tau_a: (n,) the allocation's torque [N m].
         tau0: (n,) the tick without the objectives [N m].
         tau1: (n,) the tick with them [N m].
-        d: (n,) the damper's direction (`direction`) [rad/s].
+        d: (n,) the damper's direction (`direction`) [N m s].
         lo: (n,) lower torque limits [N m].
         hi: (n,) upper torque limits [N m].
         tau_out: (n,) the torque to send, written [N m].
@@ -117,10 +128,7 @@ def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, tau0, 
         deficit = _work(e_a, dq, Minv, dt) - tank[TK_ALLOCATION]
         p = dot(dq, d)
         if deficit > 0.0 and p > 0.0:
-            tr = 0.0
-            for i in range(n):
-                tr += Minv[i, i]
-            mu = min(deficit / (dt * p), 0.5 / (dt * tr))
+            mu = min(deficit / (dt * p), 0.5 / dt)
             sigma = scaling_alpha(-mu * d, tau0, lo, hi, np.ones(n, np.bool_))
             mu = mu * sigma if sigma > 0.0 else 0.0
             tau = tau0 - mu * d
