@@ -136,10 +136,10 @@ def test_palpation_energy_by_source():
     """Physically measured: the objectives' work at the motor port, Σ part(k)ᵀ(q(k+1) − q(k)), in the §6.4 palpation.
 
     Without the tank the null-space objectives put joules into the mechanism (the check fails) and the device hands
-    the user energy; on the tank the objectives spend at most the tank's initial energy and, in this 1.5 s run, the
-    hand's work measured in the plant stays ≥ −1 mJ with the wall's peak force within 10 % of the no-PC wall's. The
-    allocation's null-space torque is the source that remains (booked, never scaled): over the 60 s palpation of
-    `beyond.passivity` it hands the user energy again (reported there, not asserted here).
+    the user energy; on the tank the objectives spend only what the null-space damping dissipated (a few per cent of
+    their work without it), the allocation's damper takes energy out, and in this 1.5 s run the hand's work measured
+    in the plant stays ≥ −1 mJ with the wall's peak force within 10 % of the no-PC wall's. Over the 60 s palpation of
+    `beyond.passivity` the allocation hands the user energy again (reported there, not asserted here).
     """
     from rhi.experiments.beyond.passivity import SUMMARY, passivity
 
@@ -149,11 +149,11 @@ def test_palpation_energy_by_source():
     tank = dict(zip(SUMMARY, a["objectives_tank_summary"]))
     assert off["objective_work"] > 0.5 and off["null_work"] > 0.5  # J: the active null space, measured
     assert off["W"] < -0.05  # J: energy handed to the user
-    assert tank["objective_work"] <= 1e-3  # J: the tank's initial energy is 0
+    assert tank["objective_work"] <= 0.05 * off["objective_work"]
     assert tank["null_work"] < 0.25 * off["null_work"]
     assert tank["W"] >= -1e-3 and a["objectives_tank_W"].min() >= -1e-3
     assert abs(tank["force_peak"] / off["force_peak"] - 1.0) <= 0.1
-    assert tank["tank_end"] == pytest.approx(-tank["null_work"], abs=0.02)  # the tank books the null space's work
+    assert tank["tank_end"] <= -tank["null_work"] + 0.02  # the accounts book the null space's work (caps lose credit)
     assert any(t.title.startswith("Where the energy comes from") for t in r.tables)
 
 
