@@ -201,8 +201,9 @@ def test_damper_direction_is_the_projection_on_the_inward_cone():
         S, k = held_set(held)
         np.testing.assert_allclose(direction(Q, dq, S, k, tau), d, atol=1e-12)
         target = Q @ dq
-        cons = [{"type": "ineq", "fun": (lambda c, i=i: np.sign(tau[i]) * (Z @ c)[i])} for i in np.flatnonzero(held)]
-        best = minimize(lambda c: float((Z @ c - target) @ Mi @ (Z @ c - target)), np.zeros(n - m),
+        sign = np.sign(tau)
+        cons = [{"type": "ineq", "fun": (lambda c, i=i, s=sign, Z=Z: s[i] * (Z @ c)[i])} for i in np.flatnonzero(held)]
+        best = minimize(lambda c, Z=Z, t=target, Mi=Mi: float((Z @ c - t) @ Mi @ (Z @ c - t)), np.zeros(n - m),
                         constraints=cons, method="SLSQP", options={"ftol": 1e-15, "maxiter": 500}).x
         np.testing.assert_allclose(d, Z @ best, atol=1e-5)
         assert float(dq @ d) >= -1e-12
