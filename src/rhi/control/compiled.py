@@ -11,8 +11,8 @@ The routes, fastest first:
 - ``"whole"``: the whole tick in one compiled call (device terms, primary law, steps 2–6, passivity);
 - ``"composed"``: `Device.terms` and the primary law's ``forces`` in Python, objectives without a
   compiled form by their ``gradient_at`` in Python, steps 2–6 compiled;
-- ``"reference"``: every tick in `rhi.control.reference` (asked for, or an allocation without a compiled
-  branch, or ``null_space="clipped"``).
+- ``"reference"``: every tick in `rhi.control.reference` (asked for, an allocation without a compiled
+  branch, or a scheduled objective without a compiled form, `rhi.control.schedule`).
 """
 
 from __future__ import annotations
