@@ -235,6 +235,37 @@ def test_estop_method_and_sigint(dev):
         np.testing.assert_array_equal(res.log.tau[-1], 0.0)
 
 
+def test_a_stop_signal_whose_interrupt_was_lost_stops_the_next_run(dev):
+    """A SIGTERM lost as a KeyboardInterrupt still stops the command: the next run e-stops at its first tick.
+
+    Outside a run's loop `rhi.cli` turns it into a KeyboardInterrupt, which Python ignores inside a weakref
+    callback (Numba runs those while it compiles); the command records the signal, and a run that starts after it
+    e-stops at once with zero torque and the reason in the log (`rhi view --compare` went on running before).
+    """
+    import weakref
+
+    from rhi import _lifetime
+    from rhi.cli import _interrupt_on_signals
+
+    previous = _interrupt_on_signals()
+    try:
+        class Thing:
+            pass
+
+        thing = Thing()
+        weakref.finalize(thing, lambda: signal.raise_signal(signal.SIGTERM))  # the handler runs in the callback
+        del thing
+        assert _lifetime.STOP_SIGNALS == ["SIGTERM"]  # the KeyboardInterrupt was lost; the signal is not
+        plant, ctrl, hand, wall, phys = _scenario(dev)
+        res = run(SimLink(plant, hand=hand), ctrl, duration=1.0, realtime=False)
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        _lifetime.STOP_SIGNALS.clear()
+    assert res.summary["fault_kind"] == "estop" and res.fault.endswith("SIGTERM") and res.exit_code == 143
+    assert len(res.log) <= 1 and np.all(res.log.tau == 0)
+
+
 def test_latched_until_reset(dev):
     plant, ctrl, hand, wall, phys = _scenario(dev)
     guard = Safety(dev)

@@ -4,6 +4,11 @@
 process). On Linux the kernel sends the child SIGKILL when its parent goes (``prctl(PR_SET_PDEATHSIG)``,
 also when the parent itself was killed with SIGKILL); everywhere, a daemon thread polls for the
 process that started it and ends the child once it is gone.
+
+`STOP_SIGNALS` keeps a stop signal from being lost: the `rhi` command turns SIGTERM and SIGHUP outside a run's
+loop into a KeyboardInterrupt, which Python ignores where it lands in a finaliser or a weakref callback (Numba
+runs such callbacks while it compiles); the command records the signal there, and a run that starts after it
+e-stops at once (`rhi.runtime.run`).
 """
 
 from __future__ import annotations
@@ -16,6 +21,8 @@ import threading
 import time
 
 PR_SET_PDEATHSIG = 1
+#: The stop signals (names, e.g. "SIGTERM") the running `rhi` command received outside a run's loop.
+STOP_SIGNALS: list[str] = []
 #: How often the portable watcher looks for the parent [s].
 POLL = 0.5
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rhi import __version__, cli_args as A, cli_help, plugins
+from rhi._lifetime import STOP_SIGNALS
 from rhi._validate import writable_file
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_identify import add_commands as add_identify_command
@@ -358,11 +359,13 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+        STOP_SIGNALS.clear()
 
 
 def _interrupt_on_signals() -> dict:
     """SIGTERM and SIGHUP stop the command as Ctrl-C does (its cleanup runs); {signal: previous handler}."""
     def interrupt(num, _frame):
+        STOP_SIGNALS.append(signal.Signals(num).name)  # kept where the KeyboardInterrupt is lost (rhi._lifetime)
         raise KeyboardInterrupt(signal.Signals(num).name)
 
     if threading.current_thread() is not threading.main_thread():

@@ -26,6 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rhi._lifetime import STOP_SIGNALS
 from rhi._validate import MAX_DURATION, scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
@@ -408,7 +409,12 @@ ESTOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "S
 
 
 def _estop_on_signals(guard: Safety) -> dict:
-    """Make `ESTOP_SIGNALS` an e-stop of `guard` (from the main thread only); {signal: previous handler}."""
+    """Make `ESTOP_SIGNALS` an e-stop of `guard` (from the main thread only); {signal: previous handler}.
+
+    A stop signal the command received before (`rhi._lifetime.STOP_SIGNALS`) is an e-stop at once, in any thread.
+    """
+    if STOP_SIGNALS:
+        guard.estop(STOP_SIGNALS[0])
     if threading.current_thread() is not threading.main_thread():
         return {}
     return {sig: signal.signal(sig, lambda num, _frame: guard.estop(signal.Signals(num).name)) for sig in ESTOP_SIGNALS}

@@ -152,6 +152,11 @@ class RemoteCompare:
         """The page's address in a browser."""
         return f"http://127.0.0.1:{self.port}"
 
+    def request_close(self) -> None:
+        """Ask the page's process to close, without waiting (`close` waits and frees the shared memory)."""
+        if hasattr(self, "_stop"):
+            self._stop.set()
+
     def close(self) -> None:
         """Stop the page's process and free the shared memory (the hand's too)."""
         if hasattr(self, "process"):
@@ -228,6 +233,7 @@ def compare(devices: list[Device], *, duration: float | None = 3600.0, host: str
     finally:
         for cmd in page.commands:  # the first device's session ended (its duration, Ctrl-C, its stop): all end
             cmd.request_stop()
+        page.request_close()  # the page closes while the loops end, not after them
         for t in others:
             if t.is_alive():
                 t.join(30)

@@ -227,10 +227,14 @@ def spawn_view(target, args: tuple, *, name: str, timeout: float = 180.0) -> tup
         raise
 
 
+#: [s] how long a view's child process may take to close before it is ended (it holds nothing to save)
+CLOSE_WAIT = 5.0
+
+
 def end_view(process: BaseProcess, stop: Event) -> None:
-    """Ask a view's child process to close (`stop`), and end it where it does not within 10 s."""
+    """Ask a view's child process to close (`stop`), and end it where it does not within `CLOSE_WAIT`."""
     stop.set()
-    process.join(10)
+    process.join(CLOSE_WAIT)
     if process.is_alive():
         process.terminate()
         process.join(5)
