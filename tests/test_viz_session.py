@@ -93,6 +93,45 @@ def test_status_reads_live_only_from_the_first_tick_and_an_error_is_shown():
         cmd.close()
 
 
+def test_a_stop_signal_ends_a_session_that_waits_for_a_reset(monkeypatch):
+    """A faulted session waits for the page's reset; a stop signal the command received (rhi._lifetime) ends it."""
+    from rhi import _lifetime
+    from rhi.runtime import SimLink, run
+    from rhi.sim import Plant
+    from rhi.viz.session import supervise
+
+    dev = rhi.device("rhi4")
+    plant = Plant(dev)
+    plant.reset(rest_configuration(dev))
+
+    class Boom:
+        device = dev
+
+        def step(self, t, q, dq, sensors):
+            if t > 0.01:
+                raise RuntimeError("a user objective failed")
+            return np.zeros(dev.n)
+
+    cmd = ViewCommands()
+    lines = []
+
+    def say(line: str) -> None:  # the fault is shown: now the SIGTERM comes, while the session waits for a reset
+        lines.append(line)
+        _lifetime.STOP_SIGNALS.append("SIGTERM")
+
+    try:
+        results = supervise(lambda guard, left: run(SimLink(plant), Boom(), duration=left, safety=guard,
+                                                    realtime=False), cmd, dev, lambda: None, duration=5.0,
+                            say=say, poll=0.01)
+        resets, status = cmd.resets, cmd.status()[1]
+    finally:
+        _lifetime.STOP_SIGNALS.clear()
+        cmd.close()
+    assert [r.summary["fault_kind"] for r in results] == ["controller", "estop"] and resets == 0
+    assert results[1].fault.endswith("SIGTERM") and len(results[1].log) <= 1
+    assert "press reset" in lines[0] and status.startswith("stopped: ")
+
+
 @pytest.mark.realtime
 def test_fault_is_shown_in_the_page_and_reset_restarts_the_run():
     """A hand kick trips the safety layer: the page shows the reason; its reset button re-arms and restarts."""

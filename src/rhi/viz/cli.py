@@ -123,9 +123,11 @@ def _compare(args: argparse.Namespace) -> int:
 
 
 def _serve(view) -> int:
+    from rhi._lifetime import STOP_SIGNALS
+
     view.start()
     try:
-        while True:
+        while not STOP_SIGNALS:  # Ctrl-C; a SIGTERM whose KeyboardInterrupt was lost ends it too
             time.sleep(0.2)
     except KeyboardInterrupt:
         pass

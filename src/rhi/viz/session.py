@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from rhi._lifetime import STOP_SIGNALS
 from rhi.runtime import RunResult, Safety, SafetyConfig
 from rhi.viz.commands import ViewCommands
 
@@ -87,7 +88,7 @@ def supervise(run_once: Callable[[Safety, float | None], RunResult], commands: V
             break  # Ctrl-C, SIGTERM, the page's stop: the session ends
         if ours and asked[0] == PAUSE:
             commands.set_status("paused (press resume)")
-            while commands.paused and commands.resets == resets and not commands.stopped:
+            while commands.paused and commands.resets == resets and not commands.stopped and not STOP_SIGNALS:
                 time.sleep(poll)
         else:
             t = float(log.t[-1]) if len(log) else 0.0
@@ -95,8 +96,8 @@ def supervise(run_once: Callable[[Safety, float | None], RunResult], commands: V
                 line = f"fault ({kind}) at t = {t:.3f} s: {fault}"
                 say(f"rhi view: {line} — press reset in the view to re-arm and restart")
                 commands.set_status(f"{line} — press reset")
-                while commands.resets == resets and not commands.stopped:
-                    time.sleep(poll)
+                while commands.resets == resets and not commands.stopped and not STOP_SIGNALS:
+                    time.sleep(poll)  # a stop signal (rhi._lifetime) goes on: the next run e-stops at once
         if commands.stopped:
             commands.set_status("stopped in the view")
             break
