@@ -14,7 +14,9 @@ energy the device gave the hand.
 Cases: without and with the time-domain passivity controller (`rhi.control.passivity`,
 Hannaford and Ryu 2002, at the motor port), with and without the null-space objectives,
 the passivity controller at the handle port (H&R's virtual-environment port), and simple force
-scaling in place of ASCM (no allocation torque in the null space).
+scaling in place of ASCM (no allocation torque in the null space), and the null-space energy tank
+(`rhi.control.tank`: the objectives funded by the null-space damping, the allocation's deficit taken
+out by its own damper) without and with the series damper.
 A 5000 N/m wall, without and with the passivity controller, shows the chatter.
 
 The energy is traced from the log (every term exact under the zero-order hold):
