@@ -65,7 +65,8 @@ def test_energy_books_of_the_compiled_twin_equal_the_reference_twin(rhi4):
     assert list(fast) == list(ref)
     np.testing.assert_allclose(list(fast.values()), list(ref.values()), atol=1e-9, rtol=0)
     assert err == 0.0 and err_ref < 1e-9  # the compiled twin is the simulated controller's own tick
-    assert abs(ref["tank damper"]) > 1e-6 and abs(ref["passivity controller"]) > 1e-6
+    # both dampers acted (the allocation's, H&R's on the self-motion, takes out little here beside the series PC)
+    assert abs(ref["tank damper"]) > 1e-8 and abs(ref["passivity controller"]) > 1e-6
 
 
 def test_a_controller_without_the_whole_compiled_tick_is_not_split_here(rhi4):

@@ -48,6 +48,7 @@ from rhi.control._compiled.step import (
     fme_gradient,
     vme_gradient,
 )
+from rhi.control._compiled.tank import direction, null_inertia
 from rhi.devices._compiled.terms import add, axpy, dot, mtv, mv, sub
 from rhi.jit import jit
 
@@ -96,7 +97,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
         vme_gain: (k_v,) their gradient steps.
         tank_on: whether the null-space energy tank ran.
         lam: the tank's λ of the tick.
-        mu: its damper gain μ of the tick.
+        mu: its allocation damper's rate α of the tick [1/s].
         slot: (k,) int64, objective i's push: static FME terms first (their order in obj), then the VME terms.
         out: rows task, gravity, allocation, damping, barrier, tank damper, objective 0 … k − 1, box clip; written.
     """
@@ -184,8 +185,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
         delta0, beta0, ok = tertiary(tau, sat, P, tau_s, _null(tau_s, J, Jsharp, P, dynamic), lo, hi, r)
         if not ok:
             return FALLBACK
-        if k < r:
-            d = sub(mv(P, dq), _held(mv(P, dq), P, S, k, r)) if k else mv(P, dq)
+        d = direction(null_inertia(J, Jsharp, terms[at[2]:at[2] + n * n].reshape((n, n))), dq, S, k, tau)
         tau0 = add(tau, delta0) if beta0 != 0.0 else tau
         diff = sub(tau1, tau0)
         base = axpy(-mu, d, tau0) if mu != 0.0 else tau0
