@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -40,8 +41,8 @@ def _log(dev, case: str, seconds: float):
     return ctrl.config, simulate(plant, ctrl, duration=seconds, hand=hand, virtual=Wall(x0, u, P.K_E))
 
 
-def _best(fn, repeat: int) -> tuple[float, object]:
-    best, out = float("inf"), None
+def _best(fn: Callable[[], tuple[dict[str, float], float]], repeat: int) -> tuple[float, tuple[dict[str, float], float]]:
+    best, out = float("inf"), ({}, 0.0)
     for _ in range(repeat):
         t = time.process_time()
         out = fn()
