@@ -42,7 +42,8 @@ def _log(dev, case: str, seconds: float):
 
 
 def _best(fn: Callable[[], tuple[dict[str, float], float]], repeat: int) -> tuple[float, tuple[dict[str, float], float]]:
-    best, out = float("inf"), ({}, 0.0)
+    best = float("inf")
+    out: tuple[dict[str, float], float] = ({}, 0.0)
     for _ in range(repeat):
         t = time.process_time()
         out = fn()
