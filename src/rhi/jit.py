@@ -122,5 +122,18 @@ def install() -> None:
 
 install()  # before the decorator: the cache refreshes when any kernel source changes
 
-#: The decorator of every compiled function of rhi.
-jit = njit(cache=True, error_model="numpy")
+_PLAIN = njit(cache=True, error_model="numpy")
+_INLINED = njit(cache=True, error_model="numpy", inline="always")
+
+
+def jit(func=None, *, inline: bool = False):
+    """The decorator of every compiled function of rhi: ``@jit``, or ``@jit(inline=True)``.
+
+    ``inline=True`` is for a kernel with one compiled call site (e.g. `rhi.control._compiled.step.tick` in
+    `rhi.control._compiled.whole.whole`): Numba inlines its IR into that caller instead of compiling it on its
+    own first and linking it in, which saves its own optimisation passes and machine code (a cold compile pays them
+    once per kernel, and the caller optimises the linked code again). Called from Python, it compiles on its own as
+    usual. Not for kernels called from several compiled places: each call site would type and compile it again.
+    """
+    deco = _INLINED if inline else _PLAIN
+    return deco if func is None else deco(func)

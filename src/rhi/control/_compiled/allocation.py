@@ -137,7 +137,7 @@ def above(G, tol):
     return True
 
 
-@jit
+@jit(inline=True)
 def blocks_all(P, S, k, r):
     """Whether the joints S[:k] (k >= r) leave no null-space torque: Z_S has full column rank r, accurately.
 
@@ -310,7 +310,7 @@ def ascm(a, b, P, lo, hi, r, sat):
     return tau, alpha, clipped, True
 
 
-@jit
+@jit(inline=True)
 def active_set_start(a, b, P, lo, hi, r, sat):
     """A feasible start for `active_set`: ASCM, or simple scaling where the projector form cannot decide.
 
@@ -322,7 +322,7 @@ def active_set_start(a, b, P, lo, hi, r, sat):
     return allocate_scaling(a, b, lo, hi, sat)
 
 
-@jit
+@jit(inline=True)
 def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
     """The primal active-set method of `rhi.control.allocation.active_set` from a feasible start: (ok, α, y).
 
@@ -395,7 +395,7 @@ def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
     return False, 0.0, x[1:].copy()
 
 
-@jit
+@jit(inline=True)
 def active_set_result(alpha, y, a, b, Z, lo, hi, sat):
     """τ = clip(α a + b + Z y) into the box with the joints at a limit in sat: (τ, α)."""
     alpha = min(max(alpha, 0.0), 1.0)
@@ -447,7 +447,7 @@ def held_set(sat):
     return S, k
 
 
-@jit
+@jit(inline=True)
 def safety_room(tau, b, delta, lo, hi):
     """`rhi.control.safety.safety_room` (not skipped): (τ', γ)."""
     if not max_abs(delta) > negligible(delta):

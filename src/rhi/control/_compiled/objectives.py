@@ -47,7 +47,7 @@ def pack(n: int, m: int, fme: list[tuple[float, np.ndarray, np.ndarray]],
     return np.ascontiguousarray(np.concatenate(parts), dtype=np.float64)
 
 
-@jit
+@jit(inline=True)
 def objectives(obj, q, J, dJ, tau_s, tau_to):
     """Add −Σ gain ∂ν_lim/∂q of the barriers to tau_s and −Σ gain ∂ν/∂q of the FME terms to tau_to [N m], in place.
 

@@ -45,7 +45,7 @@ def _effort(motors, Jsharp, tau):
 OBSERVE, DAMPER_BOUNDING, DAMPER, BOUNDING = 0, 1, 2, 3
 
 
-@jit
+@jit(inline=True)
 def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsharp, tau0, lo, hi, motors, mode,
           alpha_max, tau):
     """PO then PC of one tick (steps 1–4 of `PassivityController.apply`).

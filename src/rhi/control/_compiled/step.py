@@ -152,7 +152,7 @@ def _omega(tr, t):
     return target + (tr[1] - target) * 0.5 * (1.0 + math.cos(math.pi * s))
 
 
-@jit
+@jit(inline=True)
 def transition(tr, t, V, distance, eps1, eps2, rho):
     """Advance tr in place by one tick (hysteresis of eq. 6.15, then the cosine blend); returns Ω(t)."""
     stiff_now = tr[0] != 0.0
@@ -164,7 +164,7 @@ def transition(tr, t, V, distance, eps1, eps2, rho):
     return _omega(tr, t)
 
 
-@jit
+@jit(inline=True)
 def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, tau_s_extra, tau_to_extra, tank, tank_q,
          tank_e, tau_out, sat):
     """Steps 2–6 of one controller tick (see `rhi.control.controller`).

@@ -91,7 +91,7 @@ def direction(Q, dq, S, k, tau):
     return best
 
 
-@jit
+@jit(inline=True)
 def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, tau0, tau1, d, lo, hi, tau_out):
     """Steps 1–4 of `rhi.control.tank.tank_blend`; writes the torque to send into tau_out and advances the tank.
 

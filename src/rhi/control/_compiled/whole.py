@@ -43,7 +43,7 @@ R_ALPHA, R_BETA, R_V, R_OMEGA, R_CLIPPED, R_PC, R_TR = range(7)
 N_RES = 7
 
 
-@jit
+@jit(inline=True)
 def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
     """The built-in primary laws: F_r (rendered, α-scaled) and F_x (never scaled), written [N]."""
     kind = law[LAW_KIND]

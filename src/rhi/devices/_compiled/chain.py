@@ -158,7 +158,7 @@ def _forward(ints, joints, th, oR, o, S, Ic):
                     Ic[p, r, k] += Ic[j, r, k]
 
 
-@jit
+@jit(inline=True)
 def chain_dynamics(ints, joints, consts, th, dth):
     """x, J6, M_θ, g_θ, C_θ of one state.
 
