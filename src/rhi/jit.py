@@ -133,7 +133,8 @@ def jit(func=None, *, inline: bool = False):
     `rhi.control._compiled.whole.whole`): Numba inlines its IR into that caller instead of compiling it on its
     own first and linking it in, which saves its own optimisation passes and machine code (a cold compile pays them
     once per kernel, and the caller optimises the linked code again). Called from Python, it compiles on its own as
-    usual. Not for kernels called from several compiled places: each call site would type and compile it again.
+    usual. Each compiled call site types and compiles it again: for kernels with one such site on the way to the
+    first tick (a second one, e.g. `rhi.control._compiled.sources`, pays its own copy).
     """
     deco = _INLINED if inline else _PLAIN
     return deco if func is None else deco(func)
