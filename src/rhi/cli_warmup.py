@@ -53,6 +53,7 @@ def _controllers() -> None:
 
 def _simulation() -> None:
     from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
+    from rhi.control.sources import TickSources
     from rhi.devices.model import device
     from rhi.sim import Hand, HandPath, Plant, Wall, simulate, stop
 
@@ -65,6 +66,7 @@ def _simulation() -> None:
     up = np.array([0.0, 1.0])
     simulate(plant, ctrl, duration=0.05, hand=Hand(HandPath(np.array([x0, x0 + 0.05 * up]), speed=0.02)),
              virtual=Wall(x0 + 0.01 * up, normal=up, stiffness=1000.0), physical=stop(x0 + 0.03 * up, up))
+    TickSources(ctrl)(plant.q, plant.dq)  # the last tick's torque by source (beyond.passivity's energy books)
 
 
 def _design() -> None:
