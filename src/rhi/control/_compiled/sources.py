@@ -14,12 +14,6 @@ from __future__ import annotations
 import numpy as np
 
 from rhi.control._compiled.allocation import (
-    active_set,
-    active_set_result,
-    active_set_start,
-    allocate_scaling,
-    any_nonzero,
-    ascm,
     basis,
     blocks_all,
     clip,
@@ -33,8 +27,6 @@ from rhi.control._compiled.allocation import (
 )
 from rhi.control._compiled.objectives import objectives
 from rhi.control._compiled.step import (
-    ACTIVE_SET,
-    ASCM,
     FALLBACK,
     OK,
     P_ASO_S,
@@ -43,7 +35,7 @@ from rhi.control._compiled.step import (
     P_GRAVITY,
     P_SAFE,
     P_SATURATION,
-    SCALING,
+    allocate,
     aso_volume,
     fme_gradient,
     vme_gradient,
@@ -141,30 +133,9 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     if not ok:
         return FALLBACK
     sat = np.zeros(n, np.bool_)
-    code = prm[P_SATURATION]
-    clipped = False
-    alpha = 1.0
-    if V > 0.0 and (code == ASCM or code == ACTIVE_SET):
-        tau = tau_m
-    elif code == ASCM:
-        tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
-        if not ok:
-            return FALLBACK
-    elif code == ACTIVE_SET:
-        tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
-        if clipped or not any_nonzero(a):
-            return FALLBACK
-        Z = basis(P, r)
-        ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, np.int64(50))
-        if not ok:
-            return FALLBACK
-        tau, alpha = active_set_result(alpha, y, a, b, Z, lo, hi, sat)
-    elif code == SCALING:
-        tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
-    else:
-        tau = clip(tau_m, lo, hi)
-        for i in range(n):
-            sat[i] = tau_m[i] > hi[i] or tau_m[i] < lo[i]
+    ok, tau, alpha, clipped = allocate(prm[P_SATURATION], V, a, b, tau_m, P, lo, hi, r, sat)
+    if not ok:
+        return FALLBACK
     S, k = held_set(sat)
     if k >= r and k > 0:
         if not blocks_all(P, S, k, r) and (k != r or square_rank(basis(P, r), S, k) != 1):

@@ -152,6 +152,38 @@ def _omega(tr, t):
     return target + (tr[1] - target) * 0.5 * (1.0 + math.cos(math.pi * s))
 
 
+@jit
+def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat):
+    """The allocation strategy `code` of τ_m = a + b (n,) [N m] in the box [lo, hi]: (ok, τ, α, clipped).
+
+    ASCM and the active set keep τ_m while the ASO volume V > 0 (P, the null-space projector, is read only where
+    they act); ok is False where the reference must decide (the LP). sat (n,) is written with the held joints.
+    """
+    n = a.shape[0]
+    if V > 0.0 and (code == ASCM or code == ACTIVE_SET):
+        sat[:] = False
+        return True, tau_m, 1.0, False
+    if code == ASCM:
+        tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
+        return ok, tau, alpha, clipped
+    if code == ACTIVE_SET:
+        tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
+        if clipped or not any_nonzero(a):
+            return False, tau, alpha, clipped  # the LP decides
+        Z = basis(P, r)
+        ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, np.int64(50))  # int64, as from Python: one compile
+        if not ok:
+            return False, tau, alpha, clipped
+        tau, alpha = active_set_result(alpha, y, a, b, Z, lo, hi, sat)
+        return True, tau, alpha, clipped
+    if code == SCALING:
+        tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
+        return True, tau, alpha, clipped
+    for i in range(n):
+        sat[i] = tau_m[i] > hi[i] or tau_m[i] < lo[i]
+    return True, clip(tau_m, lo, hi), 1.0, False
+
+
 @jit(inline=True)
 def transition(tr, t, V, distance, eps1, eps2, rho):
     """Advance tr in place by one tick (hysteresis of eq. 6.15, then the cosine blend); returns Ω(t)."""
@@ -242,37 +274,15 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         have_P = True
         Ntau = mv(P, tau_to)
     code = prm[P_SATURATION]
-    clipped = False
-    alpha = 1.0
     safe = prm[P_SAFE] != 0.0
-    if V > 0.0 and (code == ASCM or code == ACTIVE_SET):
-        tau = tau_m
-        sat[:] = False
-    elif code == ASCM or code == ACTIVE_SET:
-        if not have_P:
-            P, ok = null_projector(JMinv)
-            if not ok:
-                return SINGULAR, 1.0, 0.0, V, omega, False
-            have_P = True
-        if code == ASCM:
-            tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
-            if not ok:
-                return FALLBACK, 1.0, 0.0, V, omega, False
-        else:
-            tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
-            if clipped or not any_nonzero(a):
-                return FALLBACK, 1.0, 0.0, V, omega, False  # the LP decides
-            Z = basis(P, r)
-            ok, alpha, y = active_set(a, b, Z, lo, hi, alpha, tau, sat, np.int64(50))  # int64, as from Python: one compile
-            if not ok:
-                return FALLBACK, 1.0, 0.0, V, omega, False
-            tau, alpha = active_set_result(alpha, y, a, b, Z, lo, hi, sat)
-    elif code == SCALING:
-        tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
-    else:
-        tau = clip(tau_m, lo, hi)
-        for i in range(n):
-            sat[i] = tau_m[i] > hi[i] or tau_m[i] < lo[i]
+    if (code == ASCM or code == ACTIVE_SET) and not V > 0.0 and not have_P:
+        P, ok = null_projector(JMinv)
+        if not ok:
+            return SINGULAR, 1.0, 0.0, V, omega, False
+        have_P = True
+    ok, tau, alpha, clipped = allocate(code, V, a, b, tau_m, P, lo, hi, r, sat)
+    if not ok:
+        return FALLBACK, 1.0, 0.0, V, omega, False
     gamma = 1.0
     if safe and any_true(sat):  # the safety torque the held joints would block
         if not have_P:
