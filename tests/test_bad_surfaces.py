@@ -20,8 +20,9 @@ from hypothesis import given, strategies as st
 
 import rhi
 from rhi import control as ctl
+from rhi._validate import writable_file
 from rhi.cli import main
-from rhi.errors import RhiError
+from rhi.errors import InvalidInput, RhiError
 from rhi.runtime import SafetyConfig, SimLink, run
 from rhi.runtime.config import config_path, parse_config
 from rhi.sim import Hand, HandPath, Log, Plant, Wall
@@ -295,9 +296,21 @@ def test_cli_run_checks_its_outputs_before_the_run(which, where, tmp_path_factor
     tmp = tmp_path_factory.mktemp("out")
     (tmp / "afile").write_text("x")
     target = {"dir": tmp, "proc": Path("/proc/rhi-no/x.json"), "file_parent": tmp / "afile" / "x.json"}[where]
+    before = set(Path("out").glob("run-*"))
     assert _exit(["run", "rhi4", "--config", "ch7_full", "--duration", "60", which, str(target)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{which}:" in err[0], err
+    assert set(Path("out").glob("run-*")) == before  # a refused run leaves no folder behind
+
+
+def test_an_output_check_leaves_no_folder_behind(tmp_path):
+    deep = tmp_path / "a" / "b" / "log.rhilog"
+    assert writable_file("--log", deep) == deep and not (tmp_path / "a").exists()
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "afile").write_text("x")
+    with pytest.raises(InvalidInput, match="--log: cannot create the folder"):
+        writable_file("--log", tmp_path / "a" / "afile" / "c" / "x.rhilog")
+    assert [p.name for p in (tmp_path / "a").iterdir()] == ["afile"]
 
 
 def test_cli_other_bad_combinations(tmp_path, capsys):

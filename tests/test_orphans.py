@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from conftest import child_env
 
+from rhi.cli import main
 from rhi.errors import RhiError
 from rhi.sim import Log
 
@@ -100,6 +101,17 @@ def test_sigterm_of_view_ends_its_child():
     assert any("simulated live" in line for line in iter(proc.stdout.readline, ""))  # printed once the view serves
     assert _view_child(proc.pid), _session(proc.pid)
     time.sleep(1.0)  # the live loop runs
+    _kill_leader_and_check(proc, signal.SIGTERM)
+    assert proc.returncode == 128 + signal.SIGTERM, proc.stderr.read() if proc.stderr else ""
+
+
+def test_sigterm_of_a_log_view_is_the_shells_code(tmp_path):
+    """`rhi view LOG` ends on SIGTERM as a live view does: 143, its page's server closed."""
+    log = tmp_path / "r.rhilog"
+    assert main(["run", "rhi4", "--config", "ch7_full", "--duration", "0.05", "--fast", "--log", str(log),
+                 "--summary", str(tmp_path / "s.json")]) == 0
+    proc = _start("view", str(log), "--port", "0", stdout=subprocess.PIPE)
+    assert any("paused at its start" in line for line in iter(proc.stdout.readline, ""))  # printed once it serves
     _kill_leader_and_check(proc, signal.SIGTERM)
     assert proc.returncode == 128 + signal.SIGTERM, proc.stderr.read() if proc.stderr else ""
 

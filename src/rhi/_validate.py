@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from pathlib import Path
@@ -94,9 +95,11 @@ MAX_DURATION = 1e6
 
 
 def writable_file(name: str, path, *, suffix: str | None = None) -> Path:
-    """`path` as an output file that can be written: not a folder, its folder created, write permission.
+    """`path` as an output file that can be written: not a folder, in a folder that exists or can be made.
 
-    Checked before the work that produces the file starts. `suffix` (e.g. ".png") is required when given.
+    Checked before the work that produces the file starts, leaving nothing behind (a folder it made to check is
+    taken back, so a run refused later leaves no empty folder); the writer makes the folder (`parent_made`).
+    `suffix` (e.g. ".png") is required when given.
 
     Raises:
         InvalidInput: naming `name` (an argument or a flag such as "--log").
@@ -108,13 +111,25 @@ def writable_file(name: str, path, *, suffix: str | None = None) -> Path:
         raise InvalidInput(f"{name}: expected a {suffix} file name, got {str(path)!r}")
     if p.is_dir():
         raise InvalidInput(f"{name}: {p} is a folder, not a file")
+    made = [d for d in p.absolute().parents if not d.exists()]  # innermost first
     try:
-        p.parent.mkdir(parents=True, exist_ok=True)
+        p.parent.mkdir(parents=True, exist_ok=True)  # made for real (a checked answer), then taken back
+        writable = os.access(p if p.exists() else p.parent, os.W_OK)
     except OSError as exc:
         raise InvalidInput(f"{name}: cannot create the folder {p.parent} ({exc.strerror or exc})") from None
-    if not os.access(p if p.exists() else p.parent, os.W_OK):
+    finally:
+        for d in made:
+            with contextlib.suppress(OSError):
+                d.rmdir()
+    if not writable:
         raise InvalidInput(f"{name}: cannot write {p} (permission denied)")
     return p
+
+
+def parent_made(path: Path) -> Path:
+    """`path` after making its folder (a path `writable_file` accepted)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def scalar(name: str, value, *, positive: bool = False, nonnegative: bool = False, allow_inf: bool = False) -> float:

@@ -17,7 +17,7 @@ import numpy as np
 
 from rhi import __version__, cli_args as A, cli_help, plugins
 from rhi._lifetime import STOP_SIGNALS
-from rhi._validate import writable_file
+from rhi._validate import parent_made, writable_file
 from rhi.cli_device import add_device_options, device_from_args, device_table
 from rhi.cli_identify import add_commands as add_identify_command
 from rhi.cli_link import NO_CONTROLLER, Status as _Status, add_realtime as _add_realtime, link as _link
@@ -169,7 +169,7 @@ def _run(args: argparse.Namespace) -> int:
     writable_file("--log", log_path)  # before the run, not at its end
     writable_file("--summary", summary_path)
     about = {"name": cfg.name, "source": cfg.source, "device": cfg.device.name, "link": args.link}
-    summary_path.write_text(json.dumps({"config": about, "log": str(log_path), "running": True}, indent=1))
+    parent_made(summary_path).write_text(json.dumps({"config": about, "log": str(log_path), "running": True}, indent=1))
     print(f"rhi run: {cfg.name} on {cfg.device.name} over {args.link} at {rate:g} Hz, "
           f"{'until Ctrl-C' if duration is None else f'{duration:g} s'}"
           f"{'' if args.realtime else ' (as fast as possible)'}", flush=True)

@@ -126,14 +126,12 @@ def _serve(view) -> int:
     from rhi._lifetime import STOP_SIGNALS
 
     view.start()
-    try:
-        while not STOP_SIGNALS:  # Ctrl-C; a SIGTERM whose KeyboardInterrupt was lost ends it too
+    try:  # until Ctrl-C or a signal: the `rhi` command answers it with the shell's code (130, 143), as a live view
+        while not STOP_SIGNALS:
             time.sleep(0.2)
-    except KeyboardInterrupt:
-        pass
+        raise KeyboardInterrupt(STOP_SIGNALS[0])  # a signal whose KeyboardInterrupt was lost ends it too
     finally:
         view.close()
-    return 0
 
 
 def attach_view(cfg, controller, link, *, port: int = 8080, mouse: bool = False, loop_cpu: int | None = None):

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 
 from rhi._gl import has_display
-from rhi._validate import as_array, writable_file
+from rhi._validate import as_array, parent_made, writable_file
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput, RhiError
 from rhi.sim.geometry import FLOOR_MATERIAL, LINK_RGBA, link_radius
@@ -182,7 +182,7 @@ def save_png(image: np.ndarray, path) -> Path:
     from PIL import Image
 
     p = writable_file("out", path, suffix=".png")
-    Image.fromarray(np.asarray(image, dtype=np.uint8)).save(p)
+    Image.fromarray(np.asarray(image, dtype=np.uint8)).save(parent_made(p))
     return p
 
 

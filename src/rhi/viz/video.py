@@ -14,7 +14,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from rhi._validate import writable_file
+from rhi._validate import parent_made, writable_file
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.sim.environment import Wall, from_description
@@ -111,7 +111,7 @@ def render_video(device: Device, log: Log, path, *, fps: float = 30.0, width: in
     posed.set(log.q[0])
     lo, hi = posed.bounds()
     overlay = _Overlay(posed, log, float(np.max(hi - lo)), virtual)
-    writer = imageio_ffmpeg.write_frames(str(p), (int(width), int(height)), fps=float(fps), quality=7,
+    writer = imageio_ffmpeg.write_frames(str(parent_made(p)), (int(width), int(height)), fps=float(fps), quality=7,
                                          macro_block_size=2, ffmpeg_log_level="error")
     writer.send(None)
     try:
