@@ -351,6 +351,8 @@ def test_cli_simulate_on_ray_gives_the_numbers_of_the_serial_executor(tmp_path):
         # Ray's workers ran rhi's tasks (their logs name the task function)
         ran = [f for f in ray_dir.glob("ray/session_*/logs/worker-*.out") if "_ray_apply" in f.read_text()]
         assert ran, sorted(p.name for p in ray_dir.rglob("*"))[:40]
+        sessions = [d for d in ray_dir.glob("ray/session_*") if not d.is_symlink()]
+        assert len(sessions) == 1, sessions  # one Ray instance for every map of the study
     finally:
         shutil.rmtree(ray_dir, ignore_errors=True)
     assert out["ray"] == out["serial"] and "one-way ANOVA on WF" in out["ray"]

@@ -45,18 +45,19 @@ def _print_analysis(res) -> None:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from rhi.design.executors import configure
+    from rhi.design.executors import configure, shared
     from rhi.experiments.participants import simulated_study
 
     configure(executor=args.executor, workers=args.workers)
     p = _protocol(args.protocol, args.seed)
     if args.out and Path(args.out).exists() and any(Path(args.out).iterdir()):
         raise InvalidInput(f"--out: {args.out} is not empty")
-    if p.kind == "path_following":
-        return _simulate_task(args, p)
-    kw = {} if args.durations is None else {"durations": args.durations}
-    s = simulated_study(p, args.participants, out=args.out, weber_mean=args.weber_mean, weber_sd=args.weber_sd,
-                        lapse=args.lapse, overdispersion=not args.fast, **kw)
+    with shared():  # one pool (or Ray instance) for every map of the study, not one per map
+        if p.kind == "path_following":
+            return _simulate_task(args, p)
+        kw = {} if args.durations is None else {"durations": args.durations}
+        s = simulated_study(p, args.participants, out=args.out, weber_mean=args.weber_mean,
+                            weber_sd=args.weber_sd, lapse=args.lapse, overdispersion=not args.fast, **kw)
     a = s.analysis
     print(f"rhi study simulate: {p.name}, {args.participants} simulated participants, seed {p.seed}, "
           f"{len(s.rows)} trials")
