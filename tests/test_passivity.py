@@ -230,6 +230,29 @@ def test_palpation_energy_reduced_duration():
     assert stiff_off["chatter_velocity"] > 2 * stiff_on["chatter_velocity"]
 
 
+def test_series_damper_is_passive_and_keeps_the_palpation_wall():
+    """Issue 25's goal at the §6.4 palpation wall (1000 N/m), the energy measured at the hand in the plant.
+
+    Without a PC the hand receives energy and the run's largest force is a joint-stop impact; H&R's series damper at
+    the motor port (the law never scaled) keeps the hand passive at every time and the wall's largest force away from
+    the stops within 10 % of no PC's, and each contact's largest force at least that of no PC.
+    """
+    from rhi.experiments.beyond.passivity import SUMMARY, passivity
+
+    r = passivity(duration=8.0, stiff=None, cases=("objectives", "objectives_damper"))
+    a = r.arrays
+    off = dict(zip(SUMMARY, a["objectives_summary"]))
+    on = dict(zip(SUMMARY, a["objectives_damper_summary"]))
+    assert off["W"] < -0.05  # J: active at the hand
+    assert on["W"] >= -1e-3 and a["objectives_damper_W"].min() >= -1e-3  # passive at every time
+    assert off["peak_at_stop"] == 1.0 and off["force_peak"] > 2.0 * off["force_peak_wall"]  # the impact, not the wall
+    assert on["peak_at_stop"] == 0.0
+    assert abs(on["force_peak_wall"] / off["force_peak_wall"] - 1.0) <= 0.1
+    assert on["contact_peak"] >= 0.9 * off["contact_peak"]
+    goal = [row for t in r.tables for row in t.rows if row.quantity.startswith("passive and the wall's largest")]
+    assert [row.ours for row in goal] == [1.0]
+
+
 def test_sampled_wall_measured_at_the_hand_z_width():
     """Energy measured at the hand (∫F_hᵀẋ dt in the plant): the PC makes an active sampled wall passive.
 
