@@ -89,6 +89,8 @@ def check_same(a, b, rtol: float = 0.0) -> None:
     sa, sb = ca.state, cb.state
     for f in dataclasses.fields(sa):
         va, vb = getattr(sa, f.name), getattr(sb, f.name)
+        if f.name == "tank":
+            continue  # below, field by field
         if isinstance(va, np.ndarray) or isinstance(vb, np.ndarray):
             np.testing.assert_allclose(va, vb, rtol=rtol, atol=1e-9, err_msg=f.name)
         elif isinstance(va, float) and math.isnan(va):
@@ -97,6 +99,11 @@ def check_same(a, b, rtol: float = 0.0) -> None:
             assert va == pytest.approx(vb, rel=rtol, abs=1e-9), f.name
         else:
             assert va == vb, f.name
+    ta, tb = sa.tank, sb.tank
+    assert (ta is None) == (tb is None)
+    if ta is not None:
+        for f in dataclasses.fields(ta):
+            np.testing.assert_allclose(getattr(ta, f.name), getattr(tb, f.name), rtol=rtol, atol=1e-9, err_msg=f.name)
     pa, pb = ca.passivity, cb.passivity
     assert (pa is None) == (pb is None)
     if pa is not None:
@@ -206,6 +213,37 @@ def test_stroke_hand_fixture_and_stop_equal_the_python_hand(rhi4, monkeypatch):
     F = a[0].F_hand @ u
     assert F.max() == pytest.approx(4.0)  # the stroke saturates the hand against the stop
     assert 0.0095 < (a[0].x[-1] - x0) @ u < 0.0105  # on the stop
+
+
+@pytest.mark.parametrize("port", [None, "motors"])
+def test_tank_equals_python_loop(rhi4, monkeypatch, port):
+    """The null-space energy tank (beyond.passivity's tank cases): its accounts advance in the compiled ticks.
+
+    Also with ticks handed to Python and back: the tank's slots as they were before a handed tick.
+    """
+    from rhi.experiments.beyond.passivity import controller
+
+    make = lambda dev: controller(dev, objectives=True, port=port, method="damper", tank=True)  # noqa: E731
+    a = run(rhi4, make, python=False, duration=0.6)
+    assert a[2] is not None and a[2].ticks == len(a[0]) == 600
+    tank = a[1].state.tank
+    assert tank.t == pytest.approx(0.599) and tank.energy != a[1].config.tank.initial
+    b = run(rhi4, make, python=True, duration=0.6, monkeypatch=monkeypatch)
+    check_same(a[:2], b[:2])
+    kernel = fast_loop.ticks
+    rng = np.random.default_rng(6)
+
+    def short(count, k0, *args):
+        lay = args[-3]
+        kernel(min(count, int(rng.integers(0, 40))), k0, *args)
+        if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
+            lay[fast_loop.L_OUT] = fast_loop.PYTHON
+
+    monkeypatch.setattr(fast_loop, "ticks", short)
+    c = run(rhi4, make, python=False, duration=0.6)
+    monkeypatch.undo()
+    assert 0 < c[2].ticks < 600
+    check_same(c[:2], b[:2])
 
 
 def test_python_loop_where_the_compiled_one_does_not_apply(rhi4):

@@ -82,20 +82,21 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         F_hand: (m,) the hand's force of the last period [N], advanced.
         wargs: `rhi.control._compiled.whole.whole`'s arguments after (t, q, dq, force).
         cs: the controller's arrays among them: FME transition tr, passivity vector, port position and
-            effort, torque, held joints, result (`KernelTick`).
+            effort, torque, held joints, result, the null-space energy tank's vector, q and efforts (`KernelTick`).
         st: (N_ST,) float state (S_* slots), advanced.
         lay: (9,) int64 layout and outcome (L_* slots).
         xv: (2 m,) int64 sensordata indices of the handle's position and velocity.
         rows: (>= count, width) the log rows to write.
     """
     n, m = ctrl.shape[0], F_hand.shape[0]
-    tr, pc, pc_pos, pc_eff, tau, sat, res = cs
+    tr, pc, pc_pos, pc_eff, tau, sat, res, tank, tank_q, tank_e = cs
     sd, idx, c, F, xfrc, acc, wn, bad, at = hand
     read = np.empty(2 * n + 6)
     kout = np.empty((3, m))
     F_env = np.zeros(m)
     zero_n = np.zeros(n)
     tr0, pc0, pos0, eff0, tau0, sat0 = tr.copy(), pc.copy(), pc_pos.copy(), pc_eff.copy(), tau.copy(), sat.copy()
+    tk0, tq0, te0 = tank.copy(), tank_q.copy(), tank_e.copy()
     lay[L_DONE], lay[L_OUT], lay[L_STATUS] = 0, DONE, PERIOD_OK
     for j in range(count):
         t = st[S_T]
@@ -112,9 +113,11 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
                 lay[L_OUT] = PYTHON
                 return
             tr0[:], pc0[:], pos0[:], eff0[:], tau0[:], sat0[:] = tr, pc, pc_pos, pc_eff, tau, sat
+            tk0[:], tq0[:], te0[:] = tank, tank_q, tank_e
             status = _whole.whole(t, q, dq, F_env, *wargs)
             if status != _whole.OK or not _finite(tau):  # the controller's state as before the tick
                 tr[:], pc[:], pc_pos[:], pc_eff[:], tau[:], sat[:] = tr0, pc0, pos0, eff0, tau0, sat0
+                tank[:], tank_q[:], tank_e[:] = tk0, tq0, te0
                 lay[L_OUT] = PYTHON
                 return
             st[S_ALPHA], st[S_BETA] = res[_whole.R_ALPHA], res[_whole.R_BETA]
@@ -190,7 +193,8 @@ class FastLoop:
             self._kin = (np.zeros(1, np.int64), np.zeros((1, 1)), np.zeros(1))
         self._hand = (plant._sd, sess._idx, c, sess._F, plant._xfrc, sess._acc, plant._wnum, sess._badv, sess._at)
         self._wargs = whole_args(controller)
-        self._cs = (kt._tr, kt._pc, kt._pc_pos, kt._pc_eff, kt._tau, kt._sat, kt._res)
+        self._cs = (kt._tr, kt._pc, kt._pc_pos, kt._pc_eff, kt._tau, kt._sat, kt._res, kt._tank, kt._tank_q,
+                    kt._tank_e)
         names = [name for name, _ in columns]
         at = dict(zip(names, np.cumsum([0] + [width for _, width in columns]).tolist()))
         need = set(controller._sensors)
@@ -215,8 +219,6 @@ class FastLoop:
             return "teleoperation" if teleop is not None else "a record hook"
         if type(controller) is not NullSpaceController:
             return f"the controller is a {type(controller).__name__}, not a NullSpaceController"
-        if controller.config.tank is not None:
-            return "the tank's state is mirrored per tick in Python"
         if controller._kernel is None or not controller._kernel.whole_ok:
             return f"the controller's tick is not the whole compiled tick: {controller.route}"
         if "step" in controller.__dict__:
@@ -249,6 +251,7 @@ class FastLoop:
         if not s.stopped:
             before = kt._load_transition(s)
             kt._load_passivity(ps)
+            kt._load_tank(s)
         self._F_hand[:] = sess.F_hand
         lay = self._lay
         ticks(len(rows), k0, sess.dt, sess.sub, self._mj, self._sens, self._kin, self._hand, sess.plant._ctrl,
@@ -264,6 +267,7 @@ class FastLoop:
                                                       float(st[S_V]), float(st[S_OMEGA]))
                 s.saturated, s.clipped, s.tau = kt._sat.copy(), bool(st[S_CLIP]), kt._tau.copy()
                 s.ticks += int(st[S_TICKS])
+                kt._store_tank(s)
             if st[S_PC] and ps is not None:
                 kt._store_passivity(s, ps, float(st[S_TLAST]), float(st[S_DISS]))
         if out == FAULT:
