@@ -30,6 +30,7 @@ from rhi.sim import (
     Fixture,
     Hand,
     HandPath,
+    HandSequence,
     MinimumJerkPalpation,
     Plant,
     Wall,
@@ -244,6 +245,101 @@ def test_tank_equals_python_loop(rhi4, monkeypatch, port):
     monkeypatch.undo()
     assert 0 < c[2].ticks < 600
     check_same(c[:2], b[:2])
+
+
+def _python_hands(monkeypatch):
+    """The reference: the Python loop with the hand's own Python `force` at every physics step."""
+    from rhi.sim.loop import Session
+
+    monkeypatch.setattr(fast_loop.FastLoop, "build", staticmethod(lambda *a, **k: None))
+    monkeypatch.setattr(Session, "_compiled", lambda self, hand, phys: None)
+
+
+def test_hand_sequence_equals_the_python_hand(rhi4, monkeypatch):
+    """A `HandSequence` (a path, a stroke, a hold) switching between physics steps, against a physical stop."""
+    x0, u = rhi4.fk(Q0), np.array([0.0, 1.0])
+    hand = HandSequence((Hand(HandPath([x0, x0 + 0.004 * u], speed=0.04, start=0.02), stiffness=500.0),
+                         MinimumJerkPalpation(x0 + 0.004 * u, u, 0.01, 0.3, stiffness=2000.0, max_force=6.0),
+                         Hand(HandPath([x0]), stiffness=400.0, max_force=None)), (0.1503, 0.3001))
+
+    def once(python: bool):
+        if python:
+            _python_hands(monkeypatch)
+        plant = Plant(rhi4)
+        plant.reset(Q0)
+        ctrl = palpation(rhi4)
+        log = simulate(plant, ctrl, duration=0.45, hand=hand, physical=stop(x0 + 0.008 * u, u),
+                       virtual=Wall(x0 + 0.005 * u, u, 1000.0))
+        monkeypatch.undo()
+        return log, ctrl, fast_loop.last
+
+    a = once(python=False)
+    assert a[2] is not None and a[2].ticks == len(a[0]) == 450
+    b = once(python=True)
+    assert b[2] is None
+    check_same(a[:2], b[:2], rtol=1e-10)  # the stroke's powers round as in the stroke test
+    F = a[0].F_hand @ u
+    assert F[100:150].max() > 0.5  # the path pushes
+    assert np.linalg.norm(a[0].F_hand, axis=1).max() == pytest.approx(6.0)  # the stroke saturates
+    assert abs(F[-1]) < F.max()  # the last hand holds x0
+
+
+def test_transition_and_free_space_hold_runs_are_compiled(monkeypatch):
+    """The set-ups of ch6.transition (ASO-switched FME, `in_out_hand`) and ch3.nullspace_configurations.
+
+    ch3's held handle in free space: the reference is the Python loop with a free-space virtual
+    environment (F = 0) rendered in Python, as the experiment ran before it passed none.
+    """
+    from rhi.control import TransitionConfig
+    from rhi.experiments.ch3 import nullspace as ch3
+    from rhi.experiments.ch6 import setup as ch6
+    from rhi.experiments.ch6.switching import in_out_hand
+
+    dev = rhi.device("rhi4")
+    u, x0 = np.array(ch6.U), np.array(ch6.X0)
+    _, _, Mf, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
+    q_start = dev.ik(x0, ch6.Q_HOME)
+    tc = TransitionConfig(eps1=ch6.EPS1, eps2=ch6.EPS2, rho=ch6.RHO, S=ch6.ASO_S)
+
+    class Free:
+        def force(self, x, xdot):
+            return np.zeros(2)
+
+    def transition(python: bool):
+        if python:
+            _python_hands(monkeypatch)
+        plant = Plant(dev)
+        plant.reset(q_start)
+        ctrl = ch6.palpation_controller(dev, None, FMESchedule(Mf, Ms, transition=tc), beta=ch6.BETA, limits=True,
+                                        null_space="clipped")
+        hand = in_out_hand(x0, u, 0.015, 0.03, 0.1, 0.2, 3000.0, 40.0)
+        log = simulate(plant, ctrl, duration=1.3, hand=hand)
+        monkeypatch.undo()
+        return log, ctrl, fast_loop.last
+
+    def hold(python: bool):
+        if python:
+            _python_hands(monkeypatch)
+        x = np.asarray(ch3.POINTS[0], dtype=float)
+        plant = Plant(dev)
+        plant.reset(ch3.start_configuration(dev, x, "rehab"))
+        ctrl = ch3.controller(dev)
+        hand = Hand(HandPath([x]), stiffness=ch3.HAND_STIFFNESS, damping=ch3.HAND_DAMPING, max_force=None)
+        log = simulate(plant, ctrl, duration=0.4, hand=hand, virtual=Free() if python else None)
+        monkeypatch.undo()
+        return log, ctrl, fast_loop.last
+
+    logs = []
+    for scenario in (transition, hold):
+        a = scenario(python=False)
+        assert a[2] is not None and a[2].ticks == len(a[0]), scenario.__name__
+        assert a[0].meta["route"] == "compiled loop (whole tick)"
+        b = scenario(python=True)
+        assert b[2] is None and b[0].meta["route"].startswith("python loop")
+        check_same(a[:2], b[:2])
+        logs.append(a[0])
+    assert logs[0].omega.min() == 0.0 and logs[0].omega[-1] > 0.0  # the desired FME moved to M_Stiff and back
+    assert np.ptp(logs[1].q[:, 2]) > 1e-3  # ch3: the null space moves under the held handle
 
 
 def test_python_loop_where_the_compiled_one_does_not_apply(rhi4):

@@ -10,6 +10,7 @@ from rhi.sim import (
     Fixture,
     Hand,
     HandPath,
+    HandSequence,
     Plant,
     PlantFriction,
     PushForce,
@@ -126,6 +127,25 @@ def test_path_and_w_trajectory():
     assert len(w.points) == 5 and w.points[0, 1] - w.points[1, 1] == pytest.approx(0.04)
     with pytest.raises(InvalidInput, match="speed"):
         HandPath([[0, 0], [1, 0]], speed=0.0)
+
+
+def test_hand_sequence_switches_hands_at_its_times():
+    first = Hand(HandPath([[0.0, 0.0]]), stiffness=100.0, damping=0.0, max_force=None)
+    second = Hand(HandPath([[0.1, 0.0]]), stiffness=100.0, damping=0.0, max_force=None)
+    seq = HandSequence((first, second, first), (1.0, 2.0))
+    x, v = np.zeros(2), np.zeros(2)
+    for t, F in ((0.0, 0.0), (0.999, 0.0), (1.0, 10.0), (1.5, 10.0), (2.0, 0.0), (9.0, 0.0)):
+        np.testing.assert_allclose(seq.force(t, x, v), [F, 0.0], err_msg=str(t))
+    with pytest.raises(InvalidInput, match="switch: expected 1 times"):
+        HandSequence((first, second), (1.0, 2.0))
+    with pytest.raises(InvalidInput, match="switch: the times must not decrease"):
+        HandSequence((first, second, first), (2.0, 1.0))
+    with pytest.raises(InvalidInput, match=r"switch\[0\]"):
+        HandSequence((first, second), (float("nan"),))
+    with pytest.raises(InvalidInput, match=r"hands\[1\]"):
+        HandSequence((first, "hand"), (1.0,))
+    with pytest.raises(InvalidInput, match="hands"):
+        HandSequence((), ())
 
 
 def test_environments():

@@ -1,4 +1,4 @@
-"""Set-ups the thesis experiments share: hands, free space, the motors off, one simulated run, progress.
+"""Set-ups the thesis experiments share: hands, the motors off, one simulated run, progress.
 
 The chapters' own set-ups (their constants, controllers and start configurations) are the
 ``setup`` module of each chapter package (`rhi.experiments.ch3.nullspace` for ch. 3,
@@ -39,14 +39,6 @@ class ZeroTorque:
     def step(self, t, q, dq, sensors) -> np.ndarray:
         """τ: (n,) zeros [N m]."""
         return np.zeros(self.n)
-
-
-class FreeSpace:
-    """The free-space 'environment' a primary law reads (nothing rendered): F = 0, (2,) [N]."""
-
-    def force(self, x, xdot) -> np.ndarray:
-        """F: (2,) zeros [N]."""
-        return np.zeros(2)
 
 
 def vme_values(dev: Device, objective: VMEMatching | EllipsoidMatching, q: np.ndarray) -> np.ndarray:

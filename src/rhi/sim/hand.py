@@ -3,9 +3,9 @@
 `Hand` is a Cartesian impedance (PD) between the handle and a reference point that moves
 along a `HandPath`, F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) [N], optionally saturated at the force
 a person comfortably applies; `MinimumJerkPalpation` strokes along a line with the minimum-jerk
-profile (the §3.5 palpation). `PushForce` is the constant external force of the system
-identification experiments (§3.5, §6.4). The simulation loop logs F_h, ẋ and the user's
-work W = ∫ F_hᵀ ẋ dt (eq. 5.15).
+profile (the §3.5 palpation); `HandSequence` passes the handle from one hand to the next at given
+times. `PushForce` is the constant external force of the system identification experiments (§3.5,
+§6.4). The simulation loop logs F_h, ẋ and the user's work W = ∫ F_hᵀ ẋ dt (eq. 5.15).
 """
 
 from __future__ import annotations
@@ -209,6 +209,40 @@ class MinimumJerkPalpation:
         if nf > self.max_force:
             F = F * (self.max_force / nf)
         return F
+
+
+@dataclasses.dataclass(frozen=True)
+class HandSequence:
+    """Hands in turn: ``hands[i]`` while ``switch[i - 1] <= t < switch[i]`` (the first before switch[0], the last after).
+
+    E.g. a hand that pushes in along one path, holds, and comes back along another.
+
+    Attributes:
+        hands: the phases' hands (`Hand` or `MinimumJerkPalpation` for the compiled loop; any `force(t, x, ẋ)`).
+        switch: (len(hands) − 1,) the times the next hand takes over [s], non-decreasing.
+    """
+
+    hands: tuple
+    switch: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        hands, switch = tuple(self.hands), tuple(self.switch)
+        if not hands:
+            raise InvalidInput("hands: expected at least one hand")
+        for i, h in enumerate(hands):
+            if not callable(getattr(h, "force", None)):
+                raise InvalidInput(f"hands[{i}]: {type(h).__name__} has no force(t, x, xdot) method")
+        if len(switch) != len(hands) - 1:
+            raise InvalidInput(f"switch: expected {len(hands) - 1} times for {len(hands)} hands, got {len(switch)}")
+        times = [scalar(f"switch[{i}]", v) for i, v in enumerate(switch)]
+        if any(b < a for a, b in zip(times, times[1:])):
+            raise InvalidInput(f"switch: the times must not decrease, got {times}")
+        object.__setattr__(self, "hands", hands)
+        object.__setattr__(self, "switch", tuple(times))
+
+    def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
+        """F_h: (m,) [N] of the hand of time t [s] at position x (m,) [m], velocity ẋ (m,) [m/s]."""
+        return self.hands[bisect.bisect_right(self.switch, t)].force(t, x, xdot)
 
 
 def _vector(name: str, v, m: int) -> list[float]:

@@ -72,7 +72,7 @@ from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
 from rhi.experiments.ch3.measures import BETA, POINTS, THESIS_LAMBDA, THESIS_Q, THESIS_RHO, U, measures
 from rhi.experiments.result import Result, Row, Table
-from rhi.experiments.setups import FreeSpace, vme_values
+from rhi.experiments.setups import vme_values
 from rhi.metrics import nullspace_projector
 from rhi.sim import Hand, HandPath, Log, Plant, simulate
 
@@ -150,7 +150,7 @@ def hold_run(dev: Device, x, q0, ctrl: NullSpaceController, *, duration: float,
     plant = Plant(dev)
     plant.reset(q0)
     hand = Hand(HandPath(np.asarray([x], dtype=float)), stiffness=HAND_STIFFNESS, damping=HAND_DAMPING, max_force=None)
-    return simulate(plant, ctrl, duration=duration, hand=hand, virtual=FreeSpace(), progress=progress)
+    return simulate(plant, ctrl, duration=duration, hand=hand, progress=progress)  # free space: F_env = 0
 
 
 def settling_time(t: np.ndarray, v: np.ndarray, tol: float = 1e-3) -> float:

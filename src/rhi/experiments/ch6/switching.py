@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from rhi.control import FMEMatching, FMESchedule, TransitionConfig, WeightedSum
@@ -30,7 +28,7 @@ from rhi.experiments.ch6.setup import (
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import Progress, check_motion, path_hand, run, smooth
 from rhi.metrics import nullspace_projector
-from rhi.sim import Hand
+from rhi.sim import HandSequence
 
 
 @checked
@@ -205,8 +203,8 @@ def _transition_run(dev: Device, Mf: np.ndarray, Ms: np.ndarray, tc: TransitionC
     u, x0 = np.array(U), np.array(X0)
     schedule = FMESchedule(Mf, Ms, transition=tc)
     ctrl = palpation_controller(dev, None, schedule, beta=beta, limits=limits, null_space=null_space)
-    hand = InOutHand(x0, u, motion["depth"], motion["speed"], motion["settle"], motion["hold"], motion["stiffness"],
-                  motion["damping"])
+    hand = in_out_hand(x0, u, motion["depth"], motion["speed"], motion["settle"], motion["hold"], motion["stiffness"],
+                       motion["damping"])
     log = run(dev, ctrl, hand, q_start, motion["duration"], progress, offset, total)
     if log.fault is not None:
         raise InvalidInput(f"transition: the controller stopped: {log.fault}")
@@ -251,34 +249,22 @@ def _transition_run(dev: Device, Mf: np.ndarray, Ms: np.ndarray, tc: TransitionC
     return metrics, arrays
 
 
+def in_out_hand(x0: np.ndarray, u: np.ndarray, depth: float, speed: float, settle: float, hold: float,
+                stiffness: float, damping: float) -> HandSequence:
+    """The transition's hand: hold X₀, push in by `depth` along u, hold, come back to X₀ (a `path_hand` per phase).
 
-@dataclasses.dataclass(frozen=True)
-class InOutHand:
-    """The transition's hand: hold X₀, push in by `depth`, hold, come back to X₀ (a `Hand` per phase)."""
-
-    x0: np.ndarray
-    u: np.ndarray
-    depth: float
-    speed: float
-    settle: float
-    hold: float
-    stiffness: float
-    damping: float
-    # derived in __post_init__: the hand of each phase and the time of the switch [s]
-    _in: Hand = dataclasses.field(init=False, repr=False, compare=False)
-    _out: Hand = dataclasses.field(init=False, repr=False, compare=False)
-    _switch: float = dataclasses.field(init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        t_in = self.depth / self.speed
-        tip = self.x0 + self.depth * self.u
-        object.__setattr__(self, "_in", path_hand([self.x0, tip], self.speed, self.settle, self.stiffness, self.damping))
-        object.__setattr__(self, "_out", path_hand([tip, self.x0], self.speed, self.settle + t_in + self.hold,
-                                               self.stiffness, self.damping))
-        object.__setattr__(self, "_switch", self.settle + t_in + self.hold)
-
-    def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:
-        """F_h: (2,) [N] at time t [s], position x (2,) [m], velocity ẋ (2,) [m/s]."""
-        return (self._in if t < self._switch else self._out).force(t, x, xdot)
-
-
+    Args:
+        x0: (2,) X₀ [m].
+        u: (2,) the push direction.
+        depth: how far it pushes in [m].
+        speed: its speed in and out [m/s].
+        settle: time it holds X₀ first [s].
+        hold: time it holds at depth [s].
+        stiffness: K_h [N/m].
+        damping: B_h [N s/m].
+    """
+    t_in = depth / speed
+    tip = x0 + depth * u
+    back = settle + t_in + hold
+    return HandSequence((path_hand([x0, tip], speed, settle, stiffness, damping),
+                         path_hand([tip, x0], speed, back, stiffness, damping)), (back,))

@@ -9,8 +9,9 @@ origin); each joint's frame by `rhi.devices._compiled.chain.joint_frame` (Pinocc
 inertias, the Jacobian's angular rows or the dynamics; with the virtual environment's force (walls,
 fixtures and their sums). `hand_step` is `rhi.sim.Hand.force` (or `rhi.sim.MinimumJerkPalpation.force`)
 plus a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
-handle's applied force in the same call; `hand_period` runs a control period's physics steps with it,
-MuJoCo's step included (`rhi.sim.mjc`). Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
+handle's applied force in the same call; `hand_period` runs a control period's physics steps with it
+(with the hand of each step's time for a `rhi.sim.HandSequence`), MuJoCo's step included (`rhi.sim.mjc`).
+Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 from rhi.devices._compiled.chain import joint_frame
 from rhi.jit import jit
 from rhi.sim.environment import Compose, Fixture, Wall
-from rhi.sim.hand import Hand, MinimumJerkPalpation
+from rhi.sim.hand import Hand, HandSequence, MinimumJerkPalpation
 from rhi.sim.mjc import step1, step2
 
 #: `hand_period`'s outcomes: the period ran; a step's force was not finite; MuJoCo flagged a step as diverged.
@@ -163,7 +164,21 @@ def _wall_push(x, v, c, o):
 
 
 def hand_constants(hand, wall) -> np.ndarray:
-    """The flat constants of `hand_step` for a `rhi.sim.Hand` or `MinimumJerkPalpation` and a physical `Wall` (or None).
+    """The flat constants of `hand_period` for a `hand_supported` hand and a physical `Wall` (or None).
+
+    A `HandSequence` of P hands: −P, its switch times (P − 1,) [s], the offsets (P,) of its hands' blocks,
+    then the blocks; each block as one hand's (`hand_step`'s constants, the wall repeated in each).
+    """
+    if type(hand) is not HandSequence:
+        return _hand_block(hand, wall)
+    blocks = [_hand_block(h, wall) for h in hand.hands]
+    P = len(blocks)
+    offsets = 2 * P + np.cumsum([0] + [len(b) for b in blocks[:-1]])
+    return np.concatenate([[-P, *hand.switch], offsets, *blocks]).astype(float)
+
+
+def _hand_block(hand, wall) -> np.ndarray:
+    """`hand_step`'s constants for a `rhi.sim.Hand` or `MinimumJerkPalpation` and a physical `Wall` (or None).
 
     Layout: k, m, start [s], speed [m/s], K_h [N/m], B_h [N s/m], max |F_h| [N] (inf: none), then the
     wall flag (1/0), its point (m,) [m], normal (m,), K_e [N/m] and B_e [N s/m] (zeros without a wall),
@@ -190,7 +205,12 @@ def physical_constants(wall, m: int) -> list[float]:
 
 
 def hand_supported(hand, wall, m: int) -> bool:
-    """Whether `hand_constants` describes `hand` and the physical `wall` (or None) for a handle of m task rows."""
+    """Whether `hand_constants` describes `hand` and the physical `wall` (or None) for a handle of m task rows.
+
+    A `Hand`, a `MinimumJerkPalpation` or a `HandSequence` of them.
+    """
+    if type(hand) is HandSequence:
+        return all(type(h) is not HandSequence and hand_supported(h, wall, m) for h in hand.hands)
     if type(hand) is Hand:
         dim = hand.path.points.shape[1]
     elif type(hand) is MinimumJerkPalpation:
@@ -215,7 +235,7 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
         sd: MuJoCo's sensordata.
         idx: (3 m,) int64: the handle position's and velocity's sensordata indices, then the task rows
             of the applied force.
-        c: `hand_constants`.
+        c: one hand's constants (`hand_constants` of a `Hand` or a `MinimumJerkPalpation`).
         F: (m,) in: the previous hand force [N]; out: the hand force F_h [N].
         xfrc: (6,) the handle body's applied force and torque: the total force written on the task rows [N].
         acc: (3,) work so far [J], timestep [s], whether to add the previous step's work.
@@ -280,7 +300,7 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
 def hand_period(model, data, sub, t0, sd, idx, c, F, xfrc, acc, wn, bad, at):
     """A control period of `sub` physics steps: `hand_step`, then mj_step2 + mj_step1, then the divergence check.
 
-    The loop of `rhi.sim.loop.Session._steps` for a `Hand` and a physical `Wall` (or none), with
+    The loop of `rhi.sim.loop.Session._steps` for a `hand_supported` hand and a physical `Wall` (or none), with
     MuJoCo's step called from here (`rhi.sim.mjc`); ends with the last step's work added to acc[0].
 
     Args:
@@ -290,7 +310,7 @@ def hand_period(model, data, sub, t0, sd, idx, c, F, xfrc, acc, wn, bad, at):
         t0: time of the period's first step [s].
         sd: MuJoCo's sensordata.
         idx: `hand_step`'s indices.
-        c: `hand_constants`.
+        c: `hand_constants` (a `HandSequence`'s: each step with the block of its time).
         F: (m,) in: the previous hand force [N]; out: the period's last hand force F_h [N].
         xfrc: (6,) the handle body's applied force and torque.
         acc: (3,) work so far [J], timestep [s], 0 (the first step adds no previous work); advanced.
@@ -302,9 +322,15 @@ def hand_period(model, data, sub, t0, sd, idx, c, F, xfrc, acc, wn, bad, at):
         PERIOD_OK, PERIOD_NONFINITE (a non-finite force, written to xfrc and not stepped) or
         PERIOD_UNSTABLE (MuJoCo flagged the step as diverged and reset its data).
     """
-    m = F.shape[0]
+    m, P = F.shape[0], int(-c[0])
     for s in range(sub):
-        n2 = hand_step(t0 + s * acc[1], sd, idx, c, F, xfrc, acc)  # adds the previous step's work (acc[2] = 1)
+        t, o = t0 + s * acc[1], 0
+        if P > 0:  # a `HandSequence`: the block of the hand of time t
+            b = 0
+            while b < P - 1 and t >= c[1 + b]:
+                b += 1
+            o = int(c[P + b])
+        n2 = hand_step(t, sd, idx, c[o:], F, xfrc, acc)  # adds the previous step's work (acc[2] = 1)
         if not math.isfinite(n2):
             at[0] = s
             return PERIOD_NONFINITE
