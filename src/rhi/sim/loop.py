@@ -173,7 +173,8 @@ class Session:
     def _compiled(self, hand, phys) -> tuple[Any, np.ndarray] | None:
         """The kernel of `_steps_compiled` and its constants where the kernels know the hand and the physical wall.
 
-        A `Hand` or a `MinimumJerkPalpation` and a `Wall` or none (`rhi.sim._compiled.handle.hand_supported`).
+        A `Hand`, a `MinimumJerkPalpation` or a `HandSequence` of them and a `Wall` or none
+        (`rhi.sim._compiled.handle.hand_supported`).
         None for other hands and environments, or a hand or wall of another dimension than the plant's
         (`_steps` raises their error).
         """
@@ -188,7 +189,7 @@ class Session:
         return self._fused
 
     def _steps_compiled(self, kernel, c: np.ndarray) -> str | None:
-        """`_steps` for a `Hand` or a `MinimumJerkPalpation` and a physical `Wall` (or none): one compiled call.
+        """`_steps` for a hand `_compiled` knows and a physical `Wall` (or none): one compiled call.
 
         The same arithmetic as the hand's `force` and `Wall.force` (`rhi.sim._compiled.handle.hand_period`), with the
         handle's state read from MuJoCo's sensors, the force written to its applied force and MuJoCo's step

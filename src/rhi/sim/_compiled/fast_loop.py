@@ -1,7 +1,7 @@
 """Many ticks of `rhi.sim.simulate` in one compiled call, for the runs it computes exactly.
 
 `FastLoop.build` accepts a run whose every part the kernels know: a `NullSpaceController` whose
-whole tick runs compiled (`KernelTick.whole_ok`), a `Hand`, a `MinimumJerkPalpation` or no hand, a
+whole tick runs compiled (`KernelTick.whole_ok`), a hand that `rhi.sim._compiled.handle.hand_supported` accepts or none, a
 physical `Wall` or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, no teleoperation
 and no ``record`` hook. `ticks` then runs up to a block
 of ticks per call: the plant's sensors (`rhi.sim._compiled.io.sensors`), the handle's kinematics and
