@@ -6,6 +6,7 @@ import os
 import signal
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -416,7 +417,7 @@ def test_affinity_refused_is_a_clear_warning(dev):
 @pytest.mark.realtime
 def test_spin_waits_on_a_busy_core(dev):
     """`wait_until(spin=True)` keeps its core busy to the deadline; the default sleeps; `run(spin=True)` is on time."""
-    from rhi.runtime.loop import wait_until
+    from rhi.runtime.realtime import wait_until
 
     for spin in (False, True):
         c0, w0 = time.thread_time(), time.monotonic()
@@ -431,15 +432,19 @@ def test_spin_waits_on_a_busy_core(dev):
     assert res.log.wall[-1] >= 0.19  # paced on the clock, not run as fast as it can
 
 
-def test_spinning_under_sched_fifo_warns_of_real_time_throttling():
-    from rhi.runtime.loop import _realtime, _rt_throttled
+def test_a_spinning_sched_fifo_loop_rests_where_the_kernel_throttles_it():
+    """Spinning under a throttled SCHED_FIFO priority, each wait first sleeps 8 % of a period (`spin_rest`)."""
+    from rhi.runtime.realtime import realtime_thread, rt_throttled, spin_rest
 
-    with pytest.warns(RuntimeWarning) as caught, _realtime(None, 1, spin=True):
-        pass
-    said = [str(w.message) for w in caught]
-    if any("not applied" in m for m in said) or not _rt_throttled():
+    assert spin_rest(1e-3, True) == spin_rest(1e-3, False) == 0.0  # not real-time
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with realtime_thread(None, 1):
+            granted = not any("not applied" in str(w.message) for w in caught)
+            rest, asleep = spin_rest(1e-3, True), spin_rest(1e-3, False)
+    if not granted or not rt_throttled():
         pytest.skip("SCHED_FIFO not granted here, or the kernel does not throttle real-time tasks")
-    assert any("sched_rt_runtime_us" in m for m in said), said
+    assert rest == pytest.approx(8e-5) and asleep == 0.0
 
 
 def test_warmup_leaves_the_controller_untouched_and_bad_realtime_options(dev):

@@ -11,17 +11,13 @@ from __future__ import annotations
 
 import array
 import contextlib
-import ctypes
 import dataclasses
-import gc
 import math
 import os
-import select
 import signal
 import threading
 import time
-import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -30,6 +26,7 @@ from rhi._lifetime import STOP_SIGNALS
 from rhi._validate import MAX_DURATION, scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
+from rhi.runtime.realtime import check_realtime, realtime_thread, spin_rest, wait_until
 from rhi.runtime.safety import Safety, SafetyConfig
 from rhi.sim.environment import describe
 from rhi.sim.log import TIMING, Log, LogWriter, layout, nan_stats
@@ -68,100 +65,6 @@ class RunResult:
         signals = [sig for sig in ESTOP_SIGNALS if self.summary.get("fault_kind") == "estop"
                    and self.fault.endswith(sig.name)]
         return 128 + int(signals[0]) if signals else 1
-
-
-def check_realtime(cpu: int | None, priority: int | None) -> None:
-    """Validate the real-time options of `run` and `DeviceServer`.
-
-    Raises:
-        InvalidInput: `cpu` not a CPU index >= 0, or `priority` not a SCHED_FIFO priority in 1..99.
-    """
-    if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
-        raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
-    if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)
-                                 or not 1 <= priority <= 99):
-        raise InvalidInput(f"priority: expected a SCHED_FIFO priority in 1..99 or None, got {priority!r}")
-
-
-@contextlib.contextmanager
-def _realtime(cpu: int | None, priority: int | None, spin: bool = False) -> Iterator[list[str]]:
-    """GC frozen and off; optional CPU affinity and SCHED_FIFO priority; 1 µs timer slack. Yields warnings."""
-    notes: list[str] = []
-    gc.collect()
-    gc.freeze()
-    was = gc.isenabled()
-    gc.disable()
-    old_aff = old_sched = None
-    if cpu is not None:
-        try:
-            old_aff = os.sched_getaffinity(0)
-            os.sched_setaffinity(0, {int(cpu)})
-        except (OSError, AttributeError, ValueError) as exc:
-            notes.append(f"CPU affinity {cpu} not applied ({exc}); the loop may migrate between cores")
-    if priority is not None:
-        try:
-            old_sched = (os.sched_getscheduler(0), os.sched_getparam(0))
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
-        except (OSError, AttributeError) as exc:
-            old_sched = None
-            notes.append(f"real-time priority {priority} not applied ({exc}); grant CAP_SYS_NICE or an rtprio "
-                         "limit (/etc/security/limits.conf) to run the loop under SCHED_FIFO")
-        else:
-            if spin and _rt_throttled():
-                notes.append("a spinning SCHED_FIFO loop is stopped by the kernel's real-time throttling (by default "
-                             "for 50 ms in every second); set kernel.sched_rt_runtime_us to -1, or spin without a "
-                             "priority")
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None).prctl(29, 1000)  # PR_SET_TIMERSLACK: 1 µs, so sleeps end on time
-    for msg in notes:
-        warnings.warn(msg, RuntimeWarning, stacklevel=4)
-    try:
-        yield notes
-    finally:
-        if old_sched is not None:
-            with contextlib.suppress(OSError):
-                os.sched_setscheduler(0, old_sched[0], old_sched[1])
-        if old_aff is not None:
-            with contextlib.suppress(OSError):
-                os.sched_setaffinity(0, old_aff)
-        gc.unfreeze()
-        if was:
-            gc.enable()
-
-
-def _rt_throttled() -> bool:
-    """Whether Linux throttles real-time tasks (kernel.sched_rt_runtime_us ≠ -1)."""
-    try:
-        with open("/proc/sys/kernel/sched_rt_runtime_us") as f:
-            return int(f.read()) >= 0
-    except (OSError, ValueError):
-        return False
-
-
-def wait_until(deadline: float, spin: bool = False) -> None:
-    """Return at the monotonic time `deadline` [s]: asleep, the last 50 µs spinning; `spin`: spinning throughout.
-
-    Spinning keeps the core out of its idle state, so the tick that follows finds its caches warm (and, on a
-    virtual machine, does not wait for the hypervisor to wake it); it costs that core at 100 %
-    (docs/runtime.md has the measured effect).
-    """
-    while True:
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return
-        if left > 5e-5 and not spin:
-            time.sleep(left - 5e-5)
-
-
-def wait_readable(sock, timeout: float, spin: bool = False) -> bool:
-    """Whether `sock` has a datagram waiting, waiting up to `timeout` [s] for one (`spin`: on a busy core)."""
-    if not spin:
-        return bool(select.select([sock], [], [], timeout)[0])
-    end = time.monotonic() + timeout
-    while not select.select([sock], [], [], 0.0)[0]:
-        if time.monotonic() >= end:
-            return False
-    return True
 
 
 def run(
@@ -260,19 +163,20 @@ def run(
     if warmup is not None:  # compiled kernels loaded before the link opens (its watchdog runs from then on)
         warmup()
     try:
-        with _realtime(cpu, priority, spin) as notes:
+        with realtime_thread(cpu, priority) as notes:
             link.open()
             if link.n != n:
                 raise InvalidInput(f"link: the device has {link.n} motors, the controller's model {n}")
             _check_sensors(link, controller)
             for msg in notes:
                 w.event(0.0, "info", msg)
+            rest = spin_rest(period, spin)
             t0 = time.monotonic()
             next_report = t0 + 0.5
             while (N is None or (slot if realtime else k) < N) and not (until is not None and until.is_set()):
                 deadline = t0 + slot * period
                 if realtime:
-                    wait_until(deadline, spin)
+                    wait_until(deadline, spin, rest)
                 ts = time.monotonic()
                 tau, xdot, F_env, r = zero, None, zero_m, None
                 try:

@@ -23,7 +23,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput
 from rhi.runtime import protocol as P
 from rhi.runtime.link import DeviceLink, Status
-from rhi.runtime.loop import _realtime, check_realtime, wait_readable, wait_until
+from rhi.runtime.realtime import check_realtime, realtime_thread, spin_rest, wait_readable, wait_until
 from rhi.sim.log import LogWriter, layout
 
 
@@ -42,7 +42,7 @@ class DeviceServer:
         exit_on_bye: return from `serve` when the host closes the link (else idle until the next HELLO).
         cpu: pin the device loop to this CPU (a clear warning where the OS refuses).
         priority: SCHED_FIFO priority (1–99) of the device loop (a clear warning where the OS refuses).
-        spin: the device loop waits on a busy core, never asleep (`rhi.runtime.loop.wait_until`).
+        spin: the device loop waits on a busy core, never asleep (`rhi.runtime.realtime.wait_until`).
         session_timeout: a session without a valid command for this long [s] ends (another host may then open
             one without TAKEOVER).
     """
@@ -189,7 +189,8 @@ class DeviceServer:
         k = rseq = 0
         end = None if duration is None else int(round(duration * self.rate))
         try:
-            with _realtime(self.cpu, self.priority, self.spin):
+            with realtime_thread(self.cpu, self.priority):
+                rest = spin_rest(1.0 / self.rate, self.spin)
                 # the first reading goes out as soon as a client said HELLO
                 while self.client is None and not self._stop:
                     self._poll(0.05)
@@ -233,7 +234,7 @@ class DeviceServer:
                                     and not got[2] & P.BYE:
                                 got = None  # a stale command from before the previous reading
                     else:
-                        wait_until(deadline - 2e-4, self.spin)
+                        wait_until(deadline - 2e-4, self.spin, rest)
                         got = self._poll(max(deadline - time.monotonic(), 0.0))
                     rseq = (rseq + 1) & P.NO_SEQ
                     now = time.monotonic()
@@ -290,7 +291,7 @@ class DeviceServer:
                         t0, k0 = time.monotonic(), k
                         continue
                     if not self.lockstep:
-                        wait_until(t0 + (k - k0) * period, self.spin)
+                        wait_until(t0 + (k - k0) * period, self.spin, rest)
         finally:
             self.link.write(zero, enable=False)
             for kind, detail in self._events:

@@ -14,7 +14,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime import protocol as P
 from rhi.runtime.link import Reading
-from rhi.runtime.loop import wait_readable
+from rhi.runtime.realtime import spin_rest, wait_readable
 
 
 class SessionLost(LinkError):
@@ -48,7 +48,7 @@ class UDPLink:
         timeout: longest wait for a new reading in `read` [s]; after it the previous reading is returned
             again (the safety layer counts it as stale). In real time keep it under one period.
         connect_timeout: longest wait for the device's INFO answer in `open` [s].
-        spin: wait for readings on a busy core, never asleep (`rhi.runtime.loop.wait_until`).
+        spin: wait for readings polling the socket on a busy core, not asleep (`rhi.runtime.realtime.spin_rest`).
         takeover: ask the device to end another host's active session and serve this one (HELLO's TAKEOVER).
 
     Attributes:
@@ -80,6 +80,7 @@ class UDPLink:
         self.timeout = scalar("timeout", timeout, positive=True)
         self.connect_timeout = scalar("connect_timeout", connect_timeout, positive=True)
         self.spin = bool(spin)
+        self._rest = 0.0  # the least sleep of a spinning wait [s] (`rhi.runtime.realtime.spin_rest`)
         self.takeover = bool(takeover)
         self.n = 0
         self.session = 0
@@ -147,6 +148,7 @@ class UDPLink:
             raise
         self.n, self.sensors = int(self.info["n"]), list(self.info["sensors"])
         self._k = int(self.info["k"])
+        self._rest = spin_rest(1.0 / self.rate, self.spin)
         self._wall = not self.info.get("lockstep", False)  # a lock-step simulation's time stops while it waits
         if abs(self.info["rate"] - self.rate) > 1e-9 * self.rate:
             self.refuse(f"the device runs at {self.info['rate']:g} Hz, the loop at {self.rate:g} Hz")
@@ -174,13 +176,35 @@ class UDPLink:
         if s is None:
             raise LinkError("link: not open")
         try:
-            if timeout > 0 and not wait_readable(s, timeout, self.spin):
+            if timeout > 0 and not wait_readable(s, timeout):
                 return None
             return s.recv(65536, socket.MSG_DONTWAIT)
         except BlockingIOError:
             return None
         except OSError as exc:  # e.g. ECONNREFUSED: the device process is gone
             raise LinkError(f"link: {self.addr[0]}:{self.addr[1]} unreachable: {exc}") from None
+
+    def _wait(self, end: float) -> bytes | None:
+        """The next datagram, by the monotonic time `end` [s] at the latest (None: none came).
+
+        Asleep in `select` until one arrives; `spin`: polling the non-blocking socket on a busy core (after
+        `spin_rest`'s short sleep where the kernel would otherwise throttle a real-time loop).
+        """
+        if not self.spin:
+            return self._recv(max(end - time.monotonic(), 0.0))
+        if self._rest:
+            pkt = self._recv(min(self._rest, max(end - time.monotonic(), 0.0)))
+            if pkt is not None:
+                return pkt
+        s = self._sock
+        while True:
+            try:
+                return s.recv(65536, socket.MSG_DONTWAIT)  # type: ignore[union-attr]
+            except BlockingIOError:
+                if time.monotonic() >= end:
+                    return None
+            except OSError as exc:
+                raise LinkError(f"link: {self.addr[0]}:{self.addr[1]} unreachable: {exc}") from None
 
     def read(self) -> Reading:
         """The newest reading that arrived; waits up to `timeout` for one newer than the last returned.
@@ -192,10 +216,10 @@ class UDPLink:
         """
         if self._sock is None:
             raise LinkError("link: read() before open()")
-        newest, wait = None, self.timeout
-        end = time.monotonic() + wait
+        newest = None
+        end = time.monotonic() + self.timeout
         while True:
-            pkt = self._recv(0.0 if newest is not None else max(end - time.monotonic(), 0.0))
+            pkt = self._recv(0.0) if newest is not None else self._wait(end)
             if pkt is None:
                 if newest is not None or time.monotonic() >= end:
                     break

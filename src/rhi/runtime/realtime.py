@@ -1,0 +1,124 @@
+"""The real-time settings of a loop's thread and how it waits: CPU affinity, SCHED_FIFO, the GC, spinning.
+
+`realtime_thread` applies them around a loop (`rhi.runtime.run`, `rhi.runtime.server.DeviceServer`);
+`wait_until` and `wait_readable` wait for a deadline or a datagram, asleep or on a busy core; `spin_rest`
+is the short sleep that keeps a spinning SCHED_FIFO loop clear of the kernel's real-time throttling.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import gc
+import os
+import select
+import time
+import warnings
+from collections.abc import Iterator
+
+from rhi.errors import InvalidInput
+
+
+def check_realtime(cpu: int | None, priority: int | None) -> None:
+    """Validate the real-time options of `run` and `DeviceServer`.
+
+    Raises:
+        InvalidInput: `cpu` not a CPU index >= 0, or `priority` not a SCHED_FIFO priority in 1..99.
+    """
+    if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
+        raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
+    if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)
+                                 or not 1 <= priority <= 99):
+        raise InvalidInput(f"priority: expected a SCHED_FIFO priority in 1..99 or None, got {priority!r}")
+
+
+@contextlib.contextmanager
+def realtime_thread(cpu: int | None, priority: int | None) -> Iterator[list[str]]:
+    """GC frozen and off; optional CPU affinity and SCHED_FIFO priority; 1 µs timer slack. Yields warnings."""
+    notes: list[str] = []
+    gc.collect()
+    gc.freeze()
+    was = gc.isenabled()
+    gc.disable()
+    old_aff = old_sched = None
+    if cpu is not None:
+        try:
+            old_aff = os.sched_getaffinity(0)
+            os.sched_setaffinity(0, {int(cpu)})
+        except (OSError, AttributeError, ValueError) as exc:
+            notes.append(f"CPU affinity {cpu} not applied ({exc}); the loop may migrate between cores")
+    if priority is not None:
+        try:
+            old_sched = (os.sched_getscheduler(0), os.sched_getparam(0))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
+        except (OSError, AttributeError) as exc:
+            old_sched = None
+            notes.append(f"real-time priority {priority} not applied ({exc}); grant CAP_SYS_NICE or an rtprio "
+                         "limit (/etc/security/limits.conf) to run the loop under SCHED_FIFO")
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None).prctl(29, 1000)  # PR_SET_TIMERSLACK: 1 µs, so sleeps end on time
+    for msg in notes:
+        warnings.warn(msg, RuntimeWarning, stacklevel=4)
+    try:
+        yield notes
+    finally:
+        if old_sched is not None:
+            with contextlib.suppress(OSError):
+                os.sched_setscheduler(0, old_sched[0], old_sched[1])
+        if old_aff is not None:
+            with contextlib.suppress(OSError):
+                os.sched_setaffinity(0, old_aff)
+        gc.unfreeze()
+        if was:
+            gc.enable()
+
+
+def rt_throttled() -> bool:
+    """Whether Linux throttles real-time tasks (kernel.sched_rt_runtime_us ≠ -1)."""
+    try:
+        with open("/proc/sys/kernel/sched_rt_runtime_us") as f:
+            return int(f.read()) >= 0
+    except (OSError, ValueError):
+        return False
+
+
+def spin_rest(period: float, spin: bool) -> float:
+    """The least sleep [s] of each wait of a spinning loop of `period` [s] in this thread.
+
+    8 % of the period under a SCHED_FIFO priority that the kernel throttles (`kernel.sched_rt_runtime_us`: a
+    real-time thread busy for more than 95 % of a second is stopped for the other 50 ms), else 0.
+    """
+    try:
+        fifo = os.sched_getscheduler(0) == os.SCHED_FIFO
+    except (AttributeError, OSError):
+        fifo = False
+    return 0.08 * period if spin and fifo and rt_throttled() else 0.0
+
+
+def wait_until(deadline: float, spin: bool = False, rest: float = 0.0) -> None:
+    """Return at the monotonic time `deadline` [s]: asleep, the last 50 µs spinning; `spin`: spinning throughout.
+
+    `rest` [s]: with `spin`, sleep this long first (`spin_rest`; cut short at the deadline). Spinning keeps the
+    core out of its idle state and to this thread, so the tick that follows finds its caches warm (and, on a
+    virtual machine, does not wait for the hypervisor to wake it); it costs that core at 100 % (docs/runtime.md
+    has the measured effect).
+    """
+    if spin and rest > 0.0:
+        time.sleep(max(min(rest, deadline - time.monotonic()), 0.0))
+    while True:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return
+        if left > 5e-5 and not spin:
+            time.sleep(left - 5e-5)
+
+
+def wait_readable(sock, timeout: float, spin: bool = False) -> bool:
+    """Whether `sock` has a datagram waiting, waiting up to `timeout` [s] for one (`spin`: on a busy core)."""
+    if not spin:
+        return bool(select.select([sock], [], [], timeout)[0])
+    end = time.monotonic() + timeout
+    while not select.select([sock], [], [], 0.0)[0]:
+        if time.monotonic() >= end:
+            return False
+    return True
