@@ -69,6 +69,17 @@ def _simulation() -> None:
     TickSources(ctrl)(plant.q, plant.dq)  # the last tick's torque by source (beyond.passivity's energy books)
 
 
+def _mobile() -> None:
+    from rhi.control.mobile import AMDConfig, AMDController
+    from rhi.devices.model import device
+    from rhi.experiments.appa import Q0
+    from rhi.sim.mobile import MobilePlant, hold, simulate_mobile
+
+    dev = device("wmm")  # App. B's compiled loop (`rhi.sim._compiled.mobile_loop`), its controllers' tick
+    simulate_mobile(AMDController(dev, AMDConfig(dt=0.01)), hold(dev.fk(Q0), duration=0.02, dt=0.01), Q0,
+                    plant=MobilePlant(dev, visual=False))
+
+
 def _design() -> None:
     from rhi.design.planar import planar_indices
 
@@ -81,6 +92,7 @@ STEPS: list[tuple[str, Callable[[], None]]] = [
     ("batch terms and measures", _batch),
     ("controllers (every shipped configuration)", _controllers),
     ("simulation loop", _simulation),
+    ("mobile manipulator loop", _mobile),
     ("design indices", _design),
 ]
 """What `warmup` runs, in order: each calls the kernels of its part once."""

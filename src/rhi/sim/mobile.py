@@ -354,6 +354,21 @@ class MobileLog:
 
 
 # ========================================================================= loop
+def _compiled(controller, plant, trajectory, q0, JV_pinv):
+    """The compiled loop of this run (`rhi.sim._compiled.mobile_loop`), or None where it does not apply."""
+    from rhi.control.mobile import AMDController, PinvAccelController
+
+    if type(controller) not in (AMDController, PinvAccelController) or (plant is not None and
+                                                                        type(plant) is not MobilePlant):
+        loop = None
+    else:
+        from rhi.sim._compiled import mobile_loop  # Numba: only for the controllers it computes
+
+        loop = mobile_loop.MobileLoop.build(controller, plant, trajectory, q0, JV_pinv)
+        mobile_loop.last = loop
+    return loop
+
+
 def simulate_mobile(
     controller: MobileController,
     trajectory: Trajectory,
@@ -370,7 +385,8 @@ def simulate_mobile(
     `MobileStep`. Acceleration-level controllers (`rhi.control.mobile.AMDController`,
     `PinvAccelController`) are integrated as the thesis does (§B.4.1: the integral of the
     computed acceleration is commanded): q̇⁺ = q̇ + q̈T, q⁺ = q + q̇T + q̈T²/2. Velocity-level
-    controllers (`WeightedDistributionController`) command v = [v_b; q̇_m] directly.
+    controllers (`WeightedDistributionController`) command v = [v_b; q̇_m] directly. The AMD and the
+    traditional controller run on the compiled loop (`rhi.sim._compiled.mobile_loop`, the same arithmetic).
 
     Args:
         controller: the controller (its ``advance`` is called once per sample).
@@ -421,9 +437,18 @@ def simulate_mobile(
     scal = {k: nan.copy() for k in ("base_active", "alpha", "beta", "gamma", "eta", "sigma", "dm")}
     q_ref = q0.copy()  # base: odometry; arm: integrated reference
     dq = np.zeros(n)
-    ok = True
+    ok, done = True, 0
     tick = max(1, K // 100)
-    for k in range(K):
+    fast = _compiled(controller, plant, trajectory, q0, JV_pinv)
+    if fast is not None:
+        kept = fast.run(log, scal, progress)
+        if kept is None:  # a tick the controller raises on: the whole run in Python, which raises there
+            if plant is not None:
+                plant.reset(q0)
+            controller.reset()
+        else:
+            ok, done = kept, K
+    for k in range(done, K):
         t = float(trajectory.t[k])
         xd, dxd, ddxd = trajectory.x[k], trajectory.dx[k], trajectory.ddx[k]
         q_meas = q_ref.copy()
