@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib
 import socket
 
 import numpy as np
@@ -195,6 +196,37 @@ def test_optimizer_is_seeded_and_resumes(tmp_path):
     b = optimize(prob, "C2", seed=1, maxiter=8, checkpoint=str(tmp_path / "o.json"))
     np.testing.assert_array_equal(a.x, b.x)
     assert a.values == b.values and a.evaluations == b.evaluations
+
+
+def test_nelder_mead_starts_in_lockstep_equal_one_after_another(monkeypatch):
+    """The refinement's starts run together, each round's designs one `evaluate_many` batch: the same polished designs."""
+    opt = importlib.import_module("rhi.design.optimize")  # the module (rhi.design.optimize is also its function)
+    prob = ch4.setup.problem("full", density=20)
+    lo, hi = (np.array([b[i] for b in prob.bounds.values()]) for i in (0, 1))
+    x0s = list(lo + (hi - lo) * np.random.default_rng(4).uniform(size=(3, len(lo))))
+    ref = [opt._nelder_mead(prob, "C2", x0) for x0 in x0s]
+    sizes: list[int] = []
+    many = opt.evaluate_many
+
+    def counted(problem, xs):
+        sizes.append(len(xs))
+        return many(problem, xs)
+
+    monkeypatch.setattr(opt, "evaluate_many", counted)
+    assert opt._nelder_mead_many(prob, "C2", x0s) == ref
+    assert sum(sizes) == sum(r["nfev"] for r in ref) and max(sizes) == 3  # the three starts in each early round
+    assert len(sizes) == max(r["nfev"] for r in ref)
+
+    def fails(problem, xs):  # the fifth round fails: every run stops with its error, none hangs
+        if len(sizes) == 4:
+            raise InvalidInput("x: broken")
+        sizes.append(len(xs))
+        return many(problem, xs)
+
+    sizes.clear()
+    monkeypatch.setattr(opt, "evaluate_many", fails)
+    with pytest.raises(InvalidInput, match="broken"):
+        opt._nelder_mead_many(prob, "C2", x0s)
 
 
 def test_parallel_map_runs_anywhere_in_order_with_progress():

@@ -2,13 +2,16 @@
 
 Every evaluation goes through an executor (serial, local pool, Ray) and an `EvalCache`,
 so a run can be resumed from its checkpoint file and gives the same numbers on every
-executor. ``progress(done, total)`` is called after each batch.
+executor. Designs are evaluated in batches (`rhi.design.cost.evaluate_many`): a DE generation
+per worker, and the Nelder–Mead starts of a worker in lockstep. ``progress(done, total)`` is
+called after each batch.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import threading
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -56,9 +59,8 @@ def _tag(problem: DesignProblem, which: str) -> str:
             f"{problem.fixed}|kq={problem.k_q}|K={problem.K1},{problem.K2}")
 
 
-def _batches(problem: DesignProblem, ex):
-    """A mapper for `EvalCache.map`: each of the executor's workers evaluates one slice of the items as one batch."""
-    many = functools.partial(evaluate_many, problem)
+def _per_worker(ex, many: Callable):
+    """A mapper for `EvalCache.map`: each of the executor's workers runs ``many`` on one slice of the items, in order."""
 
     def mapper(_fn, items):
         items = list(items)
@@ -89,14 +91,19 @@ def sweep(
     fn = functools.partial(evaluate, problem)
     out: list[dict[str, float]] = []
     for i in range(0, len(xs), batch):
-        out += cache.map(fn, xs[i:i + batch], _batches(problem, ex))
+        out += cache.map(fn, xs[i:i + batch], _per_worker(ex, functools.partial(evaluate_many, problem)))
         if progress:
             progress(len(out), len(xs))
     return out
 
 
-def _nelder_mead(problem: DesignProblem, which: str, x0: np.ndarray) -> dict:
-    """Bounded Nelder–Mead from x0 on −C (initial simplex: 5 % of each range); {"x", "fun", "nfev"}."""
+def _nelder_mead(problem: DesignProblem, which: str, x0: np.ndarray, value: Callable | None = None) -> dict:
+    """Bounded Nelder–Mead from x0 on −C (initial simplex: 5 % of each range); {"x", "fun", "nfev"}.
+
+    value(x): −C at a design (default: `evaluate`'s).
+    """
+    if value is None:
+        value = lambda x: -evaluate(problem, x)[which]  # noqa: E731
     bounds = list(problem.bounds.values())
     d = len(bounds)
     lo = np.array([b[0] for b in bounds])
@@ -105,9 +112,66 @@ def _nelder_mead(problem: DesignProblem, which: str, x0: np.ndarray) -> dict:
     step = 0.05 * (hi - lo)
     simplex = np.vstack([x0] + [np.clip(x0 + np.eye(d)[i] * step[i] * (1 if x0[i] + step[i] <= hi[i] else -1), lo, hi)
                                 for i in range(d)])
-    loc = minimize(lambda x: -evaluate(problem, np.clip(x, lo, hi))[which], x0, method="Nelder-Mead", bounds=bounds,
+    loc = minimize(lambda x: value(np.clip(x, lo, hi)), x0, method="Nelder-Mead", bounds=bounds,
                    options={"initial_simplex": simplex, "xatol": 1e-5, "fatol": 1e-8, "maxfev": 200 * d})
     return {"x": [float(v) for v in np.clip(loc.x, lo, hi)], "fun": float(loc.fun), "nfev": int(loc.nfev)}
+
+
+def _nelder_mead_many(problem: DesignProblem, which: str, x0s: Sequence[np.ndarray]) -> list[dict]:
+    """`_nelder_mead` from each of x0s in lockstep: each round, the designs every run waits on are one `evaluate_many`.
+
+    Each run (a thread of its own, blocked on its value) sees its own designs and values as it would alone
+    (`evaluate_many` equals `evaluate` bit for bit): the same results as the runs one after another.
+    """
+    cond = threading.Condition()
+    asked: dict[int, np.ndarray] = {}
+    told: dict[int, float | BaseException] = {}
+    live, out, errors = set(range(len(x0s))), [{} for _ in x0s], []
+
+    def value(i: int, x: np.ndarray) -> float:
+        with cond:
+            asked[i] = x
+            cond.notify_all()
+            cond.wait_for(lambda: i in told)
+            v = told.pop(i)
+        if isinstance(v, BaseException):
+            raise v
+        return v
+
+    def run(i: int) -> None:
+        try:
+            out[i] = _nelder_mead(problem, which, x0s[i], functools.partial(value, i))
+        except BaseException as exc:  # handed to the caller below
+            errors.append(exc)
+        finally:
+            with cond:
+                live.discard(i)
+                cond.notify_all()
+
+    threads = [threading.Thread(target=run, args=(i,), daemon=True) for i in range(len(x0s))]
+    for t in threads:
+        t.start()
+    with cond:
+        while True:
+            cond.wait_for(lambda: len(asked) == len(live))
+            if not live:
+                break
+            runs = sorted(asked)
+            res: list[float | BaseException]
+            try:
+                res = [-r[which] for r in evaluate_many(problem, [asked[i] for i in runs])]
+            except BaseException as exc:  # every waiting run stops with it
+                res = [exc] * len(runs)
+            if errors:  # a run failed: the others stop too
+                res = [errors[0]] * len(runs)
+            asked.clear()
+            told.update(zip(runs, res))
+            cond.notify_all()
+    for t in threads:
+        t.join()
+    if errors:
+        raise errors[0]
+    return out
 
 
 def _starts(xs: np.ndarray, fs: np.ndarray, lo: np.ndarray, hi: np.ndarray, k: int, separation: float) -> list:
@@ -147,7 +211,8 @@ def optimize(
     generation is one executor batch) explores the box; then bounded Nelder–Mead polishes
     the best evaluated design *and* the best evaluated designs of up to ``starts − 1``
     other regions (each at least ``separation`` of every range away from the ones already
-    chosen), one start per executor task, and the best polished design wins. The extra
+    chosen), the starts of each executor worker in lockstep (their evaluations one batch per round),
+    and the best polished design wins. The extra
     starts matter: the C2 landscape of §4.4 has two basins whose optima differ by < 1 %
     (a short-l2, high-GC one and an l2 = 0.365 m, high-GM_T one), and DE's population can
     collapse into the worse one (rhi.experiments.ch4, `full_design` notes).
@@ -205,7 +270,8 @@ def optimize(
     done = [0]
     seen_x: list[np.ndarray] = []
     seen_f: list[float] = []
-    mapper = _batches(problem, ex)  # a DE generation (updating="deferred") is evaluated as one batch per worker
+    # a DE generation (updating="deferred") is evaluated as one batch per worker
+    mapper = _per_worker(ex, functools.partial(evaluate_many, problem))
 
     def batch_map(_func, xs):
         xs = [np.asarray(x, dtype=float) for x in xs]
@@ -238,7 +304,8 @@ def optimize(
                           if np.max(np.abs((x - x_best) / np.where(hi > lo, hi - lo, 1.0))) >= separation][:starts - 1]
         # a Nelder-Mead run is costly to recompute: its entries are checked through the best one below
         rcache = EvalCache(None if checkpoint is None else str(checkpoint) + ".refine", tag + "|refine", spot_checks=0)
-        polished = rcache.map(functools.partial(_nelder_mead, problem, which), x0s, ex.map)
+        polished = rcache.map(functools.partial(_nelder_mead, problem, which), x0s,
+                              _per_worker(ex, functools.partial(_nelder_mead_many, problem, which)))
         n_refine = sum(r["nfev"] for r in polished)
         best = min(range(len(polished)), key=lambda i: (polished[i]["fun"], i))
         if polished[best]["fun"] < de.fun:
