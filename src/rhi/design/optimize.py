@@ -126,7 +126,8 @@ def _nelder_mead_many(problem: DesignProblem, which: str, x0s: Sequence[np.ndarr
     cond = threading.Condition()
     asked: dict[int, np.ndarray] = {}
     told: dict[int, float | BaseException] = {}
-    live, out, errors = set(range(len(x0s))), [{} for _ in x0s], []
+    live, errors = set(range(len(x0s))), []
+    out: list[dict] = [{} for _ in x0s]
 
     def value(i: int, x: np.ndarray) -> float:
         with cond:
