@@ -127,7 +127,9 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=progress,
                    record=lambda: _passivity_state(ctrl))
     en = energies(dev, log, plant.friction, stiffness, x0=x0, u=u, damping=B_D)
-    work, replay = sources.source_work(dev, ctrl.config, log) if case in SPLIT_CASES else ({}, math.nan)
+    names, by_tick, replay = (sources.tick_work(dev, ctrl.config, log) if case in SPLIT_CASES
+                              else ([], np.zeros((len(log.t) - 1, 0)), math.nan))
+    work = dict(zip(names, by_tick.sum(axis=0).tolist()))
     pen = (log.x - x0) @ u
     F_des = stiffness * np.maximum(pen, 0.0)
     F = log.ft[:, :2] @ u  # the force the hand pushes along u = the force rendered to it [N]
@@ -139,6 +141,8 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     hf_F = (F - moving_average(F, w))[contact]
     stop = np.any((log.q < dev.q_min) | (log.q > dev.q_max), axis=1)
     held, E, alpha_pc = log.extra["held"], log.E_obs, log.alpha_pc
+    full = np.array([int(h).bit_count() >= dev.n - dev.m for h in held[:-1]])  # no redundancy left
+    switch = np.convolve(np.diff(held, prepend=held[0]) != 0, np.ones(4), mode="full")[:len(held) - 1] > 0
     if E is None or alpha_pc is None:
         raise InvalidInput("log: no passivity columns (E_obs, alpha_pc); rhi.sim.simulate records them every tick")
     m = {
@@ -161,6 +165,8 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
         "alpha_scaling_min": float(np.nanmin(log.alpha)),
         "fault": log.fault,
         "sources": work,
+        "when": {f"{name} {k}": float(np.sum(by_tick[sel, names.index(name)])) for name in ("allocation", "barrier")
+                 if name in names for k, sel in (("held_full", full), ("switch", switch))},
         "replay_error": replay,
         "objective_work": sources.objective_work(work) if work else math.nan,
         "null_work": sources.null_work(work) if work else math.nan,
@@ -303,6 +309,9 @@ _LABEL = {
 }
 
 
+_WHEN = {"held_full": "while ASCM holds n − m joints", "switch": "on the ticks the held set switches and the 3 after"}
+
+
 def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[Table]:
     e_rows, f_rows, s_rows = [], [], []
     for c, m in res.items():
@@ -352,6 +361,8 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
         if m["sources"]:
             src_rows.append(Row(f"ticks with no redundancy left (ASCM holds n − m joints), {lab}", None,
                                 100.0 * m["held_full"], "%"))
+            src_rows += [Row(f"  {k.split()[0]}'s work {_WHEN[k.split()[1]]}, {lab}", None, v, "J")
+                         for k, v in m["when"].items()]
     for c, m in stiff_res.items():
         lab = _LABEL[c]
         s_rows += [

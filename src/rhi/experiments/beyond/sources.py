@@ -32,6 +32,21 @@ SAFETY = ("damping", "barrier")
 def source_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, float], float]:
     """The work [J] of each torque source over a logged run, and the largest replay error [N m].
 
+    Args and twin as `tick_work`.
+
+    Returns:
+        ({source: Σ part(k)ᵀ(q(k+1) − q(k))} [J], max_k |τ_twin(k) − τ_log(k)| [N m]).
+
+    Raises:
+        InvalidInput: a log with fewer than two ticks.
+    """
+    names, work, err = tick_work(dev, config, log)
+    return dict(zip(names, work.sum(axis=0).tolist())), err
+
+
+def tick_work(dev: Device, config: ControllerConfig, log) -> tuple[list[str], np.ndarray, float]:
+    """The work [J] of each torque source over each hold interval of a logged run, and the largest replay error.
+
     The twin is the controller itself (its whole compiled tick, split by `rhi.control.sources.TickSources`;
     its fallback ticks by the reference), else (a tick the compiled split cannot decide, a controller
     whose tick is not the whole compiled one) a reference twin (``implementation="reference"``).
@@ -42,7 +57,8 @@ def source_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, f
         log: the run's `rhi.sim.Log` (t, q, q̇, τ and the rendered force F_env of every tick).
 
     Returns:
-        ({source: Σ part(k)ᵀ(q(k+1) − q(k))} [J], max_k |τ_twin(k) − τ_log(k)| [N m]).
+        (the sources, (N − 1, sources) part(k)ᵀ(q(k+1) − q(k)) [J] for each of the N ticks but the last,
+        max_k |τ_twin(k) − τ_log(k)| [N m]).
 
     Raises:
         InvalidInput: a log with fewer than two ticks.
@@ -55,20 +71,20 @@ def source_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, f
     twin = NullSpaceController(dev, dataclasses.replace(config, implementation="reference"))
     twin.sources = {}
     dq_step = np.diff(log.q, axis=0)
-    work: dict[str, float] = {}
+    rows: list[dict[str, float]] = []
     err = 0.0
     for k in range(len(log.t) - 1):
         tau = twin.step(float(log.t[k]), log.q[k], log.dq[k], {"force": log.F_env[k], "ft": log.ft[k]})
         parts = dict(twin.sources)
         parts[PASSIVITY] = tau - sum(parts.values())
-        for name, p in parts.items():
-            work[name] = work.get(name, 0.0) + float(p @ dq_step[k])
+        rows.append({name: float(p @ dq_step[k]) for name, p in parts.items()})
         err = max(err, float(np.max(np.abs(tau - log.tau[k]))))
-    return work, err
+    names = list(dict.fromkeys(name for r in rows for name in r))
+    return names, np.array([[r.get(name, 0.0) for name in names] for r in rows]), err
 
 
-def _compiled_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str, float], float] | None:
-    """`source_work` with the controller's own compiled tick as the twin; None where a tick is not split there."""
+def _compiled_work(dev: Device, config: ControllerConfig, log) -> tuple[list[str], np.ndarray, float] | None:
+    """`tick_work` with the controller's own compiled tick as the twin; None where a tick is not split there."""
     twin = NullSpaceController(dev, config)
     split = TickSources(twin)
     if split.reason:
@@ -94,8 +110,7 @@ def _compiled_work(dev: Device, config: ControllerConfig, log) -> tuple[dict[str
         parts[k, :-1] = row
         parts[k, -1] = tau - row.sum(axis=0)
         err = max(err, float(np.max(np.abs(tau - log.tau[k]))))
-    totals = np.einsum("ksn,kn->s", parts, np.diff(log.q, axis=0))
-    return dict(zip([*names, PASSIVITY], totals.tolist())), err
+    return [*names, PASSIVITY], np.einsum("ksn,kn->ks", parts, np.diff(log.q, axis=0)), err
 
 
 def objective_work(work: dict[str, float]) -> float:
@@ -117,4 +132,4 @@ def rows(work: dict[str, float], label: str) -> list[Row]:
     return out
 
 
-__all__ = ["PASSIVITY", "SAFETY", "null_work", "objective_work", "rows", "source_work"]
+__all__ = ["PASSIVITY", "SAFETY", "null_work", "objective_work", "rows", "source_work", "tick_work"]
