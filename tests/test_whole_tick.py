@@ -21,6 +21,7 @@ from rhi.control import (
     ObjectiveTerm,
     Passivity,
     SpringPalpation,
+    TMIMatching,
     VMEMatching,
     desired_fme_free,
     desired_fme_stiff,
@@ -206,10 +207,32 @@ def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
     assert len(fallbacks) == 20
 
 
+@pytest.mark.parametrize("saturation,null_space", [("none", "clipped"), ("ascm", "scaled")])
+def test_whole_tick_computes_the_jacobian_objectives(rhi4, saturation, null_space, rng):
+    """Chapter 5's objectives (TMI matching to a slave ME that moves every tick, −log μ, −μ; with and without the
+    joint-limit penalty) in the whole tick = the reference (their `gradient_at` in Python), to 1e-10."""
+    slave = rhi.device("rehab_slave")
+    qs = np.array([0.4, 1.2])
+    for objectives in ((ObjectiveTerm(TMIMatching(slave, lambda: qs, k_q=10.0), 0.02),
+                        ObjectiveTerm(Manipulability(log=True, k_q=10.0), 0.05)),
+                       (ObjectiveTerm(TMIMatching(slave, lambda: qs), 0.02), ObjectiveTerm(Manipulability(), 0.3),
+                        ObjectiveTerm(Manipulability(k_q=3.0), 0.1))):
+        kw = dict(primary=ImpedanceControl(damping=0.5), objectives=objectives, saturation=saturation,
+                  null_space=null_space)
+        fast, ref = _pair(rhi4, **kw)
+        assert len(fast._kernel.live) == len(objectives)
+        for k, (q, dq, F) in enumerate(_tick_cases(rhi4, rng, 60)):
+            qs[:] = [0.4 + 0.3 * np.sin(0.2 * k), 1.2 + 0.2 * np.cos(0.3 * k)]
+            q = np.clip(q, rhi4.q_min + 0.05, rhi4.q_max - 0.05)
+            a, b = fast.step(k * 1e-3, q, dq, {"force": F}), ref.step(k * 1e-3, q, dq, {"force": F})
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-10, err_msg=f"tick {k}")
+            assert fast.state.beta == pytest.approx(ref.state.beta, abs=1e-10)
+
+
 def test_whole_tick_only_where_it_applies(rhi4):
     """Objectives computed in Python, or a law with a desired inertia, keep the composed tick."""
     cfg = _config(rhi4, "render")
-    cfg["objectives"] = (ObjectiveTerm(Manipulability(log=True), 0.05),)
+    cfg["objectives"] = (ObjectiveTerm(TMIMatching(rhi.device("rehab_slave"), [0.4, 1.2], H=np.eye(2)), 0.05),)
     assert not NullSpaceController(rhi4, ControllerConfig(**cfg))._kernel.whole_ok
     cfg = _config(rhi4, "render")
     cfg["primary"] = ImpedanceControl(damping=0.5, inertia=np.diag([0.2, 0.3]))

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
@@ -67,21 +68,33 @@ class CompiledObjective:
             (JBLD matching of the torque-weighted FME to a fixed `desired`, eqs. 6.9–6.10, with weights
             `w2`; the whole tick), "fme_schedule" (a scheduled objective, `rhi.control.schedule`: FME matching
             to Ω `desired` + (1 − Ω) `stiff` with the controller's torque weights, Ω from the ASO by `schedule`,
-            eqs. 6.14–6.19; both compiled routes) or "barrier" (`rhi.control.JointLimitBarrier` with `barrier`;
-            the whole tick).
+            eqs. 6.14–6.19; both compiled routes), "barrier" (`rhi.control.JointLimitBarrier` with `barrier`;
+            the whole tick), "vme_live" (JBLD matching of J^q J^qᵀ to the (m, m) SPD desired that `live()` gives
+            at each tick, e.g. the slave's ME of `rhi.control.TMIMatching`, eq. 5.11; the whole tick) or
+            "manipulability" (−log μ(J^q) with `log`, else −μ(J^q), eq. 5.14; the whole tick).
         desired: (m, m) SPD desired ellipsoid ("vme", "fme"; M_Free^des of "fme_schedule").
         w2: (n,) torque weights 1/T_i² [1/(N m)²] ("fme").
         stiff: (m, m) SPD M_Stiff^des ("fme_schedule").
         schedule: (‖M_Free − M_Stiff‖_F, ε₁, ε₂, ρ [s]) of the transition ("fme_schedule", eqs. 6.15–6.19).
         barrier: (shape "quadratic" | "inverse", margin δ [rad], weight w) ("barrier").
+        penalty: k_q of the joint-limit penalised Jacobian J^q = J diag(P(q)) (eqs. 4.19–4.20); None: J^q = J
+            ("vme_live", "manipulability").
+        live: () -> (m, m) the desired ellipsoid of the tick ("vme_live").
+        slave: the slave `rhi.sim.Plant` whose encoders `live` reads, D = J_s J_sᵀ at them ("vme_live"; None: another
+            source), so that `rhi.sim`'s compiled loop computes D from its own teleoperated slave.
+        log: −log μ instead of −μ ("manipulability").
     """
 
-    kind: Literal["vme", "fme", "fme_schedule", "barrier"]
+    kind: Literal["vme", "fme", "fme_schedule", "barrier", "vme_live", "manipulability"]
     desired: np.ndarray | None = None
     w2: np.ndarray | None = None
     stiff: np.ndarray | None = None
     schedule: tuple[float, float, float, float] | None = None
     barrier: tuple[str, float, float] | None = None
+    penalty: float | None = None
+    live: Callable[[], np.ndarray] | None = None
+    slave: object | None = None
+    log: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

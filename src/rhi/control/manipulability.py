@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 
 from rhi._validate import as_array
+from rhi.control.compiled import CompiledObjective
 from rhi.control.objectives import jbld_velocity_gradient
 from rhi.control.registry import BOOLEAN, MATRIX, NUMBERS, POSITIVE, REQUIRED, STRING, VECTOR, ObjectiveType, register
 from rhi.devices.model import Device, DeviceTerms, device as load_device
@@ -61,6 +62,10 @@ class Manipulability:
         g = 0.5 * log_det_gradient(J, dJ)  # ∇ log μ
         return -g if self.log else -np.sqrt(np.linalg.det(J.dot(J.T))) * g
 
+    def compiled(self, device: Device) -> CompiledObjective:
+        """−log μ or −μ on J^q, computed by the whole compiled tick."""
+        return CompiledObjective("manipulability", penalty=self.k_q, log=self.log)
+
 
 def penalty(q: np.ndarray, *, q_min: np.ndarray, q_max: np.ndarray, k_q: float) -> tuple[np.ndarray, np.ndarray]:
     """P_i (eq. 4.20, as `rhi.metrics.joint_limit_penalty`) and dP_i/dq_i for q: (n,) [rad].
@@ -106,7 +111,8 @@ class TMIMatching:
 
     Args:
         slave: the slave device.
-        slave_q: (n_s,) slave configuration [rad], or a callable returning it (the slave's encoders).
+        slave_q: (n_s,) slave configuration [rad], a callable returning it, or the slave `rhi.sim.Plant` (its
+            encoders `q` at each evaluation; `rhi.sim.simulate`'s compiled loop then computes ˢM itself).
         k_q: penalty shape of eq. 4.20 (> 0; chapter 5 uses 10), or None for the plain ME ᵐM = H J Jᵀ Hᵀ.
         penalize_slave: also use the slave's penalised Jacobian in ˢM.
         H: (m, m) master-to-slave velocity map (None: identity).
@@ -121,13 +127,15 @@ class TMIMatching:
             raise InvalidInput(f"k_q: must be finite and > 0 (or None), got {k_q!r}")
         self.slave, self.k_q, self.penalize_slave = slave, k_q, bool(penalize_slave)
         self.H = None if H is None else as_array("H", H, shape_tail=(slave.m, slave.m))
-        self._slave_q = slave_q if callable(slave_q) else as_array("slave_q", slave_q, shape_tail=(slave.n,))
+        self._plant = slave_q if hasattr(slave_q, "q") and hasattr(slave_q, "device") else None
+        self._slave_q = slave_q if callable(slave_q) or self._plant is not None else as_array(
+            "slave_q", slave_q, shape_tail=(slave.n,))
         self._cache: tuple[bytes, np.ndarray] | None = None
         self.slave_ellipsoid()  # validate now
 
     def slave_configuration(self) -> np.ndarray:
         """Current slave configuration: (n_s,) [rad]."""
-        q = self._slave_q() if callable(self._slave_q) else self._slave_q
+        q = self._plant.q if self._plant is not None else self._slave_q() if callable(self._slave_q) else self._slave_q
         q = np.asarray(q, dtype=float)
         if q.shape != (self.slave.n,) or not np.all(np.isfinite(q)):
             raise InvalidInput(f"slave_q: expected {self.slave.n} finite values, got {q.tolist()}")
@@ -175,6 +183,12 @@ class TMIMatching:
     def _gradient(self, device: DeviceModel, q: np.ndarray, J: np.ndarray, dJ: np.ndarray) -> np.ndarray:
         J, dJ = penalized(device, q, J, dJ, self.k_q)
         return jbld_velocity_gradient(self.slave_ellipsoid(), J, dJ, self.H)
+
+    def compiled(self, device: Device) -> CompiledObjective | None:
+        """VME matching of J^q J^qᵀ to ˢM read at each tick (the whole compiled tick); None with H or a penalised ˢM."""
+        if self.H is not None or (self.penalize_slave and self.k_q is not None):
+            return None
+        return CompiledObjective("vme_live", penalty=self.k_q, live=self.slave_ellipsoid, slave=self._plant)
 
 
 

@@ -40,8 +40,8 @@ class TickSources:
         why = []
         if kt is None or not kt.whole_ok:
             why.append("the controller's tick is not the whole compiled tick")
-        elif kt._scheduled or kt._prm[P_CLIPPED] != 0.0:
-            why.append("a scheduled objective or null_space='clipped'")
+        elif kt._scheduled or kt._prm[P_CLIPPED] != 0.0 or kt.live:
+            why.append("a scheduled objective, a Jacobian objective (TMI, manipulability) or null_space='clipped'")
         self.reason = "; ".join(why)
         if self.reason or kt is None:
             return

@@ -3,8 +3,8 @@
 `KernelTick` holds what does not change between ticks (limits, parameters, the desired VMEs
 and FMEs, output buffers). It asks the primary law and each objective for its compiled form
 (``compiled(device)``, `rhi.control.compiled`) and recognises no type: objectives whose form the kernels
-compute (VME matching and the FME schedule; in the whole tick also static FME matching and the joint-limit
-barrier) run inside them; in the composed tick every other objective and the barriers run their own
+compute (VME matching and the FME schedule; in the whole tick also static FME matching, the joint-limit
+barrier and the Jacobian objectives: TMI matching to a desired read each tick, manipulability) run inside them; in the composed tick every other objective and the barriers run their own
 `gradient_at` in Python and enter as two torque vectors.
 
 `KernelTick.whole` is the whole tick in one call of `rhi.control._compiled.whole` (device terms,
@@ -125,6 +125,8 @@ class KernelTick:
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
         static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
         python = []  # names of the objectives and barriers only Python computes (the whole tick does not apply)
+        jac: list = []  # the Jacobian objectives the whole tick computes (`rhi.control._compiled.objectives.pack`)
+        live: list = []  # (live, slave) of each: its desired of the tick, the slave plant it reads
         for gain, obj in ctrl.objectives:
             c = compiled_form(obj, dev)
             if c is not None and c.kind == "vme":
@@ -134,6 +136,10 @@ class KernelTick:
             self._grads.append((gain, gradient_function(obj, dev)))
             if c is not None and c.kind == "fme":
                 static.append((gain, c.w2, c.desired))
+            elif c is not None and c.kind in ("vme_live", "manipulability"):
+                code = _objectives.JBLD if c.kind == "vme_live" else _objectives.LOG_MU if c.log else _objectives.MU
+                jac.append((code, gain, c.penalty or 0.0, dev.q_min, dev.q_max, np.eye(m)))
+                live.append((c.live, c.slave))
             else:
                 python.append(type(obj).__name__)
         bars = []
@@ -166,11 +172,15 @@ class KernelTick:
         self.reason = "; ".join(why)
         #: the whole tick runs in `rhi.control._compiled.whole` (see `whole`)
         self.whole_ok = not why
+        self.live: list[tuple[int, Callable[[], np.ndarray] | None, object]] = []
         if self.whole_ok:
             law = _law_vector(compiled_law, n, m)
             self._law = law
             rows = limit_rows(dev) if bars else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
-            self._obj = _objectives.pack(n, m, static, bars, rows)
+            self._obj = _objectives.pack(n, m, static, bars, rows, jac)
+            # (slot of D in the objective vector, () -> D (m, m) or None, the slave plant D reads or None) of each
+            # Jacobian objective: `whole` writes D before each tick
+            self.live = [(_objectives.desired_slot(self._obj, n, m, i), fn, slave) for i, (fn, slave) in enumerate(live)]
             self._force = compiled_law.kind == "force"  # reads sensors["force"]
             self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
             self._no_force = np.zeros(m)
@@ -318,6 +328,9 @@ class KernelTick:
         if ps is not None and ps is not self._ps_of:
             self._load_passivity(ps)
         self._load_tank(s)
+        for slot, fn, _ in self.live:
+            if fn is not None:
+                self._obj[slot:slot + self._F.shape[1] ** 2] = fn().ravel()
         q, dq = _f64(q), _f64(dq)
         dev = ctrl.device
         last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already

@@ -25,7 +25,7 @@ from rhi.control._compiled.allocation import (
     tertiary,
     well_conditioned,
 )
-from rhi.control._compiled.objectives import objectives
+from rhi.control._compiled.objectives import N_OBJ, OBJ_BARRIER, OBJ_FME, OBJ_ROWS, objectives
 from rhi.control._compiled.step import (
     FALLBACK,
     OK,
@@ -102,7 +102,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     Jsharp = terms[at[7]:at[7] + n * m].reshape((n, m))
     Gx = terms[at[8]:at[8] + m]
     bar, fme_sum = np.zeros(n), np.zeros(n)  # as `rhi.control._compiled.whole.whole`
-    if obj[0] != 0.0 or obj[1] != 0.0:
+    if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
         objectives(obj, q, J, dJ, bar, fme_sum)
     a = mtv(J, F_r)
     b = mtv(J, F_x)
@@ -115,14 +115,14 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     damp = axpy(-prm[P_DAMPING], dq, np.zeros(n))
     tau_s = axpy(-prm[P_DAMPING], dq, bar)
     tau_to = tau_s
-    kf = int(obj[0])
+    kf = int(obj[OBJ_FME])
     pushes = np.zeros((kf + vme_gain.shape[0], n))
     for i in range(vme_gain.shape[0]):
         grad = vme_gradient(vme_D[i], J, dJ)
         tau_to = axpy(-vme_gain[i], grad, tau_to)
         pushes[kf + i] = axpy(-vme_gain[i], grad, np.zeros(n))
     tau_to = add(tau_to, fme_sum)
-    o = 3 + int(obj[2]) * (n + 2)
+    o = N_OBJ + int(obj[OBJ_ROWS]) * (n + 2)
     for i in range(kf):
         grad = fme_gradient(obj[o + 1 + n:o + 1 + n + m * m].reshape((m, m)), J, dJ, obj[o + 1:o + 1 + n])
         for j in range(n):

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from rhi.control._compiled import passivity
-from rhi.control._compiled.objectives import OBJ_BARRIER, OBJ_FME, objectives
+from rhi.control._compiled.objectives import OBJ_BARRIER, OBJ_FME, OBJ_JAC, objectives
 from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
 from rhi.devices._compiled.chain import chain_terms
 from rhi.devices._compiled.terms import assign, dot, mm, mtv, mv
@@ -108,7 +108,8 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         sch: the FME schedule of `rhi.control._compiled.step.tick` (empty: none).
         vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
         vme_gain: (k,) their gradient steps.
-        obj: the static FME-matching objectives and joint-limit barriers (`rhi.control._compiled.objectives.pack`).
+        obj: the static FME-matching objectives, joint-limit barriers and Jacobian objectives
+            (`rhi.control._compiled.objectives.pack`).
         pc: (N_PC,) the passivity layer's settings and state, advanced in place.
         pc_pos: (k,) its port position at the previous tick, written.
         pc_eff: (k,) its port effort at the previous tick, written.
@@ -138,7 +139,7 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
     Cx = buf[at[12]:at[12] + m * m].reshape((m, m))
     _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x)
     tau_s, tau_to = np.zeros(n), np.zeros(n)
-    if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
+    if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0 or obj[OBJ_JAC] != 0.0:
         objectives(obj, q, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
     tr0, tr1, tr2, tr3 = tr[0], tr[1], tr[2], tr[3]
     status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain,
