@@ -166,7 +166,7 @@ def test_ticks_handed_to_python_resume(rhi4, monkeypatch):
     handed = []
 
     def short(count, k0, *args):
-        lay = args[-3]
+        lay = args[-5]
         kernel(min(count, int(rng.integers(0, 40))), k0, *args)
         if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
             lay[fast_loop.L_OUT] = fast_loop.PYTHON

@@ -103,6 +103,28 @@ def test_known_u_equals_existing_controllers():
             np.testing.assert_allclose(log.tau, ref_tau, rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("estimator", ["filtered", "hmm"])
+def test_estimated_intent_runs_the_whole_tick(estimator):
+    """`IntentVME` on an estimator: VME matching to the u of each tick inside the whole compiled tick = the reference."""
+    dev = rhi.device("rhi4")
+    q0 = np.array([0.3, 0.5, 0.4, 0.3])
+    x0 = dev.fk(q0)
+    logs = {}
+    for impl in ("fast", "reference"):
+        est = FilteredIntent(m=2, u0=[1.0, 0.0], tau=0.05) if estimator == "filtered" else HMMIntent(m=2, u0=[1.0, 0.0])
+        ctrl = NullSpaceController(dev, ControllerConfig(primary=ImpedanceControl(damping=0.3), damping=0.05,
+                                                         objectives=(ObjectiveTerm(IntentVME(est, 0.01), 1.0),),
+                                                         saturation="none", implementation=impl))
+        wrapped = IntentController(ctrl, est)
+        hand = Hand(HandPath(np.array([x0, x0 + [0.02, 0.0], x0 + [0.02, 0.02]]), speed=0.1), stiffness=300.0)
+        logs[impl] = _run(dev, wrapped, q0, hand, duration=0.5), np.array([h[1] for h in wrapped.history])
+        assert (impl == "reference") or ctrl._kernel.whole_ok
+    (a, ua), (b, ub) = logs["fast"], logs["reference"]
+    assert axial_error(ua[-1], [1.0, 0.0]) > 0.5  # u turned with the motion
+    np.testing.assert_allclose(ua, ub, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a.tau, b.tau, rtol=0, atol=1e-9)
+
+
 def test_estimated_u_feeds_the_objective():
     est = FilteredIntent(m=2, u0=[1.0, 0.0], tau=0.01)
     obj = IntentVME(est, 0.01)

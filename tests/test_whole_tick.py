@@ -209,8 +209,10 @@ def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
 
 @pytest.mark.parametrize("saturation,null_space", [("none", "clipped"), ("ascm", "scaled")])
 def test_whole_tick_computes_the_jacobian_objectives(rhi4, saturation, null_space, rng):
-    """Chapter 5's objectives (TMI matching to a slave ME that moves every tick, −log μ, −μ; with and without the
-    joint-limit penalty) in the whole tick = the reference (their `gradient_at` in Python), to 1e-10."""
+    """Chapter 5's Jacobian objectives in the whole tick = the reference (their `gradient_at` in Python), to 1e-10.
+
+    TMI matching to a slave ME that moves every tick, −log μ and −μ, with and without the joint-limit penalty.
+    """
     slave = rhi.device("rehab_slave")
     qs = np.array([0.4, 1.2])
     for objectives in ((ObjectiveTerm(TMIMatching(slave, lambda: qs, k_q=10.0), 0.02),

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from rhi.control.compiled import CompiledObjective
 from rhi.control.intent import KnownIntent
 from rhi.control.objectives import (
     FMEMatching,
@@ -68,6 +69,10 @@ class IntentVME(_FollowsIntent):
 
     def _build(self, u: np.ndarray) -> VMEMatching:
         return VMEMatching(tuple(u.tolist()), self.beta)
+
+    def compiled(self, device: Device) -> CompiledObjective:
+        """VME matching to M_des of the estimator's u of each tick, computed by the whole compiled tick."""
+        return CompiledObjective("vme_live", live=lambda: self.current().desired())
 
 
 class IntentFME(_FollowsIntent):

@@ -4,8 +4,9 @@
 and FMEs, output buffers). It asks the primary law and each objective for its compiled form
 (``compiled(device)``, `rhi.control.compiled`) and recognises no type: objectives whose form the kernels
 compute (VME matching and the FME schedule; in the whole tick also static FME matching, the joint-limit
-barrier and the Jacobian objectives: TMI matching to a desired read each tick, manipulability) run inside them; in the composed tick every other objective and the barriers run their own
-`gradient_at` in Python and enter as two torque vectors.
+barrier and the Jacobian objectives: TMI matching to a desired read each tick, manipulability) run inside
+them; in the composed tick every other objective and the barriers run their own `gradient_at` in Python and
+enter as two torque vectors.
 
 `KernelTick.whole` is the whole tick in one call of `rhi.control._compiled.whole` (device terms,
 primary law, steps 2–6, the passivity layer) for a device whose chain the compiled kinematics

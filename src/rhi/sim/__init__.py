@@ -18,6 +18,7 @@ from rhi.sim.log import Event, Log, LogWriter
 from rhi.sim.loop import Session, simulate
 from rhi.sim.mjcf import PlantFriction, build_mjcf, plant_spec
 from rhi.sim.plant import Plant, PlantUnstable, device_friction
+from rhi.sim.probe import Probe
 from rhi.sim.telemetry import Telemetry
 from rhi.sim.teleop import Teleoperation
 
@@ -34,6 +35,7 @@ __all__ = [
     "Plant",
     "PlantUnstable",
     "PlantFriction",
+    "Probe",
     "PushForce",
     "Session",
     "Spring",

@@ -23,6 +23,7 @@ from rhi.errors import InvalidInput
 from rhi.sim.environment import describe
 from rhi.sim.log import Log, LogWriter, layout
 from rhi.sim.plant import Plant, unstable
+from rhi.sim.probe import Probe, Recorded
 from rhi.sim.telemetry import Telemetry
 
 
@@ -233,7 +234,7 @@ def simulate(
     progress: Callable[[int, int], None] | None = None,
     log=None,
     telemetry: Telemetry | None = None,
-    record: Callable[[], dict] | None = None,
+    record: Callable[[], dict] | Probe | None = None,
 ) -> Log:
     """Run the controller against the plant for `duration` seconds, as fast as the machine allows.
 
@@ -261,7 +262,8 @@ def simulate(
         record: called once per tick after the plant has advanced, returning ``{name: value}``
             of what else to log (e.g. a controller state the log has no column for); each name
             becomes ``Log.extra[name]`` of shape (N, *value.shape). Names must not change
-            between ticks.
+            between ticks. A `rhi.sim.Probe` records the loop's own state and keeps the run on the
+            compiled loop (`rhi.sim.probe`).
 
     Raises:
         InvalidInput: a bad duration or rate (named), a record name that is a log column or
@@ -301,7 +303,10 @@ def simulate(
     nan = math.nan
     every = max(1, N // 100)
     state = getattr(controller, "state", None)
-    recorded: dict[str, list] = {}
+    recorded = Recorded(c)
+    hook = record.hook(controller, sess) if isinstance(record, Probe) else record
+    if fast is not None:
+        fast.recorded = recorded
     step = controller.step
     sd, xv = plant._sd, np.concatenate([plant._pos, plant._vel]).astype(np.int64)
     perf = time.perf_counter
@@ -339,8 +344,8 @@ def simulate(
             row[i_sc] = sess.work
         t3 = perf()
         row[tail] = (k, t0 - t_start, t1 - t0, t2 - t1, t3 - t2, t3 - t0, 0.0, 0.0 if fault is None else 1.0)
-        if record is not None:
-            _record(recorded, record(), c, k)
+        if hook is not None:
+            recorded.tick(hook())
         if telemetry is not None:
             telemetry.publish(row, c, fault or w.fault)
         if fault is not None:
@@ -365,7 +370,7 @@ def simulate(
     finally:
         w.close()
     out = w.to_log()
-    out.extra = {name: np.array(v) for name, v in recorded.items()}
+    out.extra = recorded.arrays()
     return out
 
 
@@ -413,19 +418,6 @@ def _fast_block(fast, w: LogWriter, k: int, N: int, t_start: float, telemetry, p
         if out == PYTHON:
             return k, False
     return k, False
-
-
-def _record(recorded: dict[str, list], values: dict, columns: dict, k: int) -> None:
-    """Append one tick of a `record` hook's values to `recorded` (name -> list of values)."""
-    if k == 0:
-        clash = sorted(set(values) & set(columns))
-        if clash:
-            raise InvalidInput(f"record: {clash} are log columns already; name the recorded values differently")
-        recorded.update({name: [] for name in values})
-    elif values.keys() != recorded.keys():
-        raise InvalidInput(f"record: returned {sorted(values)} at tick {k}, {sorted(recorded)} before")
-    for name, v in values.items():
-        recorded[name].append(np.array(v))
 
 
 class Kinematics:

@@ -205,7 +205,7 @@ def intent_w_source(key: str, *, scale: float, speed: float, settle: float,
     plant = Plant(dev, friction=ch5.plant_friction("thesis", dev))
     plant.reset(q_m)
     log = simulate(plant, ctrl, duration=duration, hand=Hand(path, **ch5.TRACK), teleop=Teleoperation(sp),
-                   progress=progress, record=ch5.slave_q(sp))
+                   progress=progress, record=ch5.SLAVE_Q)
     if log.fault is not None:
         raise InvalidInput(f"intent_w_trajectory: the controller stopped in scenario {key!r}: {log.fault}")
     moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)

@@ -5,8 +5,6 @@ See `rhi.experiments.ch5` for the choices the thesis leaves open.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from rhi import thesis as T
@@ -15,7 +13,7 @@ from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.setups import positive
 from rhi.metrics import tmi
-from rhi.sim import HandPath, Plant, PlantFriction, w_path
+from rhi.sim import HandPath, PlantFriction, Probe, w_path
 
 D2 = 0.1405  #: rehab link 2 length in chapter 5 [m] (§5.4)
 Q_FIXED = np.array([-0.63, 0.25, 0.28, 0.09])  #: initial HI configuration of §5.4.1 [rad]
@@ -88,9 +86,8 @@ def controller(dev: Device, objective, gain: float, damping: float, *,
     return NullSpaceController(dev, cfg)
 
 
-def slave_q(slave: Plant) -> Callable[[], dict[str, np.ndarray]]:
-    """`simulate`'s record hook logging the slave's joint positions q_s (n_s,) [rad] each tick as "slave_q"."""
-    return lambda: {"slave_q": slave.q}
+#: `simulate`'s record hook logging the slave's joint positions q_s (n_s,) [rad] each tick as "slave_q".
+SLAVE_Q = Probe(slave_q="slave_q")
 
 
 def tme_area(Jm: np.ndarray, Js: np.ndarray) -> np.ndarray:

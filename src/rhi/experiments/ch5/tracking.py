@@ -18,6 +18,7 @@ from rhi.experiments.ch5.setup import (
     Q_FIXED,
     REHAB_SEED,
     SCENARIOS,
+    SLAVE_Q,
     SLAVE_SEED,
     SPEED,
     TABLE_5_1,
@@ -31,7 +32,6 @@ from rhi.experiments.ch5.setup import (
     devices,
     distance_to_polyline,
     plant_friction,
-    slave_q,
     tme_area,
     w_reference,
 )
@@ -188,7 +188,7 @@ def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progr
     tele = Teleoperation(sp)
     obj: TMIMatching | Manipulability | None
     if key == "s1":
-        obj = TMIMatching(slave, lambda tele=tele: tele.slave.q, k_q=k_q)
+        obj = TMIMatching(slave, sp, k_q=k_q)  # the slave's encoders at each tick
     elif key == "s2":
         obj = Manipulability(log=not setting.get("literal", False), k_q=k_q)
     else:
@@ -196,7 +196,7 @@ def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progr
     plant = Plant(dev, friction=plant_friction(friction, dev))
     plant.reset(np.array(start["Rehab" if key == "s3" else "RHI"]))
     log = simulate(plant, controller(dev, obj, gain, damping), duration=duration, hand=Hand(path, **TRACK),
-                   teleop=tele, progress=progress, record=slave_q(sp))
+                   teleop=tele, progress=progress, record=SLAVE_Q)
     qs = log.extra["slave_q"]
     moving = (log.t >= settle - 1e-9) & (log.t <= settle + path.duration + 1e-9)
     Jm, Js = dev.jacobian(log.q), slave.jacobian(qs)

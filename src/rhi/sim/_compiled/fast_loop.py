@@ -1,19 +1,23 @@
 """Many ticks of `rhi.sim.simulate` in one compiled call, for the runs it computes exactly.
 
 `FastLoop.build` accepts a run whose every part the kernels know: a `NullSpaceController` whose
-whole tick runs compiled (`KernelTick.whole_ok`), a hand that `rhi.sim._compiled.handle.hand_supported` accepts or none, a
-physical `Wall` or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, no teleoperation
-and no ``record`` hook. `ticks` then runs up to a block
+whole tick runs compiled (`KernelTick.whole_ok`; a TMI objective's slave ellipsoid read from the run's own
+teleoperated slave), a hand that `rhi.sim._compiled.handle.hand_supported` accepts or none, a physical `Wall`
+or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, a `rhi.sim.Teleoperation` or none, and
+no ``record`` hook or a `rhi.sim.Probe`. `ticks` then runs up to a block
 of ticks per call: the plant's sensors (`rhi.sim._compiled.io.sensors`), the handle's kinematics and
-the virtual environment (`rhi.sim._compiled.handle.handle_state`), the controller's input checks and whole tick
+the virtual environment (`rhi.sim._compiled.handle.handle_state`), the slave's torque and ellipsoid
+(`rhi.sim._compiled.slave.slave_torque`), the controller's input checks and whole tick
 (`rhi.control._compiled.whole`), the torque and a control period of physics steps with the hand and the
-physical wall (`rhi.sim._compiled.handle.hand_period`, MuJoCo's step by `rhi.sim.mjc`), and the log row.
+physical wall (`rhi.sim._compiled.handle.hand_period`, MuJoCo's step by `rhi.sim.mjc`), the slave's period
+(`rhi.sim._compiled.slave.slave_period`), the log row and the probe's snapshot row (`SNAPSHOT`).
 
 The arithmetic is that of the Python loop, so the log and the controller's state equal it. A tick the
 compiled loop does not decide — a non-finite reading, a non-finite torque, the kernel's FALLBACK or
-SINGULAR, a stopped controller not logged yet — ends the call *before* that tick with the controller's
-state as it was; the caller runs that tick in Python and resumes. A plant fault (non-finite handle force,
-diverged physics) ends it *after* the tick's row, as the Python loop does.
+SINGULAR, a stopped controller not logged yet, a non-finite slave torque — ends the call *before* that tick
+with the controller's state as it was; the caller runs that tick in Python and resumes. A plant fault
+(non-finite handle force, diverged physics) ends it *after* the tick's row, as the Python loop does; a
+diverged slave ends it without the row, and `FastLoop.run` raises the error `Plant.step` raises.
 
 Timing columns of compiled rows: ``t_tick`` the call's average per tick, ``wall`` interpolated from
 the call's start, ``t_read``, ``t_step`` and ``t_write`` NaN (not measured per tick), ``late`` 0.
@@ -28,6 +32,7 @@ import numpy as np
 
 from rhi.control._compiled import whole as _whole
 from rhi.control.controller import NullSpaceController
+from rhi.devices.terms import layout
 from rhi.jit import jit
 from rhi.sim._compiled.handle import (
     PERIOD_OK,
@@ -38,10 +43,17 @@ from rhi.sim._compiled.handle import (
     physical_constants,
 )
 from rhi.sim._compiled.io import log_row, sensors
+from rhi.sim._compiled.slave import slave_period, slave_torque
 from rhi.sim.environment import Wall
+from rhi.sim.plant import unstable
+from rhi.sim.probe import Probe
+from rhi.sim.teleop import Teleoperation
 
-#: How a call of `ticks` ended: every tick ran; the next tick is the Python loop's; a plant fault at the last tick.
-DONE, PYTHON, FAULT = 0, 1, 2
+#: How a call of `ticks` ended: every tick ran; the next tick is the Python loop's; a plant fault at the last
+#: tick; the slave diverged at the tick after the last (its physics step in lay[L_STATUS]).
+DONE, PYTHON, FAULT, SLAVE = 0, 1, 2, 3
+#: The snapshot row a `Probe` reads per tick: (state name, its columns' width as a function of (n, n_s)).
+SNAPSHOT = (("held", lambda n, ns: n), ("pc_scale", lambda n, ns: 1), ("slave_q", lambda n, ns: ns))
 
 #: Slots of the float state vector `st`: the session's time [s], work [J] and the last tick's logged
 #: controller values (V, Ω, α, β, E_obs, α_pc), the stopped flag, Σ dissipated [J], the last controller
@@ -49,8 +61,9 @@ DONE, PYTHON, FAULT = 0, 1, 2
 S_T, S_WORK, S_V, S_OMEGA, S_ALPHA, S_BETA, S_EOBS, S_APC, S_STOPPED, S_DISS, S_TLAST, S_CLIP, S_TICKS, S_PC = range(14)
 N_ST = 14
 #: Slots of the int vector `lay`: where q and work start in a row, where seq starts, the virtual wall flag,
-#: whether the law reads sensors["force"], sensors["ft"]; then (outputs) ticks run, outcome, plant status.
-L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS = range(9)
+#: whether the law reads sensors["force"], sensors["ft"]; then (outputs) ticks run, outcome, plant status; then
+#: (inputs) the teleoperation flag, where slave_x starts in a row, whether to write snapshot rows.
+L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS, L_TELE, L_SLAVE, L_SNAP = range(12)
 
 #: The compiled loop of the last `simulate` run, None where it ran in Python (set by `rhi.sim.loop.simulate`).
 last: FastLoop | None = None
@@ -66,7 +79,7 @@ def _finite(v):
 
 
 @jit
-def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows):
+def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows, tele, snap):
     """Run up to `count` ticks of the simulation loop from tick k0, one log row each (see the module docstring).
 
     Args:
@@ -87,12 +100,19 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         lay: (9,) int64 layout and outcome (L_* slots).
         xv: (2 m,) int64 sensordata indices of the handle's position and velocity.
         rows: (>= count, width) the log rows to write.
+        tele: the slave's (mj, sub, `slave_torque`'s arguments before x_master, ˢM (m, m), τ_s (n_s,), ctrl,
+            applied force, sensordata, (m,) int64 position indices, warnings, bad, (k,) int64 slots of ˢM in the
+            objective vector, the objective vector) (`FastLoop`; a stand-in where lay[L_TELE] is 0).
+        snap: (>= count, width) the snapshot rows (`SNAPSHOT`) to write where lay[L_SNAP].
     """
     n, m = ctrl.shape[0], F_hand.shape[0]
     tr, pc, pc_pos, pc_eff, tau, sat, res, tank, tank_q, tank_e = cs
     sd, idx, c, F, xfrc, acc, wn, bad, at = hand
+    mj_s, sub_s, pd, M_s, tau_s, ctrl_s, xfrc_s, sd_s, pos_s, wn_s, bad_s, slots, obj = tele
+    n_s = tau_s.shape[0]
     read = np.empty(2 * n + 6)
     kout = np.empty((3, m))
+    kx = np.empty((2, m))
     F_env = np.zeros(m)
     zero_n = np.zeros(n)
     tr0, pc0, pos0, eff0, tau0, sat0 = tr.copy(), pc.copy(), pc_pos.copy(), pc_eff.copy(), tau.copy(), sat.copy()
@@ -105,6 +125,18 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         if lay[L_VIRTUAL] != 0:
             handle_state(kin[0], kin[1], kin[2], q, dq, kout)
             F_env[:] = kout[2]
+        if lay[L_TELE] != 0:  # the slave follows the master's x of this tick (its torque now: its state is the tick's)
+            if lay[L_VIRTUAL] != 0:
+                kx[0] = kout[0]
+            else:
+                handle_state(kin[0], kin[1], kin[2], q, dq, kx)
+            if not _finite(kx[0]) or not slave_torque(*pd, kx[0], tau_s, M_s):
+                lay[L_OUT] = PYTHON
+                return
+            for o in slots:
+                for i in range(m):
+                    for k in range(m):
+                        obj[o + i * m + k] = M_s[i, k]
         cmd = zero_n
         if st[S_STOPPED] == 0.0:
             # the controller's input checks: a tick that fails one is the Python loop's
@@ -136,9 +168,26 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         st[S_WORK] = acc[0]
         if status == PERIOD_OK:
             F_hand[:] = F
+            if lay[L_TELE] != 0:
+                failed = slave_period(mj_s[0], mj_s[1], sub_s, ctrl_s, xfrc_s, tau_s, wn_s, bad_s)
+                if failed >= 0:
+                    lay[L_OUT], lay[L_STATUS] = SLAVE, failed
+                    return
         row = rows[j]
         row[0] = t
         log_row(row, lay[L_Q], read, cmd, sd, xv, F_hand, F_env)
+        if lay[L_TELE] != 0:
+            for i in range(m):
+                row[lay[L_SLAVE] + i] = sd_s[pos_s[i]]
+        if lay[L_SNAP] != 0:
+            srow = snap[j]
+            for i in range(n):
+                srow[i] = 1.0 if sat[i] else 0.0
+            srow[n] = pc[_whole.PC_SCALE] if pc[_whole.PC_ON] != 0.0 else math.nan
+            if lay[L_TELE] != 0:
+                ten, const = pd[0], pd[2]
+                for i in range(n_s):
+                    srow[n + 1 + i] = ten[i] - const[i]
         o = lay[L_WORK]
         row[o], row[o + 1], row[o + 2], row[o + 3] = st[S_WORK], st[S_V], st[S_OMEGA], st[S_ALPHA]
         row[o + 4], row[o + 5], row[o + 6] = st[S_BETA], st[S_EOBS], st[S_APC]
@@ -172,9 +221,10 @@ class FastLoop:
 
     Attributes:
         calls: compiled calls made; ticks: ticks they ran (the Python loop ran the others).
+        recorded: where `run` appends the `Probe`'s values of its ticks (`rhi.sim.probe.Recorded`), or None.
     """
 
-    def __init__(self, sess, controller, kin, columns: list[tuple[str, int]]) -> None:
+    def __init__(self, sess, controller, kin, columns: list[tuple[str, int]], probe: Probe | None = None) -> None:
         plant, kt = sess.plant, controller._kernel
         self.sess, self.ctrl, self.kt = sess, controller, kt
         m = plant.m
@@ -198,11 +248,32 @@ class FastLoop:
         names = [name for name, _ in columns]
         at = dict(zip(names, np.cumsum([0] + [width for _, width in columns]).tolist()))
         need = set(controller._sensors)
-        self._lay = np.array([at["q"], at["work"], at["seq"], int(kin is not None), int("force" in need),
-                              int("ft" in need), 0, 0, 0], dtype=np.int64)
+        tele = sess.teleop
+        self._lay = np.array([at["q"], at["work"], at["seq"], int(kin is not None and kin._fused), int("force" in need),
+                              int("ft" in need), 0, 0, 0, int(tele is not None), at.get("slave_x", 0),
+                              int(probe is not None)], dtype=np.int64)
         self._xv = np.concatenate([plant._pos, plant._vel]).astype(np.int64)
         self._st = np.zeros(N_ST)
         self._F_hand = np.zeros(m)
+        # the slave's arguments of `ticks` (the master's own arrays as a stand-in without teleoperation: same types)
+        sp = plant if tele is None else tele.slave
+        sdev = controller.device if tele is None else sp.device
+        fast, n_s = sdev._fast_maps, sp.n
+        slots = [slot for slot, _, slave in kt.live if tele is not None and slave is tele.slave]
+        gains = np.zeros(3) if tele is None else np.array([tele.kp, tele.kd, tele.scale])
+        R, off = (np.eye(m), np.zeros(m)) if tele is None else (np.ascontiguousarray(tele.R), tele.p.copy())
+        pd = (sp._ten, sp._tenv, sp._const, (*fast.chain, sdev.A, sdev.b, fast.rows_idx, sdev.armature, fast.supports,
+                                            fast.identity), layout(n_s, m)[1], np.empty(m), np.empty(fast.size), gains,
+              R, off)
+        self._sub_s = 0 if tele is None else max(1, round(sess.dt / sp.timestep))
+        self._tele = ((sp.model._address, sp.data._address), self._sub_s, pd, np.empty((m, m)), np.empty(n_s),
+                      sp._ctrl, sp._xfrc, sp._sd, sp._pos.astype(np.int64), sp._wnum, np.array(sp._bad, dtype=np.int64),
+                      np.array(slots, dtype=np.int64), kt._obj)
+        self.probe, self.recorded = probe, None
+        widths = [w(plant.n, n_s if tele is not None else 0) for _, w in SNAPSHOT]
+        ends = np.cumsum([0, *widths]).tolist()
+        self._snap_at = {name: (ends[i], ends[i + 1]) for i, (name, _) in enumerate(SNAPSHOT)}
+        self._snap_width = ends[-1]
         self.calls = self.ticks = 0
 
     @staticmethod
@@ -210,13 +281,15 @@ class FastLoop:
         """The compiled loop for this run (log `columns`), or None where some part of it is only Python's (`why_not`)."""
         if FastLoop.why_not(sess, controller, kin, virtual=virtual, teleop=teleop, record=record):
             return None
-        return FastLoop(sess, controller, kin, columns)
+        return FastLoop(sess, controller, kin, columns, record)
 
     @staticmethod
     def why_not(sess, controller, kin, *, virtual, teleop, record) -> str:
         """Why this run is not one the compiled loop computes ("" where it is; see the module)."""
-        if teleop is not None or record is not None:
-            return "teleoperation" if teleop is not None else "a record hook"
+        if record is not None and not isinstance(record, Probe):
+            return "a record hook (not a rhi.sim.Probe)"
+        if isinstance(record, Probe) and teleop is None and "slave_q" in record.names.values():
+            return "the probe records a slave but the run has no teleoperation"
         if type(controller) is not NullSpaceController:
             return f"the controller is a {type(controller).__name__}, not a NullSpaceController"
         if controller._kernel is None or not controller._kernel.whole_ok:
@@ -235,12 +308,25 @@ class FastLoop:
             return f"the physical environment ({type(phys).__name__}) is not a Wall"
         if virtual is not None and (kin is None or kin._compiled is None or not kin._fused):
             return f"the virtual environment ({type(virtual).__name__}) is not one the compiled loop computes"
+        for _, fn, slave in controller._kernel.live:
+            if fn is not None and (slave is None or slave is not getattr(teleop, "slave", None)):
+                return "a Jacobian objective's desired ellipsoid is read in Python each tick (not the run's slave)"
+        if teleop is not None:
+            sp = teleop.slave
+            if type(teleop) is not Teleoperation or kin is None or kin._compiled is None:
+                return f"the teleoperation ({type(teleop).__name__}) or the master's kinematics are not compiled"
+            if sp.device._fast_maps.chain is None or sp.m != m or teleop.R.shape != (m, m):
+                return "the slave's chain is not one the compiled kinematics handle, or its task differs in size"
         return ""
 
     def run(self, k0: int, rows: np.ndarray) -> tuple[int, int]:
         """Ticks k0, k0 + 1, ... into `rows` (at most all of them): (ticks run, outcome DONE / PYTHON / FAULT).
 
-        On FAULT the session holds its fault (`Session.fault`) and the last row is the tick's.
+        On FAULT the session holds its fault (`Session.fault`) and the last row is the tick's. The `Probe`'s
+        values of the ticks run go to `recorded`.
+
+        Raises:
+            PlantUnstable: the teleoperated slave's physics diverged (as `rhi.sim.Plant.step`).
         """
         sess, ctrl, kt = self.sess, self.ctrl, self.kt
         s, st = ctrl.state, self._st
@@ -253,10 +339,20 @@ class FastLoop:
             kt._load_passivity(ps)
             kt._load_tank(s)
         self._F_hand[:] = sess.F_hand
+        if s.saturated is not None:  # the held set and λ as Python left them: what the probe reads until a tick
+            kt._sat[:] = s.saturated
+        if ps is not None:
+            kt._pc[_whole.PC_SCALE] = ps.scale
         lay = self._lay
+        snap = np.empty((len(rows) if self.probe is not None else 1, max(self._snap_width, 1)))
+        t_slave = None if sess.teleop is None else sess.teleop.slave.data.time
         ticks(len(rows), k0, sess.dt, sess.sub, self._mj, self._sens, self._kin, self._hand, sess.plant._ctrl,
-              self._F_hand, self._wargs, self._cs, st, lay, self._xv, rows)
+              self._F_hand, self._wargs, self._cs, st, lay, self._xv, rows, self._tele, snap)
         done, out = int(lay[L_DONE]), int(lay[L_OUT])
+        if sess.teleop is not None and done:
+            sess.slave_x = sess.teleop.slave.x.copy()
+        if self.probe is not None and self.recorded is not None and done:
+            self.recorded.block(self._probe_values(snap[:done]))
         self.calls += 1
         self.ticks += done
         sess.t, sess.work, sess.F_hand = float(st[S_T]), float(st[S_WORK]), self._F_hand.copy()
@@ -272,4 +368,15 @@ class FastLoop:
                 kt._store_passivity(s, ps, float(st[S_TLAST]), float(st[S_DISS]))
         if out == FAULT:
             sess._stop(sess._fault(int(lay[L_STATUS]), float(st[S_T])))
+        if out == SLAVE and t_slave is not None:
+            raise unstable(t_slave + (done * self._sub_s + int(lay[L_STATUS])) * sess.teleop.slave.timestep)
         return done, out
+
+    def _probe_values(self, snap: np.ndarray) -> dict[str, np.ndarray]:
+        """The probe's {log name: (k, ...)} from k snapshot rows (bool for "held", a scalar per tick for "pc_scale")."""
+        out = {}
+        for name, what in self.probe.names.items() if self.probe is not None else ():
+            lo, hi = self._snap_at[what]
+            a = snap[:, lo:hi]
+            out[name] = a != 0.0 if what == "held" else a[:, 0].copy() if what == "pc_scale" else a.copy()
+        return out
