@@ -329,9 +329,9 @@ class KernelTick:
         if ps is not None and ps is not self._ps_of:
             self._load_passivity(ps)
         self._load_tank(s)
-        for slot, fn, _ in self.live:
-            if fn is not None:
-                self._obj[slot:slot + self._F.shape[1] ** 2] = fn().ravel()
+        for slot, live, _ in self.live:
+            if live is not None:
+                self._obj[slot:slot + self._F.shape[1] ** 2] = live().ravel()
         q, dq = _f64(q), _f64(dq)
         dev = ctrl.device
         last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already
