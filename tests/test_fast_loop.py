@@ -235,7 +235,7 @@ def test_tank_equals_python_loop(rhi4, monkeypatch, port):
     rng = np.random.default_rng(6)
 
     def short(count, k0, *args):
-        lay = args[-3]
+        lay = args[-5]
         kernel(min(count, int(rng.integers(0, 40))), k0, *args)
         if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
             lay[fast_loop.L_OUT] = fast_loop.PYTHON
