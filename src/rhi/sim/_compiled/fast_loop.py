@@ -46,7 +46,7 @@ from rhi.sim._compiled.io import log_row, sensors
 from rhi.sim._compiled.slave import slave_period, slave_torque
 from rhi.sim.environment import Wall
 from rhi.sim.plant import unstable
-from rhi.sim.probe import Probe
+from rhi.sim.probe import Probe, Recorded
 from rhi.sim.teleop import Teleoperation
 
 #: How a call of `ticks` ended: every tick ran; the next tick is the Python loop's; a plant fault at the last
@@ -269,7 +269,8 @@ class FastLoop:
         self._tele = ((sp.model._address, sp.data._address), self._sub_s, pd, np.empty((m, m)), np.empty(n_s),
                       sp._ctrl, sp._xfrc, sp._sd, sp._pos.astype(np.int64), sp._wnum, np.array(sp._bad, dtype=np.int64),
                       np.array(slots, dtype=np.int64), kt._obj)
-        self.probe, self.recorded = probe, None
+        self.probe = probe
+        self.recorded: Recorded | None = None
         widths = [w(plant.n, n_s if tele is not None else 0) for _, w in SNAPSHOT]
         ends = np.cumsum([0, *widths]).tolist()
         self._snap_at = {name: (ends[i], ends[i + 1]) for i, (name, _) in enumerate(SNAPSHOT)}
