@@ -109,6 +109,7 @@ def every_device(n: int, loop_n: int) -> None:
           f"{'J,M + rho,Lambda,mu':>22}{'loop':>12}{'ratio':>8}{'rho,Lambda,mu alone':>22}")
     from rhi.devices import batch
 
+    alone: dict[tuple[int, int], list[float]] = {}  # (n, m) -> measures alone per configuration [s]
     for dev in devices():
         rng = np.random.default_rng(0)
         Q = rng.uniform(np.maximum(dev.q_min, -np.pi), np.minimum(dev.q_max, np.pi), size=(n, dev.n))
@@ -125,6 +126,10 @@ def every_device(n: int, loop_n: int) -> None:
         t = batch.terms(dev, Q, ("J", "M"))
         t_m = best_of(lambda t=t, u=u: measures_of(t["J"], t["M"], u), 20)
         print(f"{dev.name:<15}{dev.n:>3}{dev.m:>3}{cells[0]:>32}{cells[1]:>42}{t_m / n * 1e9:15.0f} ns/conf")
+        alone.setdefault((dev.n, dev.m), []).append(t_m / n)
+    for k in sorted({k for k, _ in alone if (k, 2) in alone and (k, 3) in alone}):
+        print(f"rho, Lambda, mu alone at n = {k}: m = 3 / m = 2 per configuration "
+              f"{min(alone[k, 3]) / min(alone[k, 2]):.2f}x (fastest device of each)")
     print()
 
 

@@ -309,6 +309,27 @@ def test_triangle_measures_equal_the_svd_route(rng, m, n):
     np.testing.assert_array_equal(rm.manipulability(B), mu)
 
 
+def test_three_row_closed_form_equals_the_triangle(rng):
+    """ρ and μ of three-row maps from the 3×3 Gram by cofactors equal the triangle's where it takes them; it leaves the rest."""
+    from rhi.metrics._common import _GRAM_COND_MAX, _TRIANGLE_COND_MAX
+    from rhi.metrics._small import gram3_rows, radius_rows
+
+    B = rng.normal(size=(3000, 3, 6)) * 10.0 ** rng.uniform(-3, 3, (3000, 1, 1))
+    B[:1000, 2] = B[:1000, 0] + 10.0 ** rng.uniform(-8, 0, (1000, 1)) * rng.normal(size=(1000, 6))
+    B[1000:1010] = 0.0
+    u = random_unit(rng, 3, (3000,))
+    got, ref = [np.empty(3000) for _ in range(2)], [np.empty(3000) for _ in range(2)]
+    hard, hard_ref = np.empty(3000, dtype=np.int8), np.empty(3000, dtype=np.int8)
+    gram3_rows(B, u, _GRAM_COND_MAX, got[0], got[1], hard)
+    radius_rows(B, u, _TRIANGLE_COND_MAX, ref[0], ref[1], hard_ref)
+    cond = np.linalg.cond(B)
+    assert hard[cond > 1.01 * np.sqrt(_GRAM_COND_MAX)].all() and not hard[cond < 0.3 * np.sqrt(_GRAM_COND_MAX)].any()
+    assert hard[1000:1010].all() and 0 < hard.sum() < 3000
+    ok = hard == 0
+    np.testing.assert_allclose(got[0][ok], ref[0][ok], rtol=1e-12)
+    np.testing.assert_allclose(got[1][ok], ref[1][ok], rtol=1e-12)
+
+
 def test_compiled_whitening_matches_lapack(rng):
     """Λ and M_x of large batches (the compiled Cholesky) equal the per-matrix LAPACK path; bad M raises NotSPD."""
     from rhi.metrics._common import SMALL_BATCH_MIN

@@ -234,6 +234,9 @@ def _svd_rows(B: FloatArray, want_u: bool) -> tuple[FloatArray, FloatArray]:
 #: `radius_rows` takes the triangle's values where ‖L‖_F ‖L⁻¹‖_F (>= the condition number) is at most this; the
 #: SVD takes the others (far from `SINGULAR_RTOL`: the two agree to ~1e-16 times it, relative).
 _TRIANGLE_COND_MAX = 1e4
+#: Three-row maps take the closed form of their Gram G = BBᵀ where ‖G‖_F ‖G⁻¹‖_F is at most this (forming G squares
+#: the condition number: the error stays ~1e-12 relative), the triangle the others.
+_GRAM_COND_MAX = 1e4
 
 
 def _triangular(B: FloatArray) -> bool:
@@ -243,7 +246,7 @@ def _triangular(B: FloatArray) -> bool:
 
 def _triangle_measures(B: FloatArray, u: FloatArray | None) -> tuple[FloatArray, FloatArray]:
     """(ρ along u (...,), empty without u; μ (...,)) of a `_triangular` batch B (..., m, n), as the SVD route gives them."""
-    from rhi.metrics._small import radius_rows  # Numba: imported on the first large batch
+    from rhi.metrics._small import gram3_rows, radius_rows  # Numba: imported on the first large batch
 
     m, n = B.shape[-2:]
     lead = B.shape[:-2] if u is None else np.broadcast_shapes(B.shape[:-2], u.shape[:-1])
@@ -251,7 +254,15 @@ def _triangle_measures(B: FloatArray, u: FloatArray | None) -> tuple[FloatArray,
     uf = (np.empty((0, m)) if u is None
           else np.ascontiguousarray(np.broadcast_to(u, lead + (m,)), dtype=float).reshape(-1, m))
     rho, mu, hard = np.empty(flat.shape[0]), np.empty(flat.shape[0]), np.empty(flat.shape[0], dtype=np.int8)
-    radius_rows(flat, uf, _TRIANGLE_COND_MAX, rho, mu, hard)
+    if m == 3:  # the closed form first; the triangle for the maps it leaves
+        gram3_rows(flat, uf, _GRAM_COND_MAX, rho, mu, hard)
+        k = np.flatnonzero(hard)
+        if k.size:
+            rho_k, mu_k, hard_k = np.empty(k.size), np.empty(k.size), np.empty(k.size, dtype=np.int8)
+            radius_rows(flat[k], uf[k] if u is not None else uf, _TRIANGLE_COND_MAX, rho_k, mu_k, hard_k)
+            rho[k], mu[k], hard[k] = rho_k, mu_k, hard_k
+    else:
+        radius_rows(flat, uf, _TRIANGLE_COND_MAX, rho, mu, hard)
     k = np.flatnonzero(hard)
     if k.size:
         s, U = principal_axes_of_map(flat[k])

@@ -18,6 +18,8 @@ compiled loop walks the batch:
 * `radius_rows`: ρ along u and μ from the triangle L of ``B = L E`` alone (a triangular solve and a
   product of pivots instead of the Jacobi sweeps), for the clearly regular maps; the caller takes
   `svd_rows` for the few others, whose lost axes need the singular vectors.
+* `gram3_rows`: the same ρ and μ of three-row maps in closed form (the 3×3 Gram by cofactors), for the well
+  conditioned ones; the caller takes `radius_rows` for the others.
 
 Numba is imported with this module, on the first large batch, not with ``import rhi.metrics``.
 """
@@ -340,3 +342,56 @@ def inertia_along(J, M, u, sym_rtol, zero_rtol, lam, bad):
         for b in range(nb):
             nv = np.sqrt(e[b])
             lam[i0 + b] = np.inf if nv <= zero_rtol * np.sqrt(fro[b]) else 1.0 / (nv * nv)
+
+
+@jit
+def gram3_rows(B, u, cond_max, rho, mu, hard):
+    """ρ and μ as `radius_rows` for three-row maps B (K, 3, n) in closed form, from the Gram G = BBᵀ by cofactors.
+
+    With scale = 1 / max |B| and G of B·scale: μ = √det G / scale³, ρ = √(det G / uᵀ adj(G) u) / scale. Forming G
+    squares the condition number, so hard (K,) int8 is 1 where ‖G‖_F ‖G⁻¹‖_F > cond_max (or det G <= 0): ρ and μ
+    are then unspecified and the caller takes `radius_rows`. u (K, 3) unit directions, or (0, 3): ρ not computed.
+    Blocks of `BLOCK` maps, batch index last (SIMD over the block).
+    """
+    K, _, n = B.shape
+    want_rho = u.shape[0] > 0
+    G = np.empty((6, BLOCK))  # g00 g01 g02 g11 g12 g22
+    sc = np.empty(BLOCK)
+    for i0 in range(0, K, BLOCK):
+        nb = min(BLOCK, K - i0)
+        for b in range(nb):
+            sc[b] = 0.0
+        for r in range(3):
+            for c in range(n):
+                for b in range(nb):
+                    sc[b] = max(sc[b], abs(B[i0 + b, r, c]))
+        for b in range(nb):
+            sc[b] = 1.0 / sc[b] if sc[b] > 0.0 else 1.0
+        for k in range(6):
+            for b in range(nb):
+                G[k, b] = 0.0
+        for c in range(n):
+            for b in range(nb):
+                x, y, z = B[i0 + b, 0, c] * sc[b], B[i0 + b, 1, c] * sc[b], B[i0 + b, 2, c] * sc[b]
+                G[0, b] += x * x
+                G[1, b] += x * y
+                G[2, b] += x * z
+                G[3, b] += y * y
+                G[4, b] += y * z
+                G[5, b] += z * z
+        for b in range(nb):
+            g00, g01, g02, g11, g12, g22 = G[0, b], G[1, b], G[2, b], G[3, b], G[4, b], G[5, b]
+            a00, a01, a02 = g11 * g22 - g12 * g12, g02 * g12 - g01 * g22, g01 * g12 - g02 * g11  # adj(G), symmetric
+            a11, a12, a22 = g00 * g22 - g02 * g02, g01 * g02 - g00 * g12, g00 * g11 - g01 * g01
+            det = g00 * a00 + g01 * a01 + g02 * a02
+            big = g00 * g00 + g11 * g11 + g22 * g22 + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12)
+            small = a00 * a00 + a11 * a11 + a22 * a22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)
+            ok = det > 0.0 and big * small <= (cond_max * det) ** 2
+            hard[i0 + b] = 0 if ok else 1
+            d = det if ok else 1.0
+            s = sc[b]
+            mu[i0 + b] = np.sqrt(d) / (s * s * s)
+            if want_rho:
+                x, y, z = u[i0 + b, 0], u[i0 + b, 1], u[i0 + b, 2]
+                q = a00 * x * x + a11 * y * y + a22 * z * z + 2.0 * (a01 * x * y + a02 * x * z + a12 * y * z)
+                rho[i0 + b] = np.sqrt(d / (q if ok else 1.0)) / s
