@@ -11,7 +11,7 @@ from rhi.experiments.result import Result
 
 _NAMES = {
     "objectives": "objectives, no PC",
-    "objectives_pc": "objectives, PC (motors)",
+    "objectives_pc": "objectives, PC: damper + bounding (motors)",
     "objectives_damper": "objectives, damper only (motors)",
     "objectives_bounding": "objectives, bounding only (motors)",
     "objectives_tank": "objectives on the null-space tank, no PC",
@@ -46,9 +46,9 @@ def energy(result: Result) -> Figure:
 
 
 def force(result: Result) -> Figure:
-    """Rendered force along u against the wall K_e δX, without and with the passivity controller."""
+    """Rendered force along u against the wall K_e δX, without and with the passivity controller (its methods)."""
     a = result.arrays
-    cases = [c for c in ("objectives", "objectives_pc", "bare", "bare_pc") if f"{c}_t" in a]
+    cases = [c for c in ("objectives", "objectives_pc", "objectives_damper", "bare", "bare_pc") if f"{c}_t" in a]
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for k, c in enumerate(cases):
         ax.plot(1e3 * a[f"{c}_pen"], a[f"{c}_F"], ".", ms=1.5, color=f"C{k}", label=_NAMES[c])
