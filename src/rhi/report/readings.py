@@ -87,6 +87,19 @@ CH5_W_CHECKED = (f"the TMI of eqs. 4.11–4.17 (1e-10) and the gradient of eq. 5
 CH6_CHECKED = (f"one tick of the §6.4 controller equals {_TR} (eqs. 6.2–6.6, 6.9–6.10) inside the torque box (1e-6 N m) "
                "and, with each joint clipped at its programmed limit, in saturation at β = 20 "
                "(tests/test_transcription_ch5_ch6.py)")
+CH6_MATCH_CHECKED = (CH6_CHECKED + "; the matched configurations at X₀ are where eqs. 6.2–6.6, transcribed as a flow "
+                     "along the self-motion manifold with the handle held, settle from each of rhi's starts and from "
+                     "q = 0 (1e-5 rad): the global minima of the cost the controller descends (ν 0.239 / 0.466 with "
+                     "rhi's limit barrier), not local ones (tests/test_transcription_ch6_matching.py)")
+STOPS = "the minima of eq. 6.10 alone within the joint limits (the thesis's law on hard stops)"
+STOPS_WHY = ("eq. 6.6 (line 1274): τ_S = −β∂ν/∂q − K_d q̇ has no limit term; on the hardware's §5.4 stops the flow "
+             "slides to ν's lowest point within them (ch6.palpation rows 'JBLD ν … at the minimum of eq. 6.10 alone')")
+CH6_MAP_CHECKED = ("the matching (eqs. 6.2–6.6 as a flow along the self-motion manifold, 6.9–6.10, rhi's stated limit "
+                   "barrier) and F_max by force scaling, transcribed in plain NumPy with its own kinematics of eq. "
+                   "6.20, give rhi's F_max ratio at every reached point of a 3 × 3 grid to 1e-6, and the unweighted "
+                   "FME moves it by > 0.1 % (tests/test_transcription_ch6_matching.py). It found a bug, fixed: SLSQP "
+                   "alone jumped at some points to a minimum in another basin than the controller's flow reaches from "
+                   "the same start (2 of the 34 points of the 7 × 7 quick grid when it was found)")
 CH7_CHECKED = ("rhi's ASCM with J⁺ equals Algorithm 1 as printed to 1e-9 N m; with J# the static capability and Fig. "
                "7.1's deficit equal Algorithm 1's (tests/test_transcription_ch7.py)")
 APPA_CHECKED = (f"the App. A controller equals {_TR} (eqs. A.5–A.21) to 1e-6 rad/s on every sampled state of the "
@@ -150,10 +163,13 @@ _D = [
             "points",
             (Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "", measure=_fit_order("3.2")),),
             missing="the hardware's friction and the force-sensor records of the identification (line 656)",
-            checked="not transcribed; the run compares the least-squares fit with eq. 3.13's Λ of the same simulated "
-                    "plant (ch3.sysid_table_3_2 rows 'largest |identified − eq. 3.13|' and '… Λ/(1 − k)'), and the "
-                    "plant's Λ at the second point differs by < 0.01 % between the RHI and the PHANToM (rows 'Λ eq. 3.13 at "
-                    "the plant's configuration'), so the order there rests on the fit's noise"),
+            checked="eq. 3.24's least-squares fit, transcribed in plain NumPy (its own quadratic-fit derivatives, "
+                    "SciPy's Butterworth in transfer-function form, numpy.linalg.lstsq), equals rhi's identified Λ and "
+                    "B on the same logged trials of the RHI and the PHANToM at both points to 1e-8 (without the "
+                    "low-pass Λ moves 0.5–0.8 %) and orders Λ_RHI, Λ_PHANToM at the second point as rhi's fit does "
+                    "(tests/test_transcription_table_3_2.py); the plant's eq. 3.13 Λ there differs by < 0.1 % between "
+                    "the RHI and the PHANToM (rows 'Λ eq. 3.13 at the plant's configuration'), so the order there "
+                    "rests on the fit's noise"),
     *[Dossier(key, "§3.5–3.6, Table 3.3 (line 691), line 699", literal, missing=SUBJECTS)
       for key, literal in (("table3_3.wf_order", "mean WF over the subjects, RHI < PHANToM < Rehab"),
                            ("s3_6.anova.p", "one-way ANOVA on the subjects' WF, p"),
@@ -222,9 +238,10 @@ _D = [
                      "capability of the RHI' (a capability, not a measured peak)", "ch6.palpation",
                      "force gain, force scaling at the settled"),
              Reading(J_PLUS, J_PLUS_WHY, "ch6.palpation", "force gain M_Stiff vs M_Free, simulated sensor peak, "
-                     "controller with J⁺")),
+                     "controller with J⁺"),
+             Reading(STOPS, STOPS_WHY, "ch6.palpation", "force gain, force scaling at the minima of eq. 6.10 alone")),
             missing="the hardware's friction and the human hand's stiffness during the palpation",
-            checked=CH6_CHECKED),
+            checked=CH6_MATCH_CHECKED),
     *[Dossier(f"table6_1.{c}.F_max", "§6.4, Table 6.1 (line 1442)",
               f"peak simulated F/T-sensor force along u with M_{c.capitalize()}^des, J#",
               (Reading("static force scaling at the settled configuration", "Table 6.1 caption: 'maximum force "
@@ -232,9 +249,11 @@ _D = [
                        f"F_max along u, M_{c.capitalize()}^des: force scaling at the settled"),
                Reading("LP with null-space torques at the settled configuration", "§7.2's F_max (eq. 7.4) is an LP "
                        "over the torque box", "ch6.palpation", f"F_max along u, M_{c.capitalize()}^des: LP with "
-                       "null-space torques")),
+                       "null-space torques"),
+               Reading(STOPS, STOPS_WHY, "ch6.palpation", f"F_max along u, M_{c.capitalize()}^des: force scaling at "
+                       "the minimum of eq. 6.10 alone")),
               missing="the hardware's friction and the human hand's stiffness during the palpation",
-              checked=CH6_CHECKED)
+              checked=CH6_MATCH_CHECKED)
       for c in ("free", "stiff")],
     Dossier("table6_1.M_x_ratio", "§6.4, Table 6.1 (line 1442)",
             "identified M_x(M_Stiff)/M_x(M_Free), eq. 3.24 on the simulated plant, J#",
@@ -266,7 +285,8 @@ _D = [
             "F_max (force scaling) with the M_Stiff^des configuration above that with M_Free^des at every grid point",
             (Reading("LP with null-space torques", "line 1459: 'the maximum force feedback capability'",
                      "ch6.fmax_ratio_map", "fraction of points with ratio > 1, LP", _all),),
-            missing="the grid and the configurations of Fig. 6.10 (a map only, no numbers)"),
+            missing="the grid and the configurations of Fig. 6.10 (a map only, no numbers)",
+            checked=CH6_MAP_CHECKED),
     *[Dossier(key, "§6.4, Fig. 6.11 (line 1469)", literal,
               (Reading("the same at β = 2", "line 1414 gives β = 20; the figure shows no saturation, which β = 2 "
                        "avoids in rhi's plant", "ch6.transition", w, below=wo),),

@@ -11,9 +11,10 @@ Set-up and the choices the thesis leaves open (each fixed before comparing with 
   torque-weighted FME at the home configuration (rhi4: q = 0 gives 𝒦 = 123.0, ζ = 3.34;
   the 3-DoF example: its initial configuration, 𝒦 = 5 × 5.79, ζ = 2.58/5). M_Free^des has
   its minor axis ζ along the motion u, M_Stiff^des its major axis 𝒦 along the contact force.
-- **Configuration reached by FME matching** (`match_fme`): the minimiser of the
-  controller's null-space cost on the self-motion manifold f(q) = x, reached from a start
-  configuration (SLSQP, equality f(q) = x and the joint limits as constraints). For the
+- **Configuration reached by FME matching** (`match_fme`): where the controller's null-space
+  flow (eqs. 6.3–6.6 with the handle held) settles from a start configuration, sliding along
+  the joint limits it meets (`rhi.control.configuration.null_space_descent`; SLSQP alone could
+  jump to a minimum in another basin, which the controller never reaches). For the
   3-DoF example the start is the thesis's initial configuration (the null-space controller
   converges from there with the end-effector held). On rhi4 the start is the IK solution
   from the home configuration q = 0 plus `starts − 1` seeded configurations, and the best

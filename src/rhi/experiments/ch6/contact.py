@@ -105,6 +105,10 @@ def palpation(
     total = 2 * ticks * len(projectors)
     q_opts = {case: best_match(dev, x0, WeightedSum(controller_terms(desired[case], hi, limits=limits)),
                                starts=starts) for case in CASES}
+    # the thesis's law on hard stops (no barrier): the flow slides along the stops to eq. 6.10's minimum within them
+    q_stops = {case: best_match(dev, x0, FMEMatching(desired[case], hi), starts=starts) for case in CASES}
+    stops = {case: (float(max_force_scaling(dev.jacobian(q), u, torque_min=lo, torque_max=hi)),
+                    float(FMEMatching(desired[case], hi).value(dev, q))) for case, q in q_stops.items()}
     for j, proj in enumerate(projectors[1:], start=1):  # the other projectors: simulated peaks only
         tag = "J#" if proj == "dynamic" else "J⁺"
         for i, case in enumerate(CASES):
@@ -182,6 +186,9 @@ def palpation(
             gain(stat["stiff_settled"]["lp_pinv"], stat["free_settled"]["lp_pinv"]), "%"),
         Row("force gain, force scaling at the static optima", THESIS_GAIN,
             gain(stat["stiff_opt"]["fs"], stat["free_opt"]["fs"]), "%"),
+        Row("force gain, force scaling at the minima of eq. 6.10 alone within the joint limits", THESIS_GAIN,
+            gain(stops["stiff"][0], stops["free"][0]), "%",
+            "no barrier: eq. 6.6's flow slides along the §5.4 stops to ν's lowest point within them"),
         *[Row(f"force gain M_Stiff vs M_Free, simulated sensor peak, controller with {tag}", THESIS_GAIN,
               gain(sim[f"stiff_{tag}"], sim[f"free_{tag}"]), "%") for tag in
           ("J#" if p == "dynamic" else "J⁺" for p in projectors[1:])],
@@ -203,6 +210,11 @@ def palpation(
                                                                            arrays[f"q_opt_{case}"])), "rad"),
             Row(f"force scaling F_max at the configuration of the simulated peak, {case}", None,
                 -stat[f"{case}_peak"]["fs"], "N", "the null-space controller keeps reconfiguring during the push"),
+            Row(f"JBLD ν to M_{case.capitalize()}^des at the minimum of eq. 6.10 alone within the joint limits", None,
+                stops[case][1], "", "where the thesis's law (no barrier) settles on the §5.4 stops"),
+            Row(f"F_max along u, M_{case.capitalize()}^des: force scaling at the minimum of eq. 6.10 alone within "
+                "the joint limits", THESIS_TABLE[case][2], -stops[case][0], "N",
+                "a static capability where the thesis's law settles on the stops; the thesis's is a hardware peak"),
         ]
     g_sim = gain(sim["stiff"], sim["free"])
     g_lp = gain(stat["stiff_settled"]["lp"], stat["free_settled"]["lp"])

@@ -93,7 +93,7 @@ def example_3dof(duration: float = 2.0, steps: int = 201, amplitude: float = F_3
         arrays,
         [
             "Quasi-static: the configurations are the fixed points of FME matching from the initial "
-            "configuration (SLSQP on the self-motion manifold); force scaling as in §6.3.1.",
+            "configuration (the null-space flow along the self-motion manifold, `match_fme`); force scaling as in §6.3.1.",
             "The thesis reports no numbers for this example besides M̂'s eigenvalues (2.6, 5.8) and the "
             "claim that only the M_Stiff^des configuration renders the full 3.5 N; both are checked.",
         ],

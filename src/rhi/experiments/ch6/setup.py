@@ -23,7 +23,7 @@ from rhi.control import (
     fme_shape,
 )
 from rhi.control.allocation import Saturation
-from rhi.control.configuration import optimal_configuration
+from rhi.control.configuration import null_space_descent
 from rhi.devices.model import Device
 from rhi.errors import Unreachable
 from rhi.metrics import nullspace_projector
@@ -76,20 +76,21 @@ def controller_terms(desired: np.ndarray, torque_max: np.ndarray, *, limits: boo
 
 
 # ------------------------------------------------------------------------ configurations
-def match_fme(dev: Device, x, objective, q0, *, max_iter: int = 300) -> np.ndarray:
+def match_fme(dev: Device, x, objective, q0, *, max_iter: int = 3000) -> np.ndarray:
     """The configuration the null-space controller converges to from q0 with the end-effector at x.
 
-    Minimises the objective's ν(q) on the self-motion manifold f(q) = x within the joint
-    limits (the fixed point of gradient projection, eqs. 6.3 and 6.6, restricted to the
-    limits): `rhi.control.configuration.optimal_configuration` with a tight tolerance
-    (ftol 1e-12), starting from q0 projected onto f(q) = x without null-space motion.
+    Follows the gradient-projection flow of eqs. 6.3–6.6 down the objective's ν(q) along the
+    self-motion manifold f(q) = x, sliding along the joint limits it meets, and settles it with
+    SLSQP (ftol 1e-12): `rhi.control.configuration.null_space_descent`, from q0 projected onto
+    f(q) = x without null-space motion. It ends in q0's basin: a minimiser over the whole manifold
+    (what SLSQP alone from q0 may jump to) can lie in a basin the controller never reaches.
 
     Args:
         dev: the device.
         x: (m,) end-effector position [m].
         objective: `value(device, q)`, `gradient(device, q)` (e.g. `FMEMatching`, `WeightedSum`).
         q0: (n,) start configuration [rad].
-        max_iter: SLSQP iterations.
+        max_iter: flow steps at most.
 
     Returns:
         q: (n,) [rad] within the limits with f(q) = x (1e-9 m); never worse than the start.
@@ -97,8 +98,7 @@ def match_fme(dev: Device, x, objective, q0, *, max_iter: int = 300) -> np.ndarr
     Raises:
         Unreachable: x cannot be reached within the limits from q0.
     """
-    return optimal_configuration(dev, x, objective, np.asarray(q0, dtype=float), tol=1e-12, max_iter=max_iter)
-
+    return null_space_descent(dev, x, objective, np.asarray(q0, dtype=float), tol=1e-12, max_iter=max_iter)
 
 
 def start_configurations(dev: Device, x, count: int, seed: int = 6, *, restarts: int = 2) -> list[np.ndarray]:
