@@ -83,3 +83,55 @@ def test_eq_3_19_bounds_the_part_beyond_m1_not_the_modulus():
     rows = {r.quantity: r.ours for t in res.tables for r in t.rows}
     frac = next(v for k, v in rows.items() if k.startswith("fraction of (M1, M2, B1, B2, ω)"))
     assert 0.0 < frac < 1.0
+
+
+def _newton(fk, jac, x: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Q with fk(q) = x (1e-12 m) by Newton steps from q."""
+    for _ in range(100):
+        e = x - fk(q)
+        if np.linalg.norm(e) < 1e-12:
+            return q
+        q = q + np.linalg.solve(jac(q), e)
+    raise AssertionError(f"no convergence to {x}")
+
+
+def test_table_3_1_lambda_order_is_eq_3_13_for_all_three_interfaces():
+    """Λ of the PHANToM and the Rehab (eq. 3.13) on their closed forms = rhi's (1e-7, IK); the order follows from it.
+
+    The PHANToM is eq. 5.12a's last two columns at q1 = q2 = 0 (its base at (d1, −d2)), the Rehab its first two at
+    q3 = q4 = 0 (the PHANToM locked at its zero), each reaching the point by its own Newton IK from q = 0.3 rad;
+    rhi's M(q) is data. The RHI is at the printed q (as the literal reading). A transcription with the Rehab's d2
+    swapped for the PHANToM's d3 disagrees (the comparison can fail).
+    """
+    u = np.asarray(ch3.measures.U, dtype=float)
+    devs = ch3.measures.devices()
+    d1, d2, d3, d4 = D
+    closed = {
+        "PHANToM": (lambda q: np.array([d1 + d3 * np.cos(q[0]) + d4 * np.sin(q[1]),
+                                        -d2 + d3 * np.sin(q[0]) - d4 * np.cos(q[1])]),
+                    lambda q: j_rhi(np.array([0.0, 0.0, q[0], q[1]]))[:, 2:]),
+        "Rehab": (lambda q: np.array([d1 * np.cos(q[0]) + d2 * np.sin(q[1]) + d3 * np.cos(q[1]) + d4 * np.sin(q[1]),
+                                      d1 * np.sin(q[0]) - d2 * np.cos(q[1]) + d3 * np.sin(q[1]) - d4 * np.cos(q[1])]),
+                  lambda q: j_rhi(np.array([q[0], q[1], 0.0, 0.0]))[:, :2]),
+    }
+
+    def lam(J, M):
+        return 1.0 / float(u @ J @ np.linalg.solve(M, J.T) @ u)
+
+    for i, x in enumerate(ch3.measures.POINTS):
+        x = np.asarray(x, dtype=float)
+        q_rhi = np.asarray(ch3.measures.THESIS_Q[i], dtype=float)
+        ours = {"RHI": ch3.measures.measures(devs["RHI"], q_rhi)[1]}
+        theirs = {"RHI": lam(j_rhi(q_rhi), devs["RHI"].mass_matrix(q_rhi))}
+        for name, (fk, jac) in closed.items():
+            dev = devs[name]
+            q = _newton(fk, jac, x, np.full(2, 0.3))
+            np.testing.assert_allclose(dev.fk(q), x, atol=1e-12)
+            ours[name] = ch3.measures.measures(dev, dev.ik(x, np.full(dev.n, 0.3)))[1]
+            theirs[name] = lam(jac(q), dev.mass_matrix(q))
+            assert ours[name] == pytest.approx(theirs[name], rel=1e-7), (name, i)  # rhi's IK stops at 1e-9 m
+            if name == "Rehab":  # planted difference
+                J_bad = jac(q).copy()
+                J_bad[:, 1] *= d3 / d2
+                assert abs(lam(J_bad, dev.mass_matrix(q)) / theirs[name] - 1.0) > 1e-3
+        assert (ours["RHI"] < ours["PHANToM"] < ours["Rehab"]) is (theirs["RHI"] < theirs["PHANToM"] < theirs["Rehab"])

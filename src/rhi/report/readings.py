@@ -100,6 +100,9 @@ CH6_MAP_CHECKED = ("the matching (eqs. 6.2–6.6 as a flow along the self-motion
                    "FME moves it by > 0.1 % (tests/test_transcription_ch6_matching.py). It found a bug, fixed: SLSQP "
                    "alone jumped at some points to a minimum in another basin than the controller's flow reaches from "
                    "the same start (2 of the 34 points of the 7 × 7 quick grid when it was found)")
+TRANSITION_CHECKED = (f"Ω of eqs. 6.17–6.19 equals {_TR} (1e-12) when V crosses each threshold once, and the full "
+                      "transition takes ρ‖M_Free − M_Stiff‖_F = 0.508 s; the blended FME of eq. 6.16 reaches the "
+                      "controller's FME term (finite differences 1e-6; tests/test_transcription_ch5_ch6.py)")
 CH7_CHECKED = ("rhi's ASCM with J⁺ equals Algorithm 1 as printed to 1e-9 N m; with J# the static capability and Fig. "
                "7.1's deficit equal Algorithm 1's (tests/test_transcription_ch7.py)")
 APPA_CHECKED = (f"the App. A controller equals {_TR} (eqs. A.5–A.21) to 1e-6 rad/s on every sampled state of the "
@@ -142,7 +145,11 @@ _D = [
     Dossier("table3_1.lambda_order", "§3.5, Table 3.1 (line 638), text line 648",
             "Λ_RHI < Λ_PHANToM < Λ_Rehab by eq. 3.13 at both points, the RHI at the printed q, rhi's inertias",
             (Reading(FIT, FIT_WHY, CAL, "", measure=_fit_order("3.1")),),
-            missing="the link masses and inertias: cited ([23], [45]), not printed"),
+            missing="the link masses and inertias: cited ([23], [45]), not printed",
+            checked="Λ = (uᵀJM⁻¹Jᵀu)⁻¹ of eq. 3.13 for all three interfaces, on closed-form Jacobians (eq. 5.12a, its "
+                    "PHANToM and Rehab halves) with their own IK and rhi's mass matrices as data, equals rhi's Λ to "
+                    "1e-7 (the IK's tolerance) and gives the same order at both points "
+                    "(tests/test_transcription_ch3.py): the order is the estimated inertias', not the formula's"),
     Dossier("fig3_8.rho_r", "§3.3 Remark I, eqs. 3.8–3.10; §3.5 Fig. 3.8 (line 672)",
             "ρ_r = ρ_RHI/ρ_PHANToM ≥ 1 at every grid point, the RHI at the eq. 3.22 optimum of each point",
             (Reading("the RHI at the PHANToM's own angles, q = [0, 0, q_PHANToM]",
@@ -280,7 +287,8 @@ _D = [
     Dossier("s6_5.t_f", "§6.4 (line 1462), eqs. 6.16–6.19",
             "the full transition time ρ‖M_Free − M_Stiff‖_F with ρ = 0.003",
             (Reading("the time spent blending in the run", "line 1462: 'so that the transition performed in 0.5 "
-                     "second'", "ch6.transition", "time spent blending (0 < Ω < 1)"),)),
+                     "second'", "ch6.transition", "time spent blending (0 < Ω < 1)"),),
+            checked=TRANSITION_CHECKED),
     Dossier("fig6_10.entire", "§6.4, Fig. 6.10 (line 1459)",
             "F_max (force scaling) with the M_Stiff^des configuration above that with M_Free^des at every grid point",
             (Reading("LP with null-space torques", "line 1459: 'the maximum force feedback capability'",
@@ -290,7 +298,8 @@ _D = [
     *[Dossier(key, "§6.4, Fig. 6.11 (line 1469)", literal,
               (Reading("the same at β = 2", "line 1414 gives β = 20; the figure shows no saturation, which β = 2 "
                        "avoids in rhi's plant", "ch6.transition", w, below=wo),),
-              missing="Fig. 6.11 shows curves only; the hardware's friction")
+              missing="Fig. 6.11 shows curves only; the hardware's friction",
+              checked=TRANSITION_CHECKED + "; " + CH6_CHECKED + "; the closed-loop runs themselves are not compared")
       for key, literal, w, wo in (
           ("fig6_11.effort", "max per-tick ‖Δτ_N‖ with the method below without, β = 20",
            "max per-tick ‖Δτ_N‖ of the applied null-space torque, with (β = 2)",
@@ -341,10 +350,14 @@ _D = [
       for c, name in (("vx", "v_xb"), ("w", "ω_b"))],
     Dossier("sA_4_2.base_interval.0", "§A.4.2, Fig. A.6 (line 2194)",
             "first time the proposed controller commands the base", (),
-            missing="the wheel-ground slip and the motion-capture noise of the experiment"),
+            missing="the wheel-ground slip and the motion-capture noise of the experiment",
+            checked=APPA_CHECKED),
     Dossier("sA_4_3.dm_z.0", "§A.4.3 (line 2202), eq. A.17",
             "DM = 1/‖W_τ J_mᵀ u‖ along u = [0, 0, 1] at the stated q0, rhi's Gen3 model (Kinova's published lengths)", (),
-            missing="the arm model the thesis used (it names the Kinova Gen3 but prints no kinematic parameters)"),
+            missing="the arm model the thesis used (it names the Kinova Gen3 but prints no kinematic parameters)",
+            checked=f"DM = 1/‖W_τ J_mᵀ u‖ along z at the stated q0 equals {_TR} (eqs. A.8, A.17) to 1e-12 on rhi's "
+                    "Gen3 Jacobian (tests/test_transcription_wmm.py, the DM-enhancement test along z): the difference "
+                    "is the arm model"),
     *[Dossier(f"sA_4_3.dm_{ax}.{i}", f"§A.4.3 (line {line}), eqs. A.9, A.19",
               f"DM along {ax} after the experiment's phases (5 s Cartesian, 15 s null space), the stated gains, "
               "eq. A.19 as printed (weighted J†: the base is still while γ = 0)",
