@@ -235,6 +235,24 @@ def test_amd_B9_B19_matches_the_transcription_within_the_workspace(wmm):
     assert _amd_compare(wmm, traj, log, on[::60], sigma_min=0.14)["base"] > 0
 
 
+def test_amd_B9_B19_matches_the_transcription_beyond_the_workspace(wmm):
+    """§B.4.3 / Fig. B.11: rhi's AMD agrees with the transcription beyond the workspace (R = 0.25 m), base decisions too.
+
+    The states the base is enabled at (the 'base on' time of Fig. B.11) are among those compared (q̈ to 1e-4
+    rad/s², as within the workspace; β to 1e-4, measured 5e-5), and a transcription with another σ_m,min
+    disagrees there.
+    """
+    traj, log = _amd_states(wmm, 0.25, 20.0)
+    on = np.flatnonzero(np.nan_to_num(log.base_active) > 0)
+    assert on.size > 0
+    first = int(on[0])
+    d = _amd_compare(wmm, traj, log, [*range(0, log.t.size, 200), *range(max(first - 2, 0), first + 3), *on[::80]])
+    assert d["base"] == 0 and d["base_on"] > 0, d
+    # β scales the null-space term, which carries the transcription's finite-difference ∇²H q̇: 1e-4, as q̈
+    assert d["ddq"] < 1e-4 and d["alpha"] < 1e-9 and d["beta"] < 1e-4, d
+    assert _amd_compare(wmm, traj, log, on[::80], sigma_min=0.14)["base"] > 0
+
+
 def test_the_arm_alone_cannot_keep_sigma_min_on_the_inner_circle(wmm):
     """The arm alone cannot keep σ_min(J_m) ≥ σ_m,min at the far point of the R = 0.1 m circle.
 

@@ -157,7 +157,8 @@ def _descent_direction(g, J, M, rows, slack) -> tuple[np.ndarray, list[int]]:
     """Fastest-descending −M⁻¹(I − Aᵀ(AM⁻¹Aᵀ)⁻¹AM⁻¹)g, A = J and the limits it slides on, crossing no active limit."""
     Mi = np.linalg.inv(M)
     active = [int(r) for r in np.flatnonzero(slack < 1e-7)]
-    best, best_rate = (np.zeros_like(g), []), 0.0
+    best: tuple[np.ndarray, list[int]] = (np.zeros_like(g), [])
+    best_rate = 0.0
     for k in range(min(len(active), len(g) - J.shape[0]) + 1):
         for pinned in itertools.combinations(active, k):
             A = np.vstack([J, rows[list(pinned)]]) if pinned else J

@@ -394,7 +394,10 @@ _D = [
                      "appb.singularity", "without avoidance: first time the tracking error exceeds"))),
     Dossier("sB_4_3.base_on", "§B.4.3, Fig. B.11 (line 2549)",
             "first time the proposed controller enables the base beyond the workspace (σ_m,min = 0.15)", (),
-            missing="the wheel-ground slip of the experiment"),
+            missing="the wheel-ground slip of the experiment",
+            checked=f"the AMD equals {_TR} (eqs. B.6–B.19) on sampled states of the R = 0.25 m circle, the states "
+                    "around the first base activation and the base decisions included (1e-4 rad/s²; another σ_m,min "
+                    "disagrees; tests/test_transcription_wmm.py)"),
     Dossier("sB_4_3.periods.within", "§B.4.3, Table B.2 (line 2501)",
             "base activation periods within the workspace with σ_m,min = 0.15 (line 2479)", (),
             inconsistent="§A.4.2 (line 2172) gives the arm's workspace at q0 as a 0.11 m circle (rhi's Gen3: {0} m), "
