@@ -98,8 +98,9 @@ def _transcribed_ratio(dev, x, fmes, weights=ft.T):
 def test_fig_6_10_map_equals_the_transcription(rhi4, fmes):
     """Fig. 6.10's F_max ratio from rhi's map = the transcription's at every reached point of a 3 × 3 grid (1e-6).
 
-    The grid holds (0.5, 0.3) m, where SLSQP alone from rhi's first start jumped to a minimum in another
-    basin than the controller's flow reaches from there (ratio 1.108 instead of 1.095).
+    The grid holds (0.5, 0.3) and (0.25, 0.3) m, where SLSQP alone (rhi's matching before this test) jumped to
+    minima in other basins than the controller's flow reaches from the same starts (ratios 1.108 and 1.405
+    instead of the flow's 1.095 and 1.148).
     """
     res = fmax_ratio_map(resolution=3, starts=2, executor="serial")
     xs, ys, ratio = res.arrays["x"], res.arrays["y"], res.arrays["ratio"]
