@@ -247,6 +247,45 @@ def test_tank_equals_python_loop(rhi4, monkeypatch, port):
     check_same(c[:2], b[:2])
 
 
+def test_tank_probe_records_what_a_python_hook_reads(rhi4):
+    """beyond.passivity's `Probe` on the compiled loop records what a plain hook reads on the Python loop.
+
+    The tank's T_O + T_A, λ and μ, the held joints and the passivity λ.
+    """
+    from rhi.experiments.beyond.passivity import PROBE, controller
+    from rhi.sim import Probe
+
+    x0 = rhi4.fk(Q0)
+
+    def once(record):
+        plant = Plant(rhi4)
+        plant.reset(Q0)
+        ctrl = controller(rhi4, objectives=True, port="motors", method="damper", tank=True)
+        hook = record if isinstance(record, Probe) else record(ctrl)
+        log = simulate(plant, ctrl, duration=0.6,
+                       hand=Hand(HandPath([x0, x0 + [0.01, 0.0], x0 + [0.01, 0.03]], speed=0.05), stiffness=2000.0),
+                       virtual=Wall(x0 + [0.0, 0.005], [0, 1], 1000.0), record=hook)
+        return log, ctrl, fast_loop.last
+
+    def reads(ctrl):
+        def read():
+            s = ctrl.state
+            return {"pc_scale": ctrl.passivity.scale, "held": s.saturated.copy(), "tank_scale": s.tank.scale,
+                    "tank": s.tank.energy + s.tank.allocation, "tank_damping": s.tank.damping}
+        return read
+
+    a = once(PROBE)
+    assert a[2] is not None and a[2].ticks == 600
+    b = once(reads)
+    assert b[2] is None
+    check_same(a[:2], b[:2])
+    assert a[0].extra.keys() == b[0].extra.keys() == set(PROBE.names)
+    for name, v in a[0].extra.items():
+        np.testing.assert_allclose(v, b[0].extra[name], rtol=0, atol=1e-12, err_msg=name)
+    tank = a[0].extra["tank"]
+    assert np.ptp(tank) > 0 and np.all(np.isfinite(a[0].extra["tank_scale"]))  # the accounts moved
+
+
 def _python_hands(monkeypatch):
     """The reference: the Python loop with the hand's own Python `force` at every physics step."""
     from rhi.sim.loop import Session

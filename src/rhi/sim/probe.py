@@ -29,8 +29,14 @@ from rhi.errors import InvalidInput
 STATE = {
     "held": "(n,) bool: the joints the allocation held in the tick (`ControllerState.saturated`; none before one)",
     "pc_scale": "the passivity layer's λ of its last tick (`PassivityState.scale`; NaN without the layer)",
+    "tank": "the null-space energy tank's T_O + T_A after the tick [J] (`ControllerState.tank`; NaN without one)",
+    "tank_scale": "the tank's λ of the tick, the factor on the objectives' torque (NaN without a tank)",
+    "tank_damping": "the tank's damper rate μ of the tick [1/s] (NaN without a tank)",
     "slave_q": "(n_s,) the teleoperated slave's encoders after the period [rad] (`Teleoperation.slave`)",
 }
+
+#: The tank's state values: the `TankState` field each reads ("tank": energy + allocation).
+_TANK = {"tank": "energy", "tank_scale": "scale", "tank_damping": "damping"}
 
 
 class Probe:
@@ -62,6 +68,11 @@ class Probe:
             elif what == "pc_scale":
                 ps = getattr(controller, "passivity", None)
                 out[name] = np.array(math.nan if ps is None else ps.scale)
+            elif what in _TANK:
+                s = getattr(controller, "state", None)
+                ts = None if s is None else s.tank
+                out[name] = np.array(math.nan if ts is None else ts.energy + ts.allocation if what == "tank" else
+                                     getattr(ts, _TANK[what]))
             else:
                 if session.teleop is None:
                     raise InvalidInput(f"record: {name!r} records the slave's encoders, but the run has no teleop")

@@ -52,7 +52,7 @@ from rhi.experiments.beyond.wall_measures import STOP_MARGIN, energies, moving_a
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.parts import Part, Plan, run_plan
 from rhi.experiments.result import Result, Row, Table
-from rhi.sim import Hand, HandPath, Plant, Wall, simulate
+from rhi.sim import Hand, HandPath, Plant, Probe, Wall, simulate
 
 #: The rendered wall [N/m], the stiff wall [N/m] and B^d [N s/m] (thesis §6.4, §7.5).
 K_E = 1000.0
@@ -89,14 +89,9 @@ SUMMARY = ("W", "motors", "task", "null", "wall_zoh", "friction", "force_rms_err
            "contact_peak", "peak_at_stop")
 
 
-def _passivity_state(ctrl: NullSpaceController) -> dict[str, float]:
-    """`simulate`'s record hook: the passivity scale λ, ASCM's held set (a bit mask) and the tank's T and λ."""
-    s, pc = ctrl.state, ctrl.passivity
-    return {"pc_scale": math.nan if pc is None else pc.scale,
-            "held": 0 if s.saturated is None else int(np.dot(s.saturated, 1 << np.arange(len(s.saturated)))),
-            "tank": math.nan if s.tank is None else s.tank.energy + s.tank.allocation,
-            "tank_scale": math.nan if s.tank is None else s.tank.scale,
-            "tank_damping": math.nan if s.tank is None else s.tank.damping}
+#: `simulate`'s record hook (a `Probe`: the run stays on the compiled loop): the passivity scale λ, ASCM's held
+#: joints and the tank's T_O + T_A, λ and μ.
+PROBE = Probe(pc_scale="pc_scale", held="held", tank="tank", tank_scale="tank_scale", tank_damping="tank_damping")
 
 
 def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: Saturation = "ascm",
@@ -125,7 +120,7 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     objectives, port, saturation, method, tank = CASES[case]
     ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation, method=method, tank=tank)
     log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=progress,
-                   record=lambda: _passivity_state(ctrl))
+                   record=PROBE)
     en = energies(dev, log, plant.friction, stiffness, x0=x0, u=u, damping=B_D)
     names, by_tick, replay = (sources.tick_work(dev, ctrl.config, log) if case in SPLIT_CASES
                               else ([], np.zeros((len(log.t) - 1, 0)), math.nan))
@@ -140,7 +135,8 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     hf_v = (xd - moving_average(xd, w))[contact]
     hf_F = (F - moving_average(F, w))[contact]
     stop = np.any((log.q < dev.q_min) | (log.q > dev.q_max), axis=1)
-    held, E, alpha_pc = log.extra["held"], log.E_obs, log.alpha_pc
+    held = log.extra["held"].astype(np.int64) @ (1 << np.arange(dev.n))  # the held set as a bit mask
+    E, alpha_pc = log.E_obs, log.alpha_pc
     full = np.array([int(h).bit_count() >= dev.n - dev.m for h in held[:-1]])  # no redundancy left
     switch = np.convolve(np.diff(held, prepend=held[0]) != 0, np.ones(4), mode="full")[:len(held) - 1] > 0
     if E is None or alpha_pc is None:

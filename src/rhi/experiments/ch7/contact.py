@@ -46,7 +46,6 @@ start in `settle` seconds; the thesis does not print its configuration.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable, Sequence
 from typing import Literal
@@ -78,7 +77,7 @@ from rhi.experiments.ch3.nullspace import (
 from rhi.experiments.result import Result, Row, Table
 from rhi.experiments.setups import ProgressChain, is_projector, is_saturation, vme_values
 from rhi.metrics.force import ProjectorKind
-from rhi.sim import Hand, HandPath, Plant, Wall, simulate
+from rhi.sim import Hand, HandPath, Plant, Probe, Wall, simulate
 
 #: Palpation start X₀ [m] and direction u (thesis §7.5).
 X0 = (0.45, 0.0)
@@ -108,10 +107,9 @@ DECIMATE = 5
 DEPTH_COMPARE = 0.007
 
 
-def _held(ctrl: NullSpaceController) -> dict[str, np.ndarray]:
-    """`simulate`'s record hook: ASCM's selection 𝒮 of the tick (the log has α, not 𝒮)."""
-    s = ctrl.state.saturated
-    return {"saturated": np.zeros(ctrl.device.n, bool) if s is None else np.array(s, dtype=bool)}
+#: `simulate`'s record hook (a `Probe`: the run stays on the compiled loop): ASCM's selection 𝒮 of the tick (the log
+#: has α, not 𝒮).
+HELD = Probe(saturated="held")
 
 
 def palpation_controller(dev: Device, saturation: Saturation, projector: ProjectorKind = "dynamic", *, gain: float = GAIN,
@@ -326,7 +324,7 @@ def palpation(
                     damping=HAND_DAMPING, max_force=HAND_MAX_FORCE)
         log = simulate(plant, ctrl, duration=t_start + push + hold, hand=hand, virtual=wall,
                        progress=chain.run(case_ticks),
-                       record=functools.partial(_held, ctrl))
+                       record=HELD)
         m = _case_metrics(dev, log, log.extra["saturated"].astype(bool), sat, x0, u, lo, hi)
         results[sat, proj] = m
         key = f"{sat}_{proj}"

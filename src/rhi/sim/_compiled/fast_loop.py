@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-from rhi.control._compiled import whole as _whole
+from rhi.control._compiled import tank as _tank, whole as _whole
 from rhi.control.controller import NullSpaceController
 from rhi.devices.terms import layout
 from rhi.jit import jit
@@ -53,7 +53,8 @@ from rhi.sim.teleop import Teleoperation
 #: tick; the slave diverged at the tick after the last (its physics step in lay[L_STATUS]).
 DONE, PYTHON, FAULT, SLAVE = 0, 1, 2, 3
 #: The snapshot row a `Probe` reads per tick: (state name, its columns' width as a function of (n, n_s)).
-SNAPSHOT = (("held", lambda n, ns: n), ("pc_scale", lambda n, ns: 1), ("slave_q", lambda n, ns: ns))
+SNAPSHOT = (("held", lambda n, ns: n), ("pc_scale", lambda n, ns: 1), ("tank", lambda n, ns: 1),
+            ("tank_scale", lambda n, ns: 1), ("tank_damping", lambda n, ns: 1), ("slave_q", lambda n, ns: ns))
 
 #: Slots of the float state vector `st`: the session's time [s], work [J] and the last tick's logged
 #: controller values (V, Ω, α, β, E_obs, α_pc), the stopped flag, Σ dissipated [J], the last controller
@@ -184,10 +185,14 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
             for i in range(n):
                 srow[i] = 1.0 if sat[i] else 0.0
             srow[n] = pc[_whole.PC_SCALE] if pc[_whole.PC_ON] != 0.0 else math.nan
+            on = tank[_tank.TK_ON] != 0.0
+            srow[n + 1] = tank[_tank.TK_ENERGY] + tank[_tank.TK_ALLOCATION] if on else math.nan
+            srow[n + 2] = tank[_tank.TK_SCALE] if on else math.nan
+            srow[n + 3] = tank[_tank.TK_DAMPING] if on else math.nan
             if lay[L_TELE] != 0:
                 ten, const = pd[0], pd[2]
                 for i in range(n_s):
-                    srow[n + 1 + i] = ten[i] - const[i]
+                    srow[n + 4 + i] = ten[i] - const[i]
         o = lay[L_WORK]
         row[o], row[o + 1], row[o + 2], row[o + 3] = st[S_WORK], st[S_V], st[S_OMEGA], st[S_ALPHA]
         row[o + 4], row[o + 5], row[o + 6] = st[S_BETA], st[S_EOBS], st[S_APC]
@@ -374,10 +379,10 @@ class FastLoop:
         return done, out
 
     def _probe_values(self, snap: np.ndarray) -> dict[str, np.ndarray]:
-        """The probe's {log name: (k, ...)} from k snapshot rows (bool for "held", a scalar per tick for "pc_scale")."""
+        """The probe's {log name: (k, ...)} from k snapshot rows (bool for "held", a scalar per tick but for "slave_q")."""
         out = {}
         for name, what in self.probe.names.items() if self.probe is not None else ():
             lo, hi = self._snap_at[what]
             a = snap[:, lo:hi]
-            out[name] = a != 0.0 if what == "held" else a[:, 0].copy() if what == "pc_scale" else a.copy()
+            out[name] = a != 0.0 if what == "held" else a.copy() if what == "slave_q" else a[:, 0].copy()
         return out
