@@ -62,6 +62,8 @@ def supported(model: pin.Model) -> bool:
 #: per-joint constant columns of `pack`'s float array: placement rotation (9), translation (3),
 #: joint axis (3), body mass (1), centre of mass (3), rotational inertia about it (9), armature (1)
 _P, _T, _AX, _MASS, _COM, _ROT, _ARM, _WIDTH = 0, 9, 12, 15, 16, 19, 28, 29
+#: where a joint's axis starts in `pack`'s rows, for the kernels of other packages (the hand, the mobile base)
+AXIS_COLUMN = _AX
 
 
 def pack(model: pin.Model, frame_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

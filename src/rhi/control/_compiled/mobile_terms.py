@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from rhi.devices._compiled.chain import joint_frame
-from rhi.devices.batch import _AX
+from rhi.devices.batch import AXIS_COLUMN as _AX
 from rhi.jit import jit
 
 

@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from rhi.devices._compiled.chain import joint_frame
+from rhi.devices.batch import AXIS_COLUMN as _AX
 from rhi.jit import jit
 from rhi.sim.environment import Compose, Fixture, Wall
 from rhi.sim.hand import Hand, HandSequence, MinimumJerkPalpation
@@ -28,9 +29,6 @@ from rhi.sim.mjc import step1, step2
 
 #: `hand_period`'s outcomes: the period ran; a step's force was not finite; MuJoCo flagged a step as diverged.
 PERIOD_OK, PERIOD_NONFINITE, PERIOD_UNSTABLE = 0, 1, 2
-
-#: column of the joint axis (3) in `pack`'s per-joint constants
-_AX = 12
 
 
 @jit
