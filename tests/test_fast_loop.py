@@ -166,7 +166,7 @@ def test_ticks_handed_to_python_resume(rhi4, monkeypatch):
     handed = []
 
     def short(count, k0, *args):
-        lay = args[-5]
+        lay = args[11]  # ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, ...)
         kernel(min(count, int(rng.integers(0, 40))), k0, *args)
         if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
             lay[fast_loop.L_OUT] = fast_loop.PYTHON
@@ -235,7 +235,7 @@ def test_tank_equals_python_loop(rhi4, monkeypatch, port):
     rng = np.random.default_rng(6)
 
     def short(count, k0, *args):
-        lay = args[-5]
+        lay = args[11]  # ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, ...)
         kernel(min(count, int(rng.integers(0, 40))), k0, *args)
         if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
             lay[fast_loop.L_OUT] = fast_loop.PYTHON

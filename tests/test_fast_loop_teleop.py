@@ -85,7 +85,7 @@ def test_teleoperated_ticks_handed_to_python_resume(devices, monkeypatch):
     handed = []
 
     def short(count, k0, *args):
-        lay = args[-5]
+        lay = args[11]  # ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, ...)
         kernel(min(count, int(rng.integers(0, 40))), k0, *args)
         if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
             lay[fast_loop.L_OUT] = fast_loop.PYTHON
@@ -136,3 +136,53 @@ def test_probe_arguments_and_where_it_cannot_read(devices):
     plant.reset(Q0)
     with pytest.raises(InvalidInput, match="log columns"):
         simulate(plant, palpation(dev), duration=0.01, record=Probe(q="held"))
+
+
+def intent_run(devices, kind: str, *, python: bool, monkeypatch):
+    """(log, IntentController, compiled loop or None) of a beyond.intent_w_trajectory-like run (VME matching along u)."""
+    from rhi.control import JointLimitBarrier
+    from rhi.control.intent import FilteredIntent, HMMIntent, KnownIntent
+    from rhi.control.intent_control import IntentController, IntentVME
+    from rhi.experiments.beyond.intent import PathIntent
+
+    dev, slave = devices
+    if python:
+        monkeypatch.setattr(fast_loop.FastLoop, "build", staticmethod(lambda *a, **k: None))
+    x0 = dev.fk(Q0)
+    path = HandPath([x0, x0 + [0.02, 0.0], x0 + [0.02, 0.02]], speed=0.08, start=0.05)
+    est = {"known": KnownIntent([0.0, 1.0]), "filtered": FilteredIntent(m=2, u0=[0.0, 1.0], tau=0.05),
+           "hmm": HMMIntent(m=2, u0=[0.0, 1.0]), "path": PathIntent(path, [1.0, 0.0])}[kind]
+    ctrl = IntentController(NullSpaceController(dev, ControllerConfig(
+        ImpedanceControl(damping=2.0 * np.eye(2)), damping=0.02, saturation="none", null_space="clipped",
+        objectives=(ObjectiveTerm(IntentVME(est, 0.01), 0.5), ObjectiveTerm(JointLimitBarrier(0.1), 2.0)))), est)
+    sp = Plant(slave)
+    sp.reset(Q_SLAVE)
+    plant = Plant(dev)
+    plant.reset(Q0)
+    log = simulate(plant, ctrl, duration=0.5, hand=Hand(path, stiffness=400.0), teleop=Teleoperation(sp),
+                   record=Probe(slave_q="slave_q"))
+    monkeypatch.undo()
+    return log, ctrl, fast_loop.last
+
+
+@pytest.mark.parametrize("kind", ["known", "filtered", "hmm", "path"])
+def test_intent_controller_equals_the_python_loop(devices, kind, monkeypatch):
+    """The estimator's tick, M_des(u) and the controller's history in the compiled loop = the Python loop."""
+    a = intent_run(devices, kind, python=False, monkeypatch=monkeypatch)
+    assert a[2] is not None and a[2].ticks == len(a[0]) == 500
+    b = intent_run(devices, kind, python=True, monkeypatch=monkeypatch)
+    assert b[2] is None
+    # the estimator reads ẋ from the compiled handle kinematics (Python: J q̇ from Pinocchio): equal to rounding
+    check_same((a[0], a[1].controller), (b[0], b[1].controller), rtol=1e-10)
+    np.testing.assert_allclose(a[0].extra["slave_q"], b[0].extra["slave_q"], rtol=0, atol=1e-9)
+    (ha, hb), (ea, eb) = (a[1].history, b[1].history), (a[1].estimator, b[1].estimator)
+    assert len(ha) == len(hb) == 500
+    np.testing.assert_allclose([h[0] for h in ha], [h[0] for h in hb], rtol=0, atol=0)
+    np.testing.assert_allclose(np.array([h[1] for h in ha]), np.array([h[1] for h in hb]), rtol=0, atol=1e-9)
+    np.testing.assert_allclose([h[2] for h in ha], [h[2] for h in hb], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ea.u, eb.u, rtol=0, atol=1e-9)
+    if kind != "known":
+        assert np.ptp(np.array([h[1] for h in ha]), axis=0).max() > 0.5  # u turned during the run
+    for attr in ("T", "p", "active"):
+        if hasattr(eb, attr):
+            np.testing.assert_allclose(getattr(ea, attr), getattr(eb, attr), rtol=0, atol=1e-9)

@@ -83,6 +83,9 @@ class CompiledObjective:
         slave: the slave `rhi.sim.Plant` whose encoders `live` reads, D = J_s J_sᵀ at them ("vme_live"; None: another
             source), so that `rhi.sim`'s compiled loop computes D from its own teleoperated slave.
         log: −log μ instead of −μ ("manipulability").
+        source: the intent estimator whose u gives the desired M_des(u) of eq. 3.23 with minor axis `beta`
+            ("vme_live" of `rhi.control.intent_control.IntentVME`), so that the compiled loop computes it.
+        beta: β of M_des(u) (with `source`).
     """
 
     kind: Literal["vme", "fme", "fme_schedule", "barrier", "vme_live", "manipulability"]
@@ -95,6 +98,25 @@ class CompiledObjective:
     live: Callable[[], np.ndarray] | None = None
     slave: object | None = None
     log: bool = False
+    source: object | None = None
+    beta: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class CompiledIntent:
+    """An intent estimator as `rhi.control._compiled.intent.update` computes its tick (planar tasks, m = 2).
+
+    Attributes:
+        kind: "known", "filtered", "hmm" or "path" (a known direction along a polyline path).
+        settings: its settings by the names of `rhi.control._compiled.intent.SETTINGS` (others 0).
+        table: (k, m) the HMM's primitives, or the path's segment velocities [m/s]; None: none.
+        knots: (segments + 1,) the path's arc length at each waypoint [m]; None: none.
+    """
+
+    kind: Literal["known", "filtered", "hmm", "path"]
+    settings: dict[str, float] = dataclasses.field(default_factory=dict)
+    table: np.ndarray | None = None
+    knots: np.ndarray | None = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -125,4 +147,4 @@ def warn_route(route: Route) -> None:
                   RouteWarning, stacklevel=3)
 
 
-__all__ = ["CompiledLaw", "CompiledObjective", "Route", "warn_route"]
+__all__ = ["CompiledIntent", "CompiledLaw", "CompiledObjective", "Route", "warn_route"]

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import i0e, i1e
 
+from rhi.control.compiled import CompiledIntent
 from rhi.errors import InvalidInput
 
 
@@ -93,6 +94,9 @@ class _Evidence:
         _pos("speed_scale", self.speed_scale)
         _pos("min_evidence", self.min_evidence, zero=True)
 
+    def _evidence_settings(self) -> dict[str, float]:
+        return {"force_scale": self.force_scale, "speed_scale": self.speed_scale, "min_evidence": self.min_evidence}
+
     def evidence(self, force, xdot) -> np.ndarray | None:
         """Unit evidence d̂ (m,) or None when the hand is (nearly) at rest."""
         f, v = np.asarray(force, dtype=float), np.asarray(xdot, dtype=float)
@@ -147,6 +151,12 @@ class FilteredIntent(_Evidence):
         self.confidence = 0.0
         self.active = False
 
+    def compiled(self) -> CompiledIntent | None:
+        """Its tick in compiled code (m = 2; None otherwise)."""
+        return None if self.m != 2 else CompiledIntent("filtered", {
+            **self._evidence_settings(), "a": self._a, "c_on": self.c_on, "c_off": self.c_off,
+            "cos_deadband": self._cos_deadband})
+
     def update(self, force, xdot) -> np.ndarray:
         """One tick: F_h (m,) [N], ẋ (m,) [m/s] -> the current estimate u (m,) (unit)."""
         d = self.evidence(force, xdot)
@@ -197,6 +207,12 @@ class HMMIntent(_Evidence):
         self.p = p / p.sum()
         self.u = self.u0.copy()
         self.confidence = 0.0
+
+    def compiled(self) -> CompiledIntent | None:
+        """Its tick in compiled code (m = 2; None otherwise)."""
+        return None if self.m != 2 else CompiledIntent("hmm", {
+            **self._evidence_settings(), "stay": self._stay, "jump": self._jump, "kappa": self.kappa},
+            table=self.E)
 
     def update(self, force, xdot) -> np.ndarray:
         """One tick: F_h (m,) [N], ẋ (m,) [m/s] -> the current estimate u (m,) (unit)."""
@@ -284,3 +300,7 @@ class KnownIntent:
     def update(self, force=None, xdot=None) -> np.ndarray:
         """The fixed direction u: (m,) whatever the readings."""
         return self.u
+
+    def compiled(self) -> CompiledIntent:
+        """Its tick in compiled code: nothing to compute."""
+        return CompiledIntent("known")

@@ -72,7 +72,7 @@ class IntentVME(_FollowsIntent):
 
     def compiled(self, device: Device) -> CompiledObjective:
         """VME matching to M_des of the estimator's u of each tick, computed by the whole compiled tick."""
-        return CompiledObjective("vme_live", live=lambda: self.current().desired())
+        return CompiledObjective("vme_live", live=lambda: self.current().desired(), source=self.source, beta=self.beta)
 
 
 class IntentFME(_FollowsIntent):

@@ -27,7 +27,7 @@ import numpy as np
 from rhi.control import _compiled as kernels
 from rhi.control._compiled import objectives as _objectives, tank as _tank, whole as _whole
 from rhi.control.barrier import limit_rows
-from rhi.control.compiled import CompiledLaw
+from rhi.control.compiled import CompiledLaw, CompiledObjective
 from rhi.control.objectives import gradient_function
 from rhi.control.settings import ControllerParts, ControllerState
 from rhi.control.transition import TransitionState
@@ -127,7 +127,7 @@ class KernelTick:
         static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
         python = []  # names of the objectives and barriers only Python computes (the whole tick does not apply)
         jac: list = []  # the Jacobian objectives the whole tick computes (`rhi.control._compiled.objectives.pack`)
-        live: list = []  # (live, slave) of each: its desired of the tick, the slave plant it reads
+        live: list = []  # the compiled form of each (its desired of the tick: `live`)
         for gain, obj in ctrl.objectives:
             c = compiled_form(obj, dev)
             if c is not None and c.kind == "vme":
@@ -140,7 +140,7 @@ class KernelTick:
             elif c is not None and c.kind in ("vme_live", "manipulability"):
                 code = _objectives.JBLD if c.kind == "vme_live" else _objectives.LOG_MU if c.log else _objectives.MU
                 jac.append((code, gain, c.penalty or 0.0, dev.q_min, dev.q_max, np.eye(m)))
-                live.append((c.live, c.slave))
+                live.append(c)
             else:
                 python.append(type(obj).__name__)
         bars = []
@@ -173,15 +173,15 @@ class KernelTick:
         self.reason = "; ".join(why)
         #: the whole tick runs in `rhi.control._compiled.whole` (see `whole`)
         self.whole_ok = not why
-        self.live: list[tuple[int, Callable[[], np.ndarray] | None, object]] = []
+        self.live: list[tuple[int, CompiledObjective]] = []
         if self.whole_ok:
             law = _law_vector(compiled_law, n, m)
             self._law = law
             rows = limit_rows(dev) if bars else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
             self._obj = _objectives.pack(n, m, static, bars, rows, jac)
-            # (slot of D in the objective vector, () -> D (m, m) or None, the slave plant D reads or None) of each
-            # Jacobian objective: `whole` writes D before each tick
-            self.live = [(_objectives.desired_slot(self._obj, n, m, i), fn, slave) for i, (fn, slave) in enumerate(live)]
+            # (slot of D in the objective vector, compiled form) of each Jacobian objective: `whole` writes D
+            # (``live()``, where it has one) before each tick
+            self.live = [(_objectives.desired_slot(self._obj, n, m, i), c) for i, c in enumerate(live)]
             self._force = compiled_law.kind == "force"  # reads sensors["force"]
             self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
             self._no_force = np.zeros(m)
@@ -329,9 +329,9 @@ class KernelTick:
         if ps is not None and ps is not self._ps_of:
             self._load_passivity(ps)
         self._load_tank(s)
-        for slot, live, _ in self.live:
-            if live is not None:
-                self._obj[slot:slot + self._F.shape[1] ** 2] = live().ravel()
+        for slot, c in self.live:
+            if c.live is not None:
+                self._obj[slot:slot + self._F.shape[1] ** 2] = c.live().ravel()
         q, dq = _f64(q), _f64(dq)
         dev = ctrl.device
         last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already

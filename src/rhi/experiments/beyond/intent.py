@@ -29,6 +29,7 @@ from rhi.control import (
     ObjectiveTerm,
     WeightedSum,
 )
+from rhi.control.compiled import CompiledIntent
 from rhi.control.intent import FilteredIntent, HMMIntent, KnownIntent, axial_error
 from rhi.control.intent_control import IntentController, IntentFME, IntentVME
 from rhi.devices.model import device
@@ -128,6 +129,15 @@ class PathIntent:
     def update(self, force=None, xdot=None) -> np.ndarray:
         """The current u: (m,) (the known intent needs no evidence)."""
         return self.u
+
+    def compiled(self) -> CompiledIntent:
+        """Its tick in compiled code: the path's segment velocities and arc lengths."""
+        p = self.path
+        step = np.diff(p.points, axis=0)
+        seg = np.linalg.norm(step, axis=1)  # as `HandPath` computes its segments
+        v = p.speed * (step / np.where(seg > 0, seg, 1.0)[:, None])
+        return CompiledIntent("path", {"start": p.start, "speed": p.speed}, table=v.reshape(-1, p.points.shape[1]),
+                              knots=np.concatenate([[0.0], np.cumsum(seg)]))
 
 
 def _true_w(path, t: np.ndarray, u0: np.ndarray) -> np.ndarray:

@@ -30,8 +30,9 @@ import math
 
 import numpy as np
 
-from rhi.control._compiled import tank as _tank, whole as _whole
+from rhi.control._compiled import intent as _intent, tank as _tank, whole as _whole
 from rhi.control.controller import NullSpaceController
+from rhi.control.intent_control import IntentController
 from rhi.devices.terms import layout
 from rhi.jit import jit
 from rhi.sim._compiled.handle import (
@@ -52,9 +53,10 @@ from rhi.sim.teleop import Teleoperation
 #: How a call of `ticks` ended: every tick ran; the next tick is the Python loop's; a plant fault at the last
 #: tick; the slave diverged at the tick after the last (its physics step in lay[L_STATUS]).
 DONE, PYTHON, FAULT, SLAVE = 0, 1, 2, 3
-#: The snapshot row a `Probe` reads per tick: (state name, its columns' width as a function of (n, n_s)).
-SNAPSHOT = (("held", lambda n, ns: n), ("pc_scale", lambda n, ns: 1), ("tank", lambda n, ns: 1),
-            ("tank_scale", lambda n, ns: 1), ("tank_damping", lambda n, ns: 1), ("slave_q", lambda n, ns: ns))
+#: (state name, its columns' width as a function of (n, n_s, m_i)), m_i: m with an intent estimator, else -1.
+SNAPSHOT = (("held", lambda n, ns, mi: n), ("pc_scale", lambda n, ns, mi: 1), ("tank", lambda n, ns, mi: 1),
+            ("tank_scale", lambda n, ns, mi: 1), ("tank_damping", lambda n, ns, mi: 1), ("slave_q", lambda n, ns, mi: ns),
+            ("intent", lambda n, ns, mi: mi + 1))
 
 #: Slots of the float state vector `st`: the session's time [s], work [J] and the last tick's logged
 #: controller values (V, Ω, α, β, E_obs, α_pc), the stopped flag, Σ dissipated [J], the last controller
@@ -64,7 +66,7 @@ N_ST = 14
 #: Slots of the int vector `lay`: where q and work start in a row, where seq starts, the virtual wall flag,
 #: whether the law reads sensors["force"], sensors["ft"]; then (outputs) ticks run, outcome, plant status; then
 #: (inputs) the teleoperation flag, where slave_x starts in a row, whether to write snapshot rows.
-L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS, L_TELE, L_SLAVE, L_SNAP = range(12)
+L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS, L_TELE, L_SLAVE, L_SNAP, L_INTENT = range(13)
 
 #: The compiled loop of the last `simulate` run, None where it ran in Python (set by `rhi.sim.loop.simulate`).
 last: FastLoop | None = None
@@ -80,7 +82,7 @@ def _finite(v):
 
 
 @jit
-def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows, tele, snap):
+def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows, tele, intent, snap):
     """Run up to `count` ticks of the simulation loop from tick k0, one log row each (see the module docstring).
 
     Args:
@@ -104,6 +106,9 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         tele: the slave's (mj, sub, `slave_torque`'s arguments before x_master, ˢM (m, m), τ_s (n_s,), ctrl,
             applied force, sensordata, (m,) int64 position indices, warnings, bad, (k,) int64 slots of ˢM in the
             objective vector, the objective vector) (`FastLoop`; a stand-in where lay[L_TELE] is 0).
+        intent: the intent estimator's (kind, settings, table, knots, state, posterior) of
+            `rhi.control._compiled.intent.update`, (m,) int64 F/T rows of the task axes, (k,) int64 slots of
+            M_des(u) in the objective vector and (k,) their β (a stand-in where lay[L_INTENT] is 0).
         snap: (>= count, width) the snapshot rows (`SNAPSHOT`) to write where lay[L_SNAP].
     """
     n, m = ctrl.shape[0], F_hand.shape[0]
@@ -111,6 +116,8 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
     sd, idx, c, F, xfrc, acc, wn, bad, at = hand
     mj_s, sub_s, pd, M_s, tau_s, ctrl_s, xfrc_s, sd_s, pos_s, wn_s, bad_s, slots, obj = tele
     n_s = tau_s.shape[0]
+    kind, iprm, table, knots, ist, ip, irows, islots, betas = intent
+    ist0, ip0, Fi, Di = ist.copy(), ip.copy(), np.empty(m), np.empty((m, m))
     read = np.empty(2 * n + 6)
     kout = np.empty((3, m))
     kx = np.empty((2, m))
@@ -126,11 +133,12 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         if lay[L_VIRTUAL] != 0:
             handle_state(kin[0], kin[1], kin[2], q, dq, kout)
             F_env[:] = kout[2]
-        if lay[L_TELE] != 0:  # the slave follows the master's x of this tick (its torque now: its state is the tick's)
+        if lay[L_TELE] != 0 or lay[L_INTENT] != 0:  # the handle's x and ẋ on the controller's model
             if lay[L_VIRTUAL] != 0:
-                kx[0] = kout[0]
+                kx[0], kx[1] = kout[0], kout[1]
             else:
                 handle_state(kin[0], kin[1], kin[2], q, dq, kx)
+        if lay[L_TELE] != 0:  # the slave follows the master's x of this tick (its torque now: its state is the tick's)
             if not _finite(kx[0]) or not slave_torque(*pd, kx[0], tau_s, M_s):
                 lay[L_OUT] = PYTHON
                 return
@@ -138,11 +146,22 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
                 for i in range(m):
                     for k in range(m):
                         obj[o + i * m + k] = M_s[i, k]
+        if lay[L_INTENT] != 0:  # `IntentController.step`: the estimate from F_h and ẋ, then M_des(u) of its objectives
+            ist0[:], ip0[:] = ist, ip
+            for i in range(m):
+                Fi[i] = ft[irows[i]]
+            _intent.update(kind, iprm, table, knots, ist, ip, Fi, kx[1], t)
+            for k in range(islots.shape[0]):
+                _intent.desired(ist[:m], betas[k], Di)
+                for i in range(m):
+                    for r in range(m):
+                        obj[islots[k] + i * m + r] = Di[i, r]
         cmd = zero_n
         if st[S_STOPPED] == 0.0:
             # the controller's input checks: a tick that fails one is the Python loop's
             if not (_finite(q) and _finite(dq)) or (lay[L_FORCE] != 0 and not _finite(F_env)) or (
                     lay[L_FT] != 0 and not _finite(ft)):
+                ist[:], ip[:] = ist0, ip0
                 lay[L_OUT] = PYTHON
                 return
             tr0[:], pc0[:], pos0[:], eff0[:], tau0[:], sat0[:] = tr, pc, pc_pos, pc_eff, tau, sat
@@ -151,6 +170,7 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
             if status != _whole.OK or not _finite(tau):  # the controller's state as before the tick
                 tr[:], pc[:], pc_pos[:], pc_eff[:], tau[:], sat[:] = tr0, pc0, pos0, eff0, tau0, sat0
                 tank[:], tank_q[:], tank_e[:] = tk0, tq0, te0
+                ist[:], ip[:] = ist0, ip0
                 lay[L_OUT] = PYTHON
                 return
             st[S_ALPHA], st[S_BETA] = res[_whole.R_ALPHA], res[_whole.R_BETA]
@@ -189,10 +209,16 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
             srow[n + 1] = tank[_tank.TK_ENERGY] + tank[_tank.TK_ALLOCATION] if on else math.nan
             srow[n + 2] = tank[_tank.TK_SCALE] if on else math.nan
             srow[n + 3] = tank[_tank.TK_DAMPING] if on else math.nan
+            o = n + 4
             if lay[L_TELE] != 0:
                 ten, const = pd[0], pd[2]
                 for i in range(n_s):
-                    srow[n + 4 + i] = ten[i] - const[i]
+                    srow[o + i] = ten[i] - const[i]
+                o += n_s
+            if lay[L_INTENT] != 0:
+                for i in range(m):
+                    srow[o + i] = ist[i]
+                srow[o + m] = ist[m + _intent.ST_CONF]
         o = lay[L_WORK]
         row[o], row[o + 1], row[o + 2], row[o + 3] = st[S_WORK], st[S_V], st[S_OMEGA], st[S_ALPHA]
         row[o + 4], row[o + 5], row[o + 6] = st[S_BETA], st[S_EOBS], st[S_APC]
@@ -210,6 +236,21 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
 def _no_hand(m: int, wall) -> np.ndarray:
     """`hand_constants` of a hand that never pushes (stiffness and damping 0), with the physical wall (or none)."""
     return np.array([1, m, 0.0, 0.0, 0.0, 0.0, np.inf, *physical_constants(wall, m), 0.0, *([0.0] * m)], dtype=float)
+
+
+def _intent_args(intent, kt, m: int) -> tuple:
+    """`ticks`' intent argument for an `IntentController` (None: a stand-in of the same types)."""
+    ci = None if intent is None else intent.estimator.compiled()
+    rows = np.array(intent.device.task_rows if intent is not None else range(m), dtype=np.int64)
+    slots = [slot for slot, c in kt.live if intent is not None and c.source is intent.estimator]
+    betas = [c.beta for _, c in kt.live if intent is not None and c.source is intent.estimator]
+    prm = np.array([0.0 if ci is None else float(ci.settings.get(k, 0.0)) for k in _intent.SETTINGS])
+    table = np.zeros((1, m)) if ci is None or ci.table is None else np.ascontiguousarray(ci.table, dtype=float)
+    knots = np.zeros(1) if ci is None or ci.knots is None else np.ascontiguousarray(ci.knots, dtype=float)
+    p = getattr(intent.estimator, "p", None) if intent is not None else None
+    return (0 if ci is None else _intent.KINDS[ci.kind], prm, table, knots, np.zeros(m + 2 + m * m),
+            np.zeros(1) if p is None else np.array(p, dtype=float), rows, np.array(slots, dtype=np.int64),
+            np.array(betas, dtype=float))
 
 
 def whole_args(controller) -> tuple:
@@ -230,6 +271,8 @@ class FastLoop:
     """
 
     def __init__(self, sess, controller, kin, columns: list[tuple[str, int]], probe: Probe | None = None) -> None:
+        self.intent = controller if type(controller) is IntentController else None
+        controller = controller.controller if self.intent is not None else controller
         plant, kt = sess.plant, controller._kernel
         self.sess, self.ctrl, self.kt = sess, controller, kt
         m = plant.m
@@ -256,7 +299,8 @@ class FastLoop:
         tele = sess.teleop
         self._lay = np.array([at["q"], at["work"], at["seq"], int(kin is not None and kin._fused), int("force" in need),
                               int("ft" in need), 0, 0, 0, int(tele is not None), at.get("slave_x", 0),
-                              int(probe is not None)], dtype=np.int64)
+                              int(probe is not None or self.intent is not None), int(self.intent is not None)],
+                             dtype=np.int64)
         self._xv = np.concatenate([plant._pos, plant._vel]).astype(np.int64)
         self._st = np.zeros(N_ST)
         self._F_hand = np.zeros(m)
@@ -264,7 +308,7 @@ class FastLoop:
         sp = plant if tele is None else tele.slave
         sdev = controller.device if tele is None else sp.device
         fast, n_s = sdev._fast_maps, sp.n
-        slots = [slot for slot, _, slave in kt.live if tele is not None and slave is tele.slave]
+        slots = [slot for slot, c in kt.live if tele is not None and c.slave is tele.slave]
         gains = np.zeros(3) if tele is None else np.array([tele.kp, tele.kd, tele.scale])
         R, off = (np.eye(m), np.zeros(m)) if tele is None else (np.ascontiguousarray(tele.R), tele.p.copy())
         pd = (sp._ten, sp._tenv, sp._const, (*fast.chain, sdev.A, sdev.b, fast.rows_idx, sdev.armature, fast.supports,
@@ -276,7 +320,8 @@ class FastLoop:
                       np.array(slots, dtype=np.int64), kt._obj)
         self.probe = probe
         self.recorded: Recorded | None = None
-        widths = [w(plant.n, n_s if tele is not None else 0) for _, w in SNAPSHOT]
+        self._intent = _intent_args(self.intent, kt, m)
+        widths = [w(plant.n, n_s if tele is not None else 0, m if self.intent is not None else -1) for _, w in SNAPSHOT]
         ends = np.cumsum([0, *widths]).tolist()
         self._snap_at = {name: (ends[i], ends[i + 1]) for i, (name, _) in enumerate(SNAPSHOT)}
         self._snap_width = ends[-1]
@@ -296,6 +341,13 @@ class FastLoop:
             return "a record hook (not a rhi.sim.Probe)"
         if isinstance(record, Probe) and teleop is None and "slave_q" in record.names.values():
             return "the probe records a slave but the run has no teleoperation"
+        intent = controller if type(controller) is IntentController else None
+        if intent is not None:
+            ci = getattr(intent.estimator, "compiled", None)
+            if intent.sensor != "ft" or not callable(ci) or ci() is None or kin is None or kin._compiled is None:
+                return (f"the intent estimator ({type(intent.estimator).__name__}) has no compiled form, or the handle's "
+                        "compiled kinematics are not there (a virtual environment or teleoperation)")
+            controller = intent.controller
         if type(controller) is not NullSpaceController:
             return f"the controller is a {type(controller).__name__}, not a NullSpaceController"
         if controller._kernel is None or not controller._kernel.whole_ok:
@@ -314,8 +366,9 @@ class FastLoop:
             return f"the physical environment ({type(phys).__name__}) is not a Wall"
         if virtual is not None and (kin is None or kin._compiled is None or not kin._fused):
             return f"the virtual environment ({type(virtual).__name__}) is not one the compiled loop computes"
-        for _, fn, slave in controller._kernel.live:
-            if fn is not None and (slave is None or slave is not getattr(teleop, "slave", None)):
+        for _, c in controller._kernel.live:
+            if c.live is not None and not ((c.slave is not None and c.slave is getattr(teleop, "slave", None)) or (
+                    intent is not None and c.source is intent.estimator)):
                 return "a Jacobian objective's desired ellipsoid is read in Python each tick (not the run's slave)"
         if teleop is not None:
             sp = teleop.slave
@@ -352,9 +405,20 @@ class FastLoop:
         lay = self._lay
         snap = np.empty((len(rows) if self.probe is not None else 1, max(self._snap_width, 1)))
         t_slave = None if sess.teleop is None else sess.teleop.slave.data.time
+        est = None if self.intent is None else self.intent.estimator
+        ist, ip = self._intent[4], self._intent[5]
+        if est is not None:  # the estimator's state as Python left it
+            m = sess.plant.m
+            ist[:m], ist[m], ist[m + 1] = est.u, est.confidence, float(getattr(est, "active", False))
+            if getattr(est, "T", None) is not None:
+                ist[m + 2:] = np.ravel(est.T)
+            if getattr(est, "p", None) is not None:
+                ip[:] = est.p
         ticks(len(rows), k0, sess.dt, sess.sub, self._mj, self._sens, self._kin, self._hand, sess.plant._ctrl,
-              self._F_hand, self._wargs, self._cs, st, lay, self._xv, rows, self._tele, snap)
+              self._F_hand, self._wargs, self._cs, st, lay, self._xv, rows, self._tele, self._intent, snap)
         done, out = int(lay[L_DONE]), int(lay[L_OUT])
+        if est is not None and self.intent is not None:
+            self._store_intent(est, snap[:done], rows[:done, 0])
         if sess.teleop is not None and done:
             sess.slave_x = sess.teleop.slave.x.copy()
         if self.probe is not None and self.recorded is not None and done:
@@ -377,6 +441,22 @@ class FastLoop:
         if out == SLAVE and t_slave is not None:
             raise unstable(t_slave + (done * self._sub_s + int(lay[L_STATUS])) * sess.teleop.slave.timestep)
         return done, out
+
+    def _store_intent(self, est, snap: np.ndarray, t: np.ndarray) -> None:
+        """The estimator's state after the call, and `IntentController.history` of its ticks (t, u, confidence)."""
+        m, (lo, _) = self.sess.plant.m, self._snap_at["intent"]
+        ist, ip = self._intent[4], self._intent[5]
+        if self._intent[0] != _intent.KNOWN:
+            est.u, est.confidence = ist[:m].copy(), float(ist[m])
+            if hasattr(est, "active"):
+                est.active = bool(ist[m + 1])
+            if getattr(est, "T", None) is not None:
+                est.T = ist[m + 2:].reshape((m, m)).copy()
+            if getattr(est, "p", None) is not None:
+                est.p = ip.copy()
+        u, conf = snap[:, lo:lo + m], snap[:, lo + m].tolist()
+        assert self.intent is not None
+        self.intent.history.extend((tk, u[r].copy(), conf[r]) for r, tk in enumerate(t.tolist()))
 
     def _probe_values(self, snap: np.ndarray) -> dict[str, np.ndarray]:
         """The probe's {log name: (k, ...)} from k snapshot rows (bool for "held", a scalar per tick but for "slave_q")."""
