@@ -194,13 +194,13 @@ def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
     # the kernel's FALLBACK hands the tick to the reference on the terms it computed
     from rhi.control._compiled import whole
 
-    kernel = whole.whole
+    kernel = fast._kernel._whole_fn
 
     def undecided(*args):  # the kernel's work done, then FALLBACK, as for an undecidable held set
         kernel(*args)
         return whole.FALLBACK
 
-    monkeypatch.setattr(whole, "whole", undecided)
+    monkeypatch.setattr(fast._kernel, "_whole_fn", undecided)
     for c in (fast, ref):
         c.reset()
     _compare(fast, ref, rhi4, cases[:20], atol=1e-9)
@@ -251,13 +251,13 @@ def test_whole_tick_reuses_the_loops_terms(monkeypatch):
     """A loop that read `Device.terms(q, dq)` first (the runtime's handle speed, a virtual wall) is not computed twice."""
     from rhi.control._compiled import whole
 
-    kernel, ready = whole.whole, []
+    whole_for, ready = whole.whole_for, []
 
-    def recording(*args):
-        ready.append(args[13])
-        return kernel(*args)
+    def recording(parts):
+        kernel = whole_for(parts)
+        return lambda *args: ready.append(args[13]) or kernel(*args)
 
-    monkeypatch.setattr(whole, "whole", recording)
+    monkeypatch.setattr(whole, "whole_for", recording)
     devs = rhi.device("rhi4"), rhi.device("rhi4")
     a, b = (NullSpaceController(d, ControllerConfig(**_config(d, "render"))) for d in devs)
     q0 = np.array([0.3, 0.5, 0.2, 0.4])
@@ -274,13 +274,13 @@ def test_whole_tick_runs_the_experiments_controllers(rhi4, monkeypatch):
     from rhi.experiments.beyond import passivity
     from rhi.experiments.ch6 import setup as ch6
 
-    kernel, calls = whole.whole, []
+    whole_for, calls = whole.whole_for, []
 
-    def counting(*args):
-        calls.append(args[0])
-        return kernel(*args)
+    def counting(parts):
+        kernel = whole_for(parts)
+        return lambda *args: calls.append(args[0]) or kernel(*args)
 
-    monkeypatch.setattr(whole, "whole", counting)
+    monkeypatch.setattr(whole, "whole_for", counting)
     _, _, Mf, Ms = ch6.desired_fmes(rhi4, np.array(ch6.U), ch6.Q_HOME)
     schedule = FMESchedule(Mf, Ms)
     q = np.array([0.3, 0.5, 0.2, 0.4])
@@ -325,3 +325,30 @@ def test_whole_tick_decides_an_ill_conditioned_full_held_set(rhi4, rng, monkeypa
         kin = rhi4.terms(q, dq)
         ill += S.sum() == 2 and np.linalg.svd(null_basis(kin.J, kin.M)[S], compute_uv=False)[-1] < 0.01
     assert ill > 50 and not fallbacks
+
+
+def test_whole_tick_compiles_only_the_parts_its_controller_has(rhi4):
+    """An ASCM tick with an FME schedule and VME matching types no active set, tank, passivity layer or objectives."""
+    from numba import njit, types
+
+    from rhi.control import _compiled as kernels
+    from rhi.control._compiled import whole
+
+    cfg = _config(rhi4, "render")
+    cfg["primary"] = ForceRendering(damping=0.01, passivity=None)
+    k = NullSpaceController(rhi4, ControllerConfig(**cfg))._kernel
+    assert k.parts == whole.Parts(code=kernels.ASCM, scheduled=True, vme=True, safe=True, clipped_null=False, tank=False,
+                                  objectives=False, passivity=False)
+    q = np.array([0.3, 0.5, 0.2, 0.4])
+    args = (0.0, q, np.zeros(4), np.zeros(2), *k._chain, False, *k._mid, k._x, k._buf, *k._out)
+
+    def typed(fn) -> set[str]:
+        fresh = njit(fn.py_func)  # not cached: typed here
+        assert fresh(*args) == whole.OK
+        cres = fresh.overloads[fresh.signatures[0]]
+        return {t.dispatcher.py_func.__name__ for t in cres.fndesc.typemap.values() if isinstance(t, types.Dispatcher)}
+
+    called = typed(k._whole_fn)
+    assert {"ascm", "fme_gradient", "vme_gradient", "tertiary", "held_torque"} <= called
+    assert not called & {"active_set", "active_set_start", "allocate_scaling", "blend", "direction", "objectives",
+                         "apply"}

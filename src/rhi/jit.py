@@ -15,11 +15,13 @@ package whose stamp is one hash of every rhi module that defines compiled functi
 edit of any of them recompiles every rhi kernel once. Functions outside the rhi package keep Numba's own
 locators. Uses Numba's cache-locator classes (``numba.core.caching``). It also listens to Numba's compile
 events: the first compile of an rhi kernel in a process (a cold cache) prints `COLD` once on stderr, so
-that a first use is not two minutes without a word.
+that a first use is not two minutes without a word. And it gives Numba's inliner one copy of an inlined
+function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size).
 """
 
 from __future__ import annotations
 
+import copy
 import functools
 import hashlib
 import re
@@ -27,7 +29,7 @@ import sys
 from pathlib import Path
 
 from numba import njit
-from numba.core import caching, event
+from numba.core import caching, event, inline_closurecall, ir
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
@@ -111,13 +113,41 @@ def announced(value: bool = True) -> None:
     _FirstCompile.said = value
 
 
+class _InlineCopy:
+    """Numba's inliner's ``copy`` module, but the blocks of one copied function share one copy of its scope.
+
+    Numba (0.68) inlines a function (``inline="always"``, `jit`'s ``inline=True``) by deep-copying its IR block by
+    block, each block with a copy of the function's whole scope (every variable): quadratic in the function's size
+    (12 s of the whole tick's cold compile). Here the first block copies the scope once and the function's other
+    blocks reuse that copy and its variables, as the blocks of the original share one scope; the inliner then
+    renames the variables by name and gives every block the caller's scope. Anything else goes to `copy`.
+    """
+
+    def __init__(self) -> None:
+        self._last: tuple[ir.Scope, dict] | None = None  # (the scope copied last, the memo of its copy)
+
+    def deepcopy(self, x, memo=None):
+        if memo is not None or not isinstance(x, ir.Block):
+            return copy.deepcopy(x, memo)
+        if self._last is None or self._last[0] is not x.scope:
+            scope_memo: dict = {}
+            copy.deepcopy(x.scope, scope_memo)
+            self._last = (x.scope, scope_memo)
+        return copy.deepcopy(x, dict(self._last[1]))
+
+    def __getattr__(self, name: str):
+        return getattr(copy, name)
+
+
 def install() -> None:
-    """Put the package-stamped locators first in Numba's list and listen for a first compile (idempotent)."""
+    """Stamped locators first in Numba's list, a listener for a first compile, `_InlineCopy` (idempotent)."""
     classes = caching.CacheImpl._locator_classes
     if classes[:len(_LOCATORS)] != list(_LOCATORS):
         classes[:] = [*_LOCATORS, *(c for c in classes if c not in _LOCATORS)]
     if _LISTENER not in event._registered.get("numba:compile", ()):
         event.register("numba:compile", _LISTENER)
+    if not isinstance(inline_closurecall.copy, _InlineCopy):
+        inline_closurecall.copy = _InlineCopy()  # type: ignore[assignment]
 
 
 install()  # before the decorator: the cache refreshes when any kernel source changes

@@ -154,6 +154,7 @@ class KernelTick:
         self._vme = _f64(np.array(vme).reshape(len(vme), m, m))
         self._vme_gain = _f64(np.array(gains, dtype=float))
         self._barriers = [(gain, gradient_function(obj, dev)) for gain, obj in ctrl.barriers]
+        self._flags = kernels.flags(prm, self._sch, self._vme_gain, self._tank)  # the parts of `kernels.tick`
         self._at = layout(n, m)[1]
         self._zero = np.zeros(n)
         self._tau = np.empty(n)
@@ -201,7 +202,10 @@ class KernelTick:
             self._mid = (self._at, law, ctrl.lo, ctrl.hi, self._prm, self._tr, self._sch, self._vme, self._vme_gain,
                          self._obj, self._pc, self._pc_pos, self._pc_eff, self._tank, self._tank_q, self._tank_e)
             self._out = (self._F[0], self._F[1], self._tau, self._sat, self._res)
-            # the compiled entry point of `_whole.whole` (`_entry`), found at the first call, and the dispatcher it is of
+            #: the whole tick compiled for the parts this controller has (`rhi.control._compiled.whole.whole_for`)
+            self.parts = _whole.Parts(*self._flags, bool(static or bars or jac), pas is not None)
+            self._whole_fn: Callable[..., int] = _whole.whole_for(self.parts)
+            # the compiled entry point of `_whole_fn` (`_entry`), found at the first call, and the dispatcher it is of
             self._call: Callable[..., int] | None = None
             self._call_of: Callable[..., int] | None = None
 
@@ -287,7 +291,7 @@ class KernelTick:
         status, alpha, beta, V, omega, clipped = kernels.tick(
             t, buf, self._at, _f64(F_r), _f64(F_x), _f64(kin.q), _f64(kin.dq), ctrl.lo, ctrl.hi, self._prm, tr,
             self._sch, self._vme, self._vme_gain, _f64(tau_s), _f64(tau_to),
-            self._tank, self._tank_q, self._tank_e, self._tau, self._sat)
+            self._tank, self._tank_q, self._tank_e, self._tau, self._sat, *self._flags)
         if status != kernels.OK:
             self._tr_of = None  # the kernel may have advanced tr; the state did not
             if status == kernels.SINGULAR:
@@ -339,7 +343,7 @@ class KernelTick:
             ready, x, buf = True, last[1].x, last[1]._buf
         else:
             ready, x, buf = False, self._x, self._buf
-        fn: Callable[..., int] = _whole.whole
+        fn = self._whole_fn
         call = self._call if self._call is not None and self._call_of is fn else fn
         status = call(t, q, dq, F, *self._chain, ready, *self._mid, x, buf, *self._out)
         if call is fn and type(t) is float:  # loaded (or compiled) now: its entry point from the next tick on

@@ -24,6 +24,7 @@ from rhi.control._compiled.step import (
     SCALING,
     SINGULAR,
     aso_volume,
+    flags,
     schedule_vector,
     tick,
 )
@@ -31,5 +32,5 @@ from rhi.control._compiled.step import (
 __all__ = [
     "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_CLIPPED", "P_DAMPING", "P_DYNAMIC",
     "P_GRAVITY", "P_SAFE", "P_SATURATION", "SCALING", "SINGULAR", "active_set", "active_set_result", "active_set_start",
-    "ascm", "aso_volume", "schedule_vector", "tertiary", "tick",
+    "ascm", "aso_volume", "flags", "schedule_vector", "tertiary", "tick",
 ]

@@ -73,6 +73,15 @@ def schedule_vector(gain: float, w2: np.ndarray, free: np.ndarray, stiff: np.nda
                                                 stiff.ravel()]), dtype=np.float64)
 
 
+Flags = tuple[int, bool, bool, bool, bool, bool]
+
+
+def flags(prm: np.ndarray, sch: np.ndarray, vme_gain: np.ndarray, tank: np.ndarray) -> Flags:
+    """`tick`'s last six arguments from its settings: (code, scheduled, vme, safe, clipped_null, tank_on)."""
+    return (int(prm[P_SATURATION]), sch.shape[0] != 0, vme_gain.shape[0] != 0, bool(prm[P_SAFE] != 0.0),
+            bool(prm[P_CLIPPED] != 0.0), bool(tank[TK_ON] != 0.0))
+
+
 @jit
 def _contract(Y, dJ):
     """Σ_ij Y_ij ∂J_ij/∂q_k: (n,) for Y: (m, n), dJ: (m, n, n)."""
@@ -152,12 +161,14 @@ def _omega(tr, t):
     return target + (tr[1] - target) * 0.5 * (1.0 + math.cos(math.pi * s))
 
 
-@jit
+@jit(inline=True)
 def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat):
     """The allocation strategy `code` of τ_m = a + b (n,) [N m] in the box [lo, hi]: (ok, τ, α, clipped).
 
     ASCM and the active set keep τ_m while the ASO volume V > 0 (P, the null-space projector, is read only where
     they act); ok is False where the reference must decide (the LP). sat (n,) is written with the held joints.
+    Inlined: where `code` is a compile-time constant (`rhi.control._compiled.whole.whole_for`) only its strategy
+    is compiled.
     """
     n = a.shape[0]
     if V > 0.0 and (code == ASCM or code == ACTIVE_SET):
@@ -198,8 +209,12 @@ def transition(tr, t, V, distance, eps1, eps2, rho):
 
 @jit(inline=True)
 def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, tau_s_extra, tau_to_extra, tank, tank_q,
-         tank_e, tau_out, sat):
+         tank_e, tau_out, sat, code, scheduled, vme, safe, clipped_null, tank_on):
     """Steps 2–6 of one controller tick (see `rhi.control.controller`).
+
+    The last six arguments say which parts the tick has (from the settings: `flags`). Where the caller passes
+    compile-time constants (`rhi.control._compiled.whole.whole_for`), Numba prunes the other branches before
+    typing them: a tick compiles only the strategy and objectives its controller uses.
 
     Args:
         t: time [s].
@@ -223,6 +238,12 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         tank_e: (2, n) its metered torques (objectives, allocation) of the previous tick, written.
         tau_out: (n,) the torque, written [N m].
         sat: (n,) bool, the held joints, written.
+        code: the allocation (NONE, SCALING, ASCM, ACTIVE_SET; = prm[P_SATURATION]).
+        scheduled: there is an FME schedule (sch not empty).
+        vme: there are VME-matching objectives (vme_gain not empty).
+        safe: the safety torque of the held joints is kept (= prm[P_SAFE] != 0).
+        clipped_null: null_space="clipped" (= prm[P_CLIPPED] != 0).
+        tank_on: the null-space energy tank runs (= tank[TK_ON] != 0).
 
     Returns:
         (status, α, β, V, Ω, clipped).
@@ -243,7 +264,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     omega = 1.0
     tau_s = axpy(-prm[P_DAMPING], dq, tau_s_extra)
     tau_to = tau_s
-    if sch.shape[0] != 0:
+    if scheduled:
         omega = transition(tr, t, V, sch[SCH_DIST], sch[SCH_EPS1], sch[SCH_EPS2], sch[SCH_RHO])
         if sch[SCH_GAIN] > 0.0:
             w2 = sch[N_SCH:N_SCH + n]
@@ -258,8 +279,9 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
                     for j in range(m):
                         D[i, j] = omega * free[i, j] + (1.0 - omega) * stiff[i, j]
             tau_to = axpy(-sch[SCH_GAIN], fme_gradient(D, J, dJ, w2), tau_to)
-    for i in range(vme_gain.shape[0]):
-        tau_to = axpy(-vme_gain[i], vme_gradient(vme_D[i], J, dJ), tau_to)
+    if vme:
+        for i in range(vme_gain.shape[0]):
+            tau_to = axpy(-vme_gain[i], vme_gradient(vme_D[i], J, dJ), tau_to)
     tau_to = add(tau_to, tau_to_extra)
     r = n - m
     dynamic = prm[P_DYNAMIC] != 0.0
@@ -273,8 +295,6 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
             return SINGULAR, 1.0, 0.0, V, omega, False
         have_P = True
         Ntau = mv(P, tau_to)
-    code = prm[P_SATURATION]
-    safe = prm[P_SAFE] != 0.0
     if (code == ASCM or code == ACTIVE_SET) and not V > 0.0 and not have_P:
         P, ok = null_projector(JMinv)
         if not ok:
@@ -305,7 +325,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
             held = held_torque(P, S, k, rr)
         if not clipped:
             tau, gamma = safety_room(tau, b, held, lo, hi)
-    if prm[P_CLIPPED] != 0.0:  # null_space="clipped": τ + N τ_to, each joint clipped at its limit (eqs. 6.2–6.6)
+    if clipped_null:  # null_space="clipped": τ + N τ_to, each joint clipped at its limit (eqs. 6.2–6.6)
         assign(tau_out, clip(add(tau, Ntau), lo, hi))
         return OK, gamma * alpha, 1.0, V, omega, clipped
     if not have_P and any_true(sat):
@@ -316,7 +336,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
     tau1 = add(tau, delta) if beta != 0.0 else tau
-    if tank[TK_ON] == 0.0:
+    if not tank_on:
         assign(tau_out, clip(tau1, lo, hi))
         return OK, gamma * alpha, beta, V, omega, clipped
     # the null-space energy tank (rhi.control.tank): the tick without the objectives, the damper's direction

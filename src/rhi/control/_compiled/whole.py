@@ -16,18 +16,21 @@ projector block is ill-conditioned) the controller finishes the tick in the refe
 
 from __future__ import annotations
 
+import functools
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from rhi.control._compiled import passivity
 from rhi.control._compiled.objectives import OBJ_BARRIER, OBJ_FME, OBJ_JAC, objectives
-from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
+from rhi.control._compiled.step import FALLBACK, OK, P_CLIPPED, P_SAFE, P_SATURATION, SINGULAR, tick
+from rhi.control._compiled.tank import TK_ON
 from rhi.devices._compiled.chain import chain_terms
 from rhi.devices._compiled.terms import assign, dot, mm, mtv, mv
 from rhi.jit import jit
 
-__all__ = ["FALLBACK", "OK", "SINGULAR", "whole"]
+__all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "whole", "whole_for"]
 
 #: Primary laws `whole` computes (code in law[LAW_KIND]).
 FORCE, SPRING, FREE = 1, 2, 3
@@ -84,6 +87,9 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
           x, buf, F_r, F_x, tau_out, sat, res):
     """One whole tick; the status of `rhi.control._compiled.step.tick` (OK, FALLBACK, SINGULAR).
 
+    Every part is compiled; the settings decide at run time which run (`whole_for`: only the parts one
+    controller has).
+
     Args:
         t: time [s].
         q: (n,) joint positions [rad].
@@ -124,6 +130,74 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
         sat: (n,) bool, the held joints, written.
         res: (N_RES,) α, β, V, Ω, clipped, whether the passivity layer ran, whether tr changed (R_* slots), written.
     """
+    return _whole(t, q, dq, force, (ints, joints, consts, A, b, rows, armature, supports, identity), ready, at, law,
+                  lo, hi, prm, tr, sch, vme_D, vme_gain, obj, (pc, pc_pos, pc_eff), (tank, tank_q, tank_e),
+                  (x, buf, F_r, F_x, tau_out, sat, res), int(prm[P_SATURATION]), sch.shape[0] != 0,
+                  vme_gain.shape[0] != 0, prm[P_SAFE] != 0.0, prm[P_CLIPPED] != 0.0, tank[TK_ON] != 0.0,
+                  obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0 or obj[OBJ_JAC] != 0.0, pc[PC_ON] != 0.0)
+
+
+class Parts(NamedTuple):
+    """The parts a whole tick has (`whole_for`): `rhi.control._compiled.step.flags` and two of its own.
+
+    Attributes:
+        code: the allocation (`rhi.control._compiled.step` NONE, SCALING, ASCM, ACTIVE_SET).
+        scheduled: an FME schedule.
+        vme: VME-matching objectives.
+        safe: the held joints' safety torque is kept.
+        clipped_null: null_space="clipped".
+        tank: the null-space energy tank.
+        objectives: static FME-matching objectives, joint-limit barriers or Jacobian objectives
+            (`rhi.control._compiled.objectives`).
+        passivity: the passivity layer.
+    """
+
+    code: int
+    scheduled: bool
+    vme: bool
+    safe: bool
+    clipped_null: bool
+    tank: bool
+    objectives: bool
+    passivity: bool
+
+
+@functools.cache
+def whole_for(parts: Parts):
+    """`whole` compiled for one set of `parts`: Numba types and compiles only the branches they use.
+
+    A cold start compiles a fraction of the generic `whole` (e.g. ASCM without the active set, the tank and
+    the passivity layer); each set is compiled once and cached on disk (the flags are constants of the closure,
+    part of Numba's cache key). Same arguments, results and status as `whole` with settings that agree with
+    `parts`.
+    """
+    code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on = (
+        int(parts[0]), *(bool(p) for p in parts[1:]))
+
+    @jit
+    def whole_parts(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
+                    lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
+                    x, buf, F_r, F_x, tau_out, sat, res):
+        return _whole(t, q, dq, force, (ints, joints, consts, A, b, rows, armature, supports, identity), ready, at,
+                      law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, (pc, pc_pos, pc_eff), (tank, tank_q, tank_e),
+                      (x, buf, F_r, F_x, tau_out, sat, res), code, scheduled, vme, safe, clipped_null, tank_on,
+                      objectives_on, passivity_on)
+
+    return whole_parts
+
+
+@jit(inline=True)
+def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pcs, tanks, outs,
+           code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on):
+    """`whole`'s body (inlined), with the `Parts` it has as its last eight arguments (constants: pruned).
+
+    `chain` is (ints, ..., identity), `pcs` (pc, pc_pos, pc_eff), `tanks` (tank, tank_q, tank_e) and `outs`
+    (x, ..., res) of `whole`'s arguments (tuples: a call of more than 30 arguments is one Numba cannot inline).
+    """
+    ints, joints, consts, A, b, rows, armature, supports, identity = chain
+    pc, pc_pos, pc_eff = pcs
+    tank, tank_q, tank_e = tanks
+    x, buf, F_r, F_x, tau_out, sat, res = outs
     n, m = q.shape[0], rows.shape[0]
     if not ready:
         chain_terms(ints, joints, consts, mv(A, q) + b, A, rows, armature, supports, identity, dq, x, buf)
@@ -139,14 +213,17 @@ def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports,
     Cx = buf[at[12]:at[12] + m * m].reshape((m, m))
     _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x)
     tau_s, tau_to = np.zeros(n), np.zeros(n)
-    if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0 or obj[OBJ_JAC] != 0.0:
+    if objectives_on:
         objectives(obj, q, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
     tr0, tr1, tr2, tr3 = tr[0], tr[1], tr[2], tr[3]
     status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain,
-                                                  tau_s, tau_to, tank, tank_q, tank_e, tau_out, sat)
+                                                  tau_s, tau_to, tank, tank_q, tank_e, tau_out, sat, code, scheduled,
+                                                  vme, safe, clipped_null, tank_on)
     res[R_ALPHA], res[R_BETA], res[R_V], res[R_OMEGA], res[R_CLIPPED] = alpha, beta, V, omega, 1.0 if clipped else 0.0
     res[R_PC] = 0.0
     res[R_TR] = 0.0 if tr[0] == tr0 and tr[1] == tr1 and tr[2] == tr2 and tr[3] == tr3 else 1.0
+    if not passivity_on:
+        return status
     if status != OK or pc[PC_ON] == 0.0 or not math.isfinite(dot(tau_out, tau_out)):
         return status
     motors = pc[PC_MOTORS] != 0.0
