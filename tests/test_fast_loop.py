@@ -155,24 +155,33 @@ def test_unstable_plant_fault_equals_python_loop(rhi4, monkeypatch):
     check_same(a[:2], b[:2])
 
 
-def test_ticks_handed_to_python_resume(rhi4, monkeypatch):
-    """Compiled calls that end early and hand ticks to the Python loop (as for a FALLBACK tick), then resume.
+def short_calls(seed: int, handed: list | None = None):
+    """A stand-in for `fast_loop.ticks` whose calls end after a random 0–39 ticks and hand the next tick to Python.
 
-    The Python ticks in between advance the controller's FME transition and passivity state from the
-    mirrors the compiled calls left, and the compiled calls continue from what Python left.
+    The ticks handed over are appended to `handed` (when given).
     """
     kernel = fast_loop.ticks
-    rng = np.random.default_rng(5)
-    handed = []
+    rng = np.random.default_rng(seed)
 
     def short(count, k0, *args):
         lay = args[11]  # ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, ...)
         kernel(min(count, int(rng.integers(0, 40))), k0, *args)
         if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
             lay[fast_loop.L_OUT] = fast_loop.PYTHON
-            handed.append(k0 + int(lay[fast_loop.L_DONE]))
+            if handed is not None:
+                handed.append(k0 + int(lay[fast_loop.L_DONE]))
 
-    monkeypatch.setattr(fast_loop, "ticks", short)
+    return short
+
+
+def test_ticks_handed_to_python_resume(rhi4, monkeypatch):
+    """Compiled calls that end early and hand ticks to the Python loop (as for a FALLBACK tick), then resume.
+
+    The Python ticks in between advance the controller's FME transition and passivity state from the
+    mirrors the compiled calls left, and the compiled calls continue from what Python left.
+    """
+    handed: list[int] = []
+    monkeypatch.setattr(fast_loop, "ticks", short_calls(5, handed))
     a = run(rhi4, palpation, python=False, duration=0.6)
     monkeypatch.undo()
     assert a[2].ticks + len(handed) == 600 and len(handed) > 20
@@ -231,16 +240,7 @@ def test_tank_equals_python_loop(rhi4, monkeypatch, port):
     assert tank.t == pytest.approx(0.599) and tank.energy != a[1].config.tank.initial
     b = run(rhi4, make, python=True, duration=0.6, monkeypatch=monkeypatch)
     check_same(a[:2], b[:2])
-    kernel = fast_loop.ticks
-    rng = np.random.default_rng(6)
-
-    def short(count, k0, *args):
-        lay = args[11]  # ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, ...)
-        kernel(min(count, int(rng.integers(0, 40))), k0, *args)
-        if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
-            lay[fast_loop.L_OUT] = fast_loop.PYTHON
-
-    monkeypatch.setattr(fast_loop, "ticks", short)
+    monkeypatch.setattr(fast_loop, "ticks", short_calls(6))
     c = run(rhi4, make, python=False, duration=0.6)
     monkeypatch.undo()
     assert 0 < c[2].ticks < 600

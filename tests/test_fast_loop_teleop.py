@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_fast_loop import Q0, check_same, palpation
+from test_fast_loop import Q0, check_same, palpation, short_calls
 
 import rhi
 from rhi.control import (
@@ -80,18 +80,8 @@ def test_teleoperation_and_chapter5_objectives_equal_the_python_loop(devices, ob
 
 def test_teleoperated_ticks_handed_to_python_resume(devices, monkeypatch):
     """Compiled calls that end early hand ticks to the Python loop: the slave, the probe and the state carry on."""
-    kernel = fast_loop.ticks
-    rng = np.random.default_rng(3)
-    handed = []
-
-    def short(count, k0, *args):
-        lay = args[11]  # ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, ...)
-        kernel(min(count, int(rng.integers(0, 40))), k0, *args)
-        if lay[fast_loop.L_OUT] == fast_loop.DONE and lay[fast_loop.L_DONE] < count:
-            lay[fast_loop.L_OUT] = fast_loop.PYTHON
-            handed.append(k0 + int(lay[fast_loop.L_DONE]))
-
-    a = teleoperated(devices, "tmi", python=False, monkeypatch=monkeypatch, short=short)
+    handed: list[int] = []
+    a = teleoperated(devices, "tmi", python=False, monkeypatch=monkeypatch, short=short_calls(3, handed))
     assert a[2].ticks + len(handed) == 500 and len(handed) > 10
     b = teleoperated(devices, "tmi", python=True, monkeypatch=monkeypatch)
     same_teleoperation(a, b)
