@@ -7,9 +7,12 @@ finite differences (rhi's controller uses analytic kernels). Readings where the 
 * B.8 prints "max{…}" for the upper bound; a max with A_max is never below A_max, so the bound would
   never bind: read as min (Flacco et al. [50], and Fig. B.2 shows the bound binding).
 * "if the i-th joint … is over-driven … [disable it]. … repeated iteratively": one joint per
-  iteration, the one with the smallest residual ratio ρ of Fig. B.4 (the SNS of [50]).
+  iteration, the one with the smallest residual ratio ρ of Fig. B.4 (the SNS of [50]); a joint whose fixed
+  part is already beyond the bound its λ moves away from limits the scaling from below ([50]).
 * The base is enabled while σ_m < σ_m,min or while the arm alone cannot realise ẍ (rank(JS) < r or
   joints left over-driven); α and β are min(Φ, 1) of Fig. B.4.
+* "The AMD method without having a tertiary objective" (§B.4.2, Fig. B.7's run without singularity
+  avoidance): no σ_m test (the arm tries the task alone while it can) and no q̈_t (eq. B.19 is q̈_amd).
 """
 
 from __future__ import annotations
@@ -28,11 +31,12 @@ class AMDTranscription:
         dev: ``rhi.device("wmm")``.
         dt: sampling time T [s].
         kp, kd, gamma1, gamma2, sigma_min: K_p, K_d, γ₁, γ₂, σ_m,min of §B.4.2 (20, 10, 5, 0.5, 0.15).
+        avoidance: False: the plain AMD of §B.4.2 (no σ_m test, no tertiary objective).
     """
 
     def __init__(self, dev: Device, dt: float = 0.005, kp: float = 20.0, kd: float = 10.0, gamma1: float = 5.0,
-                 gamma2: float = 0.5, sigma_min: float = 0.15) -> None:
-        self.dev, self.T = dev, dt
+                 gamma2: float = 0.5, sigma_min: float = 0.15, avoidance: bool = True) -> None:
+        self.dev, self.T, self.avoidance = dev, dt, avoidance
         self.kp, self.kd, self.g1, self.g2, self.sigma_min = kp, kd, gamma1, gamma2, sigma_min
         self.V, self.A = dev.velocity_max, dev.acceleration_max
         self.nb = 3
@@ -81,15 +85,31 @@ class AMDTranscription:
 
     @staticmethod
     def scaling(lam: np.ndarray, xi: np.ndarray, lo: np.ndarray, hi: np.ndarray, joints) -> tuple[float, int]:
-        """Fig. B.4: ρ_i = (bound − ξ_i)/λ_i for the bound λ_i moves towards, Φ = min ρ, scaling min(Φ, 1)."""
-        phi, arg = math.inf, -1
+        """Fig. B.4 with the SNS of [50]: (scaling, critical joint).
+
+        Per joint the ratios ρ of the residual to the required acceleration
+        towards each bound; Φ = min of the upper ratios, the scaling min(Φ, 1). Where no scaling in [0, 1] keeps
+        every joint within its bounds (Φ < 0, or a joint already beyond the bound λ moves away from needs more
+        than min(Φ, 1)), the scaling is 0 with that joint as the critical one.
+        """
+        phi, arg, need, arg_need = math.inf, -1, -math.inf, -1
         for i in joints:
             if abs(lam[i]) < 1e-12:
+                if not lo[i] - 1e-12 <= xi[i] <= hi[i] + 1e-12:
+                    return 0.0, i
                 continue
-            rho = ((hi[i] - xi[i]) if lam[i] > 0 else (lo[i] - xi[i])) / lam[i]
-            if rho < phi:
-                phi, arg = rho, i
-        return max(0.0, min(phi, 1.0)), arg
+            r_hi, r_lo = (hi[i] - xi[i]) / lam[i], (lo[i] - xi[i]) / lam[i]
+            up, down = (r_hi, r_lo) if lam[i] > 0 else (r_lo, r_hi)
+            if up < phi:
+                phi, arg = up, i
+            if down > need:
+                need, arg_need = down, i
+        if phi < 0.0:
+            return 0.0, arg
+        s = min(phi, 1.0)
+        if need > s and (need - s) * abs(lam[arg_need]) > 1e-12:
+            return 0.0, arg_need
+        return s, arg
 
     def sns(self, J, b, ddx, lo, hi, enabled: np.ndarray, fixed: np.ndarray) -> dict:
         """Eq. B.9 with the selection loop of §B.3.2: q̈ = (JS)†(αẍ − J̇q̇) + [I − (JS)†J] q̈_N."""
@@ -112,10 +132,11 @@ class AMDTranscription:
                 return {"ddq": a + c, "alpha": 1.0, "active": S.astype(bool), "feasible": True}
             S[crit] = 0.0
             qN[crit] = hi[crit] if a[crit] + c[crit] > hi[crit] else lo[crit]
+        # infeasible: where even α = 0 over-drives a joint, the command is kept within B.6's bounds
         if best is None:
-            return {"ddq": qN, "alpha": 0.0, "active": S.astype(bool), "feasible": False}
+            return {"ddq": np.clip(qN, lo, hi), "alpha": 0.0, "active": S.astype(bool), "feasible": False}
         alpha, a, c, S = best
-        return {"ddq": c + alpha * a, "alpha": alpha, "active": S.astype(bool), "feasible": False}
+        return {"ddq": np.clip(c + alpha * a, lo, hi), "alpha": alpha, "active": S.astype(bool), "feasible": False}
 
     def step(self, q, dq, x_d, dx_d, ddx_d, base_stop: np.ndarray) -> dict:
         """One sample. base_stop: (3,) the disabled base's acceleration (B.20), supplied by the caller."""
@@ -127,7 +148,7 @@ class AMDTranscription:
         sigma = float(np.linalg.svd(J[:, self.nb:], compute_uv=False)[-1])
         n = self.dev.n
         res = None
-        if sigma >= self.sigma_min:  # base disabled (S = diag(0, I)), the base at its stopping acceleration
+        if sigma >= self.sigma_min or not self.avoidance:  # base disabled (S = diag(0, I)), the base at its stopping acceleration
             fixed = np.r_[base_stop, np.zeros(n - self.nb)]
             res = self.sns(J, b, ddx, lo, hi, np.arange(n) >= self.nb, fixed)
             if not res["feasible"]:
@@ -135,6 +156,9 @@ class AMDTranscription:
         base_active = res is None
         if res is None:
             res = self.sns(J, b, ddx, lo, hi, np.ones(n, bool), np.zeros(n))
+        if not self.avoidance:  # eq. B.19 without q̈_t
+            return {"ddq": res["ddq"], "alpha": res["alpha"], "beta": 0.0, "base_active": base_active,
+                    "sigma": sigma, "lo": lo, "hi": hi}
         # tertiary objective (B.10–B.11, B.13) with β of Fig. B.4, then B.19
         PN = np.eye(n) - np.linalg.pinv(J) @ J
         IS = np.diag((~res["active"]).astype(float))

@@ -391,7 +391,13 @@ _D = [
             (Reading("the task must be scaled (α < 1)", "line 2483: 'the desired trajectory cannot be tracked at "
                      "about 8.35s'", "appb.singularity", "without avoidance: first time the task must be scaled"),
              Reading("the tracking error exceeds 1 cm", "line 2483: 'significant tracking errors start to emerge'",
-                     "appb.singularity", "without avoidance: first time the tracking error exceeds"))),
+                     "appb.singularity", "without avoidance: first time the tracking error exceeds")),
+            checked=f"the AMD without avoidance (eqs. B.4–B.9, Fig. B.4, no tertiary objective) equals {_TR} at every "
+                    "state of the experiment's run to 12 s (1e-6 rad/s², measured 2e-8), and σ_min(J_m) of the logged "
+                    "configurations by NumPy's SVD equals the logged one (1e-12; tests/"
+                    "test_transcription_appb_singular.py). It found a bug, fixed: Fig. B.4's scaling named the wrong "
+                    "critical joint where one was already beyond its bound, so the SNS gave up the task (α = 0) where it "
+                    "was feasible; from 9.31 s on, after the singular time, which is unchanged"),
     Dossier("sB_4_3.base_on", "§B.4.3, Fig. B.11 (line 2549)",
             "first time the proposed controller enables the base beyond the workspace (σ_m,min = 0.15)", (),
             missing="the wheel-ground slip of the experiment",

@@ -93,10 +93,10 @@ def scale_factor(a, c, lo, hi, act):
         if dn > s_lo:
             s_lo, i_lo = dn, i
     s = min(1.0, s_hi)
+    if s < 0.0:  # the smallest ratio first (Fig. B.4): no s ≥ 0 brings that joint within its bounds
+        return 0.0, i_hi
     if s_lo > s and (s_lo - s) * abs(a[i_lo]) > 1e-12:
         return 0.0, i_lo
-    if s < 0.0:
-        return 0.0, i_hi
     return s, (i_hi if math.isfinite(s_hi) else -1)
 
 
