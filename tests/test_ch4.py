@@ -84,6 +84,14 @@ def test_table_4_1_qualitative_result(full):
     sq = [r for r in every if r.quantity.startswith("mean ‖q̇‖² A→B with Λ_T = diag(σ²)")]
     lit = [r for r in every if r.quantity.startswith("mean ‖q̇‖² A→B, ")]
     assert len(sq) == len(lit) == 4 and all(a.ours > 0 and a.ours != b.ours for a, b in zip(sq, lit))
+    # ... and at the designs the thesis prints (a third reading): the same function at those designs
+    printed = {r.quantity.split(", ", 1)[1]: r.ours for r in every
+               if r.quantity.startswith("thesis's design: mean ‖q̇‖² A→B, ")}
+    assert len(printed) == 4
+    t = T.TABLE_4_1["C2"]
+    x = [t["l2"], np.deg2rad(t["theta_z"]), t["z_ph"]]
+    want = np.nanmean(ch4.setup.energy_along_task(ch4.setup.problem("full", density=40), x)[1])
+    assert printed["l2, θz, Z_PH, C2"] == pytest.approx(want, rel=1e-12)
 
 
 def test_with_equal_weights_c2_shortens_l2_but_loses_gm_t():

@@ -47,6 +47,13 @@ def _energy_order_squared(r: Lookup) -> float:
     return float(sum(e[d, "C2"] < e[d, "C1"] for d in ("θz only", "l2, θz, Z_PH")))
 
 
+def _energy_order_printed(r: Lookup) -> float:
+    """Rounds (of 2) where C2's mean ‖q̇‖² is below C1's at the designs §4.4 and Table 4.1 print."""
+    e = {(d, c): r("ch4.full_design", f"thesis's design: mean ‖q̇‖² A→B, {d}, {c}")
+         for d in ("θz only", "l2, θz, Z_PH") for c in ("C1", "C2")}
+    return float(sum(e[d, "C2"] < e[d, "C1"] for d in ("θz only", "l2, θz, Z_PH")))
+
+
 P1, P2 = "(0.49, -0.22)", "(0.49, -0.14)"
 J_SHARP = ("J# = M_q⁻¹Jᵀ[JM_q⁻¹Jᵀ]⁻¹, 'generalized inverse of the Jacobian' (§3.4 line 565, §6.3 line 1260, "
            "§7.2 line 1510)")
@@ -209,7 +216,11 @@ _D = [
             (Reading("Λ_T = diag(σ²): eq. 4.21's ẋᵀ(J_T J_Tᵀ)⁻¹ẋ",
                      "line 953: 'joints kinetic energy, defined as ‖q̇‖² by using (4.21)'; eq. 4.21 (line 857) is "
                      "ẋᵀ(J_T J_Tᵀ)⁻¹ẋ, whose eigenvalues are the squared semi-axes where eq. 4.22 prints diag(σ)",
-                     "ch4.full_design", "", measure=_energy_order_squared),),
+                     "ch4.full_design", "", measure=_energy_order_squared),
+             Reading("the thesis's printed designs (θz = 89° and 2°; Table 4.1's C1 and C2)",
+                     "line 953: 'Fig. 4.7 shows the teleoperation system's joint energy for various simulation "
+                     "scenarios discussed above' — the scenarios are the designs lines 916 and 929 print",
+                     "ch4.full_design", "", measure=_energy_order_printed)),
             missing="the designs' energies are drawn only; Fig. 4.7 prints no number",
             checked=ENERGY_CHECKED),
     # ---- chapter 5

@@ -190,6 +190,14 @@ def _full_design(ex, density, checkpoint_dir, progress, maxiter, popsize, k2) ->
         sq = energy_along_task(p, x, axes_squared=True)[1]
         energy_rows.append(Row(f"mean ‖q̇‖² A→B with Λ_T = diag(σ²) (eq. 4.21's (J_T J_Tᵀ)⁻¹), {name}", None,
                                float(np.nanmean(sq)), "(rad/s)²"))
+    # Fig. 4.7 at the thesis's own printed designs (§4.4's θz = 89°, 2°; Table 4.1), a reading beside ours
+    printed = {f"θz only, {w}": (prob1, [np.deg2rad(THESIS_THETA[w])]) for w in ("C1", "C2")}
+    printed |= {f"l2, θz, Z_PH, {w}": (prob, [THESIS_TABLE[w]["l2"], np.deg2rad(THESIS_TABLE[w]["theta_z"]),
+                                               THESIS_TABLE[w]["z_ph"]]) for w in ("C1", "C2")}
+    for name, (p, x) in printed.items():
+        energy_rows.append(Row(f"thesis's design: mean ‖q̇‖² A→B, {name}", None,
+                               float(np.nanmean(energy_along_task(p, x)[1])), "(rad/s)²·s/rad",
+                               "the design §4.4 prints, scored in our set-up (eq. 4.22 as printed)"))
     if progress:
         progress(2000, 2000)
     o1, o2 = opts["C1"], opts["C2"]
