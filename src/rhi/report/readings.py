@@ -98,6 +98,13 @@ CH6_MATCH_CHECKED = (CH6_CHECKED + "; the matched configurations at X₀ are whe
                      "along the self-motion manifold with the handle held, settle from each of rhi's starts and from "
                      "q = 0 (1e-5 rad): the global minima of the cost the controller descends (ν 0.239 / 0.466 with "
                      "rhi's limit barrier), not local ones (tests/test_transcription_ch6_matching.py)")
+CH6_FMAX_CHECKED = (CH6_MATCH_CHECKED + "; a brute-force search of the whole self-motion manifold at X₀ (eq. 6.20's "
+                    "kinematics, §5.4's limits with both parallelogram constraints, plain NumPy; "
+                    "tests/test_transcription_table_6_1.py) finds rhi's minima of eq. 6.10 within the limits (ν 0.2199 / "
+                    "0.4537 to 2e-6) and their force-scaling F_max (4.97 / 9.29 N to 1e-3); over every configuration at "
+                    "X₀ force scaling gives 4.8–10.3 N, and where it gives the printed 5.674 N, ν to M_Free^des is at "
+                    "least 0.373 (1.7 × its minimum), where it gives 8.564 N, ν to M_Stiff^des is within 4 % of its "
+                    "minimum")
 STOPS = "the minima of eq. 6.10 alone within the joint limits (the thesis's law on hard stops)"
 STOPS_WHY = ("eq. 6.6 (line 1274): τ_S = −β∂ν/∂q − K_d q̇ has no limit term; on the hardware's §5.4 stops the flow "
              "slides to ν's lowest point within them (ch6.palpation rows 'JBLD ν … at the minimum of eq. 6.10 alone')")
@@ -270,8 +277,10 @@ _D = [
                        "null-space torques"),
                Reading(STOPS, STOPS_WHY, "ch6.palpation", f"F_max along u, M_{c.capitalize()}^des: force scaling at "
                        "the minimum of eq. 6.10 alone")),
-              missing="the hardware's friction and the human hand's stiffness during the palpation",
-              checked=CH6_MATCH_CHECKED)
+              missing="the hardware's friction and the human hand's stiffness during the palpation"
+              + (", and the configuration the hardware settled to (force scaling gives the printed 5.674 N only at "
+                 "configurations far from eq. 6.10's minimum under §5.4's limits)" if c == "free" else ""),
+              checked=CH6_FMAX_CHECKED)
       for c in ("free", "stiff")],
     Dossier("table6_1.M_x_ratio", "§6.4, Table 6.1 (line 1442)",
             "identified M_x(M_Stiff)/M_x(M_Free), eq. 3.24 on the simulated plant, J#",
