@@ -219,7 +219,8 @@ TABLE_5_1 = {m: tuple(_v(f"table5_1.{m}.{i}", t, u, _T51) for i, t in enumerate(
 EFFORT_RATIO_5_1 = tuple(_ratio(f"table5_1.effort_ratio.{k}", TABLE_5_1["effort"][k], TABLE_5_1["effort"][0], "Table 5.1")
                          for k in (1, 2))
 #: Table 5.1 / §5.4.2: effort in scenario 1 < 2 < 3.
-EFFORT_ORDER = _claim("table5_1.effort_order", "Table 5.1, §5.4.2: user's effort scenario 1 < 2 < 3")
+EFFORT_ORDER = _claim("table5_1.effort_order", "Fig. 5.6, §5.4.1 (line 1163; simulation, eq. 5.15): user's effort "
+                      "scenario 1 < 2 < 3 (Table 5.1 prints the same order for the human study)")
 #: §5.4.2: one-way ANOVAs (F, p) on effort, time and error, F(2, 21).
 ANOVA_5 = {m: (_v(f"s5_4_2.anova.{m}.F", f, "", "§5.4.2 (lines 1188–1211)", relative=False),
                _v(f"s5_4_2.anova.{m}.p", p, "p", "§5.4.2 (lines 1188–1211)"))

@@ -255,7 +255,11 @@ _D = [
             checked=CH5_W_CHECKED),
     Dossier("table5_1.effort_order", "§5.4.1, Fig. 5.6 (line 1163), eq. 5.15",
             "the user's work of eq. 5.15 over the W, scenario 1 < 2 < 3, same B^d in all", (),
-            missing="the W trajectory's coordinates and the hand's motion along it"),
+            missing="the W trajectory's coordinates and the hand's motion along it",
+            checked="eq. 5.15, W = ∫F_hᵀẋ dt, integrated in plain NumPy (trapezoid) from the logged hand force and "
+                    "handle velocity of the three scenarios equals rhi's in-simulation integral to 1 % (its physics "
+                    "steps; 1e-12 J with one step per period) and orders the scenarios as rhi does "
+                    "(tests/test_transcription_ch5_effort.py)"),
     # ---- chapter 6
     Dossier("s6_4.gain", "§6.4, Fig. 6.9 (line 1428)",
             "peak simulated F/T-sensor force with M_Stiff^des over M_Free^des, J# null-space projector",
