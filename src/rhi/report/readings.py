@@ -352,9 +352,12 @@ _D = [
                      measure=lambda r: 100.0 * (r("ch7.palpation", "max force over the run (joint stops included), ascm "
                                                   "(dynamic") / r("ch7.palpation", "max force over the run (joint stops "
                                                                   "included), none (dynamic") - 1.0))),
-            missing="the RHI's configuration at contact (the static gain changes across the workspace, Fig. 7.5), the "
-                    "hardware's friction and the hand's stiffness",
-            checked=CH7_CHECKED),
+            missing="the hardware's friction, the hand's stiffness and the link inertias J# needs (cited, not printed)",
+            checked=CH7_CHECKED + "; the contact configuration is the minimum of eq. 7.18 (M^des = diag(0.01, 170)) "
+            "within §5.4's limits that a brute-force search of the self-motion manifold at X₀ finds (ν to 1e-6 without "
+            "rhi's limit barrier, 0.5 % with it), and there eq. 7.5's capability over simple scaling, two small LPs in "
+            "plain NumPy/SciPy, is +2 % with J# (+1.5 % with the thesis-fit inertias) and +101 % with J⁺ "
+            "(tests/test_transcription_s7_5.py)"),
     # ---- appendix A
     *[Dossier(f"sA_4_2.rms_ratio.{c}", "§A.4.2, Table A.1 (line 2161), line 2194",
               f"RMS {name} commanded, proposed / traditional, on the 0.25 m circle with K_x = 10 I, ε = 0.2, "
