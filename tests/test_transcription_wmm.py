@@ -330,3 +330,39 @@ def test_traditional_B_matches_the_transcription_beyond_the_workspace(wmm):
     cmd = PinvAccelController(wmm, PinvAccelConfig(dt=0.005, manipulability=False, limit="none")).step(
         float(log.t[k]), log.q[k], log.dq[k - 1], traj.x[k], traj.dx[k], traj.ddx[k])
     assert np.abs(cmd.ddq - mine).max() > 1e-3
+
+
+@pytest.mark.parametrize(("axis", "at_q0", "printed"), [(2, 1.125, 4.031), (0, 3.825, 5.88)])
+def test_the_printed_dm_needs_the_base(wmm, axis, at_q0, printed):
+    """§A.4.3's enhanced DM (z: 1.125 → 4.031, x: 3.905 → 5.88) is out of reach of the arm alone.
+
+    DM = [uᵀ J_m W_τᵀW_τ J_mᵀ u]^(−1/2) (eq. A.8, W_τ = diag(1, 1, 1, 1, 2.5, 2.5, 2.5) as printed) equals the printed
+    value at q0; with the base fixed (eq. A.19 as printed moves it only once γ > 0) and the end effector held at
+    q0's x, y with any height in the Cartesian phase's [0.36, 0.56] m, SLSQP on the device model from 12 starts
+    finds at most 1.57 along z and 4.21 along x (30 starts: 1.568, 4.208): the printed values need the base.
+    """
+    from scipy.optimize import minimize
+
+    w2 = np.array([1.0, 1.0, 1.0, 1.0, 2.5, 2.5, 2.5]) ** 2
+
+    def dm(q):
+        v = wmm.jacobian(q)[axis, 3:]
+        return float(v @ (w2 * v)) ** -0.5
+
+    assert dm(Q0) == pytest.approx(at_q0, abs=2e-3)
+    x0 = wmm.fk(Q0)
+    lo = np.where(np.isfinite(wmm.q_min), wmm.q_min, -2 * np.pi)
+    hi = np.where(np.isfinite(wmm.q_max), wmm.q_max, 2 * np.pi)
+    lo[:3] = hi[:3] = 0.0
+    cons = [{"type": "eq", "fun": lambda q: wmm.fk(q)[:2] - x0[:2]},
+            {"type": "ineq", "fun": lambda q: np.r_[wmm.fk(q)[2] - 0.36, 0.56 - wmm.fk(q)[2]]}]
+    rng = np.random.default_rng(11)
+    best = 0.0
+    for k in range(12):
+        q0 = Q0 + (0 if k == 0 else np.r_[np.zeros(3), rng.normal(scale=0.6, size=7)])
+        res = minimize(lambda q: -min(dm(q), 1e3), np.clip(q0, lo, hi), method="SLSQP", bounds=list(zip(lo, hi)),
+                       constraints=cons, options={"maxiter": 300})
+        x = wmm.fk(res.x)
+        if np.abs(x[:2] - x0[:2]).max() < 1e-6 and 0.36 - 1e-6 <= x[2] <= 0.56 + 1e-6:
+            best = max(best, -float(res.fun))
+    assert dm(Q0) < best < 0.75 * printed
