@@ -54,13 +54,6 @@ def _energy_order_printed(r: Lookup) -> float:
     return float(sum(e[d, "C2"] < e[d, "C1"] for d in ("θz only", "l2, θz, Z_PH")))
 
 
-def _nominal_order(r: Lookup) -> float:
-    """Points (of 2) where eq. 3.13's Λ at the points' own configurations are ordered RHI ≤ PHANToM < Rehab."""
-    lam = {(d, p): r("ch3.sysid_table_3_2", f"Λ eq. 3.13 at the nominal configuration, {d} at {p}")
-           for d in ("RHI", "PHANToM", "Rehab") for p in (P1, P2)}
-    return float(sum(lam["RHI", p] <= lam["PHANToM", p] < lam["Rehab", p] for p in (P1, P2)))
-
-
 P1, P2 = "(0.49, -0.22)", "(0.49, -0.14)"
 J_SHARP = ("J# = M_q⁻¹Jᵀ[JM_q⁻¹Jᵀ]⁻¹, 'generalized inverse of the Jacobian' (§3.4 line 565, §6.3 line 1260, "
            "§7.2 line 1510)")
@@ -189,11 +182,7 @@ _D = [
     Dossier("table3_2.order", "§3.5, Table 3.2 (line 652), eq. 3.24",
             "Λ identified by least squares (eq. 3.24) on the simulated plant, ordered RHI ≤ PHANToM < Rehab at both "
             "points",
-            (Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "", measure=_fit_order("3.2")),
-             Reading("eq. 3.13's Λ at the points themselves (the RHI at its printed q, the NHIs by their IK)",
-                     "line 650: 'Experiments are performed to validate the effective apparent inertia of HIs reported "
-                     "in Table 3.1'; line 652: Λ 'at two points'", "ch3.sysid_table_3_2", "",
-                     measure=_nominal_order)),
+            (Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "", measure=_fit_order("3.2")),),
             missing="the hardware's friction and the force-sensor records of the identification (line 656)",
             checked="eq. 3.24's least-squares fit, transcribed in plain NumPy (its own quadratic-fit derivatives, "
                     "SciPy's Butterworth in transfer-function form, numpy.linalg.lstsq), equals rhi's identified Λ and "
@@ -201,7 +190,8 @@ _D = [
                     "low-pass Λ moves 0.5–0.8 %) and orders Λ_RHI, Λ_PHANToM at the second point as rhi's fit does "
                     "(tests/test_transcription_table_3_2.py); pushed from rest along u without a fixture (line 662 "
                     "names none), the PHANToM passes the second point's y 2 mm off the line, where its eq. 3.13 Λ is "
-                    "1.5 % below that at the point and equal to the RHI's to 0.01 % (rows 'Λ eq. 3.13 at the plant's "
+                    "1.5 % below that at the point and equal to the RHI's to 0.01 %, while at the point itself the "
+                    "model orders RHI < PHANToM by 1.5 % (rows 'Λ eq. 3.13 at the plant's "
                     "configuration' vs 'at the nominal configuration'); the identified order there then rests on that "
                     "drift and on the velocity-product force eq. 3.24 omits, of opposite sign for the two (rows "
                     "'velocity-product … k')"),
