@@ -19,12 +19,13 @@ missed deadlines (device periods the host did not answer before the next reading
 unread, target < 0.1 %). The last table prints exactly these figures per rate (issue 29).
 
     PYTHONPATH=src python benchmarks/bench_runtime.py [--rates 1000 2000 4000] [--duration 20]
-        [--wait sleep spin] [--cpu 0] [--device-cpu 1] [--priority 50] [--device c|python] [--config NAME]
+        [--wait sleep sleep+qos spin] [--cpu 0] [--device-cpu 1] [--priority 50] [--device c|python] [--config NAME]
 
 By default the host loop is on CPU 0 and the device on CPU 1 (`--cpu -1` leaves both unpinned), both
 request SCHED_FIFO priority 50 (`--priority 0`: none; refused without root or CAP_SYS_NICE, with a
-warning), and each rate runs twice: the host asleep in `select` until each reading arrives (`rhi run`'s
-default) and polling for it on its busy core (`--spin`, `UDPLink(spin=True)`); `--wait` picks one.
+warning), and each rate runs three times: the host asleep in `select` until each reading arrives (`rhi run`'s
+default), asleep with every core kept out of deep idle states (`sleep+qos`: `run(cpu_latency=0)`, `--cpu-latency
+0`; needs root) and polling for the reading on its busy core (`--spin`, `UDPLink(spin=True)`); `--wait` picks.
 """
 
 from __future__ import annotations
@@ -169,8 +170,9 @@ def setup(config: str | None):
     return cfg.device, cfg.controller(), cfg.safety, cfg.virtual, np.array(cfg.sim["q0"])
 
 
-def one_rate(rate: float, spin: bool, a, tmp: Path) -> tuple[dict, dict]:
-    """In the loop over UDP at `rate`, then the same readings back to back: both runs' summaries."""
+def one_rate(rate: float, wait: str, a, tmp: Path) -> tuple[dict, dict]:
+    """In the loop over UDP at `rate` waiting as `wait`, then the same readings back to back: both summaries."""
+    spin, latency = wait == "spin", 0.0 if wait == "sleep+qos" else None
     dev, ctrl, safety, wall, q0 = setup(a.config)
     cpu = None if a.cpu < 0 else a.cpu
     dcpu = None if a.cpu < 0 else a.device_cpu
@@ -179,7 +181,7 @@ def one_rate(rate: float, spin: bool, a, tmp: Path) -> tuple[dict, dict]:
     try:
         link = UDPLink("127.0.0.1", port, rate=rate, timeout=0.005, spin=spin)
         res = run(link, ctrl, rate=rate, duration=a.duration, virtual=wall, safety=safety, realtime=False,
-                  cpu=cpu, priority=prio, log=tmp / f"udp{int(rate)}.rhilog")
+                  cpu=cpu, priority=prio, cpu_latency=latency, log=tmp / f"udp{int(rate)}.rhilog")
     finally:
         if isinstance(proc, subprocess.Popen):
             proc.terminate()
@@ -193,7 +195,7 @@ def one_rate(rate: float, spin: bool, a, tmp: Path) -> tuple[dict, dict]:
     _, ctrl, safety, wall, _ = setup(a.config)
     replay = ReplayLink(res.log, rate)
     base = run(replay, ctrl, rate=rate, duration=len(replay.readings) / rate, virtual=wall, safety=safety,
-               realtime=False, cpu=cpu, priority=prio).summary
+               realtime=False, cpu=cpu, priority=prio, cpu_latency=latency).summary
     return s, base
 
 
@@ -201,8 +203,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rates", type=float, nargs="+", default=[1000.0, 2000.0, 4000.0], help="control rates [Hz]")
     ap.add_argument("--duration", type=float, default=20.0, help="seconds per rate")
-    ap.add_argument("--wait", choices=("sleep", "spin"), nargs="+", default=["sleep", "spin"],
-                    help="how the host waits for each reading: asleep in select, or polling (UDPLink's spin)")
+    ap.add_argument("--wait", choices=("sleep", "sleep+qos", "spin"), nargs="+", default=["sleep", "sleep+qos", "spin"],
+                    help="how the host waits for each reading: asleep in select, asleep with the cores kept out of "
+                         "deep idle states (run's cpu_latency=0), or polling (UDPLink's spin)")
     ap.add_argument("--cpu", type=int, default=0, help="the host loop's CPU (-1: neither loop pinned)")
     ap.add_argument("--device-cpu", type=int, default=1, help="the device process's CPU")
     ap.add_argument("--priority", type=int, default=50, help="SCHED_FIFO priority of both loops (0: none)")
@@ -213,7 +216,7 @@ def main() -> None:
     us = lambda d: "  ".join(f"{k} {1e6 * v:7.1f}" for k, v in d.items())  # noqa: E731
     with tempfile.TemporaryDirectory() as tmp:
         for rate, wait in ((r, w) for r in a.rates for w in a.wait):
-            s, b = one_rate(rate, wait == "spin", a, Path(tmp))
+            s, b = one_rate(rate, wait, a, Path(tmp))
             print(f"\n{rate:g} Hz over UDP ({a.device} device, waiting {wait}): {s['ticks']} ticks in "
                   f"{s['duration']:.1f} s, fault: {s['fault']}; readings lost {s['lost']}")
             print(f"  step in the loop [µs]     {us(s['t_step'])}")
@@ -223,11 +226,11 @@ def main() -> None:
             rows.append((rate, wait, s, b))
     print(f"\nissue 29: the step inside `rhi run` over UDP vs the same step back to back (cpu {a.cpu}, device cpu "
           f"{a.device_cpu}, SCHED_FIFO {a.priority or 'off'}, {a.duration:g} s per run)")
-    print(f"  {'rate':>7s} {'wait':>5s} {'loop p50':>9s} {'b2b p50':>8s} {'p50 ratio':>9s} {'loop p99.9':>10s} {'p99.9/p50':>9s} "
+    print(f"  {'rate':>7s} {'wait':>9s} {'loop p50':>9s} {'b2b p50':>8s} {'p50 ratio':>9s} {'loop p99.9':>10s} {'p99.9/p50':>9s} "
           f"{'missed':>7s} {'missed %':>9s}")
     for rate, wait, s, b in rows:
         st, bt = s["t_step"], b["t_step"]
-        print(f"  {rate:5.0f} Hz {wait:>5s} {1e6 * st['p50']:7.1f}µs {1e6 * bt['p50']:6.1f}µs {st['p50'] / bt['p50']:8.2f}x "
+        print(f"  {rate:5.0f} Hz {wait:>9s} {1e6 * st['p50']:7.1f}µs {1e6 * bt['p50']:6.1f}µs {st['p50'] / bt['p50']:8.2f}x "
               f"{1e6 * st['p99.9']:8.1f}µs {st['p99.9'] / st['p50']:8.2f}x {s['missed']:7d} {s['missed_pct']:8.3f}%")
     print("  targets: p50 ratio <= 1.5x and p99.9/p50 < 3x at 1 kHz; missed < 0.1 % at 4 kHz (pinned, quiet core)")
 

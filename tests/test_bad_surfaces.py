@@ -253,6 +253,9 @@ FLAGS = [
     (["run", "rhi4", "--config", "ch7_full"], "--view-port", PORT.map(str)),
     (["run", "rhi4", "--config", "ch7_full"], "--cpu", st.integers(max_value=-1).map(str)),
     (["run", "rhi4", "--config", "ch7_full"], "--priority", st.one_of(st.integers(max_value=0), st.integers(100)).map(str)),
+    (["run", "rhi4", "--config", "ch7_full"], "--cpu-latency",
+     st.one_of(FINITE, st.floats(max_value=0.0, exclude_max=True, min_value=-1e300).map(repr),
+               st.floats(min_value=1e6, exclude_min=True, max_value=1e300).map(repr))),  # [0, 1e6] µs
     (["device-server", "rhi4"], "--port", PORT.map(str)),
     (["device-server", "rhi4"], "--host", HOST),
     (["device-server", "rhi4"], "--rate", RATE),

@@ -447,6 +447,32 @@ def test_a_spinning_sched_fifo_loop_rests_where_the_kernel_throttles_it():
     assert rest == pytest.approx(8e-5) and asleep == 0.0
 
 
+def test_a_cpu_latency_request_is_held_for_the_loop_and_released_after():
+    """`cpu_latency` writes Linux's PM QoS request while the loop runs; the kernel's aggregate reads it back."""
+    import struct
+
+    from rhi.runtime.realtime import CPU_LATENCY_FILE, realtime_thread
+
+    if not os.access(CPU_LATENCY_FILE, os.R_OK | os.W_OK):
+        with pytest.warns(RuntimeWarning, match="CPU latency request of 0 µs not applied"):
+            with realtime_thread(None, None, 0.0):
+                pass
+        pytest.skip(f"{CPU_LATENCY_FILE} not writable here: the refusal is a warning (checked)")
+
+    def current() -> int:
+        with open(CPU_LATENCY_FILE, "rb") as f:
+            return struct.unpack("i", f.read(4))[0]
+
+    before = current()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # granted: no warning
+        with realtime_thread(None, None, 0.0):
+            assert current() == 0
+        with realtime_thread(None, None, 25e-6):
+            assert current() == min(25, before)
+    assert current() == before
+
+
 def test_warmup_leaves_the_controller_untouched_and_bad_realtime_options(dev):
     """`run` warms the controller's kernels on a twin: the controller's own state stays fresh."""
     from rhi.runtime.server import DeviceServer
@@ -455,6 +481,8 @@ def test_warmup_leaves_the_controller_untouched_and_bad_realtime_options(dev):
     ctrl.warmup()
     assert ctrl.state.ticks == 0 and not ctrl.state.stopped
     assert ctrl.passivity is None or ctrl.passivity.position is None
-    for kw, name in (({"cpu": -1}, "cpu"), ({"cpu": True}, "cpu"), ({"priority": 0}, "priority")):
+    for kw, name in (({"cpu": -1}, "cpu"), ({"cpu": True}, "cpu"), ({"priority": 0}, "priority"),
+                     ({"cpu_latency": -1e-6}, "cpu_latency"), ({"cpu_latency": float("nan")}, "cpu_latency"),
+                     ({"cpu_latency": True}, "cpu_latency"), ({"cpu_latency": 2.0}, "cpu_latency")):
         with pytest.raises(InvalidInput, match=name):
             DeviceServer(SimLink(plant), dev, **kw)

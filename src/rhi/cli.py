@@ -134,7 +134,7 @@ def _device_server(args: argparse.Namespace) -> int:
         link = SimLink(plant, rate=args.rate)
     srv = DeviceServer(link, dev, host=args.host, port=args.port,
                        watchdog=args.watchdog_ms * 1e-3, lockstep=args.lockstep, log=args.log, cpu=args.cpu,
-                       priority=args.priority, spin=args.spin)
+                       priority=args.priority, spin=args.spin, cpu_latency=args.cpu_latency)
     signal.signal(signal.SIGTERM, lambda *_: srv.stop())
     signal.signal(signal.SIGINT, lambda *_: srv.stop())
     print(f"rhi device-server: {dev.name} (simulated, {args.rate:g} Hz) on udp://{args.host}:{srv.port}, "
@@ -183,7 +183,7 @@ def _run(args: argparse.Namespace) -> int:
     def once(safety, left, path=log_path):
         return run(link, ctrl, rate=rate, duration=left, safety=safety, log=path, virtual=cfg.virtual,
                    realtime=args.realtime, progress=status, telemetry=None if view is None else view.telemetry,
-                   cpu=args.cpu, priority=args.priority, spin=args.spin)
+                   cpu=args.cpu, priority=args.priority, spin=args.spin, cpu_latency=args.cpu_latency)
 
     try:
         if view is None:

@@ -101,6 +101,14 @@ def count(text: str) -> int:
     return _integer(text, 1)
 
 
+def cpu_latency(text: str) -> float:
+    """A wake-up latency in µs, 0..1 000 000, returned in seconds (`rhi.runtime.run`'s `cpu_latency`)."""
+    v = finite(text)
+    if not 0.0 <= v <= 1e6:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1000000 µs, got {text!r}")
+    return v * 1e-6
+
+
 def cpu(text: str) -> int:
     """A CPU number (>= 0)."""
     return _integer(text, 0)

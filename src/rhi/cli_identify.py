@@ -75,7 +75,7 @@ def _identify(args: argparse.Namespace) -> int:
     try:
         res = identify_device(link, dev, u=u, q0=q0, programme=programme, rate=rate, safety=cfg.safety,
                               realtime=args.realtime, log=out / "identify.rhilog", progress=status, cpu=args.cpu,
-                              priority=args.priority, spin=args.spin)
+                              priority=args.priority, spin=args.spin, cpu_latency=args.cpu_latency)
     finally:
         status.close()
     (out / "identification.json").write_text(json.dumps(res.to_dict(), indent=1, default=float))

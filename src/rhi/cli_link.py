@@ -96,9 +96,12 @@ class Status:
 
 
 def add_realtime(p, what: str) -> None:
-    """Add --cpu, --priority and --spin for `what` (e.g. "the control loop") to parser `p`."""
+    """Add --cpu, --priority, --cpu-latency and --spin for `what` (e.g. "the control loop") to parser `p`."""
     p.add_argument("--cpu", type=A.cpu, help=f"pin {what} to this CPU (e.g. one no other busy process uses)")
     p.add_argument("--priority", type=A.priority, help=f"SCHED_FIFO priority 1..99 of {what} (needs CAP_SYS_NICE "
                    "or an rtprio limit; a warning otherwise)")
+    p.add_argument("--cpu-latency", type=A.cpu_latency, metavar="US",
+                   help=f"while {what} runs, keep every core's wake-up under US µs (Linux PM QoS, /dev/cpu_dma_latency; "
+                   "0: no deep idle state between ticks; needs root, a warning otherwise)")
     p.add_argument("--spin", action="store_true", help=f"{what} waits for each tick on a busy core instead of "
                    "asleep: steadier, shorter ticks for one core at 100 %% (use with --cpu)")

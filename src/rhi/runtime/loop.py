@@ -82,6 +82,7 @@ def run(
     cpu: int | None = None,
     priority: int | None = None,
     spin: bool = False,
+    cpu_latency: float | None = None,
     progress: Callable[[dict], None] | None = None,
     until: threading.Event | None = None,
 ) -> RunResult:
@@ -106,6 +107,8 @@ def run(
         priority: SCHED_FIFO priority (1–99) (a clear warning where the OS refuses).
         spin: wait for each deadline on a busy core instead of asleep (`wait_until`): steadier, shorter ticks
             for one core at 100 % (pair with `cpu`).
+        cpu_latency: ask Linux to keep every core's wake-up under this [s] for the run (PM QoS; 0: no deep idle
+            state, whose wake-up flushes the caches a tick runs from; needs root, a clear warning otherwise).
         progress: called about twice a second with a status dict (rate, misses, max |τ|/limit, V, fault).
         until: an event that ends the run when set (not a fault), e.g. from the thread of a study's pages.
 
@@ -124,7 +127,7 @@ def run(
     if duration is not None and not 1.0 / rate <= scalar("duration", duration) <= MAX_DURATION:
         raise InvalidInput(f"duration: must be between one period ({1.0 / rate} s) and {MAX_DURATION:g} s, or None "
                            f"(until a fault or an e-stop), got {duration!r}")
-    check_realtime(cpu, priority)
+    check_realtime(cpu, priority, cpu_latency)
     dev = getattr(controller, "device", None)
     if isinstance(safety, Safety):
         guard = safety
@@ -143,7 +146,8 @@ def run(
     w = LogWriter(layout(n, m, ms), log, meta={"device": getattr(dev, "name", "?"),
                                                 "task_axes": getattr(dev, "task_axes", None), "rate": float(rate),
                                                 "source": type(link).__name__, "realtime": bool(realtime),
-                                                "spin": bool(spin), "environment": describe(virtual), "route": route})
+                                                "spin": bool(spin), "cpu_latency": cpu_latency,
+                                                "environment": describe(virtual), "route": route})
     c = w.cols
     at = _offsets(w, n, m)
     state = getattr(controller, "state", None)
@@ -163,7 +167,7 @@ def run(
     if warmup is not None:  # compiled kernels loaded before the link opens (its watchdog runs from then on)
         warmup()
     try:
-        with realtime_thread(cpu, priority) as notes:
+        with realtime_thread(cpu, priority, cpu_latency) as notes:
             link.open()
             if link.n != n:
                 raise InvalidInput(f"link: the device has {link.n} motors, the controller's model {n}")

@@ -1,4 +1,4 @@
-"""The real-time settings of a loop's thread and how it waits: CPU affinity, SCHED_FIFO, the GC, spinning.
+"""The real-time settings of a loop's thread and how it waits: CPU affinity, SCHED_FIFO, the GC, idle states, spinning.
 
 `realtime_thread` applies them around a loop (`rhi.runtime.run`, `rhi.runtime.server.DeviceServer`);
 `wait_until` and `wait_readable` wait for a deadline or a datagram, asleep or on a busy core; `spin_rest`
@@ -12,19 +12,28 @@ import ctypes
 import gc
 import os
 import select
+import struct
 import time
 import warnings
 from collections.abc import Iterator
 
 from rhi.errors import InvalidInput
 
+#: Linux's PM QoS file: while a process holds it open with a value written, no core enters an idle state
+#: whose wake-up takes longer than that value [µs] (Documentation/power/pm_qos_interface.rst).
+CPU_LATENCY_FILE = "/dev/cpu_dma_latency"
 
-def check_realtime(cpu: int | None, priority: int | None) -> None:
+
+def check_realtime(cpu: int | None, priority: int | None, cpu_latency: float | None = None) -> None:
     """Validate the real-time options of `run` and `DeviceServer`.
 
     Raises:
-        InvalidInput: `cpu` not a CPU index >= 0, or `priority` not a SCHED_FIFO priority in 1..99.
+        InvalidInput: `cpu` not a CPU index >= 0, `priority` not a SCHED_FIFO priority in 1..99, or
+            `cpu_latency` not a number of seconds in [0, 1].
     """
+    if cpu_latency is not None and (isinstance(cpu_latency, bool) or not isinstance(cpu_latency, (int, float))
+                                    or not 0.0 <= cpu_latency <= 1.0):
+        raise InvalidInput(f"cpu_latency: expected seconds in [0, 1] or None, got {cpu_latency!r}")
     if cpu is not None and (isinstance(cpu, bool) or not isinstance(cpu, int) or cpu < 0):
         raise InvalidInput(f"cpu: expected a CPU index >= 0 or None, got {cpu!r}")
     if priority is not None and (isinstance(priority, bool) or not isinstance(priority, int)
@@ -32,9 +41,33 @@ def check_realtime(cpu: int | None, priority: int | None) -> None:
         raise InvalidInput(f"priority: expected a SCHED_FIFO priority in 1..99 or None, got {priority!r}")
 
 
+def _hold_cpu_latency(latency: float | None, notes: list[str]) -> int | None:
+    """A PM QoS request that no core's wake-up take longer than `latency` [s], as an open descriptor (None: none)."""
+    if latency is None:
+        return None
+    try:
+        fd = os.open(CPU_LATENCY_FILE, os.O_WRONLY)
+    except OSError as exc:
+        notes.append(f"CPU latency request of {latency * 1e6:g} µs not applied ({exc}); it needs write access to "
+                     f"{CPU_LATENCY_FILE} (root); cores may sleep deeply between ticks and wake with cold caches")
+        return None
+    try:
+        os.write(fd, struct.pack("i", round(latency * 1e6)))
+    except OSError as exc:
+        os.close(fd)
+        notes.append(f"CPU latency request of {latency * 1e6:g} µs not applied ({exc})")
+        return None
+    return fd
+
+
 @contextlib.contextmanager
-def realtime_thread(cpu: int | None, priority: int | None) -> Iterator[list[str]]:
-    """GC frozen and off; optional CPU affinity and SCHED_FIFO priority; 1 µs timer slack. Yields warnings."""
+def realtime_thread(cpu: int | None, priority: int | None, cpu_latency: float | None = None) -> Iterator[list[str]]:
+    """GC frozen and off; optional CPU affinity, SCHED_FIFO priority and CPU latency request; 1 µs timer slack.
+
+    `cpu_latency` [s]: held for the loop, a PM QoS request (`CPU_LATENCY_FILE`) that keeps every core out of
+    idle states that take longer to leave (0: none beyond polling), so a loop that sleeps between ticks does
+    not wake on a core whose caches a deep idle state flushed. Yields the warnings.
+    """
     notes: list[str] = []
     gc.collect()
     gc.freeze()
@@ -55,6 +88,7 @@ def realtime_thread(cpu: int | None, priority: int | None) -> Iterator[list[str]
             old_sched = None
             notes.append(f"real-time priority {priority} not applied ({exc}); grant CAP_SYS_NICE or an rtprio "
                          "limit (/etc/security/limits.conf) to run the loop under SCHED_FIFO")
+    qos = _hold_cpu_latency(cpu_latency, notes)
     with contextlib.suppress(OSError, AttributeError):
         ctypes.CDLL(None).prctl(29, 1000)  # PR_SET_TIMERSLACK: 1 µs, so sleeps end on time
     for msg in notes:
@@ -62,6 +96,8 @@ def realtime_thread(cpu: int | None, priority: int | None) -> Iterator[list[str]
     try:
         yield notes
     finally:
+        if qos is not None:
+            os.close(qos)  # the request ends with its descriptor
         if old_sched is not None:
             with contextlib.suppress(OSError):
                 os.sched_setscheduler(0, old_sched[0], old_sched[1])

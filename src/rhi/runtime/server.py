@@ -43,6 +43,7 @@ class DeviceServer:
         cpu: pin the device loop to this CPU (a clear warning where the OS refuses).
         priority: SCHED_FIFO priority (1–99) of the device loop (a clear warning where the OS refuses).
         spin: the device loop waits on a busy core, never asleep (`rhi.runtime.realtime.wait_until`).
+        cpu_latency: a PM QoS wake-up latency [s] held while serving (`rhi.runtime.realtime.realtime_thread`).
         session_timeout: a session without a valid command for this long [s] ends (another host may then open
             one without TAKEOVER).
     """
@@ -50,9 +51,9 @@ class DeviceServer:
     def __init__(self, link: DeviceLink, device, *, host: str = "127.0.0.1", port: int = 0, watchdog: float = 0.02,
                  lockstep: bool = False, drop=None, reorder_at: float | None = None, log=None,
                  exit_on_bye: bool = False, cpu: int | None = None, priority: int | None = None,
-                 spin: bool = False, session_timeout: float = 1.0) -> None:
-        check_realtime(cpu, priority)
-        self.cpu, self.priority, self.spin = cpu, priority, bool(spin)
+                 spin: bool = False, cpu_latency: float | None = None, session_timeout: float = 1.0) -> None:
+        check_realtime(cpu, priority, cpu_latency)
+        self.cpu, self.priority, self.spin, self.cpu_latency = cpu, priority, bool(spin), cpu_latency
         if not isinstance(port, int) or not 0 <= port < 65536:
             raise InvalidInput(f"port: expected an integer in 0..65535, got {port!r}")
         self.link, self.device = link, device
@@ -189,7 +190,7 @@ class DeviceServer:
         k = rseq = 0
         end = None if duration is None else int(round(duration * self.rate))
         try:
-            with realtime_thread(self.cpu, self.priority):
+            with realtime_thread(self.cpu, self.priority, self.cpu_latency):
                 rest = spin_rest(1.0 / self.rate, self.spin)
                 # the first reading goes out as soon as a client said HELLO
                 while self.client is None and not self._stop:

@@ -199,7 +199,8 @@ def apparent_inertia(device, log, pushes: list[Push], u, rate: float) -> tuple[S
 
 def identify_device(link, device, *, u=(0.0, 1.0), q0=None, programme: Programme | None = None, rate: float = 1000.0,
                     safety=None, realtime: bool = True, log: str | Path | None = None, progress=None,
-                    cpu: int | None = None, priority: int | None = None, spin: bool = False) -> Identification:
+                    cpu: int | None = None, priority: int | None = None, spin: bool = False,
+                    cpu_latency: float | None = None) -> Identification:
     """Run the identification programme on `link` and fit joint friction and M_x (module docstring).
 
     Args:
@@ -217,6 +218,7 @@ def identify_device(link, device, *, u=(0.0, 1.0), q0=None, programme: Programme
         cpu: pin the loop to this CPU (`rhi.runtime.run`).
         priority: SCHED_FIFO priority of the loop (`rhi.runtime.run`).
         spin: wait for each tick on a busy core (`rhi.runtime.run`).
+        cpu_latency: the cores' wake-up bound [s] held for the run (`rhi.runtime.run`).
 
     Raises:
         IdentificationFailed: the run stopped on a fault before the programme ended (its reason; the log is kept).
@@ -226,7 +228,7 @@ def identify_device(link, device, *, u=(0.0, 1.0), q0=None, programme: Programme
 
     ex = Excitation(device, u, q0=q0, programme=programme)
     res = run(link, ex, rate=rate, safety=safety, log=log, realtime=realtime, progress=progress, cpu=cpu,
-              priority=priority, spin=spin, until=ex.finished)
+              priority=priority, spin=spin, cpu_latency=cpu_latency, until=ex.finished)
     if res.fault is not None or not ex.done:
         raise IdentificationFailed(f"the identification run stopped at t = {float(res.log.t[-1]) if len(res.log.t) else 0:.2f} s "
                                    f"before its programme ended: {res.fault or 'interrupted'}"
