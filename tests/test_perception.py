@@ -86,6 +86,16 @@ def test_sysid_table_6_1(table_6_1):
     for case in ("free", "stiff"):
         assert a[f"{case}_pinv_fit"][0] > 1.5 * a[f"{case}_fit"][0]
     assert row(table_6_1, "F_max along u, M_Stiff^des (J⁺): rhi.metrics.max_force").ours < fs
+    # nothing holds x: the handle passes y = 0.1 m off the thesis's axis x = 0.5 m (stiff: by > 1.5 cm); held on the
+    # axis, the mass along u would be uᵀM_x u ≥ eq. 3.13's (uᵀM_x⁻¹u)⁻¹ at the same configuration
+    assert row(table_6_1, "x where the handle passes y = 0.1 m, M_Stiff^des (J#)").ours > 0.515
+    dev = device("rhi4")
+    for case, name in (("free", "M_Free^des"), ("stiff", "M_Stiff^des")):
+        q = a[f"q_nominal_{case}"]
+        J, M = dev.jacobian(q), dev.mass_matrix(q)
+        myy = row(table_6_1, f"(M_x)_yy at the nominal configuration (the motion held on the axis x = 0.5 m), {name}")
+        assert myy.ours == pytest.approx(np.linalg.inv(J @ np.linalg.solve(M, J.T))[1, 1], rel=1e-9)
+        assert myy.ours > 1.1 * effective_inertia(J, M, np.array([0.0, 1.0]))
 
 
 def test_sysid_table_6_1_null_space_torque_leaves_the_mass_alone_unless_clipped(table_6_1):

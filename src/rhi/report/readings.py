@@ -105,6 +105,11 @@ CH6_FMAX_CHECKED = (CH6_MATCH_CHECKED + "; a brute-force search of the whole sel
                     "X₀ force scaling gives 4.8–10.3 N, and where it gives the printed 5.674 N, ν to M_Free^des is at "
                     "least 0.373 (1.7 × its minimum), where it gives 8.564 N, ν to M_Stiff^des is within 4 % of its "
                     "minimum")
+ON_AXIS = "the motion held on the axis x = 0.5 m: the mass along u is (M_x)_yy at the matched configuration"
+ON_AXIS_WHY = ("line 1452: 'X, M_x, F_f, and F_ext are scalars as the experiments are performed along one axis'; line "
+               "1454: measured 'at [0.5, 0.1]ᵀ m point' (pushed from rest with nothing holding x, rhi's handle passes "
+               "y = 0.1 m 0.8 cm (free) and 2.4 cm (stiff) off it: rows 'x where the handle passes')")
+MYY = "(M_x)_yy at the nominal configuration (the motion held on the axis x = 0.5 m)"
 STOPS = "the minima of eq. 6.10 alone within the joint limits (the thesis's law on hard stops)"
 STOPS_WHY = ("eq. 6.6 (line 1274): τ_S = −β∂ν/∂q − K_d q̇ has no limit term; on the hardware's §5.4 stops the flow "
              "slides to ν's lowest point within them (ch6.palpation rows 'JBLD ν … at the minimum of eq. 6.10 alone')")
@@ -295,6 +300,9 @@ _D = [
             (Reading(J_PLUS, J_PLUS_WHY, "ch6.sysid_table_6_1", "M_x ratio Stiff/Free, identified (J⁺)"),
              Reading("the model's Λ ratio at the settled configurations", "Table 6.1 caption: 'inertia M_x'",
                      "ch6.palpation", "inertia ratio Λ_Stiff/Λ_Free"),
+             Reading(ON_AXIS, ON_AXIS_WHY, "ch6.sysid_table_6_1", "",
+                     measure=lambda r: r("ch6.sysid_table_6_1", f"{MYY}, M_Stiff^des")
+                     / r("ch6.sysid_table_6_1", f"{MYY}, M_Free^des")),
              Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL, "",
                      measure=lambda r: r(CAL, "Table 6.1 M_x, M_Stiff^des: thesis-fit")
                      / r(CAL, "Table 6.1 M_x, M_Free^des: thesis-fit"))),
@@ -308,7 +316,8 @@ _D = [
                Reading("the model's Λ at the settled configuration", "eq. 3.13 (Table 6.1's 'inertia M_x')",
                        "ch6.palpation", f"M_x along u, M_{c.capitalize()}^des: our model's Λ"),
                Reading(FIT + ", Λ of eq. 3.13 with the sensor", FIT_WHY, CAL,
-                       f"Table 6.1 M_x, M_{c.capitalize()}^des: thesis-fit")),
+                       f"Table 6.1 M_x, M_{c.capitalize()}^des: thesis-fit"),
+               Reading(ON_AXIS, ON_AXIS_WHY, "ch6.sysid_table_6_1", f"{MYY}, M_{c.capitalize()}^des")),
               missing="the link inertias (cited, not printed)",
               checked=CH6_CHECKED)
       for c in ("free", "stiff")],

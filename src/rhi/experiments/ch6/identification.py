@@ -158,6 +158,18 @@ def sysid_table_6_1(
                     "static capability at the FME-matched configuration; thesis: measured peak"),
                 Row(f"F_max along u, {lab}: force scaling (the ch. 6 controller)", fmax, -f_sc, "N"),
             ]
+            if j == 0:  # where the free push passes the point, and the mass along u were it held on the axis
+                Mx = np.linalg.inv(J @ np.linalg.solve(M, J.T))
+                name = "M_Free^des" if case == "free" else "M_Stiff^des"
+                rows += [
+                    Row(f"x where the handle passes y = {x[1]:g} m, {lab}", None,
+                        float(np.mean(dev.fk(res.q_point)[:, 0])), "m",
+                        f"the thesis measures at [{x[0]:g}, {x[1]:g}] m; pushed from rest along u with nothing "
+                        "holding x, the handle drifts off that axis"),
+                    Row(f"(M_x)_yy at the nominal configuration (the motion held on the axis x = {x[0]:g} m), {name}",
+                        mx, float(u @ Mx @ u), "kg", "eq. 6.22 along one axis with the other held: uᵀM_x u, "
+                        "M_x = (JM⁻¹Jᵀ)⁻¹; eq. 3.13's Λ = (uᵀM_x⁻¹u)⁻¹ is the mass of a free push"),
+                ]
             key = case if j == 0 else f"{case}_pinv" if proj == "pseudoinverse" else f"{case}_dyn"
             arrays.update(case_arrays(res, key))
             arrays[f"q_nominal_{key}"] = q_point[case]
