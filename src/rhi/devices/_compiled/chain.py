@@ -28,65 +28,38 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.devices._compiled.terms import dot, task_terms
+from rhi.devices._compiled.terms import task_terms
 from rhi.devices.batch import _ARM, _AX, _COM, _MASS, _P, _ROT, _T
 from rhi.jit import jit
-
-
-@jit
-def _cross(a, b, out):
-    """Write a × b for 3-vectors a, b into out."""
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-
-
-@jit
-def _motion_cross(s, t, out):
-    """Write s × t, the spatial motion cross product of (linear, angular) 6-vectors, into out."""
-    out[0] = s[4] * t[2] - s[5] * t[1] + s[1] * t[5] - s[2] * t[4]
-    out[1] = s[5] * t[0] - s[3] * t[2] + s[2] * t[3] - s[0] * t[5]
-    out[2] = s[3] * t[1] - s[4] * t[0] + s[0] * t[4] - s[1] * t[3]
-    out[3] = s[4] * t[5] - s[5] * t[4]
-    out[4] = s[5] * t[3] - s[3] * t[5]
-    out[5] = s[3] * t[4] - s[4] * t[3]
-
-
-@jit
-def _mv(A, v, out):
-    """Write A v into out."""
-    for i in range(A.shape[0]):
-        s = 0.0
-        for j in range(A.shape[1]):
-            s += A[i, j] * v[j]
-        out[i] = s
 
 
 @jit
 def joint_frame(ints, joints, j, th, oR, o, RP, T):
     """Orientation oR[j] and origin o[j] of chain joint j's frame at its coordinate th [rad or m], in place.
 
-    Its parent's (ints[j], −1: the world) must be written already. RP and T: (3, 3) scratch.
+    Its parent's (ints[j], −1: the world) must be written already. RP and T: (3, 3) scratch. Scalar indexing
+    throughout: no array views (each would be a reference count, an atomic operation, per use).
     """
     nt = joints.shape[0]
     p = ints[j]
-    row = joints[j]
     for r in range(3):  # R_p P_j and o_p + R_p t_j
         for c in range(3):
             if p >= 0:
-                RP[r, c] = oR[p, r, 0] * row[_P + c] + oR[p, r, 1] * row[_P + 3 + c] + oR[p, r, 2] * row[_P + 6 + c]
+                RP[r, c] = (oR[p, r, 0] * joints[j, _P + c] + oR[p, r, 1] * joints[j, _P + 3 + c]
+                            + oR[p, r, 2] * joints[j, _P + 6 + c])
             else:
-                RP[r, c] = row[_P + 3 * r + c]
+                RP[r, c] = joints[j, _P + 3 * r + c]
         if p >= 0:
-            o[j, r] = o[p, r] + oR[p, r, 0] * row[_T] + oR[p, r, 1] * row[_T + 1] + oR[p, r, 2] * row[_T + 2]
+            o[j, r] = (o[p, r] + oR[p, r, 0] * joints[j, _T] + oR[p, r, 1] * joints[j, _T + 1]
+                       + oR[p, r, 2] * joints[j, _T + 2])
         else:
-            o[j, r] = row[_T + r]
-    a0, a1, a2 = row[_AX], row[_AX + 1], row[_AX + 2]
+            o[j, r] = joints[j, _T + r]
+    a0, a1, a2 = joints[j, _AX], joints[j, _AX + 1], joints[j, _AX + 2]
     if ints[nt + j]:  # revolute: Rodrigues' rotation about the axis
         cq, sq = np.cos(th), np.sin(th)
         for r in range(3):
             for c in range(3):
-                T[r, c] = (1.0 - cq) * row[_AX + r] * row[_AX + c] + (cq if r == c else 0.0)
+                T[r, c] = (1.0 - cq) * joints[j, _AX + r] * joints[j, _AX + c] + (cq if r == c else 0.0)
         T[0, 1] -= sq * a2
         T[1, 0] += sq * a2
         T[0, 2] += sq * a1
@@ -103,8 +76,8 @@ def joint_frame(ints, joints, j, th, oR, o, RP, T):
             o[j, r] += th * (RP[r, 0] * a0 + RP[r, 1] * a1 + RP[r, 2] * a2)
 
 
-@jit
-def _forward(ints, joints, th, oR, o, S, Ic):
+@jit(inline=True)
+def _forward(ints, joints, th, oR, o, S, Ic, RP, T):
     """Forward kinematics and composite inertias of one configuration, written in place.
 
     Args:
@@ -115,41 +88,47 @@ def _forward(ints, joints, th, oR, o, S, Ic):
         o: (nθ, 3) joint frames' origins [m].
         S: (nθ, 6) joint spatial axes about the world origin.
         Ic: (nθ, 6, 6) composite (subtree) spatial inertias about the world origin.
+        RP: (3, 3) scratch.
+        T: (3, 3) scratch.
     """
     nt = th.shape[0]
-    RP = np.empty((3, 3))
-    T = np.empty((3, 3))
-    com = np.empty(3)
     for j in range(nt):
         joint_frame(ints, joints, j, th[j], oR, o, RP, T)
-        row = joints[j]
-        a0, a1, a2 = row[_AX], row[_AX + 1], row[_AX + 2]
-        R = oR[j]
-        w = S[j, 3:]
-        for r in range(3):
-            w[r] = R[r, 0] * a0 + R[r, 1] * a1 + R[r, 2] * a2
-        if ints[nt + j]:
-            _cross(o[j], w, S[j, :3])
-        else:
-            for r in range(3):
-                S[j, r], S[j, 3 + r] = w[r], 0.0
+        a0, a1, a2 = joints[j, _AX], joints[j, _AX + 1], joints[j, _AX + 2]
+        w0 = oR[j, 0, 0] * a0 + oR[j, 0, 1] * a1 + oR[j, 0, 2] * a2
+        w1 = oR[j, 1, 0] * a0 + oR[j, 1, 1] * a1 + oR[j, 1, 2] * a2
+        w2 = oR[j, 2, 0] * a0 + oR[j, 2, 1] * a1 + oR[j, 2, 2] * a2
+        if ints[nt + j]:  # (o × ω, ω)
+            S[j, 0] = o[j, 1] * w2 - o[j, 2] * w1
+            S[j, 1] = o[j, 2] * w0 - o[j, 0] * w2
+            S[j, 2] = o[j, 0] * w1 - o[j, 1] * w0
+            S[j, 3], S[j, 4], S[j, 5] = w0, w1, w2
+        else:  # (ω, 0)
+            S[j, 0], S[j, 1], S[j, 2] = w0, w1, w2
+            S[j, 3], S[j, 4], S[j, 5] = 0.0, 0.0, 0.0
         # body inertia about the origin: mass m at c, rotational inertia R I Rᵀ about c
-        m = row[_MASS]
-        for r in range(3):
-            com[r] = o[j, r] + R[r, 0] * row[_COM] + R[r, 1] * row[_COM + 1] + R[r, 2] * row[_COM + 2]
+        m = joints[j, _MASS]
+        c0 = o[j, 0] + oR[j, 0, 0] * joints[j, _COM] + oR[j, 0, 1] * joints[j, _COM + 1] + oR[j, 0, 2] * joints[j, _COM + 2]
+        c1 = o[j, 1] + oR[j, 1, 0] * joints[j, _COM] + oR[j, 1, 1] * joints[j, _COM + 1] + oR[j, 1, 2] * joints[j, _COM + 2]
+        c2 = o[j, 2] + oR[j, 2, 0] * joints[j, _COM] + oR[j, 2, 1] * joints[j, _COM + 1] + oR[j, 2, 2] * joints[j, _COM + 2]
         for r in range(3):
             for k in range(3):
-                T[r, k] = R[r, 0] * row[_ROT + k] + R[r, 1] * row[_ROT + 3 + k] + R[r, 2] * row[_ROT + 6 + k]
-        I = Ic[j]
-        I[:, :] = 0.0
+                T[r, k] = (oR[j, r, 0] * joints[j, _ROT + k] + oR[j, r, 1] * joints[j, _ROT + 3 + k]
+                           + oR[j, r, 2] * joints[j, _ROT + 6 + k])
+        for r in range(6):
+            for k in range(6):
+                Ic[j, r, k] = 0.0
+        cc = c0 * c0 + c1 * c1 + c2 * c2
         for r in range(3):
-            I[r, r] = m
+            Ic[j, r, r] = m
+            cr = c0 if r == 0 else c1 if r == 1 else c2
             for k in range(3):
-                I[3 + r, 3 + k] = T[r, 0] * R[k, 0] + T[r, 1] * R[k, 1] + T[r, 2] * R[k, 2] - m * com[r] * com[k]
-            I[3 + r, 3 + r] += m * (com[0] * com[0] + com[1] * com[1] + com[2] * com[2])
-        mc0, mc1, mc2 = m * com[0], m * com[1], m * com[2]  # m [c]× below, −m [c]× above the diagonal
-        I[4, 0], I[5, 0], I[3, 1], I[5, 1], I[3, 2], I[4, 2] = mc2, -mc1, -mc2, mc0, mc1, -mc0
-        I[0, 4], I[0, 5], I[1, 3], I[1, 5], I[2, 3], I[2, 4] = mc2, -mc1, -mc2, mc0, mc1, -mc0
+                ck = c0 if k == 0 else c1 if k == 1 else c2
+                Ic[j, 3 + r, 3 + k] = T[r, 0] * oR[j, k, 0] + T[r, 1] * oR[j, k, 1] + T[r, 2] * oR[j, k, 2] - m * cr * ck
+            Ic[j, 3 + r, 3 + r] += m * cc
+        mc0, mc1, mc2 = m * c0, m * c1, m * c2  # m [c]× below, −m [c]× above the diagonal
+        Ic[j, 4, 0], Ic[j, 5, 0], Ic[j, 3, 1], Ic[j, 5, 1], Ic[j, 3, 2], Ic[j, 4, 2] = mc2, -mc1, -mc2, mc0, mc1, -mc0
+        Ic[j, 0, 4], Ic[j, 0, 5], Ic[j, 1, 3], Ic[j, 1, 5], Ic[j, 2, 3], Ic[j, 2, 4] = mc2, -mc1, -mc2, mc0, mc1, -mc0
     for j in range(nt - 1, 0, -1):  # composite inertias (parents precede their children)
         p = ints[j]
         if p >= 0:
@@ -179,7 +158,9 @@ def chain_dynamics(ints, joints, consts, th, dth):
     o = np.empty((nt, 3))
     S = np.empty((nt, 6))
     Ic = np.empty((nt, 6, 6))
-    _forward(ints, joints, th, oR, o, S, Ic)
+    RP = np.empty((3, 3))
+    T = np.empty((3, 3))
+    _forward(ints, joints, th, oR, o, S, Ic, RP, T)
     sup = np.zeros((nt, nt), dtype=np.bool_)  # sup[a, b]: joint a supports joint b (or is b)
     for j in range(nt):
         k = j
@@ -188,32 +169,39 @@ def chain_dynamics(ints, joints, consts, th, dth):
             k = ints[k]
     # end-effector point and frame Jacobian
     f = ints[2 * nt]
-    pt = consts[9:12].copy()
-    if f >= 0:
-        for r in range(3):
+    pt = np.empty(3)
+    for r in range(3):
+        pt[r] = consts[9 + r]
+        if f >= 0:
             pt[r] = o[f, r] + oR[f, r, 0] * consts[9] + oR[f, r, 1] * consts[10] + oR[f, r, 2] * consts[11]
     J6 = np.zeros((6, nt))
-    v = np.empty(3)
     for j in range(nt):
         if f >= 0 and sup[j, f]:
-            _cross(S[j, 3:], pt, v)
+            J6[0, j] = S[j, 0] + (S[j, 4] * pt[2] - S[j, 5] * pt[1])
+            J6[1, j] = S[j, 1] + (S[j, 5] * pt[0] - S[j, 3] * pt[2])
+            J6[2, j] = S[j, 2] + (S[j, 3] * pt[1] - S[j, 4] * pt[0])
             for r in range(3):
-                J6[r, j] = S[j, r] + v[r]
                 J6[3 + r, j] = S[j, 3 + r]
     # CRBA and gravity
     F = np.empty((nt, 6))  # F_k = I^c_k S_k
     M = np.zeros((nt, nt))
     g = np.empty(nt)
     for k in range(nt):
-        _mv(Ic[k], S[k], F[k])
-        I = Ic[k]
+        for r in range(6):
+            s = 0.0
+            for c in range(6):
+                s += Ic[k, r, c] * S[k, c]
+            F[k, r] = s
         s = 0.0
         for r in range(6):
-            s += S[k, r] * (I[r, 0] * consts[12] + I[r, 1] * consts[13] + I[r, 2] * consts[14])
+            s += S[k, r] * (Ic[k, r, 0] * consts[12] + Ic[k, r, 1] * consts[13] + Ic[k, r, 2] * consts[14])
         g[k] = -s
         for j in range(k + 1):
             if sup[j, k]:
-                M[j, k] = M[k, j] = dot(S[j], F[k])
+                s = 0.0
+                for r in range(6):
+                    s += S[j, r] * F[k, r]
+                M[j, k] = M[k, j] = s
         M[k, k] += joints[k, _ARM]
     # ∂M_jk/∂θ_i (D[i, j, k]) for j supporting k, mirrored
     X = np.empty((nt, nt, 6))  # X[i, j] = S_i × S_j
@@ -221,10 +209,25 @@ def chain_dynamics(ints, joints, consts, th, dth):
     Z = np.empty((nt, nt, 6))  # Z[i, k] = I^c_i (S_i × S_k)
     for i in range(nt):
         for j in range(nt):
-            _motion_cross(S[i], S[j], X[i, j])
+            s0, s1, s2, s3, s4, s5 = S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4], S[i, 5]
+            t0, t1, t2, t3, t4, t5 = S[j, 0], S[j, 1], S[j, 2], S[j, 3], S[j, 4], S[j, 5]
+            X[i, j, 0] = s4 * t2 - s5 * t1 + s1 * t5 - s2 * t4
+            X[i, j, 1] = s5 * t0 - s3 * t2 + s2 * t3 - s0 * t5
+            X[i, j, 2] = s3 * t1 - s4 * t0 + s0 * t4 - s1 * t3
+            X[i, j, 3] = s4 * t5 - s5 * t4
+            X[i, j, 4] = s5 * t3 - s3 * t5
+            X[i, j, 5] = s3 * t4 - s4 * t3
             if sup[j, i] and j != i:  # only k strictly supporting i is used below
-                _mv(Ic[i], S[j], Y[i, j])
-                _mv(Ic[i], X[i, j], Z[i, j])
+                for r in range(6):
+                    s = 0.0
+                    for c in range(6):
+                        s += Ic[i, r, c] * S[j, c]
+                    Y[i, j, r] = s
+                for r in range(6):
+                    s = 0.0
+                    for c in range(6):
+                        s += Ic[i, r, c] * X[i, j, c]
+                    Z[i, j, r] = s
     D = np.zeros((nt, nt, nt))
     for k in range(nt):
         for j in range(k + 1):
@@ -234,9 +237,18 @@ def chain_dynamics(ints, joints, consts, th, dth):
                 if sup[i, j]:
                     continue
                 if sup[i, k]:
-                    d = -dot(X[i, j], F[k])
+                    s = 0.0
+                    for r in range(6):
+                        s += X[i, j, r] * F[k, r]
+                    d = -s
                 elif sup[k, i]:
-                    d = -dot(X[i, j], Y[i, k]) - dot(S[j], Z[i, k])
+                    s = 0.0
+                    for r in range(6):
+                        s += X[i, j, r] * Y[i, k, r]
+                    s2 = 0.0
+                    for r in range(6):
+                        s2 += S[j, r] * Z[i, k, r]
+                    d = -s - s2
                 else:
                     continue
                 D[i, j, k] = D[i, k, j] = d
@@ -268,8 +280,13 @@ def chain_terms(ints, joints, consts, th, A, rows, armature, supports, identity,
         x: (m,) output, the end-effector position on the task rows [m].
         out: flat float64 output of `task_terms`.
     """
-    dth = np.empty(A.shape[0])
-    _mv(A, dq, dth)
+    nt, n = A.shape
+    dth = np.empty(nt)
+    for i in range(nt):
+        s = 0.0
+        for j in range(n):
+            s += A[i, j] * dq[j]
+        dth[i] = s
     pt, J6, Mt, gt, Ct = chain_dynamics(ints, joints, consts, th, dth)
     for i in range(rows.shape[0]):
         x[i] = pt[rows[i]]

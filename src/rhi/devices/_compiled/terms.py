@@ -133,21 +133,49 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
             J M⁻¹ (m, n), M_x (m, m), J# (n, m), G_x (m,), ẋ (m,), J̇ (m, n), C_q (n, n), C_x (m, m).
     """
     nt, n, m = Mt.shape[0], A.shape[1], rows.shape[0]
-    Mt = Mt.copy()
-    if fill_lower:
-        for i in range(nt):
-            for j in range(i):
-                Mt[i, j] = Mt[j, i]
-    At = A.T.copy()
-    J = np.empty((m, n))
+    # offsets of the terms in out; every term is written there and read back from there (loops with scalar
+    # indices, no temporaries per product: an array view or allocation per small product costs more than it)
+    oJ = 0
+    odJ = oJ + m * n
+    oM = odJ + m * n * n
+    og = oM + n * n
+    oMi = og + n
+    oJMi = oMi + n * n
+    oL = oJMi + m * n
+    oJs = oL + m * m
+    oGx = oJs + n * m
+    oxd = oGx + m
+    oJd = oxd + m
+    oCq = oJd + m * n
+    oCx = oCq + n * n
     for i in range(m):
-        Ji = mv(At, J6[rows[i]].copy())
+        r = rows[i]
         for a in range(n):
-            J[i, a] = Ji[a]
-    M = mm(mm(At, Mt), A)
-    for i in range(n):
-        M[i, i] += armature[i]
-    g = mv(At, gt)
+            s = 0.0
+            for j in range(nt):
+                s += A[j, a] * J6[r, j]
+            out[oJ + i * n + a] = s
+    W = np.empty((max(n, nt), max(n, nt)))  # scratch: Aᵀ X products
+    for a in range(n):  # M = Aᵀ M_θ A (+ armature); M_θ's upper triangle alone when fill_lower
+        for k in range(nt):
+            s = 0.0
+            for j in range(nt):
+                s += A[j, a] * (Mt[k, j] if fill_lower and j > k else Mt[j, k])
+            W[a, k] = s
+    for a in range(n):
+        for c in range(n):
+            s = 0.0
+            for k in range(nt):
+                s += W[a, k] * A[k, c]
+            out[oM + a * n + c] = s
+        out[oM + a * n + a] += armature[a]
+    gg = 0.0
+    for a in range(n):
+        s = 0.0
+        for j in range(nt):
+            s += A[j, a] * gt[j]
+        out[og + a] = s
+        gg += s * s
     # ∂J_j/∂θ_k = ω_k × v_j when joint k supports joint j, ω_j × v_k otherwise (v, ω: J6's linear, angular rows)
     D = np.empty((m, nt, nt))
     for j in range(nt):
@@ -158,35 +186,94 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
                 r1, r2 = (r + 1) % 3, (r + 2) % 3
                 D[i, j, k] = J6[3 + r1, w] * J6[r2, v] - J6[3 + r2, w] * J6[r1, v]
     if identity:
-        dJ = D.ravel()
-    else:  # J_q = J_θ A: ∂J_q[i, a]/∂q_c = Σ_jk A[j, a] A[k, c] ∂J_θ[i, j]/∂θ_k
-        dJ = np.zeros(m * n * n)
         for i in range(m):
-            E = mm(At, D[i].copy())
-            put(dJ, i * n * n, mm(E, A).ravel())
-    Minv = inv(M)
-    JMinv = mm(J, Minv)
-    Lam = inv(mm(JMinv, J.T.copy()))
-    Jsharp = mm(JMinv.T.copy(), Lam)
-    Gx = mv(Jsharp.T.copy(), g) if g @ g != 0.0 else np.zeros(m)
-    xdot = mv(J, dq)
-    Jdot = mv(dJ.reshape(m * n, n), dq).reshape(m, n)
-    Cq = mm(mm(At, Ct), A)
-    Cx = mm(mm(Lam, mm(JMinv, Cq) - Jdot), Jsharp)
-    pos = 0  # typed int64 (not the literal 0): one compiled version of `put`
-    pos = put(out, pos, J.ravel())
-    pos = put(out, pos, dJ)
-    pos = put(out, pos, M.ravel())
-    pos = put(out, pos, g)
-    pos = put(out, pos, Minv.ravel())
-    pos = put(out, pos, JMinv.ravel())
-    pos = put(out, pos, Lam.ravel())
-    pos = put(out, pos, Jsharp.ravel())
-    pos = put(out, pos, Gx)
-    pos = put(out, pos, xdot)
-    pos = put(out, pos, Jdot.ravel())
-    pos = put(out, pos, Cq.ravel())
-    put(out, pos, Cx.ravel())
+            for j in range(nt):
+                for k in range(nt):
+                    out[odJ + (i * n + j) * n + k] = D[i, j, k]
+    else:  # J_q = J_θ A: ∂J_q[i, a]/∂q_c = Σ_jk A[j, a] A[k, c] ∂J_θ[i, j]/∂θ_k
+        for i in range(m):
+            for a in range(n):
+                for k in range(nt):
+                    s = 0.0
+                    for j in range(nt):
+                        s += A[j, a] * D[i, j, k]
+                    W[a, k] = s
+            for a in range(n):
+                for c in range(n):
+                    s = 0.0
+                    for k in range(nt):
+                        s += W[a, k] * A[k, c]
+                    out[odJ + (i * n + a) * n + c] = s
+    Minv = inv(out[oM:oM + n * n].reshape((n, n)))
+    for a in range(n):
+        for c in range(n):
+            out[oMi + a * n + c] = Minv[a, c]
+    for i in range(m):  # J M⁻¹
+        for c in range(n):
+            s = 0.0
+            for a in range(n):
+                s += out[oJ + i * n + a] * Minv[a, c]
+            out[oJMi + i * n + c] = s
+    L = np.empty((m, m))  # J M⁻¹ Jᵀ
+    for i in range(m):
+        for j in range(m):
+            s = 0.0
+            for c in range(n):
+                s += out[oJMi + i * n + c] * out[oJ + j * n + c]
+            L[i, j] = s
+    Lam = inv(L)
+    for i in range(m):
+        for j in range(m):
+            out[oL + i * m + j] = Lam[i, j]
+    for a in range(n):  # J# = (J M⁻¹)ᵀ Λ
+        for j in range(m):
+            s = 0.0
+            for i in range(m):
+                s += out[oJMi + i * n + a] * Lam[i, j]
+            out[oJs + a * m + j] = s
+    for j in range(m):
+        s = 0.0
+        if gg != 0.0:
+            for a in range(n):
+                s += out[oJs + a * m + j] * out[og + a]
+        out[oGx + j] = s
+        s = 0.0
+        for a in range(n):
+            s += out[oJ + j * n + a] * dq[a]
+        out[oxd + j] = s
+    for i in range(m * n):  # J̇ = Σ_c ∂J/∂q_c q̇_c
+        s = 0.0
+        for c in range(n):
+            s += out[odJ + i * n + c] * dq[c]
+        out[oJd + i] = s
+    for a in range(n):  # C_q = Aᵀ C_θ A
+        for k in range(nt):
+            s = 0.0
+            for j in range(nt):
+                s += A[j, a] * Ct[j, k]
+            W[a, k] = s
+    for a in range(n):
+        for c in range(n):
+            s = 0.0
+            for k in range(nt):
+                s += W[a, k] * A[k, c]
+            out[oCq + a * n + c] = s
+    # C_x = Λ (J M⁻¹ C_q − J̇) J#
+    for i in range(m):
+        for c in range(n):
+            s = 0.0
+            for a in range(n):
+                s += out[oJMi + i * n + a] * out[oCq + a * n + c]
+            W[i, c] = s - out[oJd + i * n + c]
+    for i in range(m):
+        for j in range(m):
+            s = 0.0
+            for c in range(n):
+                t = 0.0
+                for l in range(m):
+                    t += Lam[i, l] * W[l, c]
+                s += t * out[oJs + c * m + j]
+            out[oCx + i * m + j] = s
 
 
 @jit
@@ -225,12 +312,3 @@ def assign(dst, src):
     """
     for i in range(src.shape[0]):
         dst[i] = src[i]
-
-
-@jit
-def put(out, pos, part):
-    """Write part (k,) into out[pos:pos + k]; returns pos + k (a loop: no slice assignment to compile)."""
-    k = part.shape[0]
-    for i in range(k):
-        out[pos + i] = part[i]
-    return pos + k
