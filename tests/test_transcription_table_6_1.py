@@ -13,11 +13,14 @@ It confirms rhi's minima of eq. 6.10 within the limits (the thesis's law on hard
 force scaling, and it measures how far from those minima the thesis's printed F_max lies: the configurations
 on the manifold with F_max = 5.674 N (Table 6.1, M_Free^des) all have ν ≥ 0.37 against the minimum 0.22, so
 the printed free-space F_max is not reached at a configuration that minimises eq. 6.10 under §5.4's limits;
-the stiff one (8.564 N) is reached at ν within 4 % of its minimum. A planted difference (the unweighted FME,
-W = I) moves the minimiser, so the comparison can fail.
+the stiff one (8.564 N) is reached at ν within 4 % of its minimum; dropping either the joint box or the
+parallelogram bounds (§6.4 does not restate them) leaves the free-space F_max at 4.7–5 N. A planted
+difference (the unweighted FME, W = I) moves the minimiser, so the comparison can fail.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -32,6 +35,17 @@ DEG = np.pi / 180.0
 Q_MIN = np.array([-55.0, 0.0, -55.0, -20.0]) * DEG  # §5.4
 Q_MAX = np.array([90.0, 145.0, 115.0, 80.0]) * DEG
 PARALLELOGRAM = 55.0 * DEG  # §5.4: 35° ≤ q1 − q2 + 90° ≤ 145°, 35° ≤ q3 − q4 + 90° ≤ 145°
+
+
+class Limits(NamedTuple):
+    """Joint box (4,) [rad] and the bound of |q1 − q2| and |q3 − q4| [rad]."""
+
+    q_min: np.ndarray
+    q_max: np.ndarray
+    parallelogram: float
+
+
+SECTION_5_4 = Limits(Q_MIN, Q_MAX, PARALLELOGRAM)
 MU = 5.0  # §6.4
 THESIS_FMAX = {"free": 5.674, "stiff": 8.564}  # Table 6.1, |F_max| [N]
 
@@ -78,8 +92,8 @@ def fmax_scaling(J: np.ndarray, u: np.ndarray) -> np.ndarray:
     return np.min(T / np.maximum(a, 1e-300), axis=-1)
 
 
-def manifold(x: np.ndarray, s: np.ndarray, q2: np.ndarray) -> np.ndarray:
-    """Every configuration with f(q) = x over samples of s = q1 − q2 and q2, both PHANToM branches, within §5.4: (k, 4).
+def manifold(x: np.ndarray, s: np.ndarray, q2: np.ndarray, limits: Limits = SECTION_5_4) -> np.ndarray:
+    """Every configuration with f(q) = x over samples of s = q1 − q2 and q2, both PHANToM branches, within limits: (k, 4).
 
     s rather than q1 so that the Rehab's parallelogram bound s = ±55° lies on the grid.
     """
@@ -95,8 +109,9 @@ def manifold(x: np.ndarray, s: np.ndarray, q2: np.ndarray) -> np.ndarray:
         a = np.arctan2(r[:, 1], r[:, 0]) - np.arctan2(d4 * np.sin(delta), d3 + d4 * np.cos(delta))
         q = np.stack([q1, q2, a - q2, a + delta + np.pi / 2 - q2], -1)
         q[:, 2:] = (q[:, 2:] + np.pi) % (2 * np.pi) - np.pi
-        ok = (reach & np.all((q >= Q_MIN) & (q <= Q_MAX), -1)
-              & (np.abs(q[:, 0] - q[:, 1]) <= PARALLELOGRAM + 1e-12) & (np.abs(q[:, 2] - q[:, 3]) <= PARALLELOGRAM))
+        lin = limits.parallelogram
+        ok = (reach & np.all((q >= limits.q_min) & (q <= limits.q_max), -1)
+              & (np.abs(q[:, 0] - q[:, 1]) <= lin + 1e-12) & (np.abs(q[:, 2] - q[:, 3]) <= lin))
         out.append(q[ok])
     return np.concatenate(out)
 
@@ -109,13 +124,17 @@ def _axis(center: float, half: float, step: float, lo: float, hi: float) -> np.n
 S_RANGE = (-PARALLELOGRAM, PARALLELOGRAM)
 
 
-def global_minimum(x: np.ndarray, M_des: np.ndarray, weights: np.ndarray = 1.0 / T) -> np.ndarray:
+def global_minimum(x: np.ndarray, M_des: np.ndarray, weights: np.ndarray = 1.0 / T,
+                   limits: Limits = SECTION_5_4) -> np.ndarray:
     """The configuration of lowest ν on f(q) = x within the limits: a 0.2° grid of (s, q2), refined twice around it."""
-    q = manifold(x, np.linspace(*S_RANGE, 551), np.arange(Q_MIN[1], Q_MAX[1], 0.2 * DEG))
+    s_range = (-min(limits.parallelogram, np.pi), min(limits.parallelogram, np.pi))
+    q2_range = (limits.q_min[1], limits.q_max[1])
+    q = manifold(x, np.linspace(*s_range, int(round(np.ptp(s_range) / (0.2 * DEG))) + 1),
+                 np.arange(*q2_range, 0.2 * DEG), limits)
     best = q[np.argmin(nu(fme(jacobian(q), weights), M_des))]
     for half, step in ((1.0, 0.01), (0.02, 0.0005)):
-        q = manifold(x, _axis(best[0] - best[1], half * DEG, step * DEG, *S_RANGE),
-                     _axis(best[1], half * DEG, step * DEG, Q_MIN[1], Q_MAX[1]))
+        q = manifold(x, _axis(best[0] - best[1], half * DEG, step * DEG, *s_range),
+                     _axis(best[1], half * DEG, step * DEG, *q2_range), limits)
         best = q[np.argmin(nu(fme(jacobian(q), weights), M_des))]
     return best
 
@@ -170,6 +189,18 @@ def test_the_printed_free_space_fmax_is_far_from_the_matched_configurations(tran
         lowest[case] = float(nu(M_hat[at], M).min()) / float(nu(fme(jacobian(q_tr[case])), M))
     assert lowest["free"] > 1.6  # 0.373 vs 0.220
     assert lowest["stiff"] < 1.04  # 0.470 vs 0.454
+
+
+def test_no_joint_limit_set_gives_the_printed_free_space_fmax(transcribed):
+    """Without §5.4's parallelogram bounds, or without its joint box, eq. 6.10's free-space minimum still gives 4.7–5 N.
+
+    The thesis does not restate the limits in §6.4; neither reading brings force scaling near the printed 5.674 N.
+    """
+    _, M_des, x0, u = transcribed
+    wide = np.full(4, 179.9 * DEG)
+    for limits in (Limits(Q_MIN, Q_MAX, 179.9 * DEG), Limits(-wide, wide, PARALLELOGRAM)):
+        q = global_minimum(x0, M_des["free"], limits=limits)
+        assert 4.7 < float(fmax_scaling(jacobian(q), u)) < 5.0
 
 
 def test_a_planted_difference_moves_the_minimum(rhi4, transcribed):

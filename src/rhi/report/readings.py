@@ -104,7 +104,8 @@ CH6_FMAX_CHECKED = (CH6_MATCH_CHECKED + "; a brute-force search of the whole sel
                     "0.4537 to 2e-6) and their force-scaling F_max (4.97 / 9.29 N to 1e-3); over every configuration at "
                     "X₀ force scaling gives 4.8–10.3 N, and where it gives the printed 5.674 N, ν to M_Free^des is at "
                     "least 0.373 (1.7 × its minimum), where it gives 8.564 N, ν to M_Stiff^des is within 4 % of its "
-                    "minimum")
+                    "minimum; without §5.4's joint box, or without its parallelogram bounds, the free-space minimum "
+                    "still gives 4.7–5 N")
 ON_AXIS = "the motion held on the axis x = 0.5 m: the mass along u is (M_x)_yy at the matched configuration"
 ON_AXIS_WHY = ("line 1452: 'X, M_x, F_f, and F_ext are scalars as the experiments are performed along one axis'; line "
                "1454: measured 'at [0.5, 0.1]ᵀ m point' (pushed from rest with nothing holding x, rhi's handle passes "
