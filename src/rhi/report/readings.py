@@ -119,7 +119,11 @@ CH6_MAP_CHECKED = ("the matching (eqs. 6.2–6.6 as a flow along the self-motion
                    "6.20, give rhi's F_max ratio at every reached point of a 3 × 3 grid to 1e-6, and the unweighted "
                    "FME moves it by > 0.1 % (tests/test_transcription_ch6_matching.py). It found a bug, fixed: SLSQP "
                    "alone jumped at some points to a minimum in another basin than the controller's flow reaches from "
-                   "the same start (2 of the 34 points of the 7 × 7 quick grid when it was found)")
+                   "the same start (2 of the 34 points of the 7 × 7 quick grid when it was found). The points where "
+                   "the ratio is ≤ 1 (52 of 506 on the full 25 × 25 grid, ratio ≥ 0.96) form a band along the outer "
+                   "edge of the reach (x 0.5–0.73 m, y −0.4 to −0.07 m) and a few at its inner edge; at the five "
+                   "sampled, both matches press on §5.4's bounds (the Rehab's parallelogram bound in each), and "
+                   "without rhi's limit barrier most stay ≤ 1 (0.96–1.01 on three grid rows recomputed)")
 TRANSITION_CHECKED = (f"Ω of eqs. 6.17–6.19 equals {_TR} (1e-12) when V crosses each threshold once, and the full "
                       "transition takes ρ‖M_Free − M_Stiff‖_F = 0.508 s; the blended FME of eq. 6.16 reaches the "
                       "controller's FME term (finite differences 1e-6; tests/test_transcription_ch5_ch6.py)")
