@@ -170,6 +170,27 @@ def setup(config: str | None):
     return cfg.device, cfg.controller(), cfg.safety, cfg.virtual, np.array(cfg.sim["q0"])
 
 
+def core_counters(cpu: int | None) -> tuple[float, int]:
+    """The host core's steal time [s] (time its virtual CPU waited for the hypervisor) and interrupts so far.
+
+    Both from /proc (`cpu` None: all cores); (nan, -1) where it cannot be read.
+    """
+    try:
+        name = "cpu" if cpu is None else f"cpu{cpu}"
+        with open("/proc/stat") as f:
+            steal = next(int(line.split()[8]) for line in f if line.split()[0] == name) / os.sysconf("SC_CLK_TCK")
+        with open("/proc/interrupts") as f:
+            cols = f.readline().split()
+            at = None if cpu is None else cols.index(f"CPU{cpu}")
+            irqs = 0
+            for line in f:
+                v = [int(x) for x in line.split()[1:len(cols) + 1] if x.isdigit()]
+                irqs += sum(v) if at is None else (v[at] if at < len(v) else 0)
+        return float(steal), irqs
+    except (OSError, StopIteration, ValueError, IndexError):
+        return float("nan"), -1
+
+
 def one_rate(rate: float, wait: str, a, tmp: Path) -> tuple[dict, dict]:
     """In the loop over UDP at `rate` waiting as `wait`, then the same readings back to back: both summaries."""
     spin, latency = wait == "spin", 0.0 if wait == "sleep+qos" else None
@@ -178,6 +199,7 @@ def one_rate(rate: float, wait: str, a, tmp: Path) -> tuple[dict, dict]:
     dcpu = None if a.cpu < 0 else a.device_cpu
     prio = a.priority or None
     proc, port = start_device(a.device, rate, a.duration, dev, q0, a.config, dcpu, prio, tmp)
+    steal0, irq0 = core_counters(cpu)
     try:
         link = UDPLink("127.0.0.1", port, rate=rate, timeout=0.005, spin=spin)
         res = run(link, ctrl, rate=rate, duration=a.duration, virtual=wall, safety=safety, realtime=False,
@@ -188,7 +210,9 @@ def one_rate(rate: float, wait: str, a, tmp: Path) -> tuple[dict, dict]:
             proc.wait(10)
         else:
             proc.join(15)
+    steal1, irq1 = core_counters(cpu)
     s = res.summary
+    s["steal"], s["irqs"] = steal1 - steal0, irq1 - irq0
     s["missed"] = link.stats["skipped"]
     s["missed_pct"] = 100.0 * s["missed"] / max(s["ticks"] + s["missed"], 1)
     s["lost"] = link.stats["lost"]
@@ -223,6 +247,8 @@ def main() -> None:
             print(f"  step back to back [µs]    {us(b['t_step'])}   ({b['ticks']} ticks, fault: {b['fault']})")
             print(f"  read (wait) [µs]          {us(s['t_read'])}")
             print(f"  write [µs]                {us(s['t_write'])}")
+            print(f"  host core during the run: steal {1e3 * s['steal']:.0f} ms (its virtual CPU waiting for the "
+                  f"hypervisor), {s['irqs']} interrupts")
             rows.append((rate, wait, s, b))
     print(f"\nissue 29: the step inside `rhi run` over UDP vs the same step back to back (cpu {a.cpu}, device cpu "
           f"{a.device_cpu}, SCHED_FIFO {a.priority or 'off'}, {a.duration:g} s per run)")
