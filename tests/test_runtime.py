@@ -419,12 +419,14 @@ def test_spin_waits_on_a_busy_core(dev):
     """`wait_until(spin=True)` keeps its core busy to the deadline; the default sleeps; `run(spin=True)` is on time."""
     from rhi.runtime.realtime import wait_until
 
+    used = {}
     for spin in (False, True):
         c0, w0 = time.thread_time(), time.monotonic()
         wait_until(w0 + 0.1, spin)
-        cpu, wall = time.thread_time() - c0, time.monotonic() - w0
+        used[spin], wall = time.thread_time() - c0, time.monotonic() - w0
         assert wall >= 0.1
-        assert (cpu > 0.3 * wall) if spin else (cpu < 0.1 * wall), (spin, cpu, wall)
+    # a loaded machine gives the spinning thread only its share of a core (a fifth at a load of 10 on 2 cores)
+    assert used[False] < 0.1 * wall and used[True] > max(5 * used[False], 0.05 * wall), (used, wall)
     plant, ctrl, hand, wall_, phys = _scenario(dev)
     res = run(SimLink(plant, hand=hand), ctrl, duration=0.2, virtual=wall_, spin=True)
     assert res.fault is None and res.summary["spin"] is True
