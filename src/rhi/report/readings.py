@@ -81,6 +81,12 @@ _TR = "an independent plain-NumPy transcription of the thesis"
 LAMBDA_CHECKED = ("Λ = (uᵀJM⁻¹Jᵀu)⁻¹ of eq. 3.13 on the closed-form Jacobian of eq. 5.12a, plain NumPy with rhi's mass "
                   "matrix as data, equals rhi's Λ at Table 3.1's printed configurations to 1e-12 "
                   "(tests/test_transcription_ch3.py): the difference is in the estimated inertias, not the formula")
+RATIO_MAP_CHECKED = ("ρ_r and Λ_r of the map equal an independent plain-NumPy transcription (the Jacobian below Fig. "
+                     "3.5, the PHANToM's closed-form IK, eqs. 3.6, 3.13, 3.22–3.23, §5.4's limits, the RHI at the "
+                     "global minimum of eq. 3.22 found by sampling its whole self-motion manifold; rhi's M(q) as data) "
+                     "at all 55 points of the quick grid to 1e-5 (tests/test_transcription_fig3_8.py). It found a bug, "
+                     "fixed: one warm-started SLSQP stopped in a local minimum at 23 of them (full grid: Λ_r ≤ 1 at "
+                     "60.0 % → 97.3 %, max Λ_r 3.16 → 1.10; ρ_r ≥ 1 at 100 % before and after, min 1.544 → 1.505)")
 CH4_CHECKED = (f"rhi's GM_M, GC_M, GM_T, C1 and C2 at the thesis's four designs (θz = 89° and 2°, Table 4.1's C1 and C2) "
                f"equal {_TR} (eqs. 4.7–4.20, 4.25–4.26, its own IK; tests/test_transcription_ch4.py) to 1e-9: the "
                "difference lies in the set-up the thesis does not publish, not in the equations")
@@ -179,7 +185,8 @@ _D = [
             (Reading("the RHI at the PHANToM's own angles, q = [0, 0, q_PHANToM]",
                      "eq. 3.8: ρ_RHI = (uᵀ(Ĵ_AD Ĵ_ADᵀ + J_NHI J_NHIᵀ)†u)^(−1/2) — the proof compares the NHI at the "
                      "same joint angles inside the RHI", "ch3.ratio_maps",
-                     "fraction of points with ρ_r ≥ 1, the RHI at the PHANToM's angles", _all),)),
+                     "fraction of points with ρ_r ≥ 1, the RHI at the PHANToM's angles", _all),),
+            checked=RATIO_MAP_CHECKED),
     Dossier("fig3_7.lambda_r", "§3.3 Remark II, eqs. 3.11–3.15; §3.5 Fig. 3.7 (line 672)",
             "Λ_r = Λ_RHI/Λ_PHANToM ≤ 1 at every grid point, the RHI at the eq. 3.22 optimum of each point (as Table "
             "3.1's RHI data, line 640), rhi's estimated inertias",
@@ -188,7 +195,7 @@ _D = [
                      "the same joint angles", "ch3.ratio_maps",
                      "fraction of points with Λ_r ≤ 1, the RHI at the PHANToM's angles", _all),),
             missing="the link masses and inertias: cited ([23], [45]), not printed",
-            checked=LAMBDA_CHECKED),
+            checked=LAMBDA_CHECKED + "; " + RATIO_MAP_CHECKED),
     Dossier("table3_2.order", "§3.5, Table 3.2 (line 652), eq. 3.24",
             "Λ identified by least squares (eq. 3.24) on the simulated plant, ordered RHI ≤ PHANToM < Rehab at both "
             "points",
