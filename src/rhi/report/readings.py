@@ -87,6 +87,11 @@ RATIO_MAP_CHECKED = ("ρ_r and Λ_r of the map equal an independent plain-NumPy 
                      "at all 55 points of the quick grid to 1e-5 (tests/test_transcription_fig3_8.py). It found a bug, "
                      "fixed: one warm-started SLSQP stopped in a local minimum at 23 of them (full grid: Λ_r ≤ 1 at "
                      "60.0 % → 97.3 %, max Λ_r 3.16 → 1.10; ρ_r ≥ 1 at 100 % before and after, min 1.544 → 1.505)")
+STUDY_CHECKED = ("the analysis transcribed in plain NumPy/SciPy from §3.6 — PSE, LT, UT of each fitted cumulative "
+                 "Gaussian (from psignifit's threshold and width only), JND (eq. 3.26), WF (eq. 3.25), Table 3.3's mean "
+                 "and std, the one-way ANOVA by its sums of squares, paired t-tests with Holm–Bonferroni written out — "
+                 "equals rhi's fits, analysis and the experiment's rows on the same simulated responses to 1e-10 "
+                 "(tests/test_transcription_ch3_study.py); the psignifit fit itself is not re-derived")
 CH4_CHECKED = (f"rhi's GM_M, GC_M, GM_T, C1 and C2 at the thesis's four designs (θz = 89° and 2°, Table 4.1's C1 and C2) "
                f"equal {_TR} (eqs. 4.7–4.20, 4.25–4.26, its own IK; tests/test_transcription_ch4.py) to 1e-9: the "
                "difference lies in the set-up the thesis does not publish, not in the equations")
@@ -212,7 +217,7 @@ _D = [
                     "configuration' vs 'at the nominal configuration'); the identified order there then rests on that "
                     "drift and on the velocity-product force eq. 3.24 omits, of opposite sign for the two (rows "
                     "'velocity-product … k')"),
-    *[Dossier(key, "§3.5–3.6, Table 3.3 (line 691), line 699", literal, missing=SUBJECTS)
+    *[Dossier(key, "§3.5–3.6, Table 3.3 (line 691), line 699", literal, missing=SUBJECTS, checked=STUDY_CHECKED)
       for key, literal in (("table3_3.wf_order", "mean WF over the subjects, RHI < PHANToM < Rehab"),
                            ("s3_6.anova.p", "one-way ANOVA on the subjects' WF, p"),
                            ("s3_6.paired.RHI-PHANToM", "Holm-adjusted paired t-test RHI vs PHANToM on WF, p"))],
