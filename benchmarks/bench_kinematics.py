@@ -24,42 +24,15 @@ Run: python benchmarks/bench_kinematics.py [--n 10000]
 
 from __future__ import annotations
 
+import argparse
 import os
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # before NumPy loads its BLAS
+from batch_baselines import arms, best_of, rtb_rho_lambda  # first: BLAS on one thread before NumPy loads
 
-import argparse  # noqa: E402
-import time  # noqa: E402
-import warnings  # noqa: E402
+# isort: split
 
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-
-
-def best_of(fn, repeat: int = 5) -> float:
-    """Minimum wall time of `repeat` calls [s]."""
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
-
-
-def arms():
-    """Panda and UR5 from example-robot-data (none when it is not installed)."""
-    from rhi.devices.loaders import device_from_description
-
-    out = []
-    for name, ee in (("panda", "panda_hand_tcp"), ("ur5", "tool0")):
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                out.append(device_from_description(name, ee_frame=ee))
-        except Exception as exc:  # noqa: BLE001 - a missing optional package only drops a row
-            print(f"({name}: {exc})")
-    return out
+import numpy as np
+import pinocchio as pin
 
 
 def pinocchio_loop(dev, Q, with_dJ: bool = True) -> None:
@@ -110,7 +83,6 @@ def main() -> None:
     import rhi
     from rhi import metrics
     from rhi.devices import batch
-    from rhi.devices.model import MODELS
 
     scale = args.n / args.loop_n
     print(f"J, dJ/dq, M and g for {args.n} configurations (loops timed on {args.loop_n} and scaled; "
@@ -144,21 +116,7 @@ def main() -> None:
         J, M = dev.jacobian(Q), dev.mass_matrix(Q)
         return metrics.effective_manipulability(J, u), metrics.effective_inertia(J, M, u)
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import roboticstoolbox as rtb
-
-        robot = rtb.Robot.URDF(str((MODELS / "rhi4" / "rhi4.urdf").resolve()))
-    A, b = dev.A, dev.b
-
-    def rtb_loop(Qs):
-        out = np.empty((len(Qs), 2))
-        for k, q in enumerate(Qs):
-            th = A @ q + b
-            J = robot.jacob0(th, end="handle")[:2] @ A
-            M = A.T @ robot.inertia(th) @ A + np.diag(dev.armature)
-            out[k] = (u @ np.linalg.solve(J @ J.T, u)) ** -0.5, 1.0 / (u @ J @ np.linalg.solve(M, J.T) @ u)
-        return out
+    rtb_loop = rtb_rho_lambda(dev, u, armature=True)
 
     rho, lam = rho_lambda()
     np.testing.assert_allclose(rho[:50], rtb_loop(Q[:50])[:, 0], rtol=1e-8)  # same ρ as the Robotics Toolbox

@@ -18,46 +18,25 @@ Run: ./run bench   (or: python benchmarks/bench_measures.py [--n 10000] [--loop-
 
 from __future__ import annotations
 
-import os
+import argparse
+import subprocess
+import sys
+import time
 
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")  # before NumPy loads its BLAS
+from batch_baselines import arms, best_of, rtb_rho_lambda  # first: BLAS on one thread before NumPy loads
 
-import argparse  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-import warnings  # noqa: E402
+# isort: split
 
-import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
-
-
-def best_of(fn, repeat: int = 3) -> float:
-    """Minimum wall time of `repeat` calls [s]."""
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return min(times)
+import numpy as np
+import pinocchio as pin
 
 
 def devices():
     """Every bundled device, then Panda and UR5 from example-robot-data (dropped with a note if not installed)."""
     import rhi
-    from rhi.devices.loaders import device_from_description
     from rhi.devices.model import available_devices
 
-    out = [rhi.device(name) for name in available_devices()]
-    for name, ee in (("panda", "panda_hand_tcp"), ("ur5", "tool0")):
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                out.append(device_from_description(name, ee_frame=ee))
-        except Exception as exc:  # noqa: BLE001 - a missing optional package only drops a row
-            print(f"({name}: {exc})")
-    return out
+    return [rhi.device(name) for name in available_devices()] + arms()
 
 
 def pinocchio_loop(dev, Q, u, dynamics: bool) -> np.ndarray:
@@ -147,7 +126,6 @@ def main() -> None:
 
     import rhi
     from rhi import metrics
-    from rhi.devices.model import MODELS
 
     dev = rhi.device("rhi4")
     rng = np.random.default_rng(0)
@@ -165,22 +143,7 @@ def main() -> None:
             out[k] = metrics.effective_manipulability(J, u), metrics.effective_inertia(J, M, u)
         return out
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        import roboticstoolbox as rtb
-
-        robot = rtb.Robot.URDF(str((MODELS / "rhi4" / "rhi4.urdf").resolve()))
-    A, b = dev.A, dev.b
-
-    def rtb_loop(Qs):
-        out = np.empty((len(Qs), 2))
-        for k, q in enumerate(Qs):
-            th = A @ q + b
-            J = robot.jacob0(th, end="handle")[:2] @ A
-            M = A.T @ robot.inertia(th) @ A
-            JJ = J @ J.T
-            out[k] = (u @ np.linalg.solve(JJ, u)) ** -0.5, 1.0 / (u @ J @ np.linalg.solve(M, J.T) @ u)
-        return out
+    rtb_loop = rtb_rho_lambda(dev, u, armature=False)
 
     rho, lam = batch()
     ref = rtb_loop(Q[:50])
@@ -189,7 +152,7 @@ def main() -> None:
     # its M differs from Pinocchio's, which tests/test_rhi4.py checks against a hand derivation.
     lam_gap = float(np.max(np.abs(lam[:50] - ref[:, 1]) / lam[:50]))
 
-    t_batch = best_of(batch)
+    t_batch = best_of(batch, 3)
     t_loop = best_of(own_loop, 1)
     t_rtb = best_of(lambda: rtb_loop(Q[: args.rtb_n]), 1) * args.n / args.rtb_n
 
