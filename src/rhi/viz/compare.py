@@ -24,7 +24,7 @@ from rhi.runtime import SafetyConfig, SimLink, run
 from rhi.sim.hand import DraggableHand
 from rhi.viz.commands import ViewCommands
 from rhi.viz.posed import Posed
-from rhi.viz.remote import SharedDraggableHand, SharedTelemetry, end_view, spawn_view
+from rhi.viz.remote import SharedDraggableHand, SharedTelemetry, ViewProcess
 
 #: free space between two devices in the page, as a fraction of the larger one's size
 GAP = 0.3
@@ -110,7 +110,7 @@ def _serve(devices, tels, kws, offsets, host: str, port: int, ready, stop) -> No
         tel.close()
 
 
-class RemoteCompare:
+class RemoteCompare(ViewProcess):
     """One page with a `View` per device, served from a child process, each fed by its own `SharedTelemetry`.
 
     Args:
@@ -140,33 +140,10 @@ class RemoteCompare:
             kw.update(q0=q0, commands=cmd, hand=hand if i == 0 else None)
         offsets = side_by_side(devices, q0s)
         tels = [(t.name, t.sizes) for t in self.telemetries]
-        try:
-            self.process, self._stop, self.port = spawn_view(
-                _serve, (devices, tels, kws, offsets, host, port), name="rhi-compare-view")
-        except Exception:
-            self.close()
-            raise
+        self._spawn(_serve, (devices, tels, kws, offsets, host, port), "rhi-compare-view")
 
-    @property
-    def url(self) -> str:
-        """The page's address in a browser."""
-        return f"http://127.0.0.1:{self.port}"
-
-    def request_close(self) -> None:
-        """Ask the page's process to close, without waiting (`close` waits and frees the shared memory)."""
-        if hasattr(self, "_stop"):
-            self._stop.set()
-
-    def close(self) -> None:
-        """Stop the page's process and free the shared memory (the hand's too)."""
-        if hasattr(self, "process"):
-            end_view(self.process, self._stop)
-        for t in self.telemetries:
-            t.close()
-        for c in self.commands:
-            c.close()
-        if self.hand is not None:
-            self.hand.close()
+    def _shared(self) -> list:
+        return [*self.telemetries, *self.commands]
 
 
 def compare(devices: list[Device], *, duration: float | None = 3600.0, host: str = "127.0.0.1", port: int = 8080,

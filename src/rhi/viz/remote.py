@@ -202,7 +202,7 @@ def spawn_view(target, args: tuple, *, name: str, timeout: float = 180.0) -> tup
     """Start a view's child process, `target(*args, ready, stop)`, and wait until it serves.
 
     The child (spawned, a daemon that calls `die_with_parent`) puts its port on `ready` once it serves and
-    closes when `stop` is set. Used by `RemoteView` and `rhi.viz.compare.RemoteCompare`.
+    closes when `stop` is set. Used by `ViewProcess` (`RemoteView`, `rhi.viz.compare.RemoteCompare`).
 
     Args:
         target: the child's function.
@@ -257,7 +257,51 @@ def _port_when_ready(ready, process, timeout: float) -> int:
                 raise RhiError(f"view: its process did not serve within {timeout:g} s") from None
 
 
-class RemoteView:
+class ViewProcess:
+    """A page served from a child process (`spawn_view`): its address and its closing.
+
+    Subclasses set `hand` (a `SharedDraggableHand` or None), call `_spawn` last in ``__init__`` and name the shared
+    memory they hold in `_shared`; `close` frees it all (the hand's too).
+
+    Attributes:
+        port: the port the page listens on.
+    """
+
+    hand: SharedDraggableHand | None
+
+    def _spawn(self, target, args: tuple, name: str) -> None:
+        """Start the page's process, `target(*args, ready, stop)` (`spawn_view`); on failure, `close` and raise."""
+        try:
+            self.process, self._stop, self.port = spawn_view(target, args, name=name)
+        except Exception:
+            self.close()
+            raise
+
+    def _shared(self) -> list:
+        """The shared-memory objects to close with the page (telemetries, commands)."""
+        raise NotImplementedError
+
+    @property
+    def url(self) -> str:
+        """The page's address in a browser."""
+        return f"http://127.0.0.1:{self.port}"
+
+    def request_close(self) -> None:
+        """Ask the page's process to close, without waiting (`close` waits and frees the shared memory)."""
+        if hasattr(self, "_stop"):
+            self._stop.set()
+
+    def close(self) -> None:
+        """Stop the page's process and free the shared memory (the hand's too)."""
+        if hasattr(self, "process"):
+            end_view(self.process, self._stop)
+        for shared in self._shared():
+            shared.close()
+        if self.hand is not None:
+            self.hand.close()
+
+
+class RemoteView(ViewProcess):
     """A `View` in a child process, fed by a `SharedTelemetry` (give `telemetry` to `run`/`simulate`).
 
     Args:
@@ -282,23 +326,7 @@ class RemoteView:
         self.hand = hand
         self.telemetry = SharedTelemetry(device.n, device.m, m_slave, every=every)
         self.commands = kw["commands"] = ViewCommands()
-        try:
-            self.process, self._stop, self.port = spawn_view(
-                _serve, (device, self.telemetry.name, self.telemetry.sizes, hand, kw, cpus), name="rhi-view")
-        except Exception:
-            self.close()
-            raise
+        self._spawn(_serve, (device, self.telemetry.name, self.telemetry.sizes, hand, kw, cpus), "rhi-view")
 
-    @property
-    def url(self) -> str:
-        """The view's address in a browser."""
-        return f"http://127.0.0.1:{self.port}"
-
-    def close(self) -> None:
-        """Stop the view's process and free the shared memory (the hand's too)."""
-        if hasattr(self, "process"):
-            end_view(self.process, self._stop)
-        self.telemetry.close()
-        self.commands.close()
-        if self.hand is not None:
-            self.hand.close()
+    def _shared(self) -> list:
+        return [self.telemetry, self.commands]
