@@ -11,12 +11,9 @@ middle of a trial, then started again with the same command. The answers given a
 from __future__ import annotations
 
 import json
-import os
-import signal
 import subprocess
 import sys
 import time
-import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -30,10 +27,11 @@ from rhi.study.simulate import simulate
 pytest.importorskip("psignifit")
 
 import browser  # noqa: E402  (tests/browser.py)
+from conftest import child_env  # noqa: E402
+from study_process import StudyProcess  # noqa: E402
 
 pytestmark = pytest.mark.skipif(not browser.available(), reason="needs Debian's chromium")
 
-SRC = str(Path(__file__).resolve().parents[1] / "src")
 PROTOCOL = """
 description = "2 devices x 3 comparisons x 2 repetitions"
 seed = 3
@@ -67,38 +65,6 @@ fields = { handedness = ["right", "left"] }
 """
 
 
-class Study:
-    """`rhi study run` as a child process (its own process group), with the URL of its pages."""
-
-    def __init__(self, protocol: Path, study: Path, participant: str) -> None:
-        env = {**os.environ, "PYTHONPATH": SRC, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "rhi", "study", "run", str(protocol), "--participant", participant, "--study",
-             str(study), "--port", "0", "--field", "handedness=right", "--rate", "500"],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
-        self.url = None
-        deadline = time.monotonic() + 180
-        lines = []
-        while self.url is None and time.monotonic() < deadline:
-            line = self.proc.stdout.readline()
-            if not line and self.proc.poll() is not None:
-                break
-            lines.append(line)
-            if line.startswith("participant page: "):
-                self.url = line.split(": ", 1)[1].strip()
-        if self.url is None:
-            self.kill()
-            raise RuntimeError("rhi study run did not start:\n" + "".join(lines))
-
-    def experimenter(self) -> dict:
-        return json.load(urllib.request.urlopen(self.url + "api/experimenter", timeout=10))
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-        self.proc.wait(timeout=30)
-
-
 #: enrolment index of each participant of the test (the order they start in)
 INDEX = {"P01": 0, "P02": 1}
 #: stroke durations of the observers' lookup [s] (ch3.psychophysics has four; two keep the test short)
@@ -120,7 +86,7 @@ def key(b: browser.Browser, k: str) -> None:
         b.call("Input.dispatchKeyEvent", type=kind, key=k, code=code, text=k if kind == "keyDown" else "")
 
 
-def play(b: browser.Browser, study: Study, observer, decisions: dict, phases: list, *,
+def play(b: browser.Browser, study: StudyProcess, observer, decisions: dict, phases: list, *,
          kill_at: int | None = None) -> str:
     """Work through the participant's page until done (or kill `study` during the second sample of `kill_at`).
 
@@ -132,7 +98,7 @@ def play(b: browser.Browser, study: Study, observer, decisions: dict, phases: li
             assert study.proc.returncode == 0
             return "done"
         try:
-            view = study.experimenter()
+            view = study.view()
         except OSError:
             study.proc.wait(timeout=30)
             continue
@@ -169,7 +135,7 @@ def play(b: browser.Browser, study: Study, observer, decisions: dict, phases: li
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline:  # the action reached the session: it committed or moved on
             try:
-                v = study.experimenter()
+                v = study.view()
             except OSError:
                 break
             if (v["committed"], v["phase"]) != (k, ph):
@@ -186,7 +152,7 @@ def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path, mon
     observer = make_observer()
     decisions: dict = {}
     phases: list = []
-    s = Study(proto, folder, "P01")
+    s = StudyProcess(proto, folder, "P01")
     with browser.Browser(s.url) as b:
         assert b.wait_for("document.body.dataset.phase === 'ready'", 60)
         # the participant's page shows nothing the protocol does not allow: no stimulus, no condition
@@ -194,11 +160,11 @@ def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path, mon
         assert "RHI" not in text and "Rehab" not in text and "N/m" not in text
         assert play(b, s, observer, decisions, phases, kill_at=7) == "killed"
         assert [int(r["trial"]) for r in read_responses(folder / "P01" / "responses.csv")] == list(range(7))
-        s = Study(proto, folder, "P01")  # the same command resumes
+        s = StudyProcess(proto, folder, "P01")  # the same command resumes
         b.call("Page.navigate", url=s.url)
         assert play(b, s, observer, decisions, phases) == "done"
         s.proc.wait(timeout=60)
-        s2 = Study(proto, folder, "P02")
+        s2 = StudyProcess(proto, folder, "P02")
         b.call("Page.navigate", url=s2.url)
         assert play(b, s2, observer, decisions, phases) == "done"
         s2.proc.wait(timeout=60)
@@ -227,7 +193,7 @@ def test_scripted_participant_killed_and_resumed_through_the_pages(tmp_path, mon
     assert 0 < np.mean(resp) < 1  # both answers occur
     # rhi study analyze = the analysis fed the same responses directly
     out = tmp_path / "analysis"
-    env = {**os.environ, "PYTHONPATH": SRC}
+    env = child_env()
     r = subprocess.run([sys.executable, "-m", "rhi", "study", "analyze", str(folder), "--out", str(out), "--fast"],
                        capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr

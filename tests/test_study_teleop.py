@@ -9,21 +9,19 @@ measures are those of the slave's logged path.
 
 from __future__ import annotations
 
-import json
-import os
 import re
 import signal
 import subprocess
 import sys
 import time
 import tomllib
-import urllib.request
 from pathlib import Path
 
 import browser  # noqa: E402  (tests/browser.py)
 import numpy as np
 import pytest
 from conftest import child_env
+from study_process import StudyProcess
 
 from rhi.devices.model import device
 from rhi.experiments.ch5.setup import distance_to_polyline
@@ -36,7 +34,6 @@ from rhi.study.session import Session, read_responses
 
 pytestmark = [pytest.mark.realtime, pytest.mark.skipif(not browser.available(), reason="needs Debian's chromium")]
 
-SRC = str(Path(__file__).resolve().parents[1] / "src")
 SCALE, OFFSET = 1.25, np.array([-0.05, 0.0])  # the master traces the W 0.8 times as large, 6 cm nearer
 PROTOCOL = f"""
 description = "a short §5.5 protocol: two scenarios, one run each, a scaled and shifted slave"
@@ -71,31 +68,11 @@ fields = {{ handedness = ["right", "left"] }}
 """
 
 
-class Study:
-    """`rhi study run --mouse` as a child process (its own process group), with the URL of its pages."""
+class Study(StudyProcess):
+    """`rhi study run --mouse` of participant P01 (`StudyProcess`; its warm-up compiles: 300 s to serve)."""
 
     def __init__(self, protocol: Path, study: Path) -> None:
-        env = {**child_env(), "MUJOCO_GL": os.environ.get("MUJOCO_GL", "osmesa")}
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "rhi", "study", "run", str(protocol), "--participant", "P01", "--study",
-             str(study), "--port", "0", "--field", "handedness=right", "--rate", "500", "--mouse"],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
-        self.url = None
-        lines = []
-        deadline = time.monotonic() + 300
-        while self.url is None and time.monotonic() < deadline:
-            line = self.proc.stdout.readline()
-            if not line and self.proc.poll() is not None:
-                break
-            lines.append(line)
-            if line.startswith("participant page: "):
-                self.url = line.split(": ", 1)[1].strip()
-        if self.url is None:
-            self.kill()
-            raise RuntimeError("rhi study run did not start:\n" + "".join(lines))
-
-    def view(self, page: str = "experimenter") -> dict:
-        return json.load(urllib.request.urlopen(self.url + "api/" + page, timeout=30))
+        super().__init__(protocol, study, extra=("--mouse",), timeout=300.0)
 
     def committed(self) -> int:
         """Trials committed so far (all of them once the command has ended)."""
@@ -103,11 +80,6 @@ class Study:
             return int(self.view()["committed"])
         except OSError:
             return 99 if self.proc.poll() is not None else -1
-
-    def kill(self) -> None:
-        if self.proc.poll() is None:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-        self.proc.wait(timeout=30)
 
 
 def wait(cond, timeout: float, why) -> None:
