@@ -12,28 +12,9 @@ from rhi._gl import headless_default
 
 headless_default()  # before anything imports MuJoCo (see rhi._gl)
 
-from rhi import errors, metrics  # noqa: E402
-from rhi.devices import (  # noqa: E402
-    Device,
-    all_measures,
-    available_devices,
-    description_path,
-    device,
-    device_from_description,
-    device_from_mjcf,
-    device_from_urdf,
-)
+from rhi import devices, errors, metrics  # noqa: E402
+from rhi.devices import *  # noqa: E402, F403  (the device layer's names: rhi.device, rhi.Device, rhi.all_measures, ...)
 
-__all__ = [
-    "Device",
-    "all_measures",
-    "available_devices",
-    "description_path",
-    "device",
-    "device_from_description",
-    "device_from_mjcf",
-    "device_from_urdf",
-    "errors",
-    "metrics",
-]
+__all__ = ["errors", "metrics"]
+__all__ += devices.__all__
 __version__ = "0.1.0"
