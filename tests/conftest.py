@@ -100,3 +100,22 @@ def free_udp_port() -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def assert_progress_complete(calls: list[tuple[int, int]]) -> None:
+    """An experiment's progress calls (done, total): more than ten, increasing, one total, the last at it."""
+    k, n = np.array(calls).T
+    assert len(k) > 10 and np.all(np.diff(k) > 0) and np.all(n == n[0]) and k[-1] == n[0]
+
+
+def assert_serialises_and_draws(result, *plots) -> None:
+    """`result` turns into JSON, and each plot function draws it (a figure with axes)."""
+    import json
+
+    import matplotlib.pyplot as plt
+
+    json.dumps(result.to_json())
+    for plot in plots:
+        fig = plot(result)
+        assert fig.axes
+        plt.close(fig)

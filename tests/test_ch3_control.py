@@ -7,7 +7,7 @@ import math
 import matplotlib
 import numpy as np
 import pytest
-from conftest import fd_jacobian, random_q, row
+from conftest import assert_progress_complete, assert_serialises_and_draws, fd_jacobian, random_q, row
 
 from rhi.errors import InvalidInput
 from rhi.experiments.ch3 import nullspace as ex
@@ -113,19 +113,11 @@ def test_joint_stops_push_the_hand(short, rhi4):
 
 
 def test_result_serialises_and_figures_draw(short):
-    import json
-
-    import matplotlib.pyplot as plt
-
-    json.dumps(short.to_json())
-    for fig in (pl.convergence(short), pl.configurations(short), pl.drift_hist(short)):
-        assert fig.axes
-        plt.close(fig)
+    assert_serialises_and_draws(short, pl.convergence, pl.configurations, pl.drift_hist)
 
 
 def test_progress_reaches_the_total(short):
-    k, n = np.array(PROGRESS).T
-    assert len(k) > 10 and np.all(np.diff(k) > 0) and np.all(n == n[0]) and k[-1] == n[0]
+    assert_progress_complete(PROGRESS)
 
 
 def test_bad_input(rhi4):

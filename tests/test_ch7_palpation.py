@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import json
-
 import matplotlib
 import numpy as np
 import pytest
-from conftest import row
+from conftest import assert_progress_complete, assert_serialises_and_draws, row
 
 from rhi.errors import InvalidInput
 from rhi.experiments.ch7 import contact as ex
@@ -93,17 +91,11 @@ def test_contact_configuration_is_the_tertiary_optimum(short, rhi4):
 
 
 def test_result_serialises_and_figures_draw(short):
-    import matplotlib.pyplot as plt
-
-    json.dumps(short.to_json())
-    for fig in (pl.fig7_6(short), pl.force_penetration(short), pl.settling(short)):
-        assert fig.axes
-        plt.close(fig)
+    assert_serialises_and_draws(short, pl.fig7_6, pl.force_penetration, pl.settling)
 
 
 def test_progress_reaches_the_total(short):
-    k, n = np.array(PROGRESS).T
-    assert len(k) > 10 and np.all(np.diff(k) > 0) and np.all(n == n[0]) and k[-1] == n[0]
+    assert_progress_complete(PROGRESS)
 
 
 def test_bad_input():
