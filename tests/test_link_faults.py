@@ -43,6 +43,23 @@ def _proxy(port: int, *args: str) -> tuple[subprocess.Popen, int]:
     return p, int(p.stdout.readline())
 
 
+def _proxied_run(dev, tmp_path: Path, server: tuple[str, ...], proxy: tuple[str, ...], *, timeout: float,
+                 duration: float, log: str, safety: SafetyConfig):
+    """`run` of `_scenario` over UDP through `udp_proxy.py` (`proxy` options) to a device server (`server` options).
+
+    The run's log is written to tmp_path / log; the proxy and the server are stopped after it.
+    """
+    p, port = _server(tmp_path, *server)
+    px, pport = _proxy(port, *proxy)
+    try:
+        plant, ctrl, hand, wall, phys = _scenario(dev)
+        link = UDPLink("127.0.0.1", pport, timeout=timeout)
+        return run(link, ctrl, duration=duration, virtual=wall, log=tmp_path / log, safety=safety)
+    finally:
+        px.kill()
+        _stop(p)
+
+
 def _safe_stop(res, log_path: Path, kind: str) -> float:
     """The run stopped on `kind`: zero torque from the fault tick, the reason and time in the log on disk."""
     s = res.summary
@@ -59,16 +76,8 @@ def _safe_stop(res, log_path: Path, kind: str) -> float:
 
 def test_constant_link_delay_trips_the_round_trip_age(dev, tmp_path):
     """30 ms round trip (15 ms each way through the proxy): commands and readings flow, the age says how old."""
-    p, port = _server(tmp_path)
-    px, pport = _proxy(port, "--delay", "0.015")
-    try:
-        plant, ctrl, hand, wall, phys = _scenario(dev)
-        link = UDPLink("127.0.0.1", pport, timeout=5e-4)
-        res = run(link, ctrl, duration=3.0, virtual=wall, log=tmp_path / "d.rhilog",
-                  safety=SafetyConfig(stale_ticks=100, silence=0.1))
-    finally:
-        px.kill()
-        _stop(p)
+    res = _proxied_run(dev, tmp_path, (), ("--delay", "0.015"), timeout=5e-4, duration=3.0, log="d.rhilog",
+                       safety=SafetyConfig(stale_ticks=100, silence=0.1))
     _safe_stop(res, tmp_path / "d.rhilog", "latency")
     age = float(res.fault.split("round-trip age ")[1].split(" ms")[0])
     assert 20.0 <= age < 200.0  # trips at the first age above 20 ms (printed to 0.01 ms)
@@ -85,16 +94,9 @@ def test_constant_delay_over_simlink(dev, tmp_path):
 
 def test_late_reading_counts_as_silence(dev, tmp_path):
     """Readings held 30 ms by the proxy, then delivered: silence on the host's clock, even with a 50 ms read wait."""
-    p, port = _server(tmp_path, "--watchdog", "0.2")  # (the host waits in read: the device's own watchdog is not tested)
-    px, pport = _proxy(port, "--hold", "0.8", "0.83")
-    try:
-        plant, ctrl, hand, wall, phys = _scenario(dev)
-        link = UDPLink("127.0.0.1", pport, timeout=0.05)  # a read waits up to 50 ms for the next reading
-        res = run(link, ctrl, duration=3.0, virtual=wall, log=tmp_path / "h.rhilog",
-                  safety=SafetyConfig(stale_ticks=1000, max_age=1.0))
-    finally:
-        px.kill()
-        _stop(p)
+    # (the host waits in read, up to 50 ms for the next reading: the device's own watchdog is not tested)
+    res = _proxied_run(dev, tmp_path, ("--watchdog", "0.2"), ("--hold", "0.8", "0.83"), timeout=0.05, duration=3.0,
+                       log="h.rhilog", safety=SafetyConfig(stale_ticks=1000, max_age=1.0))
     _safe_stop(res, tmp_path / "h.rhilog", "silence")
     ms = float(res.fault.split(" for ")[1].split(" ms")[0])
     assert 20.0 < ms < 60.0, res.fault
@@ -119,16 +121,9 @@ def test_frozen_sensors_over_udp(dev, tmp_path):
     The proxy freezes the values from a moving reading on, sequence numbers and device time advancing; the
     encoders are unchanged while their velocities imply motion.
     """
-    p, port = _server(tmp_path, "--watchdog", "0.2")
-    px, pport = _proxy(port, "--freeze", "0.3", "600")  # frozen until the run ends
-    try:
-        plant, ctrl, hand, wall, phys = _scenario(dev)
-        link = UDPLink("127.0.0.1", pport, timeout=0.05)
-        res = run(link, ctrl, duration=60.0, virtual=wall, log=tmp_path / "z.rhilog",
-                  safety=SafetyConfig(stale_ticks=1000, silence=1.0, max_age=1.0))  # only the frozen rule applies
-    finally:
-        px.kill()
-        _stop(p)
+    res = _proxied_run(dev, tmp_path, ("--watchdog", "0.2"), ("--freeze", "0.3", "600"),  # frozen until the end
+                       timeout=0.05, duration=60.0, log="z.rhilog",
+                       safety=SafetyConfig(stale_ticks=1000, silence=1.0, max_age=1.0))  # only the frozen rule applies
     t = _safe_stop(res, tmp_path / "z.rhilog", "frozen")
     assert "encoders frozen" in res.fault and f"t={t:.4f} s" in res.fault
     run_log = Log.load(tmp_path / "z.rhilog")
