@@ -119,3 +119,21 @@ def assert_serialises_and_draws(result, *plots) -> None:
         fig = plot(result)
         assert fig.axes
         plt.close(fig)
+
+
+def serial_equals_pool(experiment, resolution: int, keys: tuple[str, ...]):
+    """`experiment(resolution=…)`'s map run here (workers=1) and on a 2-process `PoolExecutor`: the same arrays.
+
+    Bit for bit, NaNs in the same places, for each of `keys`; the serial run's progress counts grid points, one tick
+    per finished row. Returns the serial run's result.
+    """
+    from rhi.design import PoolExecutor
+
+    ticks: list[tuple[int, int]] = []
+    a = experiment(resolution=resolution, workers=1, progress=lambda k, n: ticks.append((k, n)))
+    with PoolExecutor(2) as ex:
+        b = experiment(resolution=resolution, executor=ex)
+    for k in keys:
+        np.testing.assert_array_equal(a.arrays[k], b.arrays[k])
+    assert ticks == [(resolution * (j + 1), resolution**2) for j in range(resolution)]
+    return a
