@@ -47,22 +47,7 @@ READINGS = (("plain", "s1", {"k_q": None}), ("plain", "s2", {"k_q": None}),
 
 
 @checked
-def w_trajectory(
-    *,
-    scale: float = 1.0,
-    speed: float = SPEED,
-    settle: float = 2.0,
-    center=W_CENTER,
-    width: float = W_WIDTH,
-    height: float = W_HEIGHT,
-    k_q: float | None = K_Q,
-    gain: float = GAIN,
-    damping: float = NULL_DAMPING,
-    friction: str = "thesis",
-    ellipses: int = 13,
-    readings: bool = True,
-    progress: Progress | None = None,
-) -> Result:
+def w_trajectory(*, progress: Progress | None = None, **settings) -> Result:
     """Figs 5.5–5.6: the W trajectory at 2 cm/s with three scenarios, the slave following by teleoperation.
 
     Scenario 1: RHI with the TMI objective (eq. 5.11, `TMIMatching` on the slave's encoders);
@@ -74,33 +59,18 @@ def w_trajectory(
     below scenario 1), the user's work W(t) = ∫F_hᵀẋ dt (eq. 5.15; Fig. 5.6, thesis order
     1 < 2 < 3), the slave's tracking errors, and the alignment of the W with the slave ME.
 
-    Args:
-        scale: scales the W's width and height (quick runs: < 1; the speed stays).
-        speed: path speed [m/s] (thesis: 0.02).
-        settle: hold at the W's first point before moving [s] (null-space convergence).
-        center: centre of the W (`rhi.experiments.ch5`) [m].
-        width: its width [m].
-        height: its height [m].
-        k_q: penalty shape of eq. 4.20 in the objectives of scenarios 1 and 2 (None: plain Jacobians,
-            i.e. the literal eqs. 5.11 and 5.14).
-        gain: null-space step size α [N m] (as `fixed_point`).
-        damping: null-space damping k_D [N m s/rad].
-        friction: "thesis" (Γ = 0.01, eq. 5.13) or "device".
-        ellipses: points along the W where Fig. 5.5's ellipses are kept.
-        readings: also run the alternative readings of scenarios 1–2 and report them beside (issue 23):
-            "plain J" (k_q = None in both objectives) and "literal eq. 5.14" (scenario 2 with
-            τ_N = α ∂μ/∂q of the plain Jacobian, not −α ∂(−log μ(J^q))/∂q).
-        progress: optional callback(done, total).
-
     The scenarios are independent (`w_trajectory_plan`: `rhi reproduce` runs them side by side).
+
+    Args:
+        progress: optional callback(done, total).
+        **settings: scale, speed, settle, center, width, height, k_q, gain, damping, friction, ellipses, readings
+            (`w_trajectory_plan`).
 
     Raises:
         Unreachable: the W leaves the workspace of the RHI, the Rehab or the slave (IK along it).
-        InvalidInput: non-positive scale/speed/sizes, negative settle, unknown friction.
+        InvalidInput: non-positive scale/speed/sizes, negative settle, unknown friction, an unknown setting.
     """
-    return run_plan(w_trajectory_plan(scale=scale, speed=speed, settle=settle, center=center, width=width,
-                                      height=height, k_q=k_q, gain=gain, damping=damping, friction=friction,
-                                      ellipses=ellipses, readings=readings), progress)
+    return run_plan(w_trajectory_plan(**settings), progress)
 
 
 @checked
@@ -119,7 +89,24 @@ def w_trajectory_plan(
     ellipses: int = 13,
     readings: bool = True,
 ) -> Plan:
-    """`w_trajectory` as independent parts, one per scenario (arguments as `w_trajectory`).
+    """`w_trajectory` as independent parts, one per scenario.
+
+    Args:
+        scale: scales the W's width and height (quick runs: < 1; the speed stays).
+        speed: path speed [m/s] (thesis: 0.02).
+        settle: hold at the W's first point before moving [s] (null-space convergence).
+        center: centre of the W (`rhi.experiments.ch5`) [m].
+        width: its width [m].
+        height: its height [m].
+        k_q: penalty shape of eq. 4.20 in the objectives of scenarios 1 and 2 (None: plain Jacobians,
+            i.e. the literal eqs. 5.11 and 5.14).
+        gain: null-space step size α [N m] (as `fixed_point`).
+        damping: null-space damping k_D [N m s/rad].
+        friction: "thesis" (Γ = 0.01, eq. 5.13) or "device".
+        ellipses: points along the W where Fig. 5.5's ellipses are kept.
+        readings: also run the alternative readings of scenarios 1–2 and report them beside (issue 23):
+            "plain J" (k_q = None in both objectives) and "literal eq. 5.14" (scenario 2 with
+            τ_N = α ∂μ/∂q of the plain Jacobian, not −α ∂(−log μ(J^q))/∂q).
 
     Raises:
         Unreachable: the W leaves the workspace of the RHI, the Rehab or the slave (IK along it).
@@ -172,7 +159,7 @@ def w_scenario(key: str, *, start: dict[str, tuple[float, ...]], progress: Progr
         start: {"RHI", "Rehab", "slave": start configuration (n,) [rad]} at the W's first point.
         progress: callback(done, total) in ticks.
         **setting: scale, speed, settle, center, width, height, k_q, gain, damping, friction, ellipses as
-            `w_trajectory` takes them.
+            `w_trajectory_plan` takes them.
     """
     scale, speed, settle, friction = setting["scale"], setting["speed"], setting["settle"], setting["friction"]
     k_q, gain, damping, ellipses = setting["k_q"], setting["gain"], setting["damping"], setting["ellipses"]
@@ -300,39 +287,23 @@ def _w_merge(outputs: list[tuple[dict, dict]], *, scale, speed, settle, center, 
             Row("reading 'literal eq. 5.14': scenario 2's mean TME area below scenario 1's", THESIS_S2_BELOW_S1,
                 100.0 * (1.0 - alt["s2_literal"]["area"] / s1["area"]), "%"),
         ]
-    effort = [
-        Row(f"user work over the W, {names[k]}", None, stats[k]["work"], "J", "eq. 5.15, simulated hand")
-        for k in SCENARIOS
-    ]
-    effort += [
-        Row(f"energy dissipated by joint friction over the W, {names[k]}", None, stats[k]["e_friction"], "J",
-            "∫ q̇ᵀΓq̇ dt: the part of the effort that depends on the HI's kinematics (cf. eq. 4.21)")
-        for k in SCENARIOS
-    ]
-    effort += [
-        Row(f"energy dissipated by the rendered damping B^d over the W, {names[k]}", None, stats[k]["e_damping"],
-            "J", "∫ ẋᵀB^dẋ dt, the same path and speed for every scenario")
-        for k in SCENARIOS
-    ]
-    effort += [
-        Row(f"actuator work over the W, {names[k]}", None, stats[k]["e_actuator"], "J",
-            "∫ τᵀq̇ dt: damping removes energy (< 0); null-space motion adds or removes it")
-        for k in SCENARIOS
-    ]
-    effort += [
-        Row(f"energy balance residual over the W, {names[k]}", None,
-            stats[k]["work"] + stats[k]["e_actuator"] - stats[k]["e_friction"] - stats[k]["d_kinetic"], "J",
-            "user + actuator work − friction losses − Δ kinetic energy: ≈ 0 up to the 1 kHz sampling "
-            "of τᵀq̇")
-        for k in SCENARIOS
-    ]
     excess = {k: stats[k]["work"] - stats[k]["e_damping"] for k in SCENARIOS}
-    effort += [
-        Row(f"user work beyond the rendered damping, {names[k]}", None, excess[k], "J",
-            "W − ∫ẋᵀB^dẋ dt: the kinematics-dependent part of the effort (friction, inertia, "
-            "null-space coupling)")
-        for k in SCENARIOS
-    ]
+    energies = (  # (quantity, {scenario: value [J]}, note): a row per scenario each
+        ("user work over the W", {k: stats[k]["work"] for k in SCENARIOS}, "eq. 5.15, simulated hand"),
+        ("energy dissipated by joint friction over the W", {k: stats[k]["e_friction"] for k in SCENARIOS},
+         "∫ q̇ᵀΓq̇ dt: the part of the effort that depends on the HI's kinematics (cf. eq. 4.21)"),
+        ("energy dissipated by the rendered damping B^d over the W", {k: stats[k]["e_damping"] for k in SCENARIOS},
+         "∫ ẋᵀB^dẋ dt, the same path and speed for every scenario"),
+        ("actuator work over the W", {k: stats[k]["e_actuator"] for k in SCENARIOS},
+         "∫ τᵀq̇ dt: damping removes energy (< 0); null-space motion adds or removes it"),
+        ("energy balance residual over the W",
+         {k: stats[k]["work"] + stats[k]["e_actuator"] - stats[k]["e_friction"] - stats[k]["d_kinetic"]
+          for k in SCENARIOS},
+         "user + actuator work − friction losses − Δ kinetic energy: ≈ 0 up to the 1 kHz sampling of τᵀq̇"),
+        ("user work beyond the rendered damping", excess,
+         "W − ∫ẋᵀB^dẋ dt: the kinematics-dependent part of the effort (friction, inertia, null-space coupling)"),
+    )
+    effort = [Row(f"{what}, {names[k]}", None, value[k], "J", note) for what, value, note in energies for k in SCENARIOS]
     effort += [
         Row("effort order 1 < 2 < 3 holds (1 = yes)", T.EFFORT_ORDER, order, "", "Fig. 5.6"),
         Row("work ratio scenario 2 / scenario 1", T.EFFORT_RATIO_5_1[0],
