@@ -569,6 +569,22 @@ def test_jbld_not_spd():
         rm.jbld(np.full((2, 2), np.nan), A)
 
 
+def test_jbld_spd_equals_jbld_to_the_last_bit(rng):
+    """The objectives' unchecked JBLD (closed-form 2 × 2 Cholesky) is `jbld` bit for bit, and still refuses non-SPD."""
+    from rhi.metrics.spd import jbld_spd
+
+    for m in (2, 2, 2, 3):
+        for _ in range(400):
+            X = rng.normal(size=(m, m + 2)) * 10.0 ** rng.uniform(-3, 3)
+            Y = rng.normal(size=(m, m + 1))
+            A, B = X @ X.T, Y @ Y.T
+            assert jbld_spd(A, B) == float(rm.jbld(A, B))
+    with pytest.raises(NotSPD, match="B"):
+        jbld_spd(np.eye(2), np.diag([1.0, 0.0]))
+    with pytest.raises(NotSPD, match="A"):
+        jbld_spd(np.full((2, 2), np.nan), np.eye(2))
+
+
 def test_desired_ellipsoids(rng):
     u = random_unit(rng, 3)
     Md = rm.desired_vme(2.0 * u, 0.01)

@@ -25,8 +25,8 @@ from rhi.control.compiled import CompiledObjective
 from rhi.control.registry import MATRIX, POSITIVE, REQUIRED, VECTOR, Key, ObjectiveType, register, shaped
 from rhi.devices.model import Device, DeviceTerms, inv_small
 from rhi.errors import InvalidInput
-from rhi.metrics import desired_vme, jbld
-from rhi.metrics.spd import spd_matrix
+from rhi.metrics import desired_vme
+from rhi.metrics.spd import jbld_spd, spd_matrix
 
 
 class Objective(Protocol):
@@ -104,7 +104,7 @@ class VMEMatching:
     def value(self, device: Device, q: np.ndarray) -> float:
         """ν(q) = JBLD(M_des, J Jᵀ) for q: (n,) [rad]."""
         J = device.jacobian(q)
-        return float(jbld(self._desired, J @ J.T))
+        return jbld_spd(self._desired, J @ J.T)
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """∂ν/∂q_k = tr((½ M̄⁻¹ − ½ M⁻¹) ∂M/∂q_k), M = JJᵀ, M̄ = (M_des + M)/2, ∂M = ∂J Jᵀ + J ∂Jᵀ."""
@@ -208,7 +208,7 @@ class FMEMatching:
 
     def value(self, device: Device, q: np.ndarray) -> float:
         """ν(q) = JBLD(M_des, M̂(q)) for q: (n,) [rad]."""
-        return float(jbld(self.desired, self.fme(device.jacobian(q))))
+        return jbld_spd(self.desired, self.fme(device.jacobian(q)))
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """∂ν/∂q_k = −2 tr(H ∂J_k W² Jᵀ), H = M̂ G M̂, G = ½(M̄⁻¹ − M̂⁻¹), M̄ = (M̂ + M_des)/2."""
@@ -270,7 +270,7 @@ class EllipsoidMatching:
     def value(self, device: Device, q: np.ndarray) -> float:
         """ν(q) = JBLD(M_des, H J Jᵀ Hᵀ) for q: (n,) [rad]."""
         J = self._J(device.jacobian(q))
-        return float(jbld(self.desired, J @ J.T))
+        return jbld_spd(self.desired, J @ J.T)
 
     def gradient(self, device: Device, q: np.ndarray) -> np.ndarray:
         """∂ν/∂q_k = 2 tr(G ∂(HJ)_k (HJ)ᵀ), G = ½ M̄⁻¹ − ½ M⁻¹ (as `VMEMatching` with J → HJ)."""

@@ -6,7 +6,10 @@ u = [0, 1]; the RHI configuration at a point is the one minimising the JBLD
 objective of eq. 3.22–3.23 with β = 0.01 within the joint limits of §5.4.
 
 Why our numbers differ from the thesis's:
-- ρ depends on kinematics only and matches Table 3.1 to its rounding.
+- ρ depends on kinematics only. At the thesis's own configurations it matches Table 3.1 to
+  its rounding except the RHI at (0.49, −0.22) (0.3752 vs 0.371: the printed configuration
+  is itself rounded) and the Rehab at (0.49, −0.14) (0.31446 vs 0.315); at our eq.-3.22
+  optimum the RHI's ρ is larger than the table's (0.430 and 0.403 vs 0.371 and 0.387).
 - Λ depends on the inertial model. The thesis's model (from [23] and [45]) is not
   published; ours is documented in models/rhi4/README.md, so Λ differs in value
   while the ordering RHI < PHANToM < Rehab is what we check.
@@ -31,7 +34,7 @@ from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput, Unreachable
 from rhi.experiments.arguments import checked
 from rhi.experiments.result import Result, Row, Table
-from rhi.metrics import effective_inertia, effective_manipulability
+from rhi.metrics import effective_inertia, effective_manipulability, jbld
 
 U = np.array([0.0, 1.0])
 POINTS = ((0.49, -0.22), (0.49, -0.14))
@@ -211,7 +214,8 @@ def _lowest(dev: Device, x, objective: VMEMatching, warm: np.ndarray) -> np.ndar
     best = optimal_configuration(dev, x, objective, warm)
     v = objective.value(dev, best)
     samples = manifold_samples(dev, x)
-    values = np.array([objective.value(dev, q) for q in samples])
+    J = dev.jacobian(samples)  # (k, m, n): one batch
+    values = jbld(objective.desired(), J @ J.swapaxes(-1, -2)) if len(samples) else np.empty(0)  # ν, one batch
     for s in samples[np.argsort(values)[:POLISHED]]:
         q = optimal_configuration(dev, x, objective, s)
         vq = objective.value(dev, q)
