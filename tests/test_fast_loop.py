@@ -155,6 +155,16 @@ def test_unstable_plant_fault_equals_python_loop(rhi4, monkeypatch):
     check_same(a[:2], b[:2])
 
 
+def test_one_compiled_loop_for_every_whole_tick(rhi4):
+    """Controllers with different parts run on one compiled loop (compiled once), each on its own whole tick."""
+    a = run(rhi4, palpation, python=False, duration=0.05)
+    signatures = list(fast_loop.ticks.signatures)
+    b = run(rhi4, lambda dev: palpation(dev, passivity=False), python=False, duration=0.05)
+    assert a[1]._kernel.parts != b[1]._kernel.parts and a[1]._kernel._whole_fn is not b[1]._kernel._whole_fn
+    assert list(fast_loop.ticks.signatures) == signatures and len(signatures) >= 1
+    assert a[2].ticks == b[2].ticks == 50
+
+
 def short_calls(seed: int, handed: list | None = None):
     """A stand-in for `fast_loop.ticks` whose calls end after a random 0–39 ticks and hand the next tick to Python.
 

@@ -9,7 +9,7 @@ only the compiled modules (each layer's private ``_compiled`` package, `rhi.metr
 Numba stamps a cached function with the hash of the file that defines it. A kernel that calls
 kernels of other files (`rhi.control._compiled.whole` calls `step`, `allocation`, `objectives`,
 `passivity`, `rhi.devices._compiled.terms` and `rhi.devices._compiled.chain`, and the compiled simulation
-loop calls `whole`) would then load machine code compiled from the old callees after an edit of theirs.
+loop calls the whole tick) would then load machine code compiled from the old callees after an edit of theirs.
 `install` (run here, before the decorator is made) registers cache locators for the files of the rhi
 package whose stamp is one hash of every rhi module that defines compiled functions (`kernel_files`): an
 edit of any of them recompiles every rhi kernel once. Functions outside the rhi package keep Numba's own
@@ -17,6 +17,8 @@ locators. Uses Numba's cache-locator classes (``numba.core.caching``). It also l
 events: the first compile of an rhi kernel in a process (a cold cache) prints `COLD` once on stderr, so
 that a first use is not two minutes without a word. And it gives Numba's inliner one copy of an inlined
 function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size).
+`KernelRef` passes a compiled kernel to another as an argument (a function pointer), so that the caller
+is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import sys
 from pathlib import Path
 
 from numba import njit
-from numba.core import caching, event, inline_closurecall, ir
+from numba.core import caching, event, inline_closurecall, ir, types
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
@@ -160,7 +162,7 @@ def jit(func=None, *, inline: bool = False):
     """The decorator of every compiled function of rhi: ``@jit``, or ``@jit(inline=True)``.
 
     ``inline=True`` is for a kernel with one compiled call site (e.g. `rhi.control._compiled.step.tick` in
-    `rhi.control._compiled.whole.whole`): Numba inlines its IR into that caller instead of compiling it on its
+    `rhi.control._compiled.whole`): Numba inlines its IR into that caller instead of compiling it on its
     own first and linking it in, which saves its own optimisation passes and machine code (a cold compile pays them
     once per kernel, and the caller optimises the linked code again). Called from Python, it compiles on its own as
     usual. Each compiled call site types and compiles it again: for kernels with one such site on the way to the
@@ -168,3 +170,31 @@ def jit(func=None, *, inline: bool = False):
     """
     deco = _INLINED if inline else _PLAIN
     return deco if func is None else deco(func)
+
+
+class KernelRef(types.WrapperAddressProtocol):
+    """A compiled kernel as an argument of another kernel: a pointer to it, typed by its signature.
+
+    The caller is compiled (and cached) once for every kernel of this signature, where an argument that is the
+    dispatcher itself would compile the caller again for each kernel. The call goes through Numba's C wrapper
+    of the kernel, which no exception crosses: a kernel that raises prints the error and returns 0, so a
+    caller must read the kernel's own sign of completion (e.g. `rhi.control._compiled.whole`'s R_DONE).
+
+    Args:
+        kernel: a `jit` function (its dispatcher); compiled (or loaded from the cache) here for `args`.
+        args: the Numba types of its arguments, as the caller passes them.
+    """
+
+    def __init__(self, kernel, args: tuple) -> None:
+        kernel.compile(args)
+        cres = kernel.overloads[args]
+        self.kernel = kernel
+        self._sig = cres.signature
+        self._address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
+
+    def __wrapper_address__(self) -> int:
+        return self._address
+
+    def signature(self):
+        """The kernel's Numba signature (return type and argument types)."""
+        return self._sig

@@ -172,7 +172,7 @@ class KernelTick:
             why.append(f"no compiled form for {', '.join(sorted(set(python)))} (their gradients run in Python)")
         #: why the whole tick does not apply ("" where it does)
         self.reason = "; ".join(why)
-        #: the whole tick runs in `rhi.control._compiled.whole` (see `whole`)
+        #: the whole tick runs in `rhi.control._compiled.whole` (`whole_for`)
         self.whole_ok = not why
         self.live: list[tuple[int, CompiledObjective]] = []
         if self.whole_ok:
@@ -348,7 +348,7 @@ class KernelTick:
         status = call(t, q, dq, F, *self._chain, ready, *self._mid, x, buf, *self._out)
         if call is fn and type(t) is float:  # loaded (or compiled) now: its entry point from the next tick on
             self._call, self._call_of = _entry(fn, (t, q, dq, F, *self._chain, ready, *self._mid, x, buf, *self._out)), fn
-        alpha, beta, V, omega, clipped, pc_ran, tr_changed = self._res.tolist()
+        alpha, beta, V, omega, clipped, pc_ran, tr_changed = self._res.tolist()[:_whole.R_DONE]
         if status != kernels.OK:
             self._tr_of = self._ps_of = None  # the kernel may have advanced tr; the states did not
             if status == kernels.SINGULAR:

@@ -101,7 +101,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     JMinv = terms[at[5]:at[5] + m * n].reshape((m, n))
     Jsharp = terms[at[7]:at[7] + n * m].reshape((n, m))
     Gx = terms[at[8]:at[8] + m]
-    bar, fme_sum = np.zeros(n), np.zeros(n)  # as `rhi.control._compiled.whole.whole`
+    bar, fme_sum = np.zeros(n), np.zeros(n)  # as `rhi.control._compiled.whole.whole_for`'s tick
     if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
         objectives(obj, q, J, dJ, bar, fme_sum)
     a = mtv(J, F_r)

@@ -1,7 +1,8 @@
 """A whole controller tick in one compiled call: device terms, primary law, steps 2–6 and the passivity layer.
 
-`whole` runs, without returning to Python, what a `NullSpaceController` tick otherwise
-composes from four calls: `rhi.devices._compiled.chain.chain_terms` (every device term at (q, q̇)),
+The kernel of `whole_for` (one per set of `Parts` a controller has) runs, without returning to Python,
+what a `NullSpaceController` tick otherwise composes from four calls:
+`rhi.devices._compiled.chain.chain_terms` (every device term at (q, q̇)),
 the primary law's (F_render, F_extra) for the built-in laws (`ForceRendering`,
 `SpringPalpation`, `ImpedanceControl` without a desired inertia: eqs. 5.6, 6.21, 7.2, 7.20),
 `rhi.control._compiled.step.tick` and `rhi.control._compiled.passivity.apply`, with the static FME-matching
@@ -23,16 +24,15 @@ from typing import NamedTuple
 import numpy as np
 
 from rhi.control._compiled import passivity
-from rhi.control._compiled.objectives import OBJ_BARRIER, OBJ_FME, OBJ_JAC, objectives
-from rhi.control._compiled.step import FALLBACK, OK, P_CLIPPED, P_SAFE, P_SATURATION, SINGULAR, tick
-from rhi.control._compiled.tank import TK_ON
+from rhi.control._compiled.objectives import objectives
+from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
 from rhi.devices._compiled.chain import chain_terms
 from rhi.devices._compiled.terms import assign, dot, mm, mtv, mv
 from rhi.jit import jit
 
-__all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "whole", "whole_for"]
+__all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "whole_for"]
 
-#: Primary laws `whole` computes (code in law[LAW_KIND]).
+#: Primary laws the whole tick computes (code in law[LAW_KIND]).
 FORCE, SPRING, FREE = 1, 2, 3
 #: Scalar slots of the law vector; then B^d (m × m), X₀ (m), normal (m), viscous (n), Coulomb (n).
 LAW_KIND, LAW_GAIN, LAW_CORIOLIS, LAW_GRAVITY, LAW_STIFFNESS, LAW_NORMAL, LAW_FRICTION, LAW_VS = range(8)
@@ -41,9 +41,10 @@ N_LAW = 8
 #: previous tick, its time, α, λ and the energy the damping took out this tick).
 PC_ON, PC_MOTORS, PC_CONTROL, PC_ALPHA_MAX, PC_E, PC_PREV, PC_T, PC_ALPHA, PC_SCALE, PC_DISSIPATED = range(10)
 N_PC = 10
-#: Slots of the result vector: α, β, V, Ω, clipped, the passivity layer ran, the FME transition state tr changed.
-R_ALPHA, R_BETA, R_V, R_OMEGA, R_CLIPPED, R_PC, R_TR = range(7)
-N_RES = 7
+#: Slots of the result vector: α, β, V, Ω, clipped, the passivity layer ran, the FME transition state tr changed,
+#: the tick ran to its end (0 where it raised: a caller through `rhi.jit.KernelRef` sees no exception).
+R_ALPHA, R_BETA, R_V, R_OMEGA, R_CLIPPED, R_PC, R_TR, R_DONE = range(8)
+N_RES = 8
 
 
 @jit(inline=True)
@@ -81,62 +82,6 @@ def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
     assign(F_x, c - mv(B, xdot))
 
 
-@jit
-def whole(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
-          lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
-          x, buf, F_r, F_x, tau_out, sat, res):
-    """One whole tick; the status of `rhi.control._compiled.step.tick` (OK, FALLBACK, SINGULAR).
-
-    Every part is compiled; the settings decide at run time which run (`whole_for`: only the parts one
-    controller has).
-
-    Args:
-        t: time [s].
-        q: (n,) joint positions [rad].
-        dq: (n,) joint velocities [rad/s].
-        force: (m,) ``sensors["force"]`` [N] (read by `ForceRendering`).
-        ints: the device's chain constants (`rhi.devices.batch.pack`).
-        joints: its per-joint constants.
-        consts: its frame and gravity constants.
-        A: (nθ, n) actuation map.
-        b: (nθ,) its offset.
-        rows: (m,) int64 task rows.
-        armature: (n,) rotor inertia [kg m²].
-        supports: (nθ, nθ) bool, chain joint k supports joint j.
-        identity: A is the identity.
-        ready: x and buf already hold this state's terms (a `Device.terms` snapshot): not recomputed.
-        at: (≥ 13,) int64 term offsets in buf (`rhi.devices.terms.layout`).
-        law: the primary law's code and settings (LAW_* slots).
-        lo: (n,) lower torque limits [N m].
-        hi: (n,) upper torque limits [N m].
-        prm: parameters of `rhi.control._compiled.step.tick` (P_* slots).
-        tr: (4,) FME transition state, advanced in place.
-        sch: the FME schedule of `rhi.control._compiled.step.tick` (empty: none).
-        vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
-        vme_gain: (k,) their gradient steps.
-        obj: the static FME-matching objectives, joint-limit barriers and Jacobian objectives
-            (`rhi.control._compiled.objectives.pack`).
-        pc: (N_PC,) the passivity layer's settings and state, advanced in place.
-        pc_pos: (k,) its port position at the previous tick, written.
-        pc_eff: (k,) its port effort at the previous tick, written.
-        tank: (N_TANK,) the null-space energy tank (`rhi.control._compiled.tank`), advanced in place.
-        tank_q: (n,) its q of the previous tick, written.
-        tank_e: (2, n) its metered torques (objectives, allocation) of the previous tick, written.
-        x: (m,) handle position [m], written unless ready.
-        buf: the device terms (`rhi.devices.terms.layout`), written unless ready.
-        F_r: (m,) the law's rendered force, written [N].
-        F_x: (m,) the law's extra force, written [N].
-        tau_out: (n,) the torque to send, written [N m].
-        sat: (n,) bool, the held joints, written.
-        res: (N_RES,) α, β, V, Ω, clipped, whether the passivity layer ran, whether tr changed (R_* slots), written.
-    """
-    return _whole(t, q, dq, force, (ints, joints, consts, A, b, rows, armature, supports, identity), ready, at, law,
-                  lo, hi, prm, tr, sch, vme_D, vme_gain, obj, (pc, pc_pos, pc_eff), (tank, tank_q, tank_e),
-                  (x, buf, F_r, F_x, tau_out, sat, res), int(prm[P_SATURATION]), sch.shape[0] != 0,
-                  vme_gain.shape[0] != 0, prm[P_SAFE] != 0.0, prm[P_CLIPPED] != 0.0, tank[TK_ON] != 0.0,
-                  obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0 or obj[OBJ_JAC] != 0.0, pc[PC_ON] != 0.0)
-
-
 class Parts(NamedTuple):
     """The parts a whole tick has (`whole_for`): `rhi.control._compiled.step.flags` and two of its own.
 
@@ -164,12 +109,60 @@ class Parts(NamedTuple):
 
 @functools.cache
 def whole_for(parts: Parts):
-    """`whole` compiled for one set of `parts`: Numba types and compiles only the branches they use.
+    """The whole tick compiled for one set of `parts`: Numba types and compiles only the branches they use.
 
-    A cold start compiles a fraction of the generic `whole` (e.g. ASCM without the active set, the tank and
-    the passivity layer); each set is compiled once and cached on disk (the flags are constants of the closure,
-    part of Numba's cache key). Same arguments, results and status as `whole` with settings that agree with
-    `parts`.
+    A cold start compiles only what one controller runs (e.g. ASCM without the active set, the tank and the
+    passivity layer); each set is compiled once and cached on disk (the flags are constants of the closure, part
+    of Numba's cache key). The settings must agree with `parts`; the status is that of
+    `rhi.control._compiled.step.tick` (OK, FALLBACK, SINGULAR).
+
+    Args:
+        parts: the parts the kernel has.
+
+    Returns:
+        The kernel ``kernel(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready,
+        at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e, x, buf,
+        F_r, F_x, tau_out, sat, res) -> status``, its arguments:
+
+            t: time [s].
+            q: (n,) joint positions [rad].
+            dq: (n,) joint velocities [rad/s].
+            force: (m,) ``sensors["force"]`` [N] (read by `ForceRendering`).
+            ints: the device's chain constants (`rhi.devices.batch.pack`).
+            joints: its per-joint constants.
+            consts: its frame and gravity constants.
+            A: (nθ, n) actuation map.
+            b: (nθ,) its offset.
+            rows: (m,) int64 task rows.
+            armature: (n,) rotor inertia [kg m²].
+            supports: (nθ, nθ) bool, chain joint k supports joint j.
+            identity: A is the identity.
+            ready: x and buf already hold this state's terms (a `Device.terms` snapshot): not recomputed.
+            at: (≥ 13,) int64 term offsets in buf (`rhi.devices.terms.layout`).
+            law: the primary law's code and settings (LAW_* slots).
+            lo: (n,) lower torque limits [N m].
+            hi: (n,) upper torque limits [N m].
+            prm: parameters of `rhi.control._compiled.step.tick` (P_* slots).
+            tr: (4,) FME transition state, advanced in place.
+            sch: the FME schedule of `rhi.control._compiled.step.tick` (empty: none).
+            vme_D: (k, m, m) desired VMEs of the VME-matching objectives.
+            vme_gain: (k,) their gradient steps.
+            obj: the static FME-matching objectives, joint-limit barriers and Jacobian objectives
+                (`rhi.control._compiled.objectives.pack`).
+            pc: (N_PC,) the passivity layer's settings and state, advanced in place.
+            pc_pos: (k,) its port position at the previous tick, written.
+            pc_eff: (k,) its port effort at the previous tick, written.
+            tank: (N_TANK,) the null-space energy tank (`rhi.control._compiled.tank`), advanced in place.
+            tank_q: (n,) its q of the previous tick, written.
+            tank_e: (2, n) its metered torques (objectives, allocation) of the previous tick, written.
+            x: (m,) handle position [m], written unless ready.
+            buf: the device terms (`rhi.devices.terms.layout`), written unless ready.
+            F_r: (m,) the law's rendered force, written [N].
+            F_x: (m,) the law's extra force, written [N].
+            tau_out: (n,) the torque to send, written [N m].
+            sat: (n,) bool, the held joints, written.
+            res: (N_RES,) α, β, V, Ω, clipped, whether the passivity layer ran, whether tr changed, 1 (the tick
+                ran to its end) (R_* slots), written.
     """
     code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on = (
         int(parts[0]), *(bool(p) for p in parts[1:]))
@@ -178,10 +171,13 @@ def whole_for(parts: Parts):
     def whole_parts(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
                     lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
                     x, buf, F_r, F_x, tau_out, sat, res):
-        return _whole(t, q, dq, force, (ints, joints, consts, A, b, rows, armature, supports, identity), ready, at,
-                      law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, (pc, pc_pos, pc_eff), (tank, tank_q, tank_e),
-                      (x, buf, F_r, F_x, tau_out, sat, res), code, scheduled, vme, safe, clipped_null, tank_on,
-                      objectives_on, passivity_on)
+        res[R_DONE] = 0.0
+        status = _whole(t, q, dq, force, (ints, joints, consts, A, b, rows, armature, supports, identity), ready,
+                        at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, (pc, pc_pos, pc_eff), (tank, tank_q, tank_e),
+                        (x, buf, F_r, F_x, tau_out, sat, res), code, scheduled, vme, safe, clipped_null, tank_on,
+                        objectives_on, passivity_on)
+        res[R_DONE] = 1.0
+        return status
 
     return whole_parts
 
@@ -189,10 +185,10 @@ def whole_for(parts: Parts):
 @jit(inline=True)
 def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pcs, tanks, outs,
            code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on):
-    """`whole`'s body (inlined), with the `Parts` it has as its last eight arguments (constants: pruned).
+    """The whole tick's body (inlined), with the `Parts` it has as its last eight arguments (constants: pruned).
 
     `chain` is (ints, ..., identity), `pcs` (pc, pc_pos, pc_eff), `tanks` (tank, tank_q, tank_e) and `outs`
-    (x, ..., res) of `whole`'s arguments (tuples: a call of more than 30 arguments is one Numba cannot inline).
+    (x, ..., res) of `whole_for`'s kernel's arguments (tuples: a call of more than 30 arguments is one Numba cannot inline).
     """
     ints, joints, consts, A, b, rows, armature, supports, identity = chain
     pc, pc_pos, pc_eff = pcs

@@ -7,8 +7,9 @@ or none, a virtual `Wall`, `Fixture`, a `compose` of them or none, a `rhi.sim.Te
 no ``record`` hook or a `rhi.sim.Probe`. `ticks` then runs up to a block
 of ticks per call: the plant's sensors (`rhi.sim._compiled.io.sensors`), the handle's kinematics and
 the virtual environment (`rhi.sim._compiled.handle.handle_state`), the slave's torque and ellipsoid
-(`rhi.sim._compiled.slave.slave_torque`), the controller's input checks and whole tick
-(`rhi.control._compiled.whole`), the torque and a control period of physics steps with the hand and the
+(`rhi.sim._compiled.slave.slave_torque`), the controller's input checks and whole tick (the controller's own
+kernel of `rhi.control._compiled.whole.whole_for`, passed as a `rhi.jit.KernelRef`: the loop is compiled once
+for every set of parts), the torque and a control period of physics steps with the hand and the
 physical wall (`rhi.sim._compiled.handle.hand_period`, MuJoCo's step by `rhi.sim.mjc`), the slave's period
 (`rhi.sim._compiled.slave.slave_period`), the log row and the probe's snapshot row (`SNAPSHOT`).
 
@@ -29,12 +30,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import typeof, types
 
 from rhi.control._compiled import intent as _intent, tank as _tank, whole as _whole
 from rhi.control.controller import NullSpaceController
 from rhi.control.intent_control import IntentController
 from rhi.devices.terms import layout
-from rhi.jit import jit
+from rhi.jit import KernelRef, jit
 from rhi.sim._compiled.handle import (
     PERIOD_OK,
     hand_constants,
@@ -82,7 +84,8 @@ def _finite(v):
 
 
 @jit
-def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows, tele, intent, snap):
+def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows, tele, intent, snap,
+          whole):
     """Run up to `count` ticks of the simulation loop from tick k0, one log row each (see the module docstring).
 
     Args:
@@ -96,7 +99,7 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         hand: `hand_period`'s (sd, idx, c, F, xfrc, acc, wn, bad, at).
         ctrl: (n,) MuJoCo's ctrl.
         F_hand: (m,) the hand's force of the last period [N], advanced.
-        wargs: `rhi.control._compiled.whole.whole`'s arguments after (t, q, dq, force).
+        wargs: the whole tick's arguments after (t, q, dq, force) (`whole_args`).
         cs: the controller's arrays among them: FME transition tr, passivity vector, port position and
             effort, torque, held joints, result, the null-space energy tank's vector, q and efforts (`KernelTick`).
         st: (N_ST,) float state (S_* slots), advanced.
@@ -110,6 +113,7 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
             `rhi.control._compiled.intent.update`, (m,) int64 F/T rows of the task axes, (k,) int64 slots of
             M_des(u) in the objective vector and (k,) their β (a stand-in where lay[L_INTENT] is 0).
         snap: (>= count, width) the snapshot rows (`SNAPSHOT`) to write where lay[L_SNAP].
+        whole: the controller's whole tick (`rhi.control._compiled.whole.whole_for`'s kernel, a `rhi.jit.KernelRef`).
     """
     n, m = ctrl.shape[0], F_hand.shape[0]
     tr, pc, pc_pos, pc_eff, tau, sat, res, tank, tank_q, tank_e = cs
@@ -166,8 +170,8 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
                 return
             tr0[:], pc0[:], pos0[:], eff0[:], tau0[:], sat0[:] = tr, pc, pc_pos, pc_eff, tau, sat
             tk0[:], tq0[:], te0[:] = tank, tank_q, tank_e
-            status = _whole.whole(t, q, dq, F_env, *wargs)
-            if status != _whole.OK or not _finite(tau):  # the controller's state as before the tick
+            status = whole(t, q, dq, F_env, *wargs)
+            if status != _whole.OK or res[_whole.R_DONE] == 0.0 or not _finite(tau):  # the state as before the tick
                 tr[:], pc[:], pc_pos[:], pc_eff[:], tau[:], sat[:] = tr0, pc0, pos0, eff0, tau0, sat0
                 tank[:], tank_q[:], tank_e[:] = tk0, tq0, te0
                 ist[:], ip[:] = ist0, ip0
@@ -254,7 +258,7 @@ def _intent_args(intent, kt, m: int) -> tuple:
 
 
 def whole_args(controller) -> tuple:
-    """`rhi.control._compiled.whole.whole`'s arguments after (t, q, dq, force), as `KernelTick.whole` passes them.
+    """The whole tick's arguments after (t, q, dq, force) (`rhi.control._compiled.whole.whole_for`), as the controller's.
 
     The controller's own terms buffers (ready = False) and state mirrors: the same arrays every call.
     """
@@ -291,6 +295,8 @@ class FastLoop:
             self._kin = (np.zeros(1, np.int64), np.zeros((1, 1)), np.zeros(1))
         self._hand = (plant._sd, sess._idx, c, sess._F, plant._xfrc, sess._acc, plant._wnum, sess._badv, sess._at)
         self._wargs = whole_args(controller)
+        vec = types.float64[::1]  # t, q, dq and the force as `ticks` passes them, then the controller's arguments
+        self._whole = KernelRef(kt._whole_fn, (types.float64, vec, vec, vec, *(typeof(a) for a in self._wargs)))
         self._cs = (kt._tr, kt._pc, kt._pc_pos, kt._pc_eff, kt._tau, kt._sat, kt._res, kt._tank, kt._tank_q,
                     kt._tank_e)
         names = [name for name, _ in columns]
@@ -415,7 +421,8 @@ class FastLoop:
             if getattr(est, "p", None) is not None:
                 ip[:] = est.p
         ticks(len(rows), k0, sess.dt, sess.sub, self._mj, self._sens, self._kin, self._hand, sess.plant._ctrl,
-              self._F_hand, self._wargs, self._cs, st, lay, self._xv, rows, self._tele, self._intent, snap)
+              self._F_hand, self._wargs, self._cs, st, lay, self._xv, rows, self._tele, self._intent, snap,
+              self._whole)
         done, out = int(lay[L_DONE]), int(lay[L_OUT])
         if est is not None and self.intent is not None:
             self._store_intent(est, snap[:done], rows[:done, 0])
