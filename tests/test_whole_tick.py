@@ -54,6 +54,10 @@ def _objectives(dev, kind: str, free: np.ndarray, stiff: np.ndarray) -> tuple[Ob
         "vme": (vme,),
         # beyond.passivity and the ch6 palpation controller: FME matching to M_Stiff, the quadratic barrier
         "static": (ObjectiveTerm(FMEMatching(stiff, dev.torque_max), 20.0), ObjectiveTerm(JointLimitBarrier(0.1), 100.0)),
+        # the barriers' sampled-exact form (the discrete gradient along ΔT q̇, issue 25)
+        "sampled": (ObjectiveTerm(FMEMatching(stiff, dev.torque_max), 20.0),
+                    ObjectiveTerm(JointLimitBarrier(0.1, hold=1e-3), 100.0),
+                    ObjectiveTerm(JointLimitBarrier(0.2, 0.5, hold=2e-3), 10.0)),
         # the ch3/ch7 null-space runs: the inverse barrier; two FME terms, one with a scalar torque limit
         "inverse": (vme, ObjectiveTerm(JointLimitBarrier(0.087, 2.0, kind="inverse"), 0.5),
                     ObjectiveTerm(FMEMatching(free, float(dev.torque_max.min())), 5.0),
@@ -68,7 +72,7 @@ def _config(dev, kind: str, saturation: str = "ascm", projector: str = "dynamic"
     u[1] = 1.0
     K, z = fme_shape(dev.jacobian(np.full(dev.n, 0.3)), dev.torque_max)
     free, stiff = desired_fme_free(u, K, z), desired_fme_stiff(u, K, z)
-    schedule = () if objectives == "static" else (ObjectiveTerm(FMESchedule(free, stiff), 20.0),)
+    schedule = () if objectives in ("static", "sampled") else (ObjectiveTerm(FMESchedule(free, stiff), 20.0),)
     return dict(primary=_law(kind, dev.m), objectives=_objectives(dev, objectives, free, stiff) + schedule,
                 saturation=saturation, projector=projector, **kw)
 
@@ -116,6 +120,7 @@ def _compare(fast, ref, dev, cases, t0: float = 0.0, atol: float = 1e-10) -> int
      ("rhi4", "render", "active_set", "dynamic", "vme"), ("rhi4", "spring", "ascm", "dynamic", "vme"),
      ("planar3r", "spring_all", "ascm", "dynamic", "vme"), ("rhi4", "free", "ascm", "dynamic", "vme"),
      ("gen3", "render", "ascm", "dynamic", "vme"), ("rhi4", "render", "ascm", "dynamic", "static"),
+     ("rhi4", "render", "ascm", "dynamic", "sampled"),
      ("rhi4", "spring", "scaling", "dynamic", "static"), ("rhi4", "free", "ascm", "pseudoinverse", "inverse"),
      ("planar3r", "render", "ascm", "dynamic", "inverse"), ("gen3", "render", "ascm", "dynamic", "inverse")],
 )

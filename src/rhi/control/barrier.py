@@ -57,18 +57,30 @@ class JointLimitBarrier:
     limits unchanged. Not a thesis equation: the thesis assumes no joint is at its range limit;
     this objective enforces that assumption in simulation.
 
+    Sampled-exact form (``hold`` = ΔT > 0, `sampled_gradient`): a torque held over a sample does the work
+    −∇ν(q(k))ᵀΔq, and on a steep barrier that exceeds the potential's drop by ½ΔqᵀHΔq (the energy a
+    sample-and-hold spring generates). The controller then uses, in place of ∇ν(q), the discrete gradient
+    of ν along the predicted step Δq̂ = ΔT q̇: row by row the divided difference
+    (φ(d_r + Δd̂_r) − φ(d_r))/Δd̂_r of each side's φ(d_r), so ∇̄νᵀΔq̂ = ν(q + Δq̂) − ν(q) exactly (ν is a
+    sum over rows of functions of one distance each). Where the plant moves as predicted the held torque's
+    work is exactly −Δν: the barrier stores and returns energy and generates none; the prediction's error
+    is second order in ΔT (Δq − ΔT q̇ = ½ΔT² q̈ + …) instead of first.
+
     Attributes:
         margin: δ, distance from a limit where the objective starts [rad], > 0.
         weight: w, scale of ν_lim (dimensionless), > 0.
         kind: "quadratic" or "inverse".
+        hold: ΔT [s] of the sampled-exact form (the controller's sample period); 0: the gradient at q
+            (sample-and-hold).
 
     Raises:
-        InvalidInput: margin or weight not finite and positive, or an unknown kind.
+        InvalidInput: margin or weight not finite and positive, hold not finite and ≥ 0, or an unknown kind.
     """
 
     margin: float
     weight: float = 1.0
     kind: Literal["quadratic", "inverse"] = "quadratic"
+    hold: float = 0.0
     #: part of the safety torque τ_s (acts whatever the allocation holds), not of the objectives' τ_to
     safety: ClassVar[bool] = True
 
@@ -78,6 +90,10 @@ class JointLimitBarrier:
             if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v) and v > 0):
                 raise InvalidInput(f"{name}: must be finite and > 0, got {v!r}")
             object.__setattr__(self, name, float(v))
+        h = self.hold
+        if isinstance(h, bool) or not (isinstance(h, (int, float, np.floating)) and math.isfinite(h) and h >= 0):
+            raise InvalidInput(f"hold: must be finite and >= 0 [s], got {h!r}")
+        object.__setattr__(self, "hold", float(h))
         if self.kind not in ("quadratic", "inverse"):
             raise InvalidInput(f"kind: expected 'quadratic' or 'inverse', got {self.kind!r}")
 
@@ -114,22 +130,65 @@ class JointLimitBarrier:
         k = C.shape[0]
         return C.T @ (g[:k] - g[k:])  # ∂d_lo/∂q = C, ∂d_hi/∂q = −C
 
+    def side_values(self, d: np.ndarray) -> np.ndarray:
+        """φ(d) of each limit side at the distances d (k,) [rad]: ν = Σ φ(d_r) (k,)."""
+        if self.kind == "quadratic":
+            p = np.maximum(0.0, self.margin - d)
+            return self.weight * 0.5 * p * p
+        r = self.margin / np.maximum(d, 1e-3 * self.margin)
+        return np.where(d < self.margin, self.weight * (r - 1.0) ** 2, 0.0)
+
+    def sampled_gradient(self, device: DeviceModel, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """The discrete gradient ∇̄ν (n,) [1/rad] along Δq̂ = ``hold`` q̇: ∇̄νᵀΔq̂ = ν(q + Δq̂) − ν(q) exactly.
+
+        Each side's slope is the divided difference (φ(d + Δd̂) − φ(d))/Δd̂ of its distance d, and φ'
+        at d + Δd̂/2 where |Δd̂| ≤ 1e-9 δ (the limit of the quotient; no cancellation).
+
+        Args:
+            device: the device (its limit rows).
+            q: (n,) joint positions [rad].
+            dq: (n,) joint velocities [rad/s].
+        """
+        C = limit_rows(device)[0]
+        k = C.shape[0]
+        d = self.distances(device, q)
+        step = self.hold * (C @ np.asarray(dq, dtype=float))
+        dd = np.concatenate([step, -step])
+        small = np.abs(dd) <= 1e-9 * self.margin
+        safe = np.where(small, 1.0, dd)
+        g = np.where(small, self._slopes(d + 0.5 * dd), (self.side_values(d + dd) - self.side_values(d)) / safe)
+        return C.T @ (g[:k] - g[k:])
+
+    def _slopes(self, d: np.ndarray) -> np.ndarray:
+        """φ'(d) of each side (k,) [1/rad] (as `gradient`)."""
+        if self.kind == "quadratic":
+            return -self.weight * np.maximum(0.0, self.margin - d)
+        a = d < self.margin
+        g = np.zeros_like(d)
+        dd = np.maximum(d[a], 1e-3 * self.margin)
+        r = self.margin / dd
+        g[a] = -2.0 * self.weight * (r - 1.0) * r / dd
+        return g
+
     def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
-        """`gradient` from a terms snapshot: (n,)."""
+        """The torque's gradient from a terms snapshot (n,): `gradient`, or `sampled_gradient` where ``hold`` > 0."""
+        if self.hold > 0.0:
+            return self.sampled_gradient(terms.device, terms.q, terms.dq)
         return self.gradient(terms.device, terms.q)
 
     def compiled(self, device: Device) -> CompiledObjective | None:
         """The barrier computed by the whole compiled tick (None for a subclass: its own gradient in Python)."""
         if type(self) is not JointLimitBarrier:
             return None
-        return CompiledObjective("barrier", barrier=(self.kind, self.margin, self.weight))
+        return CompiledObjective("barrier", barrier=(self.kind, self.margin, self.weight, self.hold))
 
 
 
-register(ObjectiveType("joint_limits", lambda device, torque_max, *, margin, weight, kind: JointLimitBarrier(
-    margin, weight, kind=kind), {"margin": (Key("number", low=0.0, strict=True, high=math.pi), REQUIRED),
-                                 "weight": (POSITIVE, 1.0), "kind": (Key("choice", options=("quadratic", "inverse")),
-                                                                     "quadratic")}))
+register(ObjectiveType("joint_limits", lambda device, torque_max, *, margin, weight, kind, hold: JointLimitBarrier(
+    margin, weight, kind=kind, hold=hold), {"margin": (Key("number", low=0.0, strict=True, high=math.pi), REQUIRED),
+                                            "weight": (POSITIVE, 1.0),
+                                            "kind": (Key("choice", options=("quadratic", "inverse")), "quadratic"),
+                                            "hold": (Key("number", low=0.0), 0.0)}))
 
 
 __all__ = ["JointLimitBarrier", "limit_rows"]

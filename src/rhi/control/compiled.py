@@ -76,7 +76,8 @@ class CompiledObjective:
         w2: (n,) torque weights 1/T_i² [1/(N m)²] ("fme").
         stiff: (m, m) SPD M_Stiff^des ("fme_schedule").
         schedule: (‖M_Free − M_Stiff‖_F, ε₁, ε₂, ρ [s]) of the transition ("fme_schedule", eqs. 6.15–6.19).
-        barrier: (shape "quadratic" | "inverse", margin δ [rad], weight w) ("barrier").
+        barrier: (shape "quadratic" | "inverse", margin δ [rad], weight w, hold ΔT [s] of the sampled-exact form,
+            0: the gradient) ("barrier").
         penalty: k_q of the joint-limit penalised Jacobian J^q = J diag(P(q)) (eqs. 4.19–4.20); None: J^q = J
             ("vme_live", "manipulability").
         live: () -> (m, m) the desired ellipsoid of the tick ("vme_live").
@@ -93,7 +94,7 @@ class CompiledObjective:
     w2: np.ndarray | None = None
     stiff: np.ndarray | None = None
     schedule: tuple[float, float, float, float] | None = None
-    barrier: tuple[str, float, float] | None = None
+    barrier: tuple[str, float, float, float] | None = None
     penalty: float | None = None
     live: Callable[[], np.ndarray] | None = None
     slave: object | None = None

@@ -16,10 +16,12 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from rhi.control.allocation.scaling import allocate_scaling
+from rhi.control.objectives import gradient_function
 from rhi.control.safety import held_part, safety_room
 from rhi.control.saturation import null_basis, tertiary
 from rhi.control.settings import ControllerParts
-from rhi.control.tank import damper_direction, tank_blend
+from rhi.control.tank import damper_direction, redistribution_gate, tank_blend
 from rhi.control.transition import aso_volume
 from rhi.devices.model import DeviceTerms
 from rhi.errors import Singular
@@ -74,7 +76,7 @@ def reference_tick(
             objectives = [(gain, sched.objective(s.omega, hi)), *objectives]
 
     # a controller's tick always has q̇ (dq is not None)
-    tau_s = -cfg.damping * dq - sum((gain * np.asarray(obj.gradient(dev, q)) for gain, obj in ctrl.barriers),  # type: ignore[operator]
+    tau_s = -cfg.damping * dq - sum((gain * gradient_function(obj, dev)(kin) for gain, obj in ctrl.barriers),
                                     np.zeros(dev.n))
     tau_to = tau_s
     pushes = [-gain * np.asarray(obj.gradient(dev, q), dtype=float) for gain, obj in objectives]  # −gain ∂ν/∂q each
@@ -86,8 +88,16 @@ def reference_tick(
     if not np.isfinite(Z).all():
         raise Singular("the null-space basis is not finite")
     al = ctrl.allocation.allocate(a, b, Z, torque_min=lo, torque_max=hi)
-    al0 = al
     N = nullspace_projector(J, M)
+    gated = cfg.tank is not None and s.tank is not None and cfg.tank.allocation == "gate"
+    if gated and s.tank is not None:  # the redistribution spends only what the allocation's account holds
+        s.tank.gate = 1.0
+        if al.saturated.any() and not al.clipped:
+            s.tank.gate = theta = redistribution_gate(cfg.tank, s.tank, t, q, np.asarray(dq), kin.Minv,
+                                                      N @ al.tau - g_null)
+            if theta < 1.0:
+                al = blend_allocations(al, allocate_scaling(a, b, torque_min=lo, torque_max=hi), theta)
+    al0 = al
     gamma = 1.0
     if al.saturated.any() and ctrl.allocation.safe:  # safety the held joints would block
         tau1, gamma = safety_room(al.tau, b, held_part(Z, al.saturated, N @ tau_s), torque_min=lo, torque_max=hi,
@@ -101,13 +111,25 @@ def reference_tick(
     if cfg.tank is not None and s.tank is not None:  # the objectives spend only what the tank holds (rhi.control.tank)
         delta0, beta0 = tertiary(al.tau, al.saturated, Z, tau_s, torque_min=lo, torque_max=hi, N=N)
         d = damper_direction(N @ kin.M, np.asarray(dq), al.saturated, al.tau)
-        tau = tank_blend(cfg.tank, s.tank, t, q, np.asarray(dq), J, kin.Jsharp, kin.Minv, g_null, al.tau,
+        tau_a = b + gamma * (al0.tau - b) if gated else al.tau  # the gate meters the redistribution alone
+        tau = tank_blend(cfg.tank, s.tank, t, q, np.asarray(dq), J, kin.Jsharp, kin.Minv, g_null, tau_a,
                          al.tau + delta0 if beta0 else al.tau, tau, d, lo, hi)
     if parts is not None:
         lam, mu = (1.0, 0.0) if s.tank is None else (s.tank.scale, s.tank.damping)
         _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, al.tau, gamma, tau_s, objectives, pushes,
                (1.0 - lam) * beta0 + lam * beta, lam * beta, -mu * d, np.minimum(np.maximum(tau, lo), hi))
     return tau, gamma * al.alpha, beta, al.saturated, al.clipped
+
+
+def blend_allocations(ascm, scaling, theta: float):
+    """θ ASCM + (1 − θ) simple scaling (`rhi.control.tank.redistribution_gate`): an `Allocation` in the box.
+
+    α and τ blend linearly; a joint stays held where both hold it at the same limit.
+    """
+    tau = theta * ascm.tau + (1.0 - theta) * scaling.tau
+    held = ascm.saturated & scaling.saturated & (np.sign(ascm.tau) == np.sign(scaling.tau))
+    return dataclasses.replace(ascm, tau=tau, alpha=theta * ascm.alpha + (1.0 - theta) * scaling.alpha,
+                               saturated=held, tau_null=theta * ascm.tau_null, method=f"{ascm.method} gated")
 
 
 def _split(parts, ctrl, kin, Z, N, a, b, g_null, al0, tau_al, gamma, tau_s, objectives, pushes, beta_s, beta_o, damper,

@@ -42,6 +42,8 @@ class TickSources:
             why.append("the controller's tick is not the whole compiled tick")
         elif kt._scheduled or kt._prm[P_CLIPPED] != 0.0 or kt.live:
             why.append("a scheduled objective, a Jacobian objective (TMI, manipulability) or null_space='clipped'")
+        elif ctrl.config.tank is not None and ctrl.config.tank.allocation == "gate":
+            why.append("the tank's gate on the allocation (the split does not blend it with simple scaling)")
         self.reason = "; ".join(why)
         if self.reason or kt is None:
             return

@@ -47,6 +47,13 @@ held part is the same in τ₀ and τ₁, and their share in Algorithm 2 is (1 �
 β₁: Algorithm 2's box scaling without and with the objectives). With λ = 0 and the damper
 idle the tick is exactly the tick without objectives; with λ = 1, the thesis's tick.
 
+With ``allocation="gate"`` (`redistribution_gate`) step 2 is replaced: the allocation's account meters only
+ASCM's redistribution, e_A = γ θ (N τ_ASCM − g_N) (the held safety torques go to the objectives' account), and
+before the safety torques and Algorithm 2 the controller sends θ τ_ASCM + (1 − θ) τ_scaling with the largest
+θ ∈ [0, 1] whose predicted work w(θ e_A) fits T_A: the redistribution spends only what its own negative work
+put into the account. Where θ < 1 the task force lies between simple scaling's and ASCM's (the rendered force
+gives way, as with simple scaling); the safety torques are added after it, unscaled.
+
 What it guarantees, and what not. The objectives spend only what their account holds. The
 allocation's account is kept ≥ 0 by a dissipative torque, not by scaling: where the damper
 cannot take the whole deficit out — every null-space torque would push a held joint out of
@@ -61,11 +68,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Literal
 
 import numpy as np
 
 from rhi.control.saturation import scaling_alpha
 from rhi.errors import InvalidInput
+
+#: How the allocation's account is kept (`NullSpaceTank.allocation`).
+TankAllocation = Literal["damper", "gate"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,12 +86,18 @@ class NullSpaceTank:
     Attributes:
         initial: T(0) [J], the energy the null space may spend before it has dissipated any.
         capacity: the most the tank holds [J] (energy fed beyond it is not stored).
+        allocation: how the allocation's account is kept: "damper" (step 2 above: the deficit taken out by
+            the allocation's damper, carried where the held joints block it) or "gate" (`redistribution_gate`:
+            the allocation's redistribution itself spends only what its account holds).
     """
 
     initial: float = 0.0
     capacity: float = 0.05
+    allocation: TankAllocation = "damper"
 
     def __post_init__(self) -> None:
+        if self.allocation not in ("damper", "gate"):
+            raise InvalidInput(f"tank.allocation: expected 'damper' or 'gate', got {self.allocation!r}")
         for name in ("initial", "capacity"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v >= 0):
@@ -98,6 +115,7 @@ class TankState:
         allocation: T_A [J], the allocation's account (negative: a deficit the damper could not yet take out).
         scale: λ of the last tick, the factor on the objectives' torque (1: untouched).
         damping: α of the last tick, the allocation damper's rate [1/s] (0: idle).
+        gate: θ of the last tick, the share of the allocation's redistribution sent (1: untouched; "gate" only).
         t: time of the last tick [s].
         position: (n,) q of the last tick [rad].
         effort: (2, n) the metered null-space torques e_O, e_A sent at the last tick [N m].
@@ -107,6 +125,7 @@ class TankState:
     allocation: float = 0.0
     scale: float = 1.0
     damping: float = 0.0
+    gate: float = 1.0
     t: float = -math.inf
     position: np.ndarray | None = None
     effort: np.ndarray | None = None
@@ -177,6 +196,33 @@ def largest_scale(E: float, base: np.ndarray, part: np.ndarray, v: np.ndarray, M
     return min(max(lam, 0.0), 1.0)
 
 
+def redistribution_gate(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: np.ndarray, Minv: np.ndarray,
+                        e: np.ndarray) -> float:
+    """θ ∈ [0, 1]: the share of the allocation's redistribution e = N τ_ASCM − g_N its account pays for (``"gate"``).
+
+    The largest θ whose predicted work over the coming interval, w(θ e) (`hold_work`), fits T_A as step 1
+    will book it at this tick; 0 where no interval is known yet (the first tick) and e is not zero.
+    The controller then sends θ τ_ASCM + (1 − θ) τ_scaling (`rhi.control.allocation.scaling`):
+    both in the box, the task force between simple scaling's and ASCM's, the null-space torque θ e.
+
+    Args:
+        tank: the settings.
+        s: the tank's state (read, not advanced: `tank_blend` books and records).
+        t: time [s].
+        q: (n,) joint positions [rad].
+        dq: (n,) joint velocities [rad/s].
+        Minv: (n, n) M⁻¹.
+        e: (n,) the redistribution's null-space torque [N m].
+    """
+    T_A = s.allocation
+    if s.position is not None and s.effort is not None:
+        T_A = min(T_A - float(s.effort[1].dot(q - s.position)), tank.capacity)
+    dt = t - s.t
+    if not (dt > 0.0 and math.isfinite(dt)):
+        return 0.0 if np.any(e != 0.0) else 1.0
+    return largest_scale(T_A, np.zeros_like(e), e, dq, Minv, dt)
+
+
 def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: np.ndarray, J: np.ndarray,
                Jsharp: np.ndarray, Minv: np.ndarray, g_null: np.ndarray, tau_a: np.ndarray, tau0: np.ndarray,
                tau1: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -192,8 +238,8 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
         Jsharp: (n, m) its dynamically consistent inverse J#.
         Minv: (n, n) M⁻¹.
         g_null: (n,) the null-space part of the gravity compensation in the torque [N m] (zeros without).
-        tau_a: (n,) the allocation's torque (the task, the allocation's null-space torque and the safety
-            torques' held part, before Algorithm 2) [N m].
+        tau_a: (n,) the allocation's torque (the task, the allocation's null-space torque and, with the
+            allocation's damper, the safety torques' held part, before Algorithm 2) [N m].
         tau0: (n,) the tick's torque without the objectives [N m], in the box.
         tau1: (n,) the tick's torque with them [N m], in the box.
         d: (n,) the damper's direction (`damper_direction`) [N m s].
@@ -215,7 +261,8 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
     if dt > 0.0 and math.isfinite(dt):
         deficit = hold_work(e_a, dq, Minv, dt) - s.allocation
         p = float(dq.dot(d))  # ‖d‖²_{M⁻¹} ≥ 0: the damper −α d dissipates α p
-        if deficit > 0.0 and p > 0.0:  # 2. the allocation's damper on its account's deficit, in the box room left
+        # 2. the allocation's damper on its account's deficit, in the box room left
+        if deficit > 0.0 and p > 0.0 and tank.allocation == "damper":
             s.damping = min(deficit / (dt * p), 0.5 / dt)
             sigma = scaling_alpha(-s.damping * d, tau0, lo=lo, hi=hi)
             s.damping = 0.0 if sigma is None else s.damping * sigma
@@ -232,4 +279,4 @@ def tank_blend(tank: NullSpaceTank, s: TankState, t: float, q: np.ndarray, dq: n
 
 
 __all__ = ["FACE_TOL", "INWARD_TOL", "NullSpaceTank", "TankState", "damper_direction", "hold_work", "largest_scale",
-           "tank_blend"]
+           "TankAllocation", "redistribution_gate", "tank_blend"]

@@ -122,6 +122,7 @@ class KernelTick:
         self._tank_q, self._tank_e = np.zeros(n), np.zeros((2, n))
         if cfg.tank is not None:
             self._tank[_tank.TK_ON], self._tank[_tank.TK_CAPACITY] = 1.0, cfg.tank.capacity
+            self._tank[_tank.TK_GATE] = float(cfg.tank.allocation == "gate")
         vme, gains = [], []
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
         static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
@@ -147,8 +148,8 @@ class KernelTick:
         for gain, obj in ctrl.barriers:
             c = compiled_form(obj, dev)
             if c is not None and c.kind == "barrier" and c.barrier is not None:
-                shape, margin, weight = c.barrier
-                bars.append((gain, _BARRIER_KINDS[shape], margin, weight))
+                shape, margin, weight, hold = c.barrier
+                bars.append((gain, _BARRIER_KINDS[shape], margin, weight, hold))
             else:
                 python.append(type(obj).__name__)
         self._vme = _f64(np.array(vme).reshape(len(vme), m, m))
@@ -262,7 +263,7 @@ class KernelTick:
         if ts is not None:
             v = self._tank.tolist()
             ts.energy, ts.scale, ts.damping, ts.t = v[_tank.TK_ENERGY], v[_tank.TK_SCALE], v[_tank.TK_DAMPING], v[_tank.TK_T]
-            ts.allocation = v[_tank.TK_ALLOCATION]
+            ts.allocation, ts.gate = v[_tank.TK_ALLOCATION], v[_tank.TK_THETA]
             ts.position, ts.effort = self._tank_q.copy(), self._tank_e.copy()
 
     def __call__(self, t: float, kin: DeviceTerms, sensors: Mapping[str, np.ndarray]):

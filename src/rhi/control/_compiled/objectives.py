@@ -10,11 +10,12 @@ may change every tick (`rhi.control.TMIMatching`, eq. 5.11: D the slave's ME; th
 travel in one float vector:
 
     [k_fme, k_barrier, r, k_jac, C (r × n), lower (r), upper (r),
-     k_fme × (gain, w2 (n), M_des (m × m)), k_barrier × (gain, kind, margin, weight),
+     k_fme × (gain, w2 (n), M_des (m × m)), k_barrier × (gain, kind, margin, weight, hold),
      k_jac × (code, gain, k_q, q_min (n), q_max (n), D (m × m))]
 
 with C, lower, upper the barrier's limit rows (`rhi.control.barrier.limit_rows`, ±inf where a
-side is unlimited), kind 0 (quadratic) or 1 (inverse), code `JBLD`, `LOG_MU` or `MU` and k_q 0 for
+side is unlimited), kind 0 (quadratic) or 1 (inverse), hold ΔT [s] of the sampled-exact form
+(`rhi.control.JointLimitBarrier.sampled_gradient`; 0: the gradient), code `JBLD`, `LOG_MU` or `MU` and k_q 0 for
 the plain Jacobian. `pack` builds it.
 """
 
@@ -33,12 +34,14 @@ OBJ_FME, OBJ_BARRIER, OBJ_ROWS, OBJ_JAC = range(4)
 N_OBJ = 4
 #: Barrier kinds (`JointLimitBarrier.kind`).
 QUADRATIC, INVERSE = 0, 1
+#: Slots of one barrier term: gain, kind, margin, weight, hold.
+N_BAR = 5
 #: Jacobian objective codes: JBLD(D, J^q J^qᵀ) (eq. 5.11), −log μ(J^q), −μ(J^q) (eq. 5.14).
 JBLD, LOG_MU, MU = 0, 1, 2
 
 
 def pack(n: int, m: int, fme: list[tuple[float, np.ndarray, np.ndarray]],
-         barriers: list[tuple[float, int, float, float]], rows: tuple[np.ndarray, np.ndarray, np.ndarray],
+         barriers: list[tuple[float, int, float, float, float]], rows: tuple[np.ndarray, np.ndarray, np.ndarray],
          jac: list[tuple[int, float, float, np.ndarray, np.ndarray, np.ndarray]] = ()) -> np.ndarray:  # type: ignore[assignment]
     """The objective vector of `objectives`.
 
@@ -46,7 +49,7 @@ def pack(n: int, m: int, fme: list[tuple[float, np.ndarray, np.ndarray]],
         n: joints.
         m: task rows.
         fme: (gain, w2 (n,) [1/(N m)²], M_des (m, m)) of each static FME-matching term.
-        barriers: (gain [N m], kind, margin δ [rad], weight w) of each joint-limit barrier.
+        barriers: (gain [N m], kind, margin δ [rad], weight w, hold ΔT [s]) of each joint-limit barrier.
         rows: (C (r, n), lower (r,), upper (r,)) limit rows of the barriers (r = 0 without one).
         jac: (code, gain, k_q (0: no penalty), q_min (n,), q_max (n,) [rad], D (m, m)) of each Jacobian objective.
     """
@@ -64,16 +67,19 @@ def pack(n: int, m: int, fme: list[tuple[float, np.ndarray, np.ndarray]],
 def desired_slot(obj: np.ndarray, n: int, m: int, i: int) -> int:
     """Where the desired D (m × m, row-major) of Jacobian objective i starts in the objective vector `obj`."""
     kf, kb, r = int(obj[OBJ_FME]), int(obj[OBJ_BARRIER]), int(obj[OBJ_ROWS])
-    return N_OBJ + r * (n + 2) + kf * (1 + n + m * m) + 4 * kb + i * (3 + 2 * n + m * m) + 3 + 2 * n
+    return N_OBJ + r * (n + 2) + kf * (1 + n + m * m) + N_BAR * kb + i * (3 + 2 * n + m * m) + 3 + 2 * n
 
 
 @jit(inline=True)
-def objectives(obj, q, J, dJ, tau_s, tau_to):
+def objectives(obj, q, dq, J, dJ, tau_s, tau_to):
     """Add −Σ gain ∂ν_lim/∂q of the barriers to tau_s and −Σ gain ∂ν/∂q of the FME terms to tau_to [N m], in place.
+
+    A barrier with hold ΔT > 0 adds −gain ∇̄ν_lim, the discrete gradient along ΔT q̇ (sampled-exact form).
 
     Args:
         obj: the objective vector (see the module).
         q: (n,) joint positions [rad].
+        dq: (n,) joint velocities [rad/s].
         J: (m, n) Jacobian.
         dJ: (m, n, n) its derivative ∂J/∂q.
         tau_s: (n,) safety torque, added to.
@@ -90,14 +96,19 @@ def objectives(obj, q, J, dJ, tau_s, tau_to):
         o += 1 + n + m * m
     lower, upper = N_OBJ + r * n, N_OBJ + r * n + r
     for _ in range(kb):
-        gain, inverse, margin, weight = obj[o], obj[o + 1] == INVERSE, obj[o + 2], obj[o + 3]
-        o += 4
+        gain, inverse, margin, weight, hold = obj[o], obj[o + 1] == INVERSE, obj[o + 2], obj[o + 3], obj[o + 4]
+        o += N_BAR
         for k in range(r):  # ∂ν/∂q = Cᵀ (∂ν/∂d_lo − ∂ν/∂d_hi), d_lo = C q − lower, d_hi = upper − C q
-            c = 0.0
+            c, v = 0.0, 0.0
             for j in range(n):
                 c += obj[N_OBJ + k * n + j] * q[j]
-            s = _slope(c - obj[lower + k], inverse, margin, weight) - _slope(obj[upper + k] - c, inverse, margin,
-                                                                             weight)
+                v += obj[N_OBJ + k * n + j] * dq[j]
+            if hold > 0.0:
+                s = (_divided(c - obj[lower + k], hold * v, inverse, margin, weight)
+                     - _divided(obj[upper + k] - c, -hold * v, inverse, margin, weight))
+            else:
+                s = _slope(c - obj[lower + k], inverse, margin, weight) - _slope(obj[upper + k] - c, inverse, margin,
+                                                                                 weight)
             if s != 0.0:
                 for j in range(n):
                     tau_s[j] -= gain * obj[N_OBJ + k * n + j] * s
@@ -123,6 +134,26 @@ def _slope(d, inverse, margin, weight):
     dd = max(d, 1e-3 * margin)
     ratio = margin / dd
     return -2.0 * weight * (ratio - 1.0) * ratio / dd
+
+
+@jit
+def _side(d, inverse, margin, weight):
+    """φ(d) of one limit side at distance d [rad] (`rhi.control.JointLimitBarrier.side_values`)."""
+    if not inverse:
+        p = max(0.0, margin - d)
+        return weight * 0.5 * p * p
+    if not d < margin:
+        return 0.0
+    ratio = margin / max(d, 1e-3 * margin)
+    return weight * (ratio - 1.0) * (ratio - 1.0)
+
+
+@jit
+def _divided(d, dd, inverse, margin, weight):
+    """(φ(d + dd) − φ(d))/dd of one side, φ'(d + dd/2) where |dd| ≤ 1e-9 δ (`JointLimitBarrier.sampled_gradient`)."""
+    if abs(dd) <= 1e-9 * margin:
+        return _slope(d + 0.5 * dd, inverse, margin, weight)
+    return (_side(d + dd, inverse, margin, weight) - _side(d, inverse, margin, weight)) / dd
 
 
 @jit

@@ -103,7 +103,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     Gx = terms[at[8]:at[8] + m]
     bar, fme_sum = np.zeros(n), np.zeros(n)  # as `rhi.control._compiled.whole.whole_for`'s tick
     if obj[OBJ_FME] != 0.0 or obj[OBJ_BARRIER] != 0.0:
-        objectives(obj, q, J, dJ, bar, fme_sum)
+        objectives(obj, q, dq, J, dJ, bar, fme_sum)
     a = mtv(J, F_r)
     b = mtv(J, F_x)
     g_null = np.zeros(n)

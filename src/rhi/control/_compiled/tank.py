@@ -1,7 +1,7 @@
 """The null-space energy tank of one tick, compiled (equations: `rhi.control.tank`).
 
-`blend` is what `rhi.control.tank.tank_blend` computes and `direction` what `rhi.control.tank.damper_direction`
-computes, run inside `rhi.control._compiled.step.tick`;
+`blend` is what `rhi.control.tank.tank_blend` computes, `direction` what `rhi.control.tank.damper_direction`
+and `gate` what `rhi.control.tank.redistribution_gate` computes, run inside `rhi.control._compiled.step.tick`;
 the reference is their oracle (equal to rounding, `tests/test_tank.py`).
 """
 
@@ -17,9 +17,9 @@ from rhi.devices._compiled.terms import dot, mtv, mv
 from rhi.jit import jit
 
 #: Slots of the tank vector: settings (on, capacity [J]), then state (T_O [J], a previous tick, its time [s], λ, μ,
-#: T_A [J]).
-TK_ON, TK_CAPACITY, TK_ENERGY, TK_PREV, TK_T, TK_SCALE, TK_DAMPING, TK_ALLOCATION = range(8)
-N_TANK = 8
+#: T_A [J]), then the allocation's gate (setting: on; state: θ of the tick).
+TK_ON, TK_CAPACITY, TK_ENERGY, TK_PREV, TK_T, TK_SCALE, TK_DAMPING, TK_ALLOCATION, TK_GATE, TK_THETA = range(10)
+N_TANK = 10
 #: As `rhi.control.tank.FACE_TOL` and `INWARD_TOL`.
 _FACE_TOL = 1e-6
 _INWARD_TOL = 1e-12
@@ -91,6 +91,18 @@ def direction(Q, dq, S, k, tau):
     return best
 
 
+@jit
+def gate(tank, tank_q, tank_e, t, q, dq, Minv, e):
+    """`rhi.control.tank.redistribution_gate`: θ ∈ [0, 1], the share of the redistribution e (n,) [N m] paid for."""
+    T_A = tank[TK_ALLOCATION]
+    if tank[TK_PREV] != 0.0:
+        T_A = min(T_A - dot(tank_e[1], q - tank_q), tank[TK_CAPACITY])
+    dt = t - tank[TK_T]
+    if not (dt > 0.0 and math.isfinite(dt)):
+        return 0.0 if dot(e, e) != 0.0 else 1.0
+    return _largest_scale(T_A, np.zeros(q.shape[0]), e, dq, Minv, dt)
+
+
 @jit(inline=True)
 def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, tau0, tau1, d, lo, hi, tau_out):
     """Steps 1–4 of `rhi.control.tank.tank_blend`; writes the torque to send into tau_out and advances the tank.
@@ -127,7 +139,7 @@ def blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, tau0, 
     if dt > 0.0 and math.isfinite(dt):
         deficit = _work(e_a, dq, Minv, dt) - tank[TK_ALLOCATION]
         p = dot(dq, d)
-        if deficit > 0.0 and p > 0.0:
+        if deficit > 0.0 and p > 0.0 and tank[TK_GATE] == 0.0:
             mu = min(deficit / (dt * p), 0.5 / dt)
             sigma = scaling_alpha(-mu * d, tau0, lo, hi, np.ones(n, np.bool_))
             mu = mu * sigma if sigma > 0.0 else 0.0

@@ -28,6 +28,7 @@ notes state which of them makes the device active.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable, Sequence
@@ -37,6 +38,7 @@ import numpy as np
 from rhi.control import (
     ControllerConfig,
     ForceRendering,
+    JointLimitBarrier,
     NullSpaceController,
     NullSpaceTank,
     Passivity,
@@ -44,10 +46,11 @@ from rhi.control import (
 )
 from rhi.control.allocation import Saturation
 from rhi.control.passivity import Method, Port
+from rhi.control.tank import TankAllocation
 from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
-from rhi.experiments.beyond import sources
+from rhi.experiments.beyond import passivity_notes, sources
 from rhi.experiments.beyond.wall_measures import STOP_MARGIN, energies, moving_average, wall_force
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.parts import Part, Plan, run_plan
@@ -64,21 +67,26 @@ OUT, DEPTH, SPEED = 0.002, 0.015, 0.01
 #: Target of the issue: the hand's work with the passivity controller [J].
 TARGET_W = -1e-3
 #: case key: (null-space objectives, passivity port or None, saturation handling, `Passivity.method`, the null-space
-#: energy tank `rhi.control.tank`)
-CASES: dict[str, tuple[bool, Port | None, Saturation, Method, bool]] = {
-    "objectives": (True, None, "ascm", "damper_bounding", False),
-    "objectives_pc": (True, "motors", "ascm", "damper_bounding", False),
-    "objectives_damper": (True, "motors", "ascm", "damper", False),
-    "objectives_bounding": (True, "motors", "ascm", "bounding", False),
-    "objectives_tank": (True, None, "ascm", "damper", True),
-    "objectives_tank_damper": (True, "motors", "ascm", "damper", True),
-    "bare": (False, None, "ascm", "damper_bounding", False),
-    "bare_pc": (False, "motors", "ascm", "damper_bounding", False),
-    "objectives_pc_handle": (True, "handle", "ascm", "damper_bounding", False),
-    "scaling": (True, None, "scaling", "damper_bounding", False),
+#: energy tank's allocation account `NullSpaceTank.allocation` or None without the tank, `rhi.control.tank`)
+CASES: dict[str, tuple[bool, Port | None, Saturation, Method, TankAllocation | None]] = {
+    "objectives": (True, None, "ascm", "damper_bounding", None),
+    "objectives_pc": (True, "motors", "ascm", "damper_bounding", None),
+    "objectives_damper": (True, "motors", "ascm", "damper", None),
+    "objectives_bounding": (True, "motors", "ascm", "bounding", None),
+    "objectives_tank": (True, None, "ascm", "damper", "damper"),
+    "objectives_tank_damper": (True, "motors", "ascm", "damper", "damper"),
+    "passive": (True, None, "ascm", "damper", "gate"),
+    "bare": (False, None, "ascm", "damper_bounding", None),
+    "bare_pc": (False, "motors", "ascm", "damper_bounding", None),
+    "objectives_pc_handle": (True, "handle", "ascm", "damper_bounding", None),
+    "scaling": (True, None, "scaling", "damper_bounding", None),
 }
+#: Cases whose joint-limit barrier is the sampled-exact form (`JointLimitBarrier.hold` = the 1 ms sample).
+SAMPLED = ("passive",)
+#: The sample period of the palpation [s] (`simulate`'s default rate).
+DT = 1e-3
 #: Cases whose energy is split by torque source (`rhi.experiments.beyond.sources`: a replay of every tick).
-SPLIT_CASES = ("objectives", "objectives_damper", "objectives_tank", "objectives_tank_damper")
+SPLIT_CASES = ("objectives", "objectives_damper", "objectives_tank", "objectives_tank_damper", "passive")
 STIFF_CASES = ("objectives", "objectives_pc")
 #: Window of the moving average that separates chatter from the palpation motion [s].
 CHATTER_WINDOW = 0.02
@@ -95,18 +103,24 @@ PROBE = Probe(pc_scale="pc_scale", held="held", tank="tank", tank_scale="tank_sc
 
 
 def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: Saturation = "ascm",
-               method: Method = "damper_bounding", tank: bool = False) -> NullSpaceController:
+               method: Method = "damper_bounding", tank: TankAllocation | None = None, sampled: bool = False,
+               implementation: str = "fast") -> NullSpaceController:
     """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`).
 
-    With the ch. 6 null-space objectives if `objectives`, the passivity controller (`method`) on `port` if given,
-    and the null-space energy tank (`rhi.control.tank`, default settings) if `tank`.
+    With the ch. 6 null-space objectives if `objectives` (the barrier's sampled-exact form if `sampled`), the
+    passivity controller (`method`) on `port` if given, and the null-space energy tank (`rhi.control.tank`, default
+    settings, its allocation account kept by `tank`) if `tank`.
     """
     u = np.array(ch6.U)
     _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
     terms = ch6.controller_terms(Ms, dev.torque_max) if objectives else ()
+    if sampled:
+        terms = tuple(dataclasses.replace(t, objective=dataclasses.replace(t.objective, hold=DT))
+                      if isinstance(t.objective, JointLimitBarrier) else t for t in terms)
     law = ForceRendering(damping=B_D, passivity=None if port is None else Passivity(port=port, method=method))
-    return NullSpaceController(dev, ControllerConfig(primary=law, objectives=terms, damping=ch6.K_D,
-                                                     saturation=saturation, tank=NullSpaceTank() if tank else None))
+    return NullSpaceController(dev, ControllerConfig(
+        primary=law, objectives=terms, damping=ch6.K_D, saturation=saturation,
+        tank=None if tank is None else NullSpaceTank(allocation=tank), implementation=implementation))
 
 
 def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: float, depth: float, speed: float,
@@ -118,7 +132,8 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     plant = Plant(dev)
     plant.reset(q0)
     objectives, port, saturation, method, tank = CASES[case]
-    ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation, method=method, tank=tank)
+    ctrl = controller(dev, objectives=objectives, port=port, saturation=saturation, method=method, tank=tank,
+                      sampled=case in SAMPLED)
     log = simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, stiffness), progress=progress,
                    record=PROBE)
     en = energies(dev, log, plant.friction, stiffness, x0=x0, u=u, damping=B_D)
@@ -164,6 +179,7 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
         "when": {f"{name} {k}": float(np.sum(by_tick[sel, names.index(name)])) for name in ("allocation", "barrier")
                  if name in names for k, sel in (("held_full", full), ("switch", switch))},
         "replay_error": replay,
+        "barrier": _barrier_energy(dev, ctrl, log) if case in SPLIT_CASES else {},
         "objective_work": sources.objective_work(work) if work else math.nan,
         "null_work": sources.null_work(work) if work else math.nan,
         "tank_end": float(log.extra["tank"][-1]),
@@ -176,6 +192,20 @@ def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: 
     out = {k: v[::DECIMATE] for k, v in series.items()}
     out["summary"] = np.array([m[k] for k in SUMMARY])
     return m, out
+
+
+def _barrier_energy(dev: Device, ctrl: NullSpaceController, log) -> dict[str, float]:
+    """The energy the barrier's held torque generates on the run's trajectory (`sources.barrier_generated`) [J].
+
+    Both forms on the same encoder readings: "gradient" (sample-and-hold) and "sampled" (the discrete gradient).
+    """
+    out = {}
+    for gain, bar in ctrl.barriers:
+        if isinstance(bar, JointLimitBarrier):
+            for form in ("gradient", "sampled"):
+                out[form] = out.get(form, 0.0) + sources.barrier_generated(dev, bar, gain, log,
+                                                                         sampled=form == "sampled")
+    return out
 
 
 def case(*, q0: tuple[float, ...], name: str, stiffness: float, duration: float, depth: float, speed: float,
@@ -302,6 +332,7 @@ _LABEL = {
     "bare_pc": "no null-space objectives, PC (motor port)",
     "objectives_pc_handle": "null-space objectives, PC at the handle port",
     "scaling": "null-space objectives, simple force scaling instead of ASCM, no PC",
+    "passive": "passive null space (sampled-exact barrier, gated redistribution), no PC",
 }
 
 
@@ -354,6 +385,11 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
                              f"lowest {m['tank_min']:.3g} J; objectives scaled (λ < 1) on "
                              f"{100 * m['tank_off']:.0f} % of the ticks, the allocation's damper on "
                              f"{100 * m['tank_damped']:.0f} %")]
+        for form, e in m["barrier"].items():
+            src_rows.append(Row(f"  energy the barrier's held torque generates, Σ τ_bᵀΔq + Δν ({form} form on this "
+                                f"run's trajectory), {lab}", None, e, "J",
+                                "the barrier's own port, before the projection; 0: a potential's exact sampled form"
+                                + (" (the form this case sends)" if (form == "sampled") == (c in SAMPLED) else "")))
         if m["sources"]:
             src_rows.append(Row(f"ticks with no redundancy left (ASCM holds n − m joints), {lab}", None,
                                 100.0 * m["held_full"], "%"))
@@ -377,7 +413,7 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
     if "objectives" in res:
         m0 = res["objectives"]
         for c, m in res.items():
-            if CASES[c][1] is not None and CASES[c][0]:
+            if (CASES[c][1] is not None or c in SAMPLED) and CASES[c][0]:
                 f_rows.append(Row(f"passive and the wall's largest force within 10 % of no PC's, {_LABEL[c]}", 1.0,
                                   float(m["W"] >= TARGET_W and m["W_min"] >= TARGET_W and abs(
                                       m["force_peak_wall"] / m0["force_peak_wall"] - 1.0) <= 0.1), "",
@@ -395,6 +431,7 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
 
 
 def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
+    """The set-up, then `passivity_notes.notes`."""
     notes = [
         f"rhi4 in MuJoCo (device friction), 1 kHz, X₀ = {list(ch6.X0)} m, u = {list(ch6.U)}; wall {stiffness:g} N/m "
         f"rendered by eq. 7.2 with B^d = {B_D} N s/m and C_x ẋ; ASCM; objectives: FME matching to M_Stiff^des "
@@ -404,91 +441,4 @@ def _notes(res, stiff_res, duration, stiffness, depth, speed) -> list[str]:
         "Sign: W = ∫F_hᵀẋ dt is the energy the hand put into the device; W < 0 is energy the device gave the hand. "
         "The passivity observer's E_obs is the energy flowed from the mechanism into the controller (≥ 0: passive).",
     ]
-    if "objectives" in res:
-        m = res["objectives"]
-        notes.append(
-            f"Where the energy comes from (no PC, objectives on): the motors did {m['motors']:.3f} J of work on the "
-            f"mechanism, {m['task']:.3f} J of it at the handle and {m['null']:.3f} J in the null space; the sampled "
-            f"wall generated {m['wall_zoh']:.4f} J (sample-and-hold: the wall alone is nearly passive at 1 kHz "
-            f"against the plant's friction), the damping B^d dissipated {m['damping']:.4f} J and the plant's joint "
-            f"friction {m['friction']:.3f} J. The source is the null-space torque of the allocation under "
-            f"saturation: while ASCM holds joints at their torque limits ({100 * m['held']:.0f} % of the ticks) its "
-            "null-space torque is balanced by nothing (the hand holds only the handle), so it accelerates the "
-            f"self-motion steadily (joint speeds up to {m['qdot_max']:.1f} rad/s) until a joint runs past its range "
-            f"into the plant's stop ({100 * m['beyond_range']:.1f} % of the ticks). The motors' work on the "
-            "self-motion is lost in friction and stop impacts, and the part that reaches the hand comes through the "
-            "stops' reaction and the velocity coupling of the fast self-motion with the handle (the dynamically "
-            "consistent projector removes the instantaneous handle force of a null-space torque, neither of these). "
-            "Sample-and-hold (the wall's generated energy above), B^d and friction (dissipative) do not make the "
-            "device active" + (f"; with simple force scaling, which puts no allocation torque into the null space, "
-                               f"W = {res['scaling']['W']:.3g} J (lowest {res['scaling']['W_min']:.2g} J)."
-                               if "scaling" in res else "."))
-    if "bare" in res and "objectives" in res:
-        notes.append(
-            f"Null-space objectives: W = {res['objectives']['W']:.3f} J with them and {res['bare']['W']:.3f} J "
-            f"without (ASCM alone); their own null-space work adds "
-            f"{res['objectives']['null'] - res['bare']['null']:.3f} J to the motors' null-space work.")
-    if "objectives_pc" in res:
-        m, m0 = res["objectives_pc"], res.get("objectives")
-        notes.append(
-            f"With the passivity controller at the motor port: W = {m['W']:.4g} J (target ≥ −1 mJ; lowest during "
-            f"the run {m['W_min']:.2g} J), lowest E_obs {m['E_obs_min']:.2g} J; the motors' net work is "
-            f"{m['motors']:.2g} J. "
-            + (f"Force: RMS error {m['force_rms_error']:.2f} N with it vs {m0['force_rms_error']:.2f} N without, "
-               f"mean {m['force_mean_error']:.2f} N vs {m0['force_mean_error']:.2f} N, peak {m['force_peak']:.1f} N "
-               f"vs {m0['force_peak']:.1f} N. The PC counts every joule the motors put into the mechanism, the "
-               "objectives' null-space work included, as active: while that budget is spent it damps the motion "
-               f"({100 * m['pc_active']:.0f} % of the ticks) and scales the law down "
-               f"({100 * m['pc_scaled']:.0f} % of the ticks), which weakens the wall; it also removes the "
-               "stop impacts' force spikes of the run without it." if m0 else ""))
-    if "objectives" in res and "objectives_damper" in res:
-        m0, m = res["objectives"], res["objectives_damper"]
-        notes.append(
-            f"Transparency beside passivity (the goal: passive and the peak within 10 % of no PC's): the largest "
-            f"force of the run without a PC, {m0['force_peak']:.1f} N at {m0['peak_time']:.2f} s, is "
-            + ("a joint-stop impact (a joint past its range limit within "
-               f"{STOP_MARGIN * 1e3:g} ms), not the rendered wall; " if m0["peak_at_stop"] else "the rendered wall; ")
-            + f"away from the stops the wall peaks at {m0['force_peak_wall']:.2f} N without a PC and "
-            f"{m['force_peak_wall']:.2f} N with the series damper (H&R's PC at the motor port, the law never scaled), "
-            f"whose hand's work never falls below {m['W_min'] * 1e3:.3f} mJ (W = {m['W']:.3g} J). Each contact's "
-            f"largest force (median over the contacts): {m0['contact_peak']:.2f} N without a PC, "
-            f"{m['contact_peak']:.2f} N with the series damper, which keeps the self-motion out of the stops "
-            f"(fastest joint {m['qdot_max']:.1f} vs {m0['qdot_max']:.1f} rad/s) and the configuration in which the "
-            f"wall is rendered; RMS force error {m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N.")
-    for c in ("objectives_damper", "objectives_bounding"):
-        if c in res and "objectives" in res:
-            m, m0 = res[c], res["objectives"]
-            notes.append(
-                f"{_LABEL[c][0].upper()}{_LABEL[c][1:]}: W = {m['W']:.4g} J (lowest {m['W_min']:.2g} J); force RMS error "
-                f"{m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N without a PC, mean "
-                f"{m['force_mean_error']:.2f} N vs {m0['force_mean_error']:.2f} N; the PC acted on "
-                f"{100 * m['pc_active']:.0f} % of the ticks and scaled the law on {100 * m['pc_scaled']:.0f} %.")
-    for c in ("objectives_tank", "objectives_tank_damper"):
-        if c in res and "objectives" in res and res[c]["sources"] and res["objectives"]["sources"]:
-            m, m0 = res[c], res["objectives"]
-            notes.append(
-                f"{_LABEL[c][0].upper()}{_LABEL[c][1:]}: the objectives did {m['objective_work']:.3g} J of work "
-                f"(without the tank {m0['objective_work']:.3g} J) and the null-space side {m['null_work']:.3g} J net "
-                f"({m0['null_work']:.3g} J); the allocation's null-space torque did {m['sources']['allocation']:.3g} J "
-                f"and its damper {m['sources']['tank damper']:.3g} J (acting on {100 * m['tank_damped']:.0f} % of the "
-                f"ticks; ASCM left no redundancy on {100 * m['held_full']:.0f} %); both accounts together ended at "
-                f"{m['tank_end']:.3g} J. Hand's work W = {m['W']:.3g} J "
-                f"(lowest {m['W_min']:.2g} J); peak force {m['force_peak']:.1f} N vs {m0['force_peak']:.1f} N without "
-                f"a PC, RMS force error {m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N.")
-    if "objectives_pc_handle" in res:
-        m = res["objectives_pc_handle"]
-        notes.append(
-            f"At the handle port (H&R's virtual-environment port, J#ᵀτ against ẋ) the observer sees only "
-            f"{m['task']:.3f} J and the hand still receives W = {m['W']:.3f} J: the energy comes through the null "
-            "space, which only the motor port observes.")
-    if stiff_res:
-        a, b = stiff_res.get("objectives"), stiff_res.get("objectives_pc")
-        if a and b:
-            notes.append(
-                f"Stiff wall: handle-velocity chatter above {1 / CHATTER_WINDOW:g} Hz {a['chatter_velocity'] * 1e3:.1f}"
-                f" mm/s without the PC, {b['chatter_velocity'] * 1e3:.1f} mm/s with it; W {a['W']:.3f} J vs "
-                f"{b['W']:.3f} J.")
-    faults = [f"{c}: {m['fault']}" for c, m in {**res, **stiff_res}.items() if m["fault"]]
-    if faults:
-        notes.append("Controller faults: " + "; ".join(faults))
-    return notes
+    return notes + passivity_notes.notes(res, stiff_res, labels=_LABEL, window=CHATTER_WINDOW)

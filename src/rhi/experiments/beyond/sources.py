@@ -17,7 +17,7 @@ import dataclasses
 
 import numpy as np
 
-from rhi.control import ControllerConfig, NullSpaceController
+from rhi.control import ControllerConfig, JointLimitBarrier, NullSpaceController
 from rhi.control.sources import TickSources
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput
@@ -113,6 +113,31 @@ def _compiled_work(dev: Device, config: ControllerConfig, log) -> tuple[list[str
     return [*names, PASSIVITY], np.einsum("ksn,kn->ks", parts, np.diff(log.q, axis=0)), err
 
 
+def barrier_generated(dev: Device, barrier: JointLimitBarrier, gain: float, log, *, sampled: bool) -> float:
+    """The energy [J] the barrier's held torque generates over a logged run: Σ τ_b(k)ᵀΔq(k) + gain Δν_lim.
+
+    τ_b(k) = −gain ∇ν_lim(q(k)) (sample-and-hold of the gradient) or, `sampled`, −gain ∇̄ν_lim (the
+    discrete gradient along ΔT q̇(k), `JointLimitBarrier.sampled_gradient`, ΔT the log's sample), with
+    Δq(k) the plant's encoder displacement: the barrier's own port before any projection, zero for a
+    potential's exact sampled form. Positive: energy the sampling put in.
+
+    Args:
+        dev: the device.
+        barrier: the barrier (its ``hold`` is ignored: `sampled` says which form).
+        gain: its gain [N m].
+        log: the run's `rhi.sim.Log` (t, q, q̇).
+        sampled: book the discrete gradient (else the gradient at q(k)).
+    """
+    bar = dataclasses.replace(barrier, hold=float(log.t[1] - log.t[0]) if sampled else 0.0)
+    dq_step = np.diff(log.q, axis=0)
+    nu = np.array([bar.value(dev, q) for q in log.q])
+    work = 0.0
+    for k in range(len(log.t) - 1):
+        grad = bar.sampled_gradient(dev, log.q[k], log.dq[k]) if sampled else bar.gradient(dev, log.q[k])
+        work -= gain * float(grad @ dq_step[k])
+    return work + gain * float(nu[-1] - nu[0])
+
+
 def objective_work(work: dict[str, float]) -> float:
     """The null-space objectives' work together [J]."""
     return sum(v for k, v in work.items() if k.startswith("objective"))
@@ -132,4 +157,4 @@ def rows(work: dict[str, float], label: str) -> list[Row]:
     return out
 
 
-__all__ = ["PASSIVITY", "SAFETY", "null_work", "objective_work", "rows", "source_work", "tick_work"]
+__all__ = ["PASSIVITY", "SAFETY", "barrier_generated", "null_work", "objective_work", "rows", "source_work", "tick_work"]

@@ -1,0 +1,85 @@
+"""Issue 25 item 2: the null-space sources made passive — the sampled-exact barrier and the gated redistribution."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_q
+
+from rhi.control import JointLimitBarrier, NullSpaceTank
+from rhi.errors import InvalidInput
+
+
+def _near_limits(dev, rng, margin, count):
+    """Configurations with one joint inside `margin` of one of its bounds (past it for some)."""
+    out = []
+    for q in random_q(dev, rng, count):
+        k = rng.integers(dev.n)
+        bound = (dev.q_min if rng.random() < 0.5 else dev.q_max)[k]
+        q[k] = bound + np.sign(0.5 * (dev.q_min[k] + dev.q_max[k]) - bound) * rng.uniform(-0.2, 1.2) * margin
+        out.append(q)
+    return out
+
+
+@pytest.mark.parametrize("kind", ["quadratic", "inverse"])
+def test_sampled_barrier_is_the_exact_discrete_gradient(kind, rhi4, rng):
+    """∇̄νᵀΔq̂ = ν(q + Δq̂) − ν(q) for Δq̂ = ΔT q̇ (to rounding), across the margin's kink and the stops; ∇̄ν → ∇ν."""
+    h = 1e-3
+    bar = JointLimitBarrier(0.1, weight=3.0, kind=kind, hold=h)
+    active = 0
+    for q in _near_limits(rhi4, rng, bar.margin, 200):
+        dq = rng.normal(scale=4.0, size=rhi4.n)  # up to a few rad/s: steps of a few mrad
+        g = bar.sampled_gradient(rhi4, q, dq)
+        dnu = bar.value(rhi4, q + h * dq) - bar.value(rhi4, q)
+        assert g @ (h * dq) == pytest.approx(dnu, rel=1e-9, abs=1e-13 * (1.0 + bar.value(rhi4, q)))
+        active += bool(np.any(g != 0.0))
+        if bar.distances(rhi4, q).min() <= 2e-3 * bar.margin:
+            continue  # the inverse barrier's floor: ν is flat there, its gradient is not (the sampled form follows ν)
+        slow = bar.sampled_gradient(rhi4, q, 1e-6 * dq)  # a vanishing step: the gradient
+        np.testing.assert_allclose(slow, bar.gradient(rhi4, q), rtol=1e-4, atol=1e-6 * (1 + np.abs(slow).max()))
+    assert active > 100
+    # the plain barrier and hold = 0 keep the gradient at q (sample-and-hold)
+    q = _near_limits(rhi4, rng, 0.1, 1)[0]
+    plain = JointLimitBarrier(0.1, weight=3.0, kind=kind)
+    np.testing.assert_array_equal(plain.gradient_at(rhi4.terms(q, np.ones(rhi4.n))), plain.gradient(rhi4, q))
+    np.testing.assert_array_equal(bar.gradient_at(rhi4.terms(q, np.ones(rhi4.n))),
+                                  bar.sampled_gradient(rhi4, q, np.ones(rhi4.n)))
+
+
+def test_sampled_barrier_and_gate_bad_input():
+    for bad in (-1e-3, float("nan"), float("inf"), True, "1"):
+        with pytest.raises(InvalidInput, match="hold"):
+            JointLimitBarrier(0.1, hold=bad)
+    with pytest.raises(InvalidInput, match="tank.allocation"):
+        NullSpaceTank(allocation="scale")  # type: ignore[arg-type]
+
+
+def test_gated_allocation_fast_equals_reference_in_a_palpation(rhi4):
+    """The compiled gate (whole tick) sends the reference's torque, θ and T_A; the redistribution is gated.
+
+    Where θ < 1 the allocation is θ ASCM + (1 − θ) simple scaling: in the box, and the sent null-space torque of the
+    allocation pays only what its account holds.
+    """
+    from rhi.experiments.beyond import passivity as P
+    from rhi.experiments.ch6 import setup as ch6
+    from rhi.sim import Hand, HandPath, Plant, Wall, simulate
+
+    x0, u = np.array(ch6.X0), np.array(ch6.U)
+    ref = P.controller(rhi4, objectives=True, port=None, tank="gate", sampled=True, implementation="reference")
+    fast = P.controller(rhi4, objectives=True, port=None, tank="gate", sampled=True)
+    assert fast._kernel is not None and fast._kernel.whole_ok
+    q0 = ch6.best_match(rhi4, x0, __import__("rhi").control.WeightedSum(ref.config.objectives), starts=1)
+    hand = Hand(HandPath(np.array([x0, x0 - P.OUT * u, x0 + P.DEPTH * u]), speed=0.03, start=0.1),
+                stiffness=P.HAND[0], damping=P.HAND[1], max_force=P.HAND[2])
+    plant = Plant(rhi4)
+    plant.reset(q0)
+    log = simulate(plant, ref, duration=0.8, hand=hand, virtual=Wall(x0, u, P.K_E),
+                   record=lambda: {"theta": ref.state.tank.gate, "T_A": ref.state.tank.allocation,
+                                   "held": int(ref.state.saturated.sum())})
+    assert log.fault is None
+    assert np.any(log.extra["theta"] < 1.0)  # the gate acted
+    for k in range(len(log.t)):
+        tau = fast.step(float(log.t[k]), log.q[k], log.dq[k], {"force": log.F_env[k]})
+        np.testing.assert_allclose(tau, log.tau[k], atol=1e-9)
+        assert fast.state.tank.gate == pytest.approx(log.extra["theta"][k], abs=1e-9)
+        assert fast.state.tank.allocation == pytest.approx(log.extra["T_A"][k], abs=1e-12)
