@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from conftest import random_q
 
-from rhi.control import JointLimitBarrier, NullSpaceTank
+from rhi.control import JointLimitBarrier, NullSpaceTank, WeightedSum
 from rhi.errors import InvalidInput
 
 
@@ -65,10 +65,10 @@ def test_gated_allocation_fast_equals_reference_in_a_palpation(rhi4):
     from rhi.sim import Hand, HandPath, Plant, Wall, simulate
 
     x0, u = np.array(ch6.X0), np.array(ch6.U)
-    ref = P.controller(rhi4, objectives=True, port=None, tank="gate", sampled=True, implementation="reference")
-    fast = P.controller(rhi4, objectives=True, port=None, tank="gate", sampled=True)
+    ref = P.controller(rhi4, objectives=True, port=None, tank=P.GATE_EMPTY, sampled=True, implementation="reference")
+    fast = P.controller(rhi4, objectives=True, port=None, tank=P.GATE_EMPTY, sampled=True)
     assert fast._kernel is not None and fast._kernel.whole_ok
-    q0 = ch6.best_match(rhi4, x0, __import__("rhi").control.WeightedSum(ref.config.objectives), starts=1)
+    q0 = ch6.best_match(rhi4, x0, WeightedSum(ref.config.objectives), starts=1)
     hand = Hand(HandPath(np.array([x0, x0 - P.OUT * u, x0 + P.DEPTH * u]), speed=0.03, start=0.1),
                 stiffness=P.HAND[0], damping=P.HAND[1], max_force=P.HAND[2])
     plant = Plant(rhi4)
@@ -83,3 +83,39 @@ def test_gated_allocation_fast_equals_reference_in_a_palpation(rhi4):
         np.testing.assert_allclose(tau, log.tau[k], atol=1e-9)
         assert fast.state.tank.gate == pytest.approx(log.extra["theta"][k], abs=1e-9)
         assert fast.state.tank.allocation == pytest.approx(log.extra["T_A"][k], abs=1e-12)
+
+
+def test_passive_null_space_keeps_the_hand_passive_and_the_wall():
+    """Issue 25 item 2, measured in the plant: the hand's work ∫F_hᵀẋ dt, not the controller's books.
+
+    The same check on the old controller (ASCM's redistribution unbudgeted, the barrier's gradient sampled and held)
+    and on the passive null space (the sampled-exact barrier, the redistribution and the objectives on the tank's
+    gate, no passivity controller): the old one hands the user energy (the check fails), the new one does not, and
+    with the tank full at the start it keeps the wall's largest force (away from the joint stops) within 10 % of the
+    old one's. The sources, from the encoders: the allocation's work while ASCM holds n − m joints goes from more than
+    half a joule to nothing, and the barrier's sample-and-hold energy on the old run's own trajectory vanishes in the
+    sampled-exact form.
+    """
+    from rhi.experiments.beyond.passivity import _LABEL, SUMMARY, passivity
+
+    r = passivity(duration=8.0, stiff=None, cases=("objectives", "passive", "passive_empty"))
+    a = r.arrays
+    s = {c: dict(zip(SUMMARY, a[f"{c}_summary"])) for c in ("objectives", "passive", "passive_empty")}
+
+    def passive(c: str) -> bool:  # the hand's work at the end and at every time, ≥ −1 mJ
+        return bool(s[c]["W"] >= -1e-3 and a[f"{c}_W"].min() >= -1e-3)
+
+    assert not passive("objectives") and s["objectives"]["W"] < -0.05  # J: the old null space is active
+    assert passive("passive") and passive("passive_empty")
+    assert abs(s["passive"]["force_peak_wall"] / s["objectives"]["force_peak_wall"] - 1.0) <= 0.1
+    assert s["passive"]["peak_at_stop"] == 0.0 and s["passive"]["qdot_max"] < s["objectives"]["qdot_max"]
+    rows = {row.quantity: row.ours for t in r.tables for row in t.rows}
+    assert rows[f"passive and the wall's largest force within 10 % of no PC's, {_LABEL['passive']}"] == 1.0
+    old, new = _LABEL["objectives"], _LABEL["passive"]
+    assert rows[f"  allocation's work while ASCM holds n − m joints, {old}"] > 0.5  # J
+    assert abs(rows[f"  allocation's work while ASCM holds n − m joints, {new}"]) <= 0.01
+    assert rows[f"  allocation, {new}"] <= 0.01 * rows[f"  allocation, {old}"]
+    zoh = "  energy the barrier's held torque generates, Σ τ_bᵀΔq + Δν ({} form on this run's trajectory), {}"
+    assert rows[zoh.format("gradient", old)] > 0.1  # J: sample-and-hold of the steep barrier
+    assert abs(rows[zoh.format("sampled", old)]) <= 0.02 * rows[zoh.format("gradient", old)]
+    assert abs(rows[zoh.format("sampled", new)]) <= 2e-3

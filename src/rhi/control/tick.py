@@ -122,7 +122,7 @@ class KernelTick:
         self._tank_q, self._tank_e = np.zeros(n), np.zeros((2, n))
         if cfg.tank is not None:
             self._tank[_tank.TK_ON], self._tank[_tank.TK_CAPACITY] = 1.0, cfg.tank.capacity
-            self._tank[_tank.TK_GATE] = float(cfg.tank.allocation == "gate")
+            self._tank[_tank.TK_GATE], self._tank[_tank.TK_THETA] = float(cfg.tank.allocation == "gate"), 1.0
         vme, gains = [], []
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
         static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes

@@ -46,7 +46,6 @@ from rhi.control import (
 )
 from rhi.control.allocation import Saturation
 from rhi.control.passivity import Method, Port
-from rhi.control.tank import TankAllocation
 from rhi.devices.model import Device, device
 from rhi.errors import InvalidInput
 from rhi.experiments.arguments import checked
@@ -66,23 +65,28 @@ HAND = (3000.0, 40.0, 60.0)
 OUT, DEPTH, SPEED = 0.002, 0.015, 0.01
 #: Target of the issue: the hand's work with the passivity controller [J].
 TARGET_W = -1e-3
+#: The passive null space's tank (`rhi.control.tank`, ``allocation="gate"``): full at the start (T(0) = capacity, the
+#: explicit budget the redistribution and the objectives may spend before they have taken any energy in), and empty.
+GATE_FULL = NullSpaceTank(initial=0.05, capacity=0.05, allocation="gate")
+GATE_EMPTY = NullSpaceTank(initial=0.0, capacity=0.05, allocation="gate")
 #: case key: (null-space objectives, passivity port or None, saturation handling, `Passivity.method`, the null-space
-#: energy tank's allocation account `NullSpaceTank.allocation` or None without the tank, `rhi.control.tank`)
-CASES: dict[str, tuple[bool, Port | None, Saturation, Method, TankAllocation | None]] = {
+#: energy tank `rhi.control.tank` or None)
+CASES: dict[str, tuple[bool, Port | None, Saturation, Method, NullSpaceTank | None]] = {
     "objectives": (True, None, "ascm", "damper_bounding", None),
     "objectives_pc": (True, "motors", "ascm", "damper_bounding", None),
     "objectives_damper": (True, "motors", "ascm", "damper", None),
     "objectives_bounding": (True, "motors", "ascm", "bounding", None),
-    "objectives_tank": (True, None, "ascm", "damper", "damper"),
-    "objectives_tank_damper": (True, "motors", "ascm", "damper", "damper"),
-    "passive": (True, None, "ascm", "damper", "gate"),
+    "objectives_tank": (True, None, "ascm", "damper", NullSpaceTank()),
+    "objectives_tank_damper": (True, "motors", "ascm", "damper", NullSpaceTank()),
+    "passive": (True, None, "ascm", "damper", GATE_FULL),
+    "passive_empty": (True, None, "ascm", "damper", GATE_EMPTY),
     "bare": (False, None, "ascm", "damper_bounding", None),
     "bare_pc": (False, "motors", "ascm", "damper_bounding", None),
     "objectives_pc_handle": (True, "handle", "ascm", "damper_bounding", None),
     "scaling": (True, None, "scaling", "damper_bounding", None),
 }
 #: Cases whose joint-limit barrier is the sampled-exact form (`JointLimitBarrier.hold` = the 1 ms sample).
-SAMPLED = ("passive",)
+SAMPLED = ("passive", "passive_empty")
 #: The sample period of the palpation [s] (`simulate`'s default rate).
 DT = 1e-3
 #: Cases whose energy is split by torque source (`rhi.experiments.beyond.sources`: a replay of every tick).
@@ -103,13 +107,12 @@ PROBE = Probe(pc_scale="pc_scale", held="held", tank="tank", tank_scale="tank_sc
 
 
 def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: Saturation = "ascm",
-               method: Method = "damper_bounding", tank: TankAllocation | None = None, sampled: bool = False,
+               method: Method = "damper_bounding", tank: NullSpaceTank | None = None, sampled: bool = False,
                implementation: str = "fast") -> NullSpaceController:
     """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`).
 
     With the ch. 6 null-space objectives if `objectives` (the barrier's sampled-exact form if `sampled`), the
-    passivity controller (`method`) on `port` if given, and the null-space energy tank (`rhi.control.tank`, default
-    settings, its allocation account kept by `tank`) if `tank`.
+    passivity controller (`method`) on `port` if given, and the null-space energy tank `tank` (`rhi.control.tank`).
     """
     u = np.array(ch6.U)
     _, _, _, Ms = ch6.desired_fmes(dev, u, ch6.Q_HOME)
@@ -120,7 +123,7 @@ def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: 
     law = ForceRendering(damping=B_D, passivity=None if port is None else Passivity(port=port, method=method))
     return NullSpaceController(dev, ControllerConfig(
         primary=law, objectives=terms, damping=ch6.K_D, saturation=saturation,
-        tank=None if tank is None else NullSpaceTank(allocation=tank), implementation=implementation))
+        tank=tank, implementation=implementation))
 
 
 def _run(dev: Device, q0: np.ndarray, case: str, *, stiffness: float, duration: float, depth: float, speed: float,
@@ -332,7 +335,8 @@ _LABEL = {
     "bare_pc": "no null-space objectives, PC (motor port)",
     "objectives_pc_handle": "null-space objectives, PC at the handle port",
     "scaling": "null-space objectives, simple force scaling instead of ASCM, no PC",
-    "passive": "passive null space (sampled-exact barrier, gated redistribution), no PC",
+    "passive": "passive null space (sampled-exact barrier, redistribution gated by a tank full at the start), no PC",
+    "passive_empty": "passive null space (sampled-exact barrier, redistribution gated by an empty tank), no PC",
 }
 
 
@@ -380,7 +384,7 @@ def _tables(res, stiff_res, duration, stiff_duration, stiffness, stiff) -> list[
             src_rows += sources.rows(m["sources"], lab)
             src_rows.append(Row(f"largest replay error of the twin, {lab}", None, m["replay_error"], "N m",
                                 "the twin sends the logged torque"))
-        if CASES[c][4]:
+        if CASES[c][4] is not None:
             src_rows += [Row(f"tank energy T_O + T_A at the end (lowest), {lab}", None, m["tank_end"], "J",
                              f"lowest {m['tank_min']:.3g} J; objectives scaled (λ < 1) on "
                              f"{100 * m['tank_off']:.0f} % of the ticks, the allocation's damper on "

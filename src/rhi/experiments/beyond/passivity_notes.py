@@ -86,6 +86,24 @@ def notes(res: dict, stiff_res: dict, *, labels: dict[str, str], window: float) 
                 f"{m['tank_end']:.3g} J. Hand's work W = {m['W']:.3g} J "
                 f"(lowest {m['W_min']:.2g} J); peak force {m['force_peak']:.1f} N vs {m0['force_peak']:.1f} N without "
                 f"a PC, RMS force error {m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N.")
+    if "passive" in res and "objectives" in res:
+        m, m0 = res["passive"], res["objectives"]
+        e = res.get("passive_empty")
+        alloc = (f" The allocation's null-space torque did {m['sources']['allocation']:.3g} J (without the gate "
+                 f"{m0['sources']['allocation']:.3g} J)." if m["sources"] and m0["sources"] else "")
+        bar = (f" The barrier's held torque generated {m0['barrier']['gradient']:.3g} J on the no-PC run's trajectory "
+               f"(the gradient sampled and held) and would have generated {m0['barrier']['sampled']:.2g} J in the "
+               f"sampled-exact form; in the passive case {m['barrier']['sampled']:.2g} J."
+               if m0["barrier"] and m["barrier"] else "")
+        notes.append(
+            f"The passive null space, no PC ({labels['passive']}): W = {m['W']:.3g} J, lowest {m['W_min'] * 1e3:.2f} "
+            f"mJ; the wall's largest force away from the stops {m['force_peak_wall']:.2f} N vs "
+            f"{m0['force_peak_wall']:.2f} N without it, per contact {m['contact_peak']:.2f} N vs "
+            f"{m0['contact_peak']:.2f} N, RMS force error {m['force_rms_error']:.2f} N vs {m0['force_rms_error']:.2f} N; "
+            f"fastest joint {m['qdot_max']:.1f} vs {m0['qdot_max']:.1f} rad/s." + alloc + bar
+            + (f" With the tank empty at the start the redistribution cannot start the self-motion (its first "
+               f"interval's work is the kinetic energy it gives): W = {e['W']:.3g} J, lowest {e['W_min'] * 1e3:.2f} mJ, "
+               f"the wall's largest force {e['force_peak_wall']:.2f} N." if e else ""))
     if "objectives_pc_handle" in res:
         m = res["objectives_pc_handle"]
         notes.append(
