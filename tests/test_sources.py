@@ -30,7 +30,7 @@ def _palpation(dev, case: str, duration: float = 0.6):
     return ctrl, simulate(plant, ctrl, duration=duration, hand=hand, virtual=Wall(x0, u, P.K_E))
 
 
-@pytest.mark.parametrize("case", ["objectives", "objectives_damper", "objectives_tank_damper", "scaling"])
+@pytest.mark.parametrize("case", ["objectives", "objectives_damper", "objectives_tank_damper", "scaling", "passive_empty"])
 def test_compiled_split_equals_the_reference_parts_tick_by_tick(rhi4, case):
     """Each source's torque from the compiled split = `reference_tick`'s parts at the same inputs, to 1e-9 N m."""
     ctrl, log = _palpation(rhi4, case)

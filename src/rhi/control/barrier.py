@@ -131,7 +131,7 @@ class JointLimitBarrier:
         return C.T @ (g[:k] - g[k:])  # ∂d_lo/∂q = C, ∂d_hi/∂q = −C
 
     def side_values(self, d: np.ndarray) -> np.ndarray:
-        """φ(d) of each limit side at the distances d (k,) [rad]: ν = Σ φ(d_r) (k,)."""
+        """φ(d) of each limit side at the distances d [rad] (any shape): ν = Σ_r φ(d_r)."""
         if self.kind == "quadratic":
             p = np.maximum(0.0, self.margin - d)
             return self.weight * 0.5 * p * p
@@ -151,16 +151,19 @@ class JointLimitBarrier:
         """
         C = limit_rows(device)[0]
         k = C.shape[0]
-        d = self.distances(device, q)
         step = self.hold * (C @ np.asarray(dq, dtype=float))
-        dd = np.concatenate([step, -step])
-        small = np.abs(dd) <= 1e-9 * self.margin
-        safe = np.where(small, 1.0, dd)
-        g = np.where(small, self._slopes(d + 0.5 * dd), (self.side_values(d + dd) - self.side_values(d)) / safe)
+        g = self.side_divided(self.distances(device, q), np.concatenate([step, -step]))
         return C.T @ (g[:k] - g[k:])
 
-    def _slopes(self, d: np.ndarray) -> np.ndarray:
-        """φ'(d) of each side (k,) [1/rad] (as `gradient`)."""
+    def side_divided(self, d: np.ndarray, dd: np.ndarray) -> np.ndarray:
+        """(φ(d + dd) − φ(d))/dd of each side, φ'(d + dd/2) where |dd| ≤ 1e-9 δ; d, dd [rad] of any one shape."""
+        small = np.abs(dd) <= 1e-9 * self.margin
+        safe = np.where(small, 1.0, dd)
+        return np.where(small, self.side_slopes(d + 0.5 * dd),
+                        (self.side_values(d + dd) - self.side_values(d)) / safe)
+
+    def side_slopes(self, d: np.ndarray) -> np.ndarray:
+        """φ'(d) of each side at the distances d [rad] (any shape) [1/rad] (as `gradient`)."""
         if self.kind == "quadratic":
             return -self.weight * np.maximum(0.0, self.margin - d)
         a = d < self.margin

@@ -13,7 +13,7 @@ import numpy as np
 
 from rhi.control._compiled import P_CLIPPED
 from rhi.control._compiled.sources import OK, split
-from rhi.control._compiled.tank import TK_DAMPING, TK_ON, TK_SCALE
+from rhi.control._compiled.tank import TK_DAMPING, TK_GATE, TK_ON, TK_SCALE, TK_THETA
 from rhi.control.controller import NullSpaceController
 from rhi.control.tick import KernelTick, compiled_form
 
@@ -42,8 +42,6 @@ class TickSources:
             why.append("the controller's tick is not the whole compiled tick")
         elif kt._scheduled or kt._prm[P_CLIPPED] != 0.0 or kt.live:
             why.append("a scheduled objective, a Jacobian objective (TMI, manipulability) or null_space='clipped'")
-        elif ctrl.config.tank is not None and ctrl.config.tank.allocation == "gate":
-            why.append("the tank's gate on the allocation (the split does not blend it with simple scaling)")
         self.reason = "; ".join(why)
         if self.reason or kt is None:
             return
@@ -74,8 +72,8 @@ class TickSources:
             buf = last[1]._buf
         tank = kt._tank
         status = split(q, dq, buf, kt._at, kt._F[0], kt._F[1], ctrl.lo, ctrl.hi, kt._prm, kt._obj, kt._vme,
-                       kt._vme_gain, float(tank[TK_ON]), float(tank[TK_SCALE]), float(tank[TK_DAMPING]), self._slot,
-                       self._out)
+                       kt._vme_gain, float(tank[TK_ON]), float(tank[TK_SCALE]), float(tank[TK_DAMPING]),
+                       float(tank[TK_THETA]) if tank[TK_GATE] != 0.0 else 1.0, self._slot, self._out)
         return self._out if status == OK else None
 
 

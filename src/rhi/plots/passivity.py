@@ -20,6 +20,8 @@ _NAMES = {
     "bare_pc": "no objectives, PC (motors)",
     "objectives_pc_handle": "objectives, PC (handle port)",
     "scaling": "objectives, force scaling, no PC",
+    "passive": "passive null space, tank full at start, no PC",
+    "passive_empty": "passive null space, tank empty at start, no PC",
 }
 
 
@@ -48,7 +50,8 @@ def energy(result: Result) -> Figure:
 def force(result: Result) -> Figure:
     """Rendered force along u against the wall K_e δX, without and with the passivity controller (its methods)."""
     a = result.arrays
-    cases = [c for c in ("objectives", "objectives_pc", "objectives_damper", "bare", "bare_pc") if f"{c}_t" in a]
+    cases = [c for c in ("objectives", "objectives_pc", "objectives_damper", "passive", "bare", "bare_pc")
+             if f"{c}_t" in a]
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     for k, c in enumerate(cases):
         ax.plot(1e3 * a[f"{c}_pen"], a[f"{c}_F"], ".", ms=1.5, color=f"C{k}", label=_NAMES[c])

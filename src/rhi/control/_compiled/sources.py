@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from rhi.control._compiled.allocation import (
+    any_true,
     basis,
     blocks_all,
     clip,
@@ -40,7 +41,7 @@ from rhi.control._compiled.step import (
     fme_gradient,
     vme_gradient,
 )
-from rhi.control._compiled.tank import direction, null_inertia
+from rhi.control._compiled.tank import direction, gated, null_inertia
 from rhi.devices._compiled.terms import add, axpy, dot, mtv, mv, sub
 from rhi.jit import jit
 
@@ -71,7 +72,7 @@ def _held(x, P, S, k, r):
 
 
 @jit
-def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on, lam, mu, slot, out):
+def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on, lam, mu, theta, slot, out):
     """The tick's torque by source into out (N_FIXED + k + 1, n) [N m]; OK or FALLBACK.
 
     Args:
@@ -90,6 +91,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
         tank_on: whether the null-space energy tank ran.
         lam: the tank's λ of the tick.
         mu: its allocation damper's rate α of the tick [1/s].
+        theta: its gate θ on ASCM's redistribution of the tick (1: none, `rhi.control.tank.redistribution_gate`).
         slot: (k,) int64, objective i's push: static FME terms first (their order in obj), then the VME terms.
         out: rows task, gravity, allocation, damping, barrier, tank damper, objective 0 … k − 1, box clip; written.
     """
@@ -136,6 +138,8 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     ok, tau, alpha, clipped = allocate(prm[P_SATURATION], V, a, b, tau_m, P, lo, hi, r, sat)
     if not ok:
         return FALLBACK
+    if theta < 1.0 and any_true(sat) and not clipped:
+        tau, alpha = gated(theta, tau, alpha, a, b, lo, hi, sat)
     S, k = held_set(sat)
     if k >= r and k > 0:
         if not blocks_all(P, S, k, r) and (k != r or square_rank(basis(P, r), S, k) != 1):

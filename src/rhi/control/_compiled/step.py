@@ -41,7 +41,7 @@ from rhi.control._compiled.allocation import (
     tertiary,
     well_conditioned,
 )
-from rhi.control._compiled.tank import TK_GATE, TK_ON, TK_THETA, _null, blend, direction, gate, null_inertia
+from rhi.control._compiled.tank import TK_GATE, TK_ON, TK_THETA, _null, blend, direction, gate, gated, null_inertia
 from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
 from rhi.jit import jit
 
@@ -306,20 +306,15 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     g_null = np.zeros(n)
     if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
         g_null = sub(g, mtv(J, Gx))
-    gated = tank_on and tank[TK_GATE] != 0.0
-    if gated:  # the redistribution spends only what the allocation's account holds (rhi.control.tank)
+    gate_on = tank_on and tank[TK_GATE] != 0.0
+    if gate_on:  # the redistribution spends only what the allocation's account holds (rhi.control.tank)
         tank[TK_THETA] = 1.0
         if any_true(sat) and not clipped:
             Minv = terms[at[4]:at[4] + n * n].reshape((n, n))
             theta = gate(tank, tank_q, tank_e, t, q, dq, Minv, sub(_null(J, Jsharp, tau, np.zeros(n)), g_null))
             tank[TK_THETA] = theta
             if theta < 1.0:
-                sc = np.zeros(n, np.bool_)
-                tau_sc, alpha_sc, _ = allocate_scaling(a, b, lo, hi, sc)
-                for i in range(n):
-                    sat[i] = sat[i] and sc[i] and (tau[i] > 0.0) == (tau_sc[i] > 0.0)
-                tau = add(axpy(theta, sub(tau, tau_sc), np.zeros(n)), tau_sc)
-                alpha = theta * alpha + (1.0 - theta) * alpha_sc
+                tau, alpha = gated(theta, tau, alpha, a, b, lo, hi, sat)
     tau_alloc = tau
     gamma = 1.0
     if safe and any_true(sat):  # the safety torque the held joints would block
@@ -366,7 +361,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     M = terms[at[2]:at[2] + n * n].reshape((n, n))
     d = direction(null_inertia(J, Jsharp, M), dq, S, k, tau)
     Minv = terms[at[4]:at[4] + n * n].reshape((n, n))
-    tau_a = add(b, axpy(gamma, sub(tau_alloc, b), np.zeros(n))) if gated else tau  # the gate meters the redistribution
+    tau_a = add(b, axpy(gamma, sub(tau_alloc, b), np.zeros(n))) if gate_on else tau  # the gate meters the redistribution
     blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, add(tau, delta0) if beta0 != 0.0 else tau,
           tau1, d, lo, hi, tau_out)
     return OK, gamma * alpha, beta, V, omega, clipped

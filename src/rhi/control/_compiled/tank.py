@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from rhi.control._compiled.allocation import above, held_torque, scaling_alpha
+from rhi.control._compiled.allocation import above, allocate_scaling, held_torque, scaling_alpha
 from rhi.control._compiled.passivity import _largest_scale, _work
 from rhi.devices._compiled.terms import dot, mtv, mv
 from rhi.jit import jit
@@ -101,6 +101,23 @@ def gate(tank, tank_q, tank_e, t, q, dq, Minv, e):
     if not (dt > 0.0 and math.isfinite(dt)):
         return 0.0 if dot(e, e) != 0.0 else 1.0
     return _largest_scale(T_A, np.zeros(q.shape[0]), e, dq, Minv, dt)
+
+
+@jit
+def gated(theta, tau, alpha, a, b, lo, hi, sat):
+    """θ τ_ASCM + (1 − θ) τ_scaling and its α (`rhi.control.reference.blend_allocations`); sat narrowed in place.
+
+    A joint stays held where simple scaling holds it too, at the same limit.
+    """
+    n = a.shape[0]
+    sc = np.zeros(n, np.bool_)
+    tau_sc, alpha_sc, _ = allocate_scaling(a, b, lo, hi, sc)
+    for i in range(n):
+        sat[i] = sat[i] and sc[i] and (tau[i] > 0.0) == (tau_sc[i] > 0.0)
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = theta * (tau[i] - tau_sc[i]) + tau_sc[i]
+    return out, theta * alpha + (1.0 - theta) * alpha_sc
 
 
 @jit(inline=True)

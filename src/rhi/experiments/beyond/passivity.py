@@ -16,7 +16,10 @@ Hannaford and Ryu 2002, at the motor port), with and without the null-space obje
 the passivity controller at the handle port (H&R's virtual-environment port), and simple force
 scaling in place of ASCM (no allocation torque in the null space), and the null-space energy tank
 (`rhi.control.tank`: the objectives funded by the null-space damping, the allocation's deficit taken
-out by its own damper) without and with the series damper.
+out by its own damper) without and with the series damper, and the passive null space without a passivity
+controller (issue 25 item 2: the joint-limit barrier in sampled-exact form, `JointLimitBarrier.hold`, and ASCM's
+redistribution and the objectives on the tank's gate, `NullSpaceTank(allocation="gate")`), its tank full or empty
+at the start.
 A 5000 N/m wall, without and with the passivity controller, shows the chatter.
 
 The energy is traced from the log (every term exact under the zero-order hold):

@@ -18,6 +18,7 @@ import dataclasses
 import numpy as np
 
 from rhi.control import ControllerConfig, JointLimitBarrier, NullSpaceController
+from rhi.control.barrier import limit_rows
 from rhi.control.sources import TickSources
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput
@@ -123,19 +124,24 @@ def barrier_generated(dev: Device, barrier: JointLimitBarrier, gain: float, log,
 
     Args:
         dev: the device.
-        barrier: the barrier (its ``hold`` is ignored: `sampled` says which form).
+        barrier: the barrier (its ``hold`` is ignored: `sampled` says which form, with ΔT the log's sample).
         gain: its gain [N m].
         log: the run's `rhi.sim.Log` (t, q, q̇).
         sampled: book the discrete gradient (else the gradient at q(k)).
     """
-    bar = dataclasses.replace(barrier, hold=float(log.t[1] - log.t[0]) if sampled else 0.0)
-    dq_step = np.diff(log.q, axis=0)
-    nu = np.array([bar.value(dev, q) for q in log.q])
-    work = 0.0
-    for k in range(len(log.t) - 1):
-        grad = bar.sampled_gradient(dev, log.q[k], log.dq[k]) if sampled else bar.gradient(dev, log.q[k])
-        work -= gain * float(grad @ dq_step[k])
-    return work + gain * float(nu[-1] - nu[0])
+    C, lower, upper = limit_rows(dev)
+    c = log.q @ C.T  # (N, r) every tick's limit rows at once
+    d = np.concatenate([c - lower, upper - c], axis=1)  # distances to the lower, then the upper limits
+    if sampled:
+        step = float(log.t[1] - log.t[0]) * (log.dq[:-1] @ C.T)
+        g = barrier.side_divided(d[:-1], np.concatenate([step, -step], axis=1))
+    else:
+        g = barrier.side_slopes(d[:-1])
+    r = C.shape[0]
+    dc = np.diff(c, axis=0)  # Δ(C q): ∂ν/∂q ᵀΔq = Σ_r (g_lo − g_hi) Δ(C q)_r
+    work = -gain * float(np.sum((g[:, :r] - g[:, r:]) * dc))
+    nu = barrier.side_values(d[[0, -1]]).sum(axis=1)
+    return work + gain * float(nu[1] - nu[0])
 
 
 def objective_work(work: dict[str, float]) -> float:
