@@ -122,11 +122,11 @@ def test_passive_null_space_keeps_the_hand_passive_and_the_wall():
     and on the passive null space (the sampled-exact barrier, the redistribution and the objectives on the tank's
     gate, no passivity controller): the old one hands the user energy (the check fails), the new one does not, and
     with the tank full at the start it keeps the wall's largest force (away from the joint stops) within 10 % of the
-    old one's. The sources, from the encoders: the allocation's work while ASCM holds n − m joints goes from more than
-    half a joule to nothing, and the barrier's sample-and-hold energy on the old run's own trajectory vanishes in the
+    old one's. The sources, from the encoders: the allocation's work goes from more than half a joule to at most its
+    account's initial budget, and the barrier's sample-and-hold energy on the old run's own trajectory vanishes in the
     sampled-exact form.
     """
-    from rhi.experiments.beyond.passivity import _LABEL, SUMMARY, passivity
+    from rhi.experiments.beyond.passivity import _LABEL, GATE_FULL, SUMMARY, passivity
 
     r = passivity(duration=8.0, stiff=None, cases=("objectives", "passive", "passive_empty"))
     a = r.arrays
@@ -143,8 +143,9 @@ def test_passive_null_space_keeps_the_hand_passive_and_the_wall():
     assert rows[f"passive and the wall's largest force within 10 % of no PC's, {_LABEL['passive']}"] == 1.0
     old, new = _LABEL["objectives"], _LABEL["passive"]
     assert rows[f"  allocation's work while ASCM holds n − m joints, {old}"] > 0.5  # J
-    assert abs(rows[f"  allocation's work while ASCM holds n − m joints, {new}"]) <= 0.01
-    assert rows[f"  allocation, {new}"] <= 0.01 * rows[f"  allocation, {old}"]
+    budget = GATE_FULL.initial  # J: the allocation's account at the start, all it may spend beyond what it took in
+    assert abs(rows[f"  allocation's work while ASCM holds n − m joints, {new}"]) <= budget + 1e-3
+    assert rows[f"  allocation, {new}"] <= budget + 1e-3 < 0.1 * rows[f"  allocation, {old}"]
     zoh = "  energy the barrier's held torque generates, Σ τ_bᵀΔq + Δν ({} form on this run's trajectory), {}"
     assert rows[zoh.format("gradient", old)] > 0.1  # J: sample-and-hold of the steep barrier
     assert abs(rows[zoh.format("sampled", old)]) <= 0.02 * rows[zoh.format("gradient", old)]

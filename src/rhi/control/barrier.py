@@ -174,8 +174,11 @@ class JointLimitBarrier:
         return g
 
     def gradient_at(self, terms: DeviceTerms) -> np.ndarray:
-        """The torque's gradient from a terms snapshot (n,): `gradient`, or `sampled_gradient` where ``hold`` > 0."""
-        if self.hold > 0.0:
+        """The torque's gradient from a terms snapshot (n,): `gradient`, or `sampled_gradient` where ``hold`` > 0.
+
+        Terms without q̇ (a static snapshot) give the gradient: the discrete gradient along a zero step.
+        """
+        if self.hold > 0.0 and terms.dq is not None:
             return self.sampled_gradient(terms.device, terms.q, terms.dq)
         return self.gradient(terms.device, terms.q)
 

@@ -76,8 +76,8 @@ def reference_tick(
             objectives = [(gain, sched.objective(s.omega, hi)), *objectives]
 
     # a controller's tick always has q̇ (dq is not None)
-    tau_s = -cfg.damping * dq - sum((gain * gradient_function(obj, dev)(kin) for gain, obj in ctrl.barriers),
-                                    np.zeros(dev.n))
+    tau_s = -cfg.damping * np.asarray(dq) - sum((gain * gradient_function(obj, dev)(kin) for gain, obj in ctrl.barriers),
+                                                np.zeros(dev.n))
     tau_to = tau_s
     pushes = [-gain * np.asarray(obj.gradient(dev, q), dtype=float) for gain, obj in objectives]  # −gain ∂ν/∂q each
     for push in pushes:
@@ -90,7 +90,7 @@ def reference_tick(
     al = ctrl.allocation.allocate(a, b, Z, torque_min=lo, torque_max=hi)
     N = nullspace_projector(J, M)
     gated = cfg.tank is not None and s.tank is not None and cfg.tank.allocation == "gate"
-    if gated and s.tank is not None:  # the redistribution spends only what the allocation's account holds
+    if gated and cfg.tank is not None and s.tank is not None:  # the redistribution spends only what T_A holds
         s.tank.gate = 1.0
         if al.saturated.any() and not al.clipped:
             s.tank.gate = theta = redistribution_gate(cfg.tank, s.tank, t, q, np.asarray(dq), kin.Minv,

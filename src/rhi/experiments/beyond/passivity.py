@@ -35,6 +35,7 @@ import dataclasses
 import functools
 import math
 from collections.abc import Callable, Sequence
+from typing import Literal
 
 import numpy as np
 
@@ -111,7 +112,7 @@ PROBE = Probe(pc_scale="pc_scale", held="held", tank="tank", tank_scale="tank_sc
 
 def controller(dev: Device, *, objectives: bool, port: Port | None, saturation: Saturation = "ascm",
                method: Method = "damper_bounding", tank: NullSpaceTank | None = None, sampled: bool = False,
-               implementation: str = "fast") -> NullSpaceController:
+               implementation: Literal["fast", "reference"] = "fast") -> NullSpaceController:
     """The §6.4 rendering controller: eq. 7.2 with B^d = 0.01, ASCM (or `saturation`).
 
     With the ch. 6 null-space objectives if `objectives` (the barrier's sampled-exact form if `sampled`), the
@@ -205,7 +206,7 @@ def _barrier_energy(dev: Device, ctrl: NullSpaceController, log) -> dict[str, fl
 
     Both forms on the same encoder readings: "gradient" (sample-and-hold) and "sampled" (the discrete gradient).
     """
-    out = {}
+    out: dict[str, float] = {}
     for gain, bar in ctrl.barriers:
         if isinstance(bar, JointLimitBarrier):
             for form in ("gradient", "sampled"):
