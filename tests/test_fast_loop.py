@@ -20,6 +20,7 @@ from rhi.control import (
     FMESchedule,
     ForceRendering,
     NullSpaceController,
+    NullSpaceTank,
     ObjectiveTerm,
     SpringPalpation,
     desired_fme_free,
@@ -243,7 +244,7 @@ def test_tank_equals_python_loop(rhi4, monkeypatch, port):
     """
     from rhi.experiments.beyond.passivity import controller
 
-    make = lambda dev: controller(dev, objectives=True, port=port, method="damper", tank=True)  # noqa: E731
+    make = lambda dev: controller(dev, objectives=True, port=port, method="damper", tank=NullSpaceTank())  # noqa: E731
     a = run(rhi4, make, python=False, duration=0.6)
     assert a[2] is not None and a[2].ticks == len(a[0]) == 600
     tank = a[1].state.tank
@@ -270,7 +271,7 @@ def test_tank_probe_records_what_a_python_hook_reads(rhi4):
     def once(record):
         plant = Plant(rhi4)
         plant.reset(Q0)
-        ctrl = controller(rhi4, objectives=True, port="motors", method="damper", tank=True)
+        ctrl = controller(rhi4, objectives=True, port="motors", method="damper", tank=NullSpaceTank())
         hook = record if isinstance(record, Probe) else record(ctrl)
         log = simulate(plant, ctrl, duration=0.6,
                        hand=Hand(HandPath([x0, x0 + [0.01, 0.0], x0 + [0.01, 0.03]], speed=0.05), stiffness=2000.0),
