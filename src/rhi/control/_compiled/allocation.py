@@ -144,13 +144,13 @@ def blocks_all(P, S, k, r):
     Then every null-space torque changes a held joint, and the held part of any d in range(P) is d
     itself; σ_min(Z_S) > 0.01 (as `well_conditioned`) for the decision to be safe.
     """
-    Zt = np.ascontiguousarray(basis(P, r).T)
+    Z = basis(P, r)
     G = np.zeros((r, r))
     for a in range(r):
         for c in range(r):
             s = 0.0
             for i in range(k):
-                s += Zt[a, S[i]] * Zt[c, S[i]]
+                s += Z[S[i], a] * Z[S[i], c]
             G[a, c] = s
     return above(G, _FAST_TOL)
 
@@ -245,21 +245,20 @@ def ascm(a, b, P, lo, hi, r, sat):
     """
     n = a.shape[0]
     base = add(a, b)
-    S = np.empty(n, np.int64)  # held joints, sorted
+    S, S2 = np.empty(n, np.int64), np.empty(n, np.int64)  # held joints, sorted; the next set (buffers, swapped)
     k = np.int64(0)  # not the literal 0: one compiled version of held_torque
     held = np.zeros(n, np.bool_)
-    ts = np.zeros(n)
+    ts, d, rr = np.zeros(n), np.zeros(n), np.empty(n)
     tl = base.copy()
-    d = np.zeros(n)
     Z = np.zeros((n, r))
     square = False  # S holds r joints: held torques from the basis Z
     for _ in range(n + 1):
         if k:
-            rr = np.empty(k)
             for i in range(k):
                 rr[i] = ts[S[i]] - base[S[i]]
-            d = held_torque_square(Z, S, k, rr) if square else held_torque(P, S, k, rr)
-            tl = add(base, d)
+            d = held_torque_square(Z, S, k, rr) if square else held_torque(P, S, k, rr)  # read rr[:k]
+            for i in range(n):
+                tl[i] = base[i] + d[i]
         j, worst = -1, _TOL
         for i in range(n):
             if held[i]:
@@ -272,7 +271,8 @@ def ascm(a, b, P, lo, hi, r, sat):
             return tl, 1.0, False, True
         if k + 1 > r:
             break
-        S2 = S.copy()
+        for i in range(k):
+            S2[i] = S[i]
         pos = k
         while pos > 0 and S2[pos - 1] > j:
             S2[pos] = S2[pos - 1]
@@ -288,15 +288,14 @@ def ascm(a, b, P, lo, hi, r, sat):
             if full == 0:  # the reference's Z_𝒮 loses rank: scale with the joints held so far
                 break
             square = True
-        S, k = S2, k + 1
+        S, S2, k = S2, S, k + 1
         held[j] = True
         ts[j] = hi[j] if tl[j] > hi[j] else lo[j]
     if k:
         # τ(α) = α p + c with S held at ts: p = a − P_S P_SS⁻¹ a_S, c = b + d + (a − p)
-        ra = np.empty(k)
         for i in range(k):
-            ra[i] = a[S[i]]
-        ha = held_torque_square(Z, S, k, ra) if square else held_torque(P, S, k, ra)
+            rr[i] = a[S[i]]
+        ha = held_torque_square(Z, S, k, rr) if square else held_torque(P, S, k, rr)
         p = sub(a, ha)
         c = add(add(b, d), ha)
         free = np.empty(n, np.bool_)
@@ -410,22 +409,36 @@ def active_set_result(alpha, y, a, b, Z, lo, hi, sat):
 def basis(P, r):
     """An orthonormal basis (n, r) of the range of the orthogonal projector P: its columns by pivoted CGS2."""
     n = P.shape[0]
-    Zt = np.zeros((r, n))
-    R = 0.5 * (P + P.T)  # residual columns, stored as rows (P is symmetric)
-    for c in range(r):
+    Z, R, v = np.empty((n, r)), np.empty((n, n)), np.empty(n)  # R: residual columns, stored as rows (P symmetric)
+    for i in range(n):
+        for j in range(n):
+            R[i, j] = 0.5 * (P[i, j] + P[j, i])
+    for c in range(r):  # scalar loops: no temporary vectors (an allocation and reference counts each)
         best, jb = -1.0, 0
         for j in range(n):
-            v = R[j] @ R[j]
-            if v > best:
-                best, jb = v, j
-        v = R[jb].copy()
+            s = 0.0
+            for l in range(n):
+                s += R[j, l] * R[j, l]
+            if s > best:
+                best, jb = s, j
+        assign(v, R[jb])
         for _ in range(2):
             for i in range(c):
-                v = v - (Zt[i] @ v) * Zt[i]
-        assign(Zt[c], v / math.sqrt(v @ v))
+                s = 0.0
+                for l in range(n):
+                    s += Z[l, i] * v[l]
+                for l in range(n):
+                    v[l] = v[l] - s * Z[l, i]
+        s = math.sqrt(dot(v, v))
+        for l in range(n):
+            Z[l, c] = v[l] / s
         for j in range(n):
-            assign(R[j], R[j] - (Zt[c] @ R[j]) * Zt[c])
-    return np.ascontiguousarray(Zt.T)
+            s = 0.0
+            for l in range(n):
+                s += Z[l, c] * R[j, l]
+            for l in range(n):
+                R[j, l] = R[j, l] - s * Z[l, c]
+    return Z
 
 
 @jit

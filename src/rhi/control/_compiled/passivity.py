@@ -15,16 +15,29 @@ from rhi.jit import jit
 
 
 @jit
+def _quad(a, Minv, b):
+    """aᵀ M⁻¹ b for vectors a, b (k,) and Minv (k, k) (loops: no temporary vector)."""
+    k = a.shape[0]
+    s = 0.0
+    for i in range(k):
+        t = 0.0
+        for j in range(k):
+            t += Minv[i, j] * b[j]
+        s += a[i] * t
+    return s
+
+
+@jit
 def _work(e, v, Minv, dt):
     """w(e) = ΔT eᵀv + ½ ΔT² eᵀ M⁻¹ e [J]."""
-    return dt * dot(e, v) + 0.5 * dt * dt * dot(e, mv(Minv, e))
+    return dt * dot(e, v) + 0.5 * dt * dt * _quad(e, Minv, e)
 
 
 @jit
 def _largest_scale(E, base, part, v, Minv, dt):
     """The largest λ ∈ [0, 1] with w(base + λ part) ≤ E (the larger root of a convex quadratic in λ)."""
-    A = 0.5 * dt * dt * dot(part, mv(Minv, part))
-    B = dt * dot(part, v) + dt * dt * dot(part, mv(Minv, base))
+    A = 0.5 * dt * dt * _quad(part, Minv, part)
+    B = dt * dot(part, v) + dt * dt * _quad(part, Minv, base)
     C = _work(base, v, Minv, dt) - E
     if A + B + C <= 0.0:
         return 1.0
@@ -75,7 +88,10 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
         (E_obs(n) [J], α [1/s], λ, energy the damping is predicted to take out [J], (k,) effort sent).
     """
     if has_prev:
-        E -= dot(eff_prev, pos - pos_prev)
+        s = 0.0
+        for i in range(pos.shape[0]):
+            s += eff_prev[i] * (pos[i] - pos_prev[i])
+        E -= s
     alpha, scale, dissipated = 0.0, 1.0, 0.0
     n = tau0.shape[0]
     for i in range(n):

@@ -42,7 +42,7 @@ from rhi.control._compiled.allocation import (
     well_conditioned,
 )
 from rhi.control._compiled.tank import TK_GATE, TK_ON, TK_THETA, _null, blend, direction, gate, gated, null_inertia
-from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mtv, mv, sub
+from rhi.devices._compiled.terms import add, axpy, dot, inv as _inv, mm, mtv, mv, sub
 from rhi.jit import jit
 
 #: Status of `tick`.
@@ -135,6 +135,30 @@ def fme_gradient(D, J, dJ, w2):
     for k in range(n):
         out[k] = -2.0 * out[k]
     return out
+
+
+@jit
+def dynamic_null(J, Jsharp, t, out):
+    """Write t − Jᵀ (J#ᵀ t) into out (n,): the part of the torque t (n,) that puts no force at the handle [N m]."""
+    m, n = J.shape
+    for j in range(n):
+        w = 0.0
+        for i in range(m):
+            u = 0.0
+            for c in range(n):
+                u += Jsharp[c, i] * t[c]
+            w += J[i, j] * u
+        out[j] = t[j] - w
+
+
+@jit
+def _clip1(v, lo, hi):
+    """The scalar v clipped to [lo, hi] (NaN stays NaN), as `rhi.control._compiled.allocation.clip`."""
+    if v < lo:
+        v = lo
+    if v > hi:
+        v = hi
+    return v
 
 
 @jit
@@ -255,15 +279,21 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     JMinv = terms[at[5]:at[5] + m * n].reshape((m, n))
     Jsharp = terms[at[7]:at[7] + n * m].reshape((n, m))
     Gx = terms[at[8]:at[8] + m]
-    a = mtv(J, F_r)
-    b = mtv(J, F_x)
-    if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
-        b = add(b, sub(g, mtv(J, Gx)))
-    tau_m = add(a, b)
+    gravity = prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0
+    a, b, tau_m, tau_s, tau_to = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for j in range(n):  # a = Jᵀ F_r, b = Jᵀ F_x (+ g − Jᵀ G_x), τ_m = a + b; scalar loops, no temporaries
+        sa, sb, sg = 0.0, 0.0, 0.0
+        for i in range(m):
+            sa += J[i, j] * F_r[i]
+            sb += J[i, j] * F_x[i]
+            sg += J[i, j] * Gx[i]
+        a[j] = sa
+        b[j] = sb + (g[j] - sg) if gravity else sb
+        tau_m[j] = sa + b[j]
+        tau_s[j] = -prm[P_DAMPING] * dq[j] + tau_s_extra[j]
+        tau_to[j] = tau_s[j]
     V = aso_volume(tau_m, lo, hi, prm[P_ASO_S])
     omega = 1.0
-    tau_s = axpy(-prm[P_DAMPING], dq, tau_s_extra)
-    tau_to = tau_s
     if scheduled:
         omega = transition(tr, t, V, sch[SCH_DIST], sch[SCH_EPS1], sch[SCH_EPS2], sch[SCH_RHO])
         if sch[SCH_GAIN] > 0.0:
@@ -278,17 +308,23 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
                 for i in range(m):
                     for j in range(m):
                         D[i, j] = omega * free[i, j] + (1.0 - omega) * stiff[i, j]
-            tau_to = axpy(-sch[SCH_GAIN], fme_gradient(D, J, dJ, w2), tau_to)
+            grad = fme_gradient(D, J, dJ, w2)
+            for i in range(n):
+                tau_to[i] = -sch[SCH_GAIN] * grad[i] + tau_to[i]
     if vme:
-        for i in range(vme_gain.shape[0]):
-            tau_to = axpy(-vme_gain[i], vme_gradient(vme_D[i], J, dJ), tau_to)
-    tau_to = add(tau_to, tau_to_extra)
+        for k in range(vme_gain.shape[0]):
+            grad = vme_gradient(vme_D[k], J, dJ)
+            for i in range(n):
+                tau_to[i] = -vme_gain[k] * grad[i] + tau_to[i]
+    for i in range(n):
+        tau_to[i] = tau_to[i] + tau_to_extra[i]
     r = n - m
     dynamic = prm[P_DYNAMIC] != 0.0
     have_P = False
     P = np.eye(n)
+    Ntau = np.empty(n)
     if dynamic:
-        Ntau = sub(tau_to, mtv(J, mtv(Jsharp, tau_to)))
+        dynamic_null(J, Jsharp, tau_to, Ntau)
     else:
         P, ok = null_projector(J)
         if not ok:
@@ -323,7 +359,11 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
             if not ok:
                 return SINGULAR, 1.0, 0.0, V, omega, False
             have_P = True
-        Nsafe = sub(tau_s, mtv(J, mtv(Jsharp, tau_s))) if dynamic else mv(P, tau_s)
+        Nsafe = np.empty(n)
+        if dynamic:
+            dynamic_null(J, Jsharp, tau_s, Nsafe)
+        else:
+            Nsafe = mv(P, tau_s)
         S, k = held_set(sat)
         if k >= r:  # no redundancy left (e.g. an LP vertex with more than r joints at a limit): all of it is held
             if not blocks_all(P, S, k, r) and (k != r or square_rank(basis(P, r), S, k) != 1):
@@ -339,7 +379,8 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         if not clipped:
             tau, gamma = safety_room(tau, b, held, lo, hi)
     if clipped_null:  # null_space="clipped": τ + N τ_to, each joint clipped at its limit (eqs. 6.2–6.6)
-        assign(tau_out, clip(add(tau, Ntau), lo, hi))
+        for i in range(n):
+            tau_out[i] = _clip1(tau[i] + Ntau[i], lo[i], hi[i])
         return OK, gamma * alpha, 1.0, V, omega, clipped
     if not have_P and any_true(sat):
         P, ok = null_projector(JMinv)
@@ -348,12 +389,17 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     delta, beta, ok = tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
-    tau1 = add(tau, delta) if beta != 0.0 else tau
     if not tank_on:
-        assign(tau_out, clip(tau1, lo, hi))
+        for i in range(n):
+            tau_out[i] = _clip1(tau[i] + delta[i] if beta != 0.0 else tau[i], lo[i], hi[i])
         return OK, gamma * alpha, beta, V, omega, clipped
+    tau1 = add(tau, delta) if beta != 0.0 else tau
     # the null-space energy tank (rhi.control.tank): the tick without the objectives, the damper's direction
-    Nsafe = sub(tau_s, mtv(J, mtv(Jsharp, tau_s))) if dynamic else mv(P, tau_s)
+    Nsafe = np.empty(n)
+    if dynamic:
+        dynamic_null(J, Jsharp, tau_s, Nsafe)
+    else:
+        Nsafe = mv(P, tau_s)
     delta0, beta0, ok = tertiary(tau, sat, P, tau_s, Nsafe, lo, hi, r)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False

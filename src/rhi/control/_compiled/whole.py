@@ -27,7 +27,7 @@ from rhi.control._compiled import passivity
 from rhi.control._compiled.objectives import objectives
 from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
 from rhi.devices._compiled.chain import chain_terms
-from rhi.devices._compiled.terms import assign, dot, mm, mtv, mv
+from rhi.devices._compiled.terms import assign, dot, mm
 from rhi.jit import jit
 
 __all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "whole_for"]
@@ -49,37 +49,51 @@ N_RES = 8
 
 @jit(inline=True)
 def _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x):
-    """The built-in primary laws: F_r (rendered, α-scaled) and F_x (never scaled), written [N]."""
+    """The built-in primary laws: F_r (rendered, α-scaled) and F_x (never scaled), written [N].
+
+    Scalar loops into F_r and F_x: no temporary vectors (each an allocation and reference counts).
+    """
     kind = law[LAW_KIND]
-    B = law[N_LAW:N_LAW + m * m].reshape((m, m))
     if kind == FORCE:
         gain = law[LAW_GAIN]
         for i in range(m):
             F_r[i] = force[i] if gain == 1.0 else gain * force[i]
     elif kind == SPRING:
-        o = N_LAW + m * m
-        x0, normal = law[o:o + m], law[o + m:o + 2 * m]
+        o = N_LAW + m * m  # X₀, then the normal
         k = law[LAW_STIFFNESS]
         if law[LAW_NORMAL] != 0.0:
-            depth = max(dot(normal, x - x0), 0.0)
+            depth = 0.0
             for i in range(m):
-                F_r[i] = -k * depth * normal[i]
+                depth += law[o + m + i] * (x[i] - law[o + i])
+            depth = max(depth, 0.0)
+            for i in range(m):
+                F_r[i] = -k * depth * law[o + m + i]
         else:
             for i in range(m):
-                F_r[i] = -k * (x[i] - x0[i])
+                F_r[i] = -k * (x[i] - law[o + i])
     else:
-        F_r[:] = 0.0
+        for i in range(m):
+            F_r[i] = 0.0
     # task_compensation: C_x ẋ + G_x + J#ᵀ F_q(q̇), then − B^d ẋ (rhi.control.primary)
-    c = np.zeros(m)
-    if law[LAW_CORIOLIS] != 0.0:
-        c = mv(Cx, xdot)
-    if law[LAW_GRAVITY] != 0.0 and dot(g, g) != 0.0:
-        c = c + Gx
-    if law[LAW_FRICTION] != 0.0:
-        o = N_LAW + m * m + 2 * m
-        Fq = law[o:o + n] * dq + law[o + n:o + 2 * n] * np.tanh(dq / law[LAW_VS])
-        c = c + mtv(Jsharp, Fq)
-    assign(F_x, c - mv(B, xdot))
+    coriolis, friction = law[LAW_CORIOLIS] != 0.0, law[LAW_FRICTION] != 0.0
+    gravity = law[LAW_GRAVITY] != 0.0 and dot(g, g) != 0.0
+    o = N_LAW + m * m + 2 * m  # viscous, then Coulomb
+    for i in range(m):
+        c = 0.0
+        if coriolis:
+            for j in range(m):
+                c += Cx[i, j] * xdot[j]
+        if gravity:
+            c = c + Gx[i]
+        if friction:
+            f = 0.0
+            for a in range(n):
+                f += Jsharp[a, i] * (law[o + a] * dq[a] + law[o + n + a] * math.tanh(dq[a] / law[LAW_VS]))
+            c = c + f
+        bx = 0.0
+        for j in range(m):
+            bx += law[N_LAW + i * m + j] * xdot[j]
+        F_x[i] = c - bx
 
 
 class Parts(NamedTuple):
@@ -196,7 +210,13 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
     x, buf, F_r, F_x, tau_out, sat, res = outs
     n, m = q.shape[0], rows.shape[0]
     if not ready:
-        chain_terms(ints, joints, consts, mv(A, q) + b, A, rows, armature, supports, identity, dq, x, buf)
+        th = np.empty(A.shape[0])  # θ = A q + b
+        for i in range(A.shape[0]):
+            s = 0.0
+            for j in range(n):
+                s += A[i, j] * q[j]
+            th[i] = s + b[i]
+        chain_terms(ints, joints, consts, th, A, rows, armature, supports, identity, dq, x, buf)
     J = buf[at[0]:at[0] + m * n].reshape((m, n))
     M = buf[at[2]:at[2] + n * n].reshape((n, n))
     g = buf[at[3]:at[3] + n]
