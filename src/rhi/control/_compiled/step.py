@@ -116,13 +116,17 @@ def vme_gradient(D, J, dJ):
 def fme_gradient(D, J, dJ, w2):
     """∂/∂q of JBLD(M̂, D), M̂ = (J W² Jᵀ)⁻¹ (eqs. 6.9–6.10): −2 Σ (Hᵀ J W²)_ij ∂J_ij/∂q_k. (n,)."""
     m, n = J.shape
-    Jw = np.empty((m, n))
-    for i in range(m):  # loops, not array expressions: less code to compile
+    Jw, A, T, K = np.empty((m, n)), np.empty((m, m)), np.empty((m, m)), np.empty((m, n))
+    for i in range(m):  # scalar loops into a few arrays: no temporary per product
         for j in range(n):
             Jw[i, j] = J[i, j] * w2[j]
-    A = mm(Jw, J.T)
+    for i in range(m):
+        for j in range(m):
+            s = 0.0
+            for l in range(n):
+                s += Jw[i, l] * J[j, l]
+            A[i, j] = s
     Mh = _inv(A)
-    T = np.empty((m, m))
     for i in range(m):
         for j in range(m):
             T[i, j] = 0.5 * (Mh[i, j] + D[i, j])
@@ -130,8 +134,25 @@ def fme_gradient(D, J, dJ, w2):
     for i in range(m):
         for j in range(m):
             G[i, j] = 0.5 * (G[i, j] - A[i, j])
-    H = mm(mm(Mh, G), Mh)
-    out = _contract(mm(H.T, Jw), dJ)
+    for i in range(m):  # H = M̂ G M̂ (in A)
+        for j in range(m):
+            s = 0.0
+            for l in range(m):
+                s += Mh[i, l] * G[l, j]
+            T[i, j] = s
+    for i in range(m):
+        for j in range(m):
+            s = 0.0
+            for l in range(m):
+                s += T[i, l] * Mh[l, j]
+            A[i, j] = s
+    for i in range(m):
+        for j in range(n):
+            s = 0.0
+            for l in range(m):
+                s += A[l, i] * Jw[l, j]
+            K[i, j] = s
+    out = _contract(K, dJ)
     for k in range(n):
         out[k] = -2.0 * out[k]
     return out

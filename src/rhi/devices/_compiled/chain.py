@@ -33,7 +33,7 @@ from rhi.devices.batch import _ARM, _AX, _COM, _MASS, _P, _ROT, _T
 from rhi.jit import jit
 
 
-@jit
+@jit(inline=True)
 def joint_frame(ints, joints, j, th, oR, o, RP, T):
     """Orientation oR[j] and origin o[j] of chain joint j's frame at its coordinate th [rad or m], in place.
 
@@ -138,6 +138,12 @@ def _forward(ints, joints, th, oR, o, S, Ic, RP, T):
 
 
 @jit(inline=True)
+def _take(w, pos, size):
+    """(w[pos:pos + size], pos + size): the next part of a work vector."""
+    return w[pos:pos + size], pos + size
+
+
+@jit(inline=True)
 def chain_dynamics(ints, joints, consts, th, dth):
     """x, J6, M_θ, g_θ, C_θ of one state.
 
@@ -154,12 +160,28 @@ def chain_dynamics(ints, joints, consts, th, dth):
         C (nθ, nθ) Coriolis matrix (C θ̇ [N m]).
     """
     nt = th.shape[0]
-    oR = np.empty((nt, 3, 3))
-    o = np.empty((nt, 3))
-    S = np.empty((nt, 6))
-    Ic = np.empty((nt, 6, 6))
-    RP = np.empty((3, 3))
-    T = np.empty((3, 3))
+    # every float array below is a view of one work vector (one allocation: one per array costs more)
+    w = np.empty(67 * nt + 21 + 20 * nt * nt + nt * nt * nt)
+    oR, p = _take(w, 0, 9 * nt)
+    o, p = _take(w, p, 3 * nt)
+    S, p = _take(w, p, 6 * nt)
+    Ic, p = _take(w, p, 36 * nt)
+    RP, p = _take(w, p, 9)
+    T, p = _take(w, p, 9)
+    pt, p = _take(w, p, 3)
+    J6, p = _take(w, p, 6 * nt)
+    F, p = _take(w, p, 6 * nt)  # F_k = I^c_k S_k
+    M, p = _take(w, p, nt * nt)
+    g, p = _take(w, p, nt)
+    X, p = _take(w, p, 6 * nt * nt)  # X[i, j] = S_i × S_j
+    Y, p = _take(w, p, 6 * nt * nt)  # Y[i, k] = I^c_i S_k
+    Z, p = _take(w, p, 6 * nt * nt)  # Z[i, k] = I^c_i (S_i × S_k)
+    D, p = _take(w, p, nt * nt * nt)  # ∂M_jk/∂θ_i (D[i, j, k])
+    C, p = _take(w, p, nt * nt)
+    oR, o, S, Ic = oR.reshape((nt, 3, 3)), o.reshape((nt, 3)), S.reshape((nt, 6)), Ic.reshape((nt, 6, 6))
+    RP, T, J6, F, M = RP.reshape((3, 3)), T.reshape((3, 3)), J6.reshape((6, nt)), F.reshape((nt, 6)), M.reshape((nt, nt))
+    X, Y, Z = X.reshape((nt, nt, 6)), Y.reshape((nt, nt, 6)), Z.reshape((nt, nt, 6))
+    D, C = D.reshape((nt, nt, nt)), C.reshape((nt, nt))
     _forward(ints, joints, th, oR, o, S, Ic, RP, T)
     sup = np.zeros((nt, nt), dtype=np.bool_)  # sup[a, b]: joint a supports joint b (or is b)
     for j in range(nt):
@@ -169,12 +191,11 @@ def chain_dynamics(ints, joints, consts, th, dth):
             k = ints[k]
     # end-effector point and frame Jacobian
     f = ints[2 * nt]
-    pt = np.empty(3)
     for r in range(3):
         pt[r] = consts[9 + r]
         if f >= 0:
             pt[r] = o[f, r] + oR[f, r, 0] * consts[9] + oR[f, r, 1] * consts[10] + oR[f, r, 2] * consts[11]
-    J6 = np.zeros((6, nt))
+    J6[:, :] = 0.0
     for j in range(nt):
         if f >= 0 and sup[j, f]:
             J6[0, j] = S[j, 0] + (S[j, 4] * pt[2] - S[j, 5] * pt[1])
@@ -183,9 +204,7 @@ def chain_dynamics(ints, joints, consts, th, dth):
             for r in range(3):
                 J6[3 + r, j] = S[j, 3 + r]
     # CRBA and gravity
-    F = np.empty((nt, 6))  # F_k = I^c_k S_k
-    M = np.zeros((nt, nt))
-    g = np.empty(nt)
+    M[:, :] = 0.0
     for k in range(nt):
         for r in range(6):
             s = 0.0
@@ -203,10 +222,7 @@ def chain_dynamics(ints, joints, consts, th, dth):
                     s += S[j, r] * F[k, r]
                 M[j, k] = M[k, j] = s
         M[k, k] += joints[k, _ARM]
-    # ∂M_jk/∂θ_i (D[i, j, k]) for j supporting k, mirrored
-    X = np.empty((nt, nt, 6))  # X[i, j] = S_i × S_j
-    Y = np.empty((nt, nt, 6))  # Y[i, k] = I^c_i S_k
-    Z = np.empty((nt, nt, 6))  # Z[i, k] = I^c_i (S_i × S_k)
+    # ∂M_jk/∂θ_i for j supporting k, mirrored
     for i in range(nt):
         for j in range(nt):
             s0, s1, s2, s3, s4, s5 = S[i, 0], S[i, 1], S[i, 2], S[i, 3], S[i, 4], S[i, 5]
@@ -228,7 +244,7 @@ def chain_dynamics(ints, joints, consts, th, dth):
                     for c in range(6):
                         s += Ic[i, r, c] * X[i, j, c]
                     Z[i, j, r] = s
-    D = np.zeros((nt, nt, nt))
+    D[:, :, :] = 0.0
     for k in range(nt):
         for j in range(k + 1):
             if not sup[j, k]:
@@ -252,7 +268,6 @@ def chain_dynamics(ints, joints, consts, th, dth):
                 else:
                     continue
                 D[i, j, k] = D[i, k, j] = d
-    C = np.empty((nt, nt))
     for j in range(nt):
         for k in range(nt):
             s = 0.0
