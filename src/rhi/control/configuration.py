@@ -133,7 +133,8 @@ def null_space_descent(
     value, h, settle_at = objective.value(device, q), np.inf, None
     for _ in range(max_iter):
         g = np.asarray(objective.gradient(device, q), dtype=float)
-        v, pinned = _descent_direction(g, device.jacobian(q), device.mass_matrix(q), rows, rows @ q - bound)
+        J = device.jacobian_theta(q @ device.A.T + device.b)  # = device.jacobian(q), q checked by its step
+        v, pinned = _descent_direction(g, J, device.mass_matrix(q), rows, rows @ q - bound)
         rate = float(-g @ v)  # −dν/dt along the flow
         settle_at = 1e-2 * rate if settle_at is None else settle_at
         h = min(h, STEP / max(float(np.max(np.abs(v))), 1e-300))  # no joint moves more than STEP per step
@@ -176,10 +177,12 @@ def _descent_direction(g, J, M, rows, slack) -> tuple[np.ndarray, list[int]]:
 
 def _onto(device: Device, x, q, rows, bound, iters: int = 30) -> np.ndarray | None:
     """Least-norm Newton steps onto f(q) = x and rows @ q = bound; None if it does not converge to 1e-12."""
+    At, b = device.A.T, device.b
     for _ in range(iters):
-        e = np.concatenate([x - device.fk(q), bound - rows @ q])
+        th = q @ At + b  # = device.theta(q), without re-validating q (finite: a flow step from a checked q)
+        e = np.concatenate([x - device.fk_theta(th), bound - rows @ q])
         if np.linalg.norm(e) < 1e-12:
             return q
-        A = np.vstack([device.jacobian(q), rows])
+        A = np.vstack([device.jacobian_theta(th), rows])
         q = q + A.T @ np.linalg.solve(A @ A.T, e)
     return None

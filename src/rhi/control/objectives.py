@@ -203,7 +203,7 @@ class FMEMatching:
 
     def fme(self, J: np.ndarray) -> np.ndarray:
         """M̂: (m, m) for J: (m, n)."""
-        w2 = np.broadcast_to(self.torque_max, (J.shape[-1],)) ** -2.0
+        w2 = self._w2 if self._w2.shape[0] in (1, J.shape[-1]) else np.broadcast_to(self.torque_max, (J.shape[-1],)) ** -2.0
         return np.linalg.inv((J * w2) @ J.T)
 
     def value(self, device: Device, q: np.ndarray) -> float:
