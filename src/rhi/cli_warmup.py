@@ -70,7 +70,7 @@ def _simulation() -> None:
 
 
 def _mobile() -> None:
-    from rhi.control.mobile import AMDConfig, AMDController
+    from rhi.control.mobile import AMDConfig, AMDController, DMConfig, WeightedConfig, WeightedDistributionController
     from rhi.devices.model import device
     from rhi.experiments.appa import Q0
     from rhi.sim.mobile import MobilePlant, hold, simulate_mobile
@@ -78,6 +78,9 @@ def _mobile() -> None:
     dev = device("wmm")  # App. B's compiled loop (`rhi.sim._compiled.mobile_loop`), its controllers' tick
     simulate_mobile(AMDController(dev, AMDConfig(dt=0.01)), hold(dev.fk(Q0), duration=0.02, dt=0.01), Q0,
                     plant=MobilePlant(dev, visual=False))
+    app_a = WeightedDistributionController(dev, WeightedConfig(dt=0.01, dm=DMConfig()))  # `velocity_loop`
+    simulate_mobile(app_a, hold(dev.fk(Q0), duration=0.02, dt=0.01), Q0, plant=MobilePlant(dev, visual=False),
+                    stage="dm_null")
 
 
 def _design() -> None:

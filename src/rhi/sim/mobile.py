@@ -354,20 +354,25 @@ class MobileLog:
 
 
 # ========================================================================= loop
-def _compiled(controller, plant, trajectory, q0, JV_pinv):
-    """The compiled loop of this run (`rhi.sim._compiled.mobile_loop`), or None where it does not apply."""
-    from rhi.control.mobile import AMDController, PinvAccelController
+def _compiled(controller, plant, trajectory, q0, JV_pinv, stage_of):
+    """The compiled loop of this run (`rhi.sim._compiled.mobile_loop`, `velocity_loop`), or None where none applies."""
+    from rhi.control.mobile import AMDController, PinvAccelController, WeightedDistributionController
 
-    if type(controller) not in (AMDController, PinvAccelController) or (plant is not None and
-                                                                        type(plant) is not MobilePlant):
-        loop = None
-    else:
-        from rhi.sim._compiled import mobile_loop  # Numba: only for the controllers it computes
+    if plant is not None and type(plant) is not MobilePlant:
+        return None
+    if type(controller) is WeightedDistributionController:
+        from rhi.sim._compiled import velocity_loop  # Numba: only for the controllers it computes
 
-        loop = mobile_loop.MobileLoop.build(controller, plant, trajectory, q0, JV_pinv)
-        mobile_loop.last = loop
+        vloop = velocity_loop.VelocityLoop.build(controller, plant, trajectory, q0, JV_pinv, stage_of)
+        velocity_loop.last = vloop
+        return vloop
+    if type(controller) not in (AMDController, PinvAccelController):
+        return None
+    from rhi.sim._compiled import mobile_loop  # Numba: only for the controllers it computes
+
+    loop = mobile_loop.MobileLoop.build(controller, plant, trajectory, q0, JV_pinv)
+    mobile_loop.last = loop
     return loop
-
 
 def simulate_mobile(
     controller: MobileController,
@@ -386,7 +391,8 @@ def simulate_mobile(
     `PinvAccelController`) are integrated as the thesis does (§B.4.1: the integral of the
     computed acceleration is commanded): q̇⁺ = q̇ + q̈T, q⁺ = q + q̇T + q̈T²/2. Velocity-level
     controllers (`WeightedDistributionController`) command v = [v_b; q̇_m] directly. The AMD and the
-    traditional controller run on the compiled loop (`rhi.sim._compiled.mobile_loop`, the same arithmetic).
+    traditional controller run on the compiled loop (`rhi.sim._compiled.mobile_loop`, the same arithmetic), App. A's
+    `WeightedDistributionController` on `rhi.sim._compiled.velocity_loop`.
 
     Args:
         controller: the controller (its ``advance`` is called once per sample).
@@ -439,7 +445,7 @@ def simulate_mobile(
     dq = np.zeros(n)
     ok, done = True, 0
     tick = max(1, K // 100)
-    fast = _compiled(controller, plant, trajectory, q0, JV_pinv)
+    fast = _compiled(controller, plant, trajectory, q0, JV_pinv, stage_of)
     if fast is not None:
         kept = fast.run(log, scal, progress)
         if kept is None:  # a tick the controller raises on: the whole run in Python, which raises there

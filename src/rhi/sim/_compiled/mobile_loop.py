@@ -63,14 +63,14 @@ def ticks(k0, k1, dt, traj, ctl, state, plant, JV_pinv, logs):
     t_, xs, dxs, ddxs = traj
     kind, prm, bnd, ints, joints, fc, st = ctl
     q_ref, dq, flags = state
-    on, model, data, qpos, ctrl, xpos, qadr, act, sub, h, JV, eff, ou, noise, e = plant
+    on, qpos, qadr = plant[0], plant[3], plant[6]
     Lq, Lqt, Ldq, Lddq, Lx, Lxe, Lw, Lrec = logs
     n = q_ref.shape[0]
     m = n - 3
     x = np.empty(3)
     ddq = np.empty(n)
     rec = np.empty(4)
-    v, wheels = np.empty(3), np.empty(4)
+    wheels = np.empty(4)
     dq_new, q_next, dq_mid = np.empty(n), np.empty(n), np.empty(n)
     for k in range(k0, k1):
         t = t_[k]
@@ -103,30 +103,44 @@ def ticks(k0, k1, dt, traj, ctl, state, plant, JV_pinv, logs):
         for i in range(4):
             wheels[i] = JV_pinv[i, 0] * tw0 + JV_pinv[i, 1] * tw1 + JV_pinv[i, 2] * tw2
         Lq[k], Ldq[k], Lxe[k], Lw[k] = q_meas, dq_new, x, wheels
-        if on:
-            for i in range(n):
-                Lqt[k, i] = qpos[qadr[i]]
-            Lx[k] = xpos
-            if ou[1] != 0.0:
-                for r in range(3):
-                    e[r] = ou[0] * e[r] + ou[1] * noise[k, r]
-            for r in range(3):
-                v[r] = eff[r] * (JV[r, 0] * wheels[0] + JV[r, 1] * wheels[1] + JV[r, 2] * wheels[2] +
-                                 JV[r, 3] * wheels[3]) * (1.0 + e[r])
-            for i in range(sub):
-                u = (i + 1) * h
-                ct, sn = math.cos(qpos[qadr[2]]), math.sin(qpos[qadr[2]])
-                ctrl[act[0]], ctrl[act[1]], ctrl[act[2]] = ct * v[0] - sn * v[1], sn * v[0] + ct * v[1], v[2]
-                for j in range(m):
-                    ctrl[act[3 + j]] = q_ref[3 + j] + dq[3 + j] * u + 0.5 * ddq[3 + j] * u * u
-                    ctrl[act[3 + m + j]] = dq[3 + j] + ddq[3 + j] * u
-                step1(model, data)
-                step2(model, data)
-        else:
-            Lqt[k], Lx[k] = q_meas, x
+        period(k, plant, q_ref, dq, ddq, wheels, q_meas, x, Lqt, Lx)
         q_ref[:], dq[:] = q_next, dq_new
         flags[1] = k + 1
     return DONE
+
+
+@jit(inline=True)
+def period(k, plant, q_ref, dq, ddq, wheels, q_meas, x, Lqt, Lx):
+    """Tick k's control period on the plant, or the kinematic run's log (q_meas, x).
+
+    On the plant: its true q and x logged first, then the slip and the MuJoCo steps with the arm's servo references
+    q + q̇ u + q̈ u²/2 and q̇ + q̈ u.
+    """
+    on, model, data, qpos, ctrl, xpos, qadr, act, sub, h, JV, eff, ou, noise, e = plant
+    if not on:
+        Lqt[k], Lx[k] = q_meas, x
+        return
+    n = q_ref.shape[0]
+    m = n - 3
+    v = np.empty(3)
+    for i in range(n):
+        Lqt[k, i] = qpos[qadr[i]]
+    Lx[k] = xpos
+    if ou[1] != 0.0:
+        for r in range(3):
+            e[r] = ou[0] * e[r] + ou[1] * noise[k, r]
+    for r in range(3):
+        v[r] = eff[r] * (JV[r, 0] * wheels[0] + JV[r, 1] * wheels[1] + JV[r, 2] * wheels[2] +
+                         JV[r, 3] * wheels[3]) * (1.0 + e[r])
+    for i in range(sub):
+        u = (i + 1) * h
+        ct, sn = math.cos(qpos[qadr[2]]), math.sin(qpos[qadr[2]])
+        ctrl[act[0]], ctrl[act[1]], ctrl[act[2]] = ct * v[0] - sn * v[1], sn * v[0] + ct * v[1], v[2]
+        for j in range(m):
+            ctrl[act[3 + j]] = q_ref[3 + j] + dq[3 + j] * u + 0.5 * ddq[3 + j] * u * u
+            ctrl[act[3 + m + j]] = dq[3 + j] + ddq[3 + j] * u
+        step1(model, data)
+        step2(model, data)
 
 
 class MobileLoop:
@@ -159,23 +173,7 @@ class MobileLoop:
         self._ctl = (_mobile.AMD if amd else _mobile.PINV, prm, bnd, ints, joints, fc, self._st)
         self._traj = (trajectory.t, trajectory.x, trajectory.dx, trajectory.ddx)
         self._state = (q0.copy(), np.zeros(dev.n), np.array([1, 0], dtype=np.int64))
-        K, dt = trajectory.t.size, float(c.dt)
-        if plant is None:
-            z = np.zeros(1, dtype=np.int64)
-            self._plant = (False, 0, 0, np.zeros(1), np.zeros(1), np.zeros(3), z, z, 0, 0.0, np.zeros((3, 4)),
-                           np.zeros(3), np.zeros(2), np.zeros((K, 3)), np.zeros(3))
-        else:
-            s = plant.slip
-            ou, noise = np.zeros(2), np.zeros((K, 3))
-            if s.noise > 0:
-                a = math.exp(-dt / s.noise_tau)
-                ou[:] = a, s.noise * math.sqrt(1.0 - a * a)
-                noise = plant._rng.standard_normal((K, 3))  # the draws `realised_twist` makes, one row per tick
-            d = plant.data
-            act = np.concatenate([plant._base_act, plant._pos_act, plant._vel_act]).astype(np.int64)
-            self._plant = (True, plant.model._address, d._address, d.qpos, d.ctrl, d.site_xpos[plant._site],
-                           plant._qadr.astype(np.int64), act, max(1, int(round(dt / plant.timestep))),
-                           plant.timestep, plant.JV, s.efficiency, ou, noise, plant._e.copy())
+        self._plant = pack_plant(plant, trajectory.t.size, float(c.dt))
         self._JV_pinv = np.ascontiguousarray(JV_pinv)
         self.calls = 0
 
@@ -186,11 +184,7 @@ class MobileLoop:
             return f"the controller is a {type(controller).__name__}, not an AMDController or PinvAccelController"
         if "step" in controller.__dict__ or controller.n_base != 3:
             return "the controller's step is replaced"
-        dev = controller.device
-        chain = dev._fast_maps.chain
-        if chain is None or list(dev.model.parents)[1:] != list(range(dev.n)) or chain[1].shape[0] != dev.n:
-            return f"the chain of {dev.name!r} is not a serial chain the compiled kinematics handle"
-        return ""
+        return chain_reason(controller.device)
 
     @staticmethod
     def build(controller, plant, trajectory, q0: np.ndarray, JV_pinv: np.ndarray) -> MobileLoop | None:
@@ -236,3 +230,29 @@ class MobileLoop:
         if self.plant is not None:
             self.plant._e = self._plant[-1].copy()
         return bool(self._state[2][0])
+
+
+def pack_plant(plant, K: int, dt: float) -> tuple:
+    """`ticks`' plant tuple of a run of K ticks of dt [s] on `plant` (a `MobilePlant`, or None: kinematic)."""
+    if plant is None:
+        z = np.zeros(1, dtype=np.int64)
+        return (False, 0, 0, np.zeros(1), np.zeros(1), np.zeros(3), z, z, 0, 0.0, np.zeros((3, 4)), np.zeros(3),
+                np.zeros(2), np.zeros((K, 3)), np.zeros(3))
+    s = plant.slip
+    ou, noise = np.zeros(2), np.zeros((K, 3))
+    if s.noise > 0:
+        a = math.exp(-dt / s.noise_tau)
+        ou[:] = a, s.noise * math.sqrt(1.0 - a * a)
+        noise = plant._rng.standard_normal((K, 3))  # the draws `realised_twist` makes, one row per tick
+    d = plant.data
+    act = np.concatenate([plant._base_act, plant._pos_act, plant._vel_act]).astype(np.int64)
+    return (True, plant.model._address, d._address, d.qpos, d.ctrl, d.site_xpos[plant._site],
+            plant._qadr.astype(np.int64), act, max(1, int(round(dt / plant.timestep))), plant.timestep, plant.JV,
+            s.efficiency, ou, noise, plant._e.copy())
+
+def chain_reason(dev) -> str:
+    """Why `dev`'s chain is not one the compiled mobile kinematics handle ("" where it is)."""
+    chain = dev._fast_maps.chain
+    if chain is None or list(dev.model.parents)[1:] != list(range(dev.n)) or chain[1].shape[0] != dev.n:
+        return f"the chain of {dev.name!r} is not a serial chain the compiled kinematics handle"
+    return ""
