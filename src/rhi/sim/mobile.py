@@ -374,6 +374,7 @@ def _compiled(controller, plant, trajectory, q0, JV_pinv, stage_of):
     mobile_loop.last = loop
     return loop
 
+
 def simulate_mobile(
     controller: MobileController,
     trajectory: Trajectory,
