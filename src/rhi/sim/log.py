@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import struct
 import warnings
 from pathlib import Path
@@ -261,16 +262,18 @@ class LogWriter:
         self.fault: str | None = None
         self._fh = self._ev = None
         if self.path is not None:
-            try:
-                self.path.parent.mkdir(parents=True, exist_ok=True)
-                self._fh = self.path.open("wb")
-                self._ev = events_path(self.path).open("w")
-            except OSError as exc:
-                raise InvalidInput(f"log: cannot write {str(self.path)!r}: {exc}") from None
             hdr = json.dumps({"columns": self.columns, "meta": self.meta}).encode()
             hdr += b" " * (-len(hdr) % 8)
-            self._fh.write(MAGIC + struct.pack("<Q", len(hdr)) + hdr)
-            self._fh.flush()
+            part = self.path.with_name(self.path.name + ".part")
+            try:  # the log appears with its whole header, so a reader never finds it half-made
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                part.write_bytes(MAGIC + struct.pack("<Q", len(hdr)) + hdr)
+                os.replace(part, self.path)
+                self._fh = self.path.open("ab")
+                self._ev = events_path(self.path).open("w")
+            except OSError as exc:
+                part.unlink(missing_ok=True)
+                raise InvalidInput(f"log: cannot write {str(self.path)!r}: {exc}") from None
 
     def row(self) -> np.ndarray:
         """The next row to fill: (width,) float64, NaN-filled."""
