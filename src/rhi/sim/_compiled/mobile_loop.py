@@ -97,16 +97,21 @@ def ticks(k0, k1, dt, traj, ctl, state, plant, JV_pinv, logs):
         flags[0] = 1 if ok else 0
         Lddq[k] = ddq
         Lrec[k] = rec
-        th = q_ref[2] + 0.5 * dq_mid[2] * dt
-        c, s = math.cos(th), math.sin(th)
-        tw0, tw1, tw2 = c * dq_mid[0] + s * dq_mid[1], -s * dq_mid[0] + c * dq_mid[1], dq_mid[2]
-        for i in range(4):
-            wheels[i] = JV_pinv[i, 0] * tw0 + JV_pinv[i, 1] * tw1 + JV_pinv[i, 2] * tw2
+        wheel_speeds(JV_pinv, q_ref[2] + 0.5 * dq_mid[2] * dt, dq_mid, wheels)
         Lq[k], Ldq[k], Lxe[k], Lw[k] = q_meas, dq_new, x, wheels
         period(k, plant, q_ref, dq, ddq, wheels, q_meas, x, Lqt, Lx)
         q_ref[:], dq[:] = q_next, dq_new
         flags[1] = k + 1
     return DONE
+
+
+@jit(inline=True)
+def wheel_speeds(JV_pinv, th, v, wheels):
+    """The wheels' speeds (4,) [rad/s] into `wheels` for the base velocity v[:3] = (ẋ, ẏ, θ̇) in the world at heading th [rad]."""
+    c, s = math.cos(th), math.sin(th)
+    tw0, tw1, tw2 = c * v[0] + s * v[1], -s * v[0] + c * v[1], v[2]
+    for i in range(4):
+        wheels[i] = JV_pinv[i, 0] * tw0 + JV_pinv[i, 1] * tw1 + JV_pinv[i, 2] * tw2
 
 
 @jit(inline=True)

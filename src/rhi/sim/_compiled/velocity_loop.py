@@ -19,7 +19,7 @@ import numpy as np
 from rhi.control._compiled import mobile_velocity as _vel
 from rhi.control.mobile import WeightedDistributionController
 from rhi.jit import jit
-from rhi.sim._compiled.mobile_loop import DONE, PYTHON, chain_reason, pack_plant, period
+from rhi.sim._compiled.mobile_loop import DONE, PYTHON, chain_reason, pack_plant, period, wheel_speeds
 
 #: The compiled loop of the last `simulate_mobile` run of App. A's controller, None where it ran in Python.
 last: VelocityLoop | None = None
@@ -73,11 +73,7 @@ def ticks(k0, k1, dt, traj, ctl, stages, state, plant, JV_pinv, logs):
                 bnd[0, i] - 1e-9 <= q_next[i] <= bnd[1, i] + 1e-9
         flags[0] = 1 if ok else 0
         Lrec[k] = rec
-        th = q_ref[2] + 0.5 * dq_new[2] * dt
-        c, s = math.cos(th), math.sin(th)
-        tw0, tw1, tw2 = c * dq_new[0] + s * dq_new[1], -s * dq_new[0] + c * dq_new[1], dq_new[2]
-        for i in range(4):
-            wheels[i] = JV_pinv[i, 0] * tw0 + JV_pinv[i, 1] * tw1 + JV_pinv[i, 2] * tw2
+        wheel_speeds(JV_pinv, q_ref[2] + 0.5 * dq_new[2] * dt, dq_new, wheels)
         Lq[k], Ldq[k], Lxe[k], Lw[k] = q_meas, dq_new, x, wheels
         period(k, plant, q_ref, dq_new, zero, wheels, q_meas, x, Lqt, Lx)
         q_ref[:], dq[:] = q_next, dq_new
