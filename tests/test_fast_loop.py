@@ -9,6 +9,7 @@ equal afterwards.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 
 import numpy as np
@@ -424,3 +425,34 @@ def test_streamed_log_and_progress(rhi4, tmp_path):
     np.testing.assert_array_equal(back.q, log.q)
     np.testing.assert_array_equal(back.seq, np.arange(450))
     assert np.all(np.isnan(back.t_read)) and np.all(back.t_tick > 0)
+
+
+def raising_after(kernel, t_raise: float):
+    """A whole tick that runs `kernel` until t_raise [s], then raises partway (R_DONE written 0 first, as `whole_for`'s)."""
+    from numba import njit
+
+    from rhi.control._compiled import whole as _whole
+
+    names = ", ".join(f"a{i}" for i in range(len(inspect.signature(kernel.py_func).parameters)))
+    res = names.rsplit(", ", 1)[1]
+    space = {"kernel": kernel, "R_DONE": _whole.R_DONE}
+    exec(f"def planted({names}):\n    {res}[R_DONE] = 0.0\n    if a0 >= {t_raise!r}:\n"
+         f"        raise ValueError('a planted failure')\n    return kernel({names})\n", space)
+    return njit(error_model="numpy")(space["planted"])  # not cached: its source is no file
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # Numba prints what the pointer call ate
+def test_tick_that_raises_in_the_compiled_loop_goes_to_python(rhi4, monkeypatch):
+    """A whole tick that raises through the compiled loop's pointer call, which lets no exception through.
+
+    The loop must see R_DONE unwritten and hand the tick to Python, whose call raises it, as in the Python loop.
+    """
+    from rhi.control._compiled import whole as _whole
+
+    real = _whole.whole_for
+    monkeypatch.setattr(_whole, "whole_for", lambda parts: raising_after(real(parts), 0.1))
+    with pytest.raises(ValueError, match="a planted failure"):
+        run(rhi4, palpation, python=False, duration=0.3)
+    assert fast_loop.last is not None and fast_loop.last.ticks == 100  # compiled up to the failing tick
+    with pytest.raises(ValueError, match="a planted failure"):
+        run(rhi4, palpation, python=True, duration=0.3, monkeypatch=monkeypatch)
