@@ -359,6 +359,26 @@ def test_compiled_whitening_matches_lapack(rng):
         rm.effective_inertia(J, bad, u)
 
 
+@pytest.mark.parametrize("m", [2, 3])
+def test_compiled_inertia_near_a_lost_direction(rng, m):
+    """Near Jᵀu = 0 the compiled Λ (one solve of Jᵀu; ‖B‖_F solved for only where its bound cannot decide, as at
+    Jᵀu = 1e-9 with M of condition up to 1e8) says inf where the per-matrix path does, and equals it elsewhere."""
+    k, n = 256, 7
+    u = random_unit(rng, m, (k,))
+    J = rng.normal(size=(k, m, n))
+    g = rng.normal(size=(k, n))
+    eps = np.repeat([0.0, 1e-16, 1e-9, 1.0], k // 4)  # Jᵀu = eps g: lost, lost by the tolerance, small, regular
+    J = J - u[:, :, None] * np.einsum("kr,krn->kn", u, J)[:, None] + eps[:, None, None] * u[:, :, None] * g[:, None]
+    V = np.linalg.qr(rng.normal(size=(k, n, n)))[0]
+    M = np.einsum("kij,kj,klj->kil", V, 10.0 ** rng.uniform(-4, 4, (k, n)), V)
+    M = 0.5 * (M + np.swapaxes(M, -1, -2))
+    lam = rm.effective_inertia(J, M, u)
+    ref = np.array([rm.effective_inertia(*a) for a in zip(J, M, u, strict=True)])
+    assert np.isinf(lam[: k // 2]).all() and np.isinf(ref[: k // 2]).all()
+    np.testing.assert_allclose(lam[k // 2:], ref[k // 2:], rtol=1e-4)  # Jᵀu's round-off: 1e-16 / 1e-9 relative
+    np.testing.assert_allclose(lam[3 * k // 4:], ref[3 * k // 4:], rtol=1e-7)  # κ(M) 1e8
+
+
 def test_velocity_transmission_and_reflected_friction(rng):
     """Thesis eqs. 4.4-4.6: sigma * lambda <= 1, with equality along the principal axes."""
     J = rng.normal(size=(2, 3))

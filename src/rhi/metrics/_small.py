@@ -14,7 +14,7 @@ compiled loop walks the batch:
 * `whiten`: ``B = J L⁻ᵀ`` with the Cholesky factor ``M = L Lᵀ`` (the factor by the same
   column order as LAPACK's ``potrf``, the solve by forward substitution), and a flag per
   matrix that is not symmetric or not positive definite (a pivot <= 0, as ``potrf`` reports);
-  `inertia_along` the same factor and solve reduced to Λ along u in the same loop.
+  `inertia_along` the same factor and one solve, of Jᵀu, for Λ along u (the cost of m rows only in Jᵀu).
 * `radius_rows`: ρ along u and μ from the triangle L of ``B = L E`` alone (a triangular solve and a
   product of pivots instead of the Jacobi sweeps), for the clearly regular maps; the caller takes
   `svd_rows` for the few others, whose lost axes need the singular vectors.
@@ -273,23 +273,27 @@ def whiten(J, M, sym_rtol, B, bad):
 def inertia_along(J, M, u, sym_rtol, zero_rtol, lam, bad):
     """Λ (K,) = (uᵀ J M⁻¹ Jᵀ u)⁻¹ for J (K, m, n), M (K, n, n) symmetric positive definite, u (K, m) unit.
 
-    With M = L Lᵀ (the factor of ½(M + Mᵀ), as `whiten`) and B = J L⁻ᵀ: Λ = 1 / |Bᵀu|², inf where
-    |Bᵀu| <= zero_rtol |B|_F. bad (K,) int8 as `whiten` (Λ then unspecified). Blocks of `BLOCK` matrices,
-    batch index last.
+    With M = L Lᵀ (the factor of ½(M + Mᵀ), as `whiten`): Λ = 1 / |y|², y = L⁻¹(Jᵀu), one triangular solve
+    whatever m; inf where |y| <= zero_rtol ‖B‖_F, B = J L⁻ᵀ. The bound ‖B‖_F² <= ‖J‖_F² / λ_min(M) <= ‖J‖_F²
+    t^(n-1) / det M, t = tr M / (n - 1) (AM–GM on the other n - 1 eigenvalues), settles that test for all
+    but the near-singular maps, which alone solve for B row by row. bad (K,) int8 as `whiten` (Λ then
+    unspecified). Blocks of `BLOCK` matrices, batch index last.
     """
     K, m, n = J.shape
     Mt = np.empty((n, n, BLOCK))
     L = np.empty((n, n, BLOCK))
-    Bt = np.empty((n, BLOCK))
-    v = np.empty((n, BLOCK))
+    y = np.empty((n, BLOCK))
+    rd = np.empty((n, BLOCK))  # 1 / L_jj
     e = np.empty(BLOCK)
-    fro = np.empty(BLOCK)
+    jj = np.empty(BLOCK)
+    tr = np.empty(BLOCK)
     asym = np.empty(BLOCK)
     big = np.empty(BLOCK)
+    row = np.empty(n)
     for i0 in range(0, K, BLOCK):
         nb = min(BLOCK, K - i0)
         for b in range(nb):
-            asym[b] = big[b] = fro[b] = 0.0
+            asym[b] = big[b] = tr[b] = 0.0
         for r in range(n):
             for c in range(n):
                 for b in range(nb):
@@ -301,9 +305,20 @@ def inertia_along(J, M, u, sym_rtol, zero_rtol, lam, bad):
                     big[b] = max(big[b], abs(Mt[r, c, b]))
         for b in range(nb):
             bad[i0 + b] = 1 if asym[b] > sym_rtol * max(big[b], _TINY) else 0
+        for b in range(nb):  # y = Jᵀu, ‖J‖_F² (J read in memory order: m enters the cost only here)
+            s = 0.0
+            for j in range(n):
+                w = 0.0
+                for r in range(m):
+                    x = J[i0 + b, r, j]
+                    w += u[i0 + b, r] * x
+                    s += x * x
+                y[j, b] = w
+            jj[b] = s
         for j in range(n):  # Cholesky–Crout, column by column; a failed pivot is flagged and replaced by 1
             for b in range(nb):
                 e[b] = Mt[j, j, b]
+                tr[b] += Mt[j, j, b]
             for k in range(j):
                 for b in range(nb):
                     e[b] -= L[j, k, b] * L[j, k, b]
@@ -312,6 +327,7 @@ def inertia_along(J, M, u, sym_rtol, zero_rtol, lam, bad):
                     bad[i0 + b] = 2 if bad[i0 + b] == 0 else bad[i0 + b]
                     e[b] = 1.0
                 L[j, j, b] = np.sqrt(e[b])
+                rd[j, b] = 1.0 / L[j, j, b]
             for r in range(j + 1, n):
                 for b in range(nb):
                     e[b] = 0.5 * (Mt[r, j, b] + Mt[j, r, b])
@@ -319,29 +335,33 @@ def inertia_along(J, M, u, sym_rtol, zero_rtol, lam, bad):
                     for b in range(nb):
                         e[b] -= L[r, k, b] * L[j, k, b]
                 for b in range(nb):
-                    L[r, j, b] = e[b] / L[j, j, b]
+                    L[r, j, b] = e[b] * rd[j, b]
+        for b in range(nb):  # e = t^(n-1) / det M >= 1 / λ_min(M), as (1/t) Π_j t / L_jj²
+            e[b] = (n - 1) / tr[b] if n > 1 else 1.0
         for j in range(n):
+            for k in range(j):  # y = L⁻¹ y by forward substitution
+                for b in range(nb):
+                    y[j, b] -= L[j, k, b] * y[k, b]
             for b in range(nb):
-                v[j, b] = 0.0
-        for r in range(m):  # row r of B solves L bᵀ = J[r]ᵀ; v += u_r b
+                y[j, b] *= rd[j, b]
+                e[b] *= (tr[b] / (n - 1) if n > 1 else 1.0) * rd[j, b] * rd[j, b]
+        for b in range(nb):
+            q = 0.0
             for j in range(n):
-                for b in range(nb):
-                    e[b] = J[i0 + b, r, j]
-                for k in range(j):
-                    for b in range(nb):
-                        e[b] -= L[j, k, b] * Bt[k, b]
-                for b in range(nb):
-                    Bt[j, b] = e[b] / L[j, j, b]
-                    fro[b] += Bt[j, b] * Bt[j, b]
-                    v[j, b] += u[i0 + b, r] * Bt[j, b]
-        for b in range(nb):
-            e[b] = 0.0
-        for j in range(n):
-            for b in range(nb):
-                e[b] += v[j, b] * v[j, b]
-        for b in range(nb):
-            nv = np.sqrt(e[b])
-            lam[i0 + b] = np.inf if nv <= zero_rtol * np.sqrt(fro[b]) else 1.0 / (nv * nv)
+                q += y[j, b] * y[j, b]
+            lam[i0 + b] = 1.0 / q
+            if q > zero_rtol * zero_rtol * jj[b] * e[b]:  # > zero_rtol² ‖B‖_F²: finite
+                continue
+            fro = 0.0  # near Jᵀu = 0: ‖B‖_F² exactly, row r of B solving L bᵀ = J[r]ᵀ
+            for r in range(m):
+                for j in range(n):
+                    x = J[i0 + b, r, j]
+                    for k in range(j):
+                        x -= L[j, k, b] * row[k]
+                    row[j] = x * rd[j, b]
+                    fro += row[j] * row[j]
+            if q <= zero_rtol * zero_rtol * fro:
+                lam[i0 + b] = np.inf
 
 
 @jit
