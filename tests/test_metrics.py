@@ -361,8 +361,10 @@ def test_compiled_whitening_matches_lapack(rng):
 
 @pytest.mark.parametrize("m", [2, 3])
 def test_compiled_inertia_near_a_lost_direction(rng, m):
-    """Near Jᵀu = 0 the compiled Λ (one solve of Jᵀu; ‖B‖_F solved for only where its bound cannot decide, as at
-    Jᵀu = 1e-9 with M of condition up to 1e8) says inf where the per-matrix path does, and equals it elsewhere."""
+    """Near Jᵀu = 0 the compiled Λ says inf where the per-matrix path does, and equals it elsewhere.
+
+    It solves once, for Jᵀu; ‖B‖_F only where its bound cannot decide (as at Jᵀu = 1e-9, M of condition up to 1e8).
+    """
     k, n = 256, 7
     u = random_unit(rng, m, (k,))
     J = rng.normal(size=(k, m, n))
