@@ -7,8 +7,9 @@ All timings are taken in the same run and printed as ratios against the baseline
   configuration computes θ = A q + b, `computeFrameJacobian` (and `crba`), and then with NumPy
   ρ = (uᵀ(JJᵀ)⁻¹u)^(-1/2) (eq. 3.6), Λ = (uᵀ J M⁻¹ Jᵀ u)⁻¹ (eq. 3.13) and μ = √det(JJᵀ) (eq. 4.7).
   Both give the same numbers (checked to 1e-10 relative). Columns: J + ρ, and J, M + ρ, Λ, μ, and the
-  measures alone (ρ, Λ, μ from given J, M: the closed forms of `rhi.metrics`) per configuration, so that
-  m = 3 can be compared with m = 2.
+  measures alone (ρ, Λ, μ from given J, M: the closed forms of `rhi.metrics`) per configuration.
+* m = 3 against m = 2: on every device with a spatial task, each measure alone from its J (m = 3) and from the
+  first two rows of the same J (m = 2, the same n and M), timed in turns, as a ratio per configuration.
 * rhi4, ρ + Λ: the same against our own per-configuration loop and the Robotics Toolbox, whose model is
   the same URDF with the same actuation map applied (J_q = J_θ A, M_q = Aᵀ M_θ A).
 
@@ -88,7 +89,7 @@ def every_device(n: int, loop_n: int) -> None:
           f"{'J,M + rho,Lambda,mu':>22}{'loop':>12}{'ratio':>8}{'rho,Lambda,mu alone':>22}")
     from rhi.devices import batch
 
-    alone: dict[tuple[int, int], list[float]] = {}  # (n, m) -> measures alone per configuration [s]
+    spatial = []
     for dev in devices():
         rng = np.random.default_rng(0)
         Q = rng.uniform(np.maximum(dev.q_min, -np.pi), np.minimum(dev.q_max, np.pi), size=(n, dev.n))
@@ -105,11 +106,30 @@ def every_device(n: int, loop_n: int) -> None:
         t = batch.terms(dev, Q, ("J", "M"))
         t_m = best_of(lambda t=t, u=u: measures_of(t["J"], t["M"], u), 20)
         print(f"{dev.name:<15}{dev.n:>3}{dev.m:>3}{cells[0]:>32}{cells[1]:>42}{t_m / n * 1e9:15.0f} ns/conf")
-        alone.setdefault((dev.n, dev.m), []).append(t_m / n)
-    for k in sorted({k for k, _ in alone if (k, 2) in alone and (k, 3) in alone}):
-        print(f"rho, Lambda, mu alone at n = {k}: m = 3 / m = 2 per configuration "
-              f"{min(alone[k, 3]) / min(alone[k, 2]):.2f}x (fastest device of each)")
+        if dev.m == 3:
+            spatial.append((dev, t["J"], t["M"]))
+    print("\nEach measure alone, m = 3 (J) against m = 2 (its first two rows: the same n and M), in turns; "
+          "ratio m = 3 / m = 2 per configuration")
+    print(f"{'device':<15}{'n':>3}{'rho':>20}{'Lambda':>20}{'mu':>20}")
+    for dev, J, M in spatial:
+        ns = three_against_two(J, M) / n * 1e9
+        print(f"{dev.name:<15}{dev.n:>3}" + "".join(f"{a:6.0f} /{b:4.0f} ns {a / b:4.2f}x" for a, b in ns))
     print()
+
+
+def three_against_two(J, M, rounds: int = 30) -> np.ndarray:
+    """(3, 2) best times [s] of ρ, Λ, μ from J (B, 3, n), M (B, n, n) (column 0) and from J's first two rows (1)."""
+    from rhi import metrics
+
+    sides = [(J, np.ones(3) / np.sqrt(3)), (np.ascontiguousarray(J[:, :2]), np.ones(2) / np.sqrt(2))]
+    fns = [(lambda J=J, u=u: metrics.effective_manipulability(J, u), lambda J=J, u=u: metrics.effective_inertia(J, M, u),
+            lambda J=J: metrics.manipulability(J)) for J, u in sides]
+    best = np.full((3, 2), np.inf)
+    for _ in range(rounds):  # in turns: a busy spell slows both sides alike
+        for col, three in enumerate(fns):
+            for row, fn in enumerate(three):
+                best[row, col] = min(best[row, col], best_of(fn, 1))
+    return best
 
 
 def main() -> None:
