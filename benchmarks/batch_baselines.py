@@ -1,4 +1,4 @@
-"""What the batch benchmarks share: BLAS on one thread, best-of timing, the arms, the Robotics Toolbox loop.
+"""What the batch benchmarks share: BLAS on one thread, best-of CPU timing, the arms, the Robotics Toolbox loop.
 
 bench_kinematics and bench_measures: Panda and UR5 of example-robot-data, and ρ, Λ on rhi4 with the Robotics Toolbox.
 
@@ -20,12 +20,18 @@ import numpy as np  # noqa: E402
 
 
 def best_of(fn, repeat: int = 5) -> float:
-    """Minimum wall time of `repeat` calls [s]."""
+    """Minimum CPU time of this process (user + system, all threads) over `repeat` calls [s].
+
+    Not the wall clock: on a machine shared with other jobs a call longer than the scheduler's time slice
+    (a few ms) is preempted on every run, so its best wall time grows with the load while a short call's
+    does not, and the ratios between them drift; the CPU time stays what the call costs. On a quiet
+    machine the two agree (everything timed runs on one thread).
+    """
     times = []
     for _ in range(repeat):
-        t = time.perf_counter()
+        t = time.process_time()
         fn()
-        times.append(time.perf_counter() - t)
+        times.append(time.process_time() - t)
     return min(times)
 
 

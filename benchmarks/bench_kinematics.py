@@ -14,7 +14,8 @@ Baselines, all measured in this run and printed as ratios:
 * Robotics Toolbox loop for ρ + Λ (thesis eqs. 3.6, 3.10) on rhi4: `jacob0` and `inertia`
   with the same actuation map, timed on --rtb-n configurations and scaled.
 
-Timings are the best of several runs (wall clock) on a shared machine: compare the ratios.
+Timings are the best of several runs in CPU time (`batch_baselines.best_of`: steady on a shared machine);
+compare the ratios.
 BLAS runs on one thread unless OPENBLAS_NUM_THREADS / OMP_NUM_THREADS say otherwise: on 2 cores
 shared with other jobs, OpenBLAS's thread hand-off makes one medium-size call (the finite check
 of `Device.theta` on 10⁴ configurations is an `np.vdot`) take up to ~15 ms instead of ~0.02 ms,

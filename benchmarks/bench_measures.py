@@ -1,6 +1,7 @@
 """Batch measures vs per-configuration loops: every device (a plain Pinocchio loop) and rhi4 (ours, RTB).
 
-All timings are taken in the same run and printed as ratios against the baselines.
+All timings are taken in the same run (best CPU times, `batch_baselines.best_of`) and printed as ratios against the
+baselines.
 
 * Every bundled device, Panda and UR5 (example-robot-data), --n configurations: the batch API
   (`Device.jacobian` / `rhi.devices.batch.terms` and `rhi.metrics`) against a plain Pinocchio loop that per
