@@ -308,6 +308,7 @@ TAU_RATIO_PUSH = _derived("sA_4_3.tau_ratio", 40 / 30, 40 / 30 * (5 / 40 + 5 / 3
 #: Fig. A.8: without DM enhancement joint four saturated (at 23 s); with it the largest joint torque stayed ≤ 20 N m.
 PUSH_JOINT = _v("sA_4_3.push_joint", "4", "", "§A.4.3, Fig. A.8 (line 2210)", tol=0.0, relative=False)
 PUSH_MAX_TORQUE = _v("sA_4_3.push_max_torque", "20", "N m", "§A.4.3, Fig. A.8 (line 2210)")
+PUSH_SATURATION_T = _v("sA_4_3.push_saturation_t", "23", "s", "§A.4.3, Fig. A.8(a) (line 2210)", relative=False)
 #: Fig. A.8 as the headline states it: joint four is the one that saturates without DM enhancement; with it no
 #: joint torque exceeds 20 N m.
 PUSH_JOINT4_FIRST = _claim("figA_8.joint4_first", "§A.4.3, Fig. A.8(a) (line 2210): without DM enhancement joint four "

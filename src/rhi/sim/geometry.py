@@ -292,20 +292,29 @@ def mesh_parts(path: str, scale, vertices: np.ndarray) -> list[tuple[np.ndarray,
     return parts if same else None
 
 
+#: The drawn Mecanum chassis: its centre below the arm mount, its half height, the wheel axles below the mount [m].
+_CHASSIS_Z, _CHASSIS_H, _AXLE_Z = -0.1, 0.06, -0.14
+
+
+def floor_height(wheel_radius: float) -> float:
+    """z of the floor under the drawn Mecanum base (the wheels' lowest points), below the arm mount [m]."""
+    return _AXLE_Z - wheel_radius
+
+
 def add_mecanum_base(add: GeomAdder, body, *, wheel_radius: float, half_length: float, half_width: float) -> float:
     """Chassis and four wheels of a Mecanum base on `body` (the yaw body, arm mount at its origin).
 
     Returns:
-        z of the floor in the body frame [m].
+        z of the floor in the body frame [m] (`floor_height`).
     """
-    h = 0.06
-    add(body, _G.mjGEOM_BOX, pos=[0, 0, -0.1], size=[half_length + 0.06, half_width - 0.035, h], rgba=BASE_RGBA)
-    zc = -0.1 - h + 0.02
+    add(body, _G.mjGEOM_BOX, pos=[0, 0, _CHASSIS_Z], size=[half_length + 0.06, half_width - 0.035, _CHASSIS_H],
+        rgba=BASE_RGBA)
+    zc = _AXLE_Z
     for sx in (-1, 1):
         for sy in (-1, 1):
             add(body, _G.mjGEOM_CYLINDER, pos=[sx * half_length, sy * half_width, zc],
                 quat=_align_z(np.array([0.0, 1.0, 0.0])), size=[wheel_radius, 0.025, 0], rgba=WHEEL_RGBA)
-    return zc - wheel_radius
+    return floor_height(wheel_radius)
 
 
 def add_floor(add: GeomAdder, spec: mujoco.MjSpec, z: float, half: float = 2.0) -> None:

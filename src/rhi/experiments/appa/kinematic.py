@@ -1,4 +1,4 @@
-"""Appendix A: motion distribution by a weighting matrix and force-exertion reconfiguration of the WMM.
+"""Appendix A, kinematic control of the WMM: motion distribution by a weighting matrix and DM enhancement.
 
 * `tracking` (§A.4.2, Table A.1, Figs. A.5–A.6): the 0.25 m circle beyond the arm's
   workspace, tracked on the MuJoCo plant (slipping base, servoed arm) by the proposed
@@ -438,11 +438,9 @@ def _dm_merge(outputs: list[dict[str, np.ndarray]], *, names: tuple[str, ...], d
             f"phase holding the reached position (A.19–A.20). Bounds respected in every run: {ok}.",
             "∇H₂ (A.9) uses the factor −½ s^(−3/2) = −½ H₂³ (s = uᵀJW²Jᵀu); eq. A.9 prints H₂^(−3/2). ∇_x H₂ = "
             "∇_{q_m}H₂ J_m⁺ (A.10).",
-            "The box push itself (a 26 kg box, measured joint torques, Fig. A.8) is not simulated: it needs the floor's "
-            "friction, the contact's place and direction on the box, the person's push profile from the haptic "
-            "interface and the Gen3's joint-level controller, none of them published. The torque-norm row compares the "
-            "DM ratio with the thesis's measured torque ratio; the 'box push, static' rows read Fig. A.8 with a pure x "
-            "force at the handle.",
+            "The box push itself (a 26 kg box, measured joint torques, Fig. A.8) is simulated on the MuJoCo plant by "
+            "appa.box_push. Here the torque-norm row compares the DM ratio with the thesis's measured torque ratio, "
+            "and the 'box push, static' rows read Fig. A.8 with a pure x force at the handle (a reading beside it).",
             "J_m and u are in world axes (u = [1, 0, 0] or [0, 0, 1]); the thesis's u = J_I⁻¹[1, 0, 0] with J_m "
             "in base axes is the same DM.",
             "The thesis's law has no position-bound handling: a joint at a position bound the DM gradient pushes "
