@@ -542,7 +542,7 @@ def test_box_push_static_rows(wmm):
     The rows are recomputed as τ = J_mᵀ F e_x at q0 and at a configuration with the shoulder turned.
     """
     from rhi.control.mobile import W_TAU_LIMITS
-    from rhi.experiments import appa
+    from rhi.experiments.appa import kinematic as appa
 
     w_tau = np.diag(1.0 / np.asarray(W_TAU_LIMITS))
     q1 = appa.Q0.copy()

@@ -1,4 +1,4 @@
-"""Figures of Appendix A (Figs. A.5, A.6, A.7, A.9) from `rhi.experiments.appa` results."""
+"""Figures of Appendix A (Figs. A.5–A.9) from `rhi.experiments.appa` results."""
 
 from __future__ import annotations
 
@@ -78,5 +78,30 @@ def dm_enhancement(result: Result) -> Figure:
     ax3.set(xlabel="x [m]", ylabel="y [m]", zlabel="z [m]", title="(b) configurations (Fig. A.7)")
     ax3.legend(fontsize=7)
     fig.suptitle("§A.4.3 DM enhancement: Cartesian phase, then null space")
+    fig.tight_layout()
+    return fig
+
+
+def box_push(result: Result) -> Figure:
+    """Fig. A.8: the arm's joint torques in the box push, (a) without and (b) with DM enhancement, joint 4 bold."""
+    a = result.arrays
+    lim, start = a["limits"], float(a["push_start"])
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2), sharey=True)
+    for ax, (key, title) in zip(axes, (("without", "(a) without DM enhancement (traditional J⁺)"),
+                                       ("with", "(b) with DM enhancement (eq. A.19 as printed)"))):
+        t, tau = a[f"{key}_t"], a[f"{key}_tau"]
+        for i in range(tau.shape[1]):
+            bold = i == 3
+            ax.plot(t, tau[:, i], color="k" if bold else plt.get_cmap("tab10")(i), lw=2.0 if bold else 0.9,
+                    label=f"joint {i + 1}", zorder=3 if bold else 2)
+        for value, style, label in ((lim[0], "r--", "limit, joints 1–4"), (lim[-1], "m--", "limit, joints 5–7"),
+                                    (20.0, "g:", "20 N m (thesis, with DM)")):
+            ax.axhline(value, color=style[0], ls=style[1:], lw=1, label=label)
+            ax.axhline(-value, color=style[0], ls=style[1:], lw=1)
+        ax.axvline(start, color="0.5", lw=0.8)
+        ax.set(xlabel="t [s]", title=title)
+    axes[0].set(ylabel="joint torque, gravity subtracted [N m]")
+    axes[1].legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.suptitle("Fig. A.8 joint torques while pushing the 26 kg box (MuJoCo plant; the push starts at the grey line)")
     fig.tight_layout()
     return fig

@@ -68,10 +68,14 @@ FIT_WHY = ("§3.3 (line 497): the inertias come from [23] Çavuşoğlu et al. 20
            "cites but does not print; the calibrated model fits them to the thesis's inertia-dependent numbers")
 SUBJECTS = "the 10 subjects' per-trial responses (§3.5–3.6); only means, standard deviations and test statistics are printed"
 
-PUSH_MISSING = ("the box push itself: the contact point and force direction on the box, the floor's friction, the "
-                "person's push profile through the haptic interface, the arm's configuration during the push and the "
-                "Gen3's joint-level controller (Fig. A.8 plots measured torques only)")
-
+PUSH_MISSING = ("the box push itself: the box's friction on the floor, its size and where the end effector touches it, "
+                "the person's push profile (appa.box_push names rhi's reading of each); Fig. A.8 plots measured torques")
+_BOX, _IS4, _WITHIN_20 = "appa.box_push", (lambda j: float(j == 4)), (lambda tau: float(tau <= 20.0))
+_STATIC = ("a pure x force at the handle, statically, bringing ‖W_τ τ‖ to 40 N m at q0", "line 2212: 'without adopting "
+           "it, the norm increased rapidly to almost 40 Nm and stopped the task'", "appa.dm_enhancement")
+_MU = ("μ = 0.4, a handbook value for a loaded wooden or cardboard box on a hard floor", "line 2204 names the box's "
+       "mass only ('approximately 26 kg'), neither its material nor the floor's", _BOX)
+PUSH_CHECKED = "the plant's joint torques are J_mᵀ F of its contact force, which is μ m g sliding (tests/test_box_push.py)"
 APPB_BEYOND_CHECKED = ("both controllers of the comparison equal an independent plain-NumPy transcription: the AMD "
                        "(eqs. B.6–B.19) on the sampled states of the R = 0.1 m circle, the traditional J†(ẍ − J̇q̇) + "
                        "(I − J†J) q̈_A of line 2489 on those of the R = 0.25 m circle (1e-4 rad/s², "
@@ -435,16 +439,28 @@ _D = [
       for ax, i, line, phase, thesis in (("z", 1, 2202, "enhancement", "4.031"),
                                          ("x", 2, 2212, "the null-space phase", "5.88"))],
     Dossier("figA_8.joint4_first", "§A.4.3, Fig. A.8(a) (line 2210)",
-            "the first arm joint to reach its limit (32 N m joints 1–4, 13 N m joints 5–7, line 2210) under a pure x "
-            "force at the handle at q0, no DM enhancement, of the size that brings ‖W_τ τ‖ to the 'almost 40' N m of "
-            "line 2212; gravity left out, as the thesis subtracts it",
-            missing=PUSH_MISSING, checked=APPA_CHECKED),
+            "the first arm joint whose torque (gravity subtracted) reaches its limit (32 N m joints 1–4, 13 N m joints "
+            "5–7) on the MuJoCo plant without DM enhancement: the traditional J⁺ with no null-space term (line 2198) "
+            "pushes the 26 kg box by a 0.2 m minimum-jerk reference from 20 s in 10 s; μ = 0.692 from Fig. A.9(b)'s "
+            "30 N m at DM 5.88 (appa.box_push's readings, fixed before the first run)",
+            (Reading("without DM = the weighted distribution with the DM off", "Fig. A.8's caption '(a) Without DM "
+                     "enhancement' names no other controller", _BOX, "without DM (weighted distribution): first arm "
+                     "joint to saturate", _IS4),
+             Reading(*_MU, "without DM (traditional J⁺), μ = 0.40: first arm joint to saturate", _IS4),
+             Reading(*_STATIC, "box push, static: first arm joint to reach its limit", _IS4)),
+            missing=PUSH_MISSING, checked=f"{APPA_CHECKED}; {PUSH_CHECKED}"),
     Dossier("figA_8.within_20", "§A.4.3, Fig. A.8(b) (line 2210)",
-            "the largest arm joint torque under the same push force after the DM enhancement (5 s Cartesian, 15 s "
-            "null space), eq. A.19 as printed (weighted J†)",
-            (Reading(ORTHO, ORTHO_WHY, "appa.dm_enhancement", "box push, static: largest arm joint torque at that "
-                     "force after the DM enhancement (orthogonal projector)", lambda v: float(v <= 20.0)),),
-            missing=PUSH_MISSING, checked=APPA_CHECKED),
+            "the largest arm joint torque (gravity subtracted) on the MuJoCo plant while pushing the same box after "
+            "the DM enhancement (5 s Cartesian, 15 s null space), eq. A.19 as printed (weighted J†) with the DM term "
+            "during the push, μ = 0.692 (appa.box_push's readings, fixed before the first run)",
+            (Reading(ORTHO, ORTHO_WHY, _BOX, "with DM (orthogonal projector): largest arm joint torque during the push",
+                     _WITHIN_20),
+             Reading(*_MU, "with DM (eq. A.19 as printed), μ = 0.40: largest arm joint torque during the push",
+                     _WITHIN_20),
+             *(Reading(f"{_STATIC[0]}, after the DM enhancement ({v})", *_STATIC[1:], "box push, static: largest arm "
+                       f"joint torque at that force after the DM enhancement ({v})", _WITHIN_20)
+               for v in ("eq. A.19 as printed", "orthogonal projector"))),
+            missing=PUSH_MISSING, checked=f"{APPA_CHECKED}; {PUSH_CHECKED}"),
     # ---- appendix B
     Dossier("sB_4_2.singular_t", "§B.4.2, Fig. B.7 (line 2483)",
             "first time σ_min(J_m) < 0.05 without avoidance",

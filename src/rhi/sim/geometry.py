@@ -297,7 +297,7 @@ _CHASSIS_Z, _CHASSIS_H, _AXLE_Z = -0.1, 0.06, -0.14
 
 
 def floor_height(wheel_radius: float) -> float:
-    """z of the floor under the drawn Mecanum base (the wheels' lowest points), below the arm mount [m]."""
+    """Height of the floor under the drawn Mecanum base (the wheels' lowest points) in the arm mount's frame [m]."""
     return _AXLE_Z - wheel_radius
 
 

@@ -193,7 +193,8 @@ def box_push_plan(dt: float = 0.01, t_cartesian: float = 5.0, t_null: float = 15
     kw = {"dt": dt, "t_cartesian": t_cartesian, "t_null": t_null, "distance": distance, "duration": duration,
           "hold": hold, "settle": settle}
     work = int(round((settle + duration + hold) / dt)) + 1
-    return Plan([Part(f"{c} μ={mu:.3f}", functools.partial(push_case, c, mu, **kw), work) for c, mu in runs],
+    return Plan([Part(c if mu == FRICTION else f"{c}, μ = {mu:.2f}", functools.partial(push_case, c, mu, **kw), work)
+                 for c, mu in runs],
                 functools.partial(_merge, runs=tuple(runs), start=t_cartesian + t_null, distance=distance))
 
 
@@ -215,7 +216,7 @@ def _merge(outputs: list[dict[str, np.ndarray]], *, runs: tuple[tuple[str, float
         where = f"largest at joint {m['max_joint']:.0f}; first saturation: {sat}"
         dm = [Row(f"{label}: DM along x at the push's start", None, float(out["dm"][0]), "N")] if CASES[case][2] else []
         new = [Row(f"{label}: first arm joint to saturate", T.PUSH_JOINT if case == "without" and literal else None,
-                   m["joint"], "", "NaN: no joint reached its limit"),
+                   m["joint"], "", "no joint reached its limit" if np.isnan(m["joint"]) else ""),
                Row(f"{label}: time the first joint saturates", T.PUSH_SATURATION_T if case == "without" and literal
                    else None, m["t_sat"], "s", "depends on the push profile, which the thesis does not give"),
                Row(f"{label}: largest arm joint torque during the push", T.PUSH_MAX_TORQUE
@@ -230,6 +231,7 @@ def _merge(outputs: list[dict[str, np.ndarray]], *, runs: tuple[tuple[str, float
         for name in ("t", "tau", "box", "force", "x", "x_des", "dm"):
             arrays[f"{key}_{name}"] = out[name]
     w, wo = meas["with", FRICTION], meas["without", FRICTION]
+    rows.insert(0, Row("box–floor friction μ (reading 'friction': Fig. A.9(b)'s 30 N m at DM 5.88)", None, FRICTION, ""))
     rows.append(Row("largest ‖W_τ τ‖ during the push, without / with DM enhancement", T.TAU_RATIO_PUSH,
                     wo["w_norm"] / w["w_norm"], "", "thesis: 'almost 40' / 'about 30' N m (Fig. A.9(b))"))
     arrays["limits"] = PUSH_LIMITS
