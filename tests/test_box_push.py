@@ -8,6 +8,7 @@ from the run's torque arrays, in plain NumPy, before the headline judges them.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -20,7 +21,8 @@ from rhi.report.claims import CLAIMS
 from rhi.sim.box_push import Box, BoxPushPlant, push_trajectory
 
 #: the --quick settings of `rhi reproduce` (rhi.report.steps)
-QUICK = {"dt": 0.01, "t_cartesian": 1.0, "t_null": 2.0, "distance": 0.05, "duration": 2.0, "hold": 0.5, "settle": 0.5}
+QUICK: dict[str, Any] = {"dt": 0.01, "t_cartesian": 1.0, "t_null": 2.0, "distance": 0.05, "duration": 2.0, "hold": 0.5,
+                         "settle": 0.5}
 
 
 def _first_saturation(t, tau, start):

@@ -85,18 +85,18 @@ def push_trajectory(x0, distance: float, *, start: float, duration: float, hold:
     x0 = as_array("x0", x0, shape_tail=(3,))
     if x0.ndim != 1:
         raise InvalidInput(f"x0: expected shape (3,), got {x0.shape}")
-    distance, duration, dt = _positive("distance", distance), _positive("duration", duration), _positive("dt", dt)
-    for name, v in (("start", start), ("hold", hold)):
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
-            raise InvalidInput(f"{name}: must be a finite number >= 0 [s], got {v!r}")
+    d, duration, dt = _positive("distance", distance), _positive("duration", duration), _positive("dt", dt)
+    for name, val in (("start", start), ("hold", hold)):
+        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val < 0:
+            raise InvalidInput(f"{name}: must be a finite number >= 0 [s], got {val!r}")
     t = np.arange(int(round((start + duration + hold) / dt)) + 1) * dt
     p, v, a = minimum_jerk((t - start) / duration)
     inside = (t > start) & (t < start + duration)
     x = np.broadcast_to(x0, (t.size, 3)).copy()
     dx, ddx = np.zeros((t.size, 3)), np.zeros((t.size, 3))
-    x[:, 0] += distance * p
-    dx[:, 0] = np.where(inside, distance * v / duration, 0.0)
-    ddx[:, 0] = np.where(inside, distance * a / duration**2, 0.0)
+    x[:, 0] += d * p
+    dx[:, 0] = np.where(inside, d * v / duration, 0.0)
+    ddx[:, 0] = np.where(inside, d * a / duration**2, 0.0)
     return Trajectory(t, x, dx, ddx)
 
 
@@ -128,8 +128,8 @@ class BoxPushPlant(MobilePlant):
         contact = as_array("contact", contact, shape_tail=(3,))
         if contact.ndim != 1:
             raise InvalidInput(f"contact: expected shape (3,), got {contact.shape}")
-        super().__init__(device, slip=slip if slip is not None else SlipModel.none(), timestep=timestep,
-                         base_kv=base_kv, **gains)
+        super().__init__(device, slip=slip if slip is not None else SlipModel.none(), timestep=timestep, geometry=None,
+                         visual=True, base_kv=base_kv, **gains)
         self.floor_z = floor_height(self.geometry["wheel_radius"])
         if contact[2] - self.box.tip_radius <= self.floor_z:
             raise InvalidInput(f"contact: the tip must be above the floor (z > {self.floor_z:.3f} m), got {contact[2]}")

@@ -190,10 +190,10 @@ def box_push_plan(dt: float = 0.01, t_cartesian: float = 5.0, t_null: float = 15
         runs += [("with_ortho", FRICTION), ("without_weighted", FRICTION), ("without", FRICTION_HANDBOOK),
                  ("with", FRICTION_HANDBOOK)]
     runs += [(c, float(mu)) for mu in frictions for c in ("without", "with")]
-    kw = {"dt": dt, "t_cartesian": t_cartesian, "t_null": t_null, "distance": distance, "duration": duration,
-          "hold": hold, "settle": settle}
     work = int(round((settle + duration + hold) / dt)) + 1
-    return Plan([Part(c if mu == FRICTION else f"{c}, μ = {mu:.2f}", functools.partial(push_case, c, mu, **kw), work)
+    return Plan([Part(c if mu == FRICTION else f"{c}, μ = {mu:.2f}",
+                      functools.partial(push_case, c, mu, dt=dt, t_cartesian=t_cartesian, t_null=t_null,
+                                        distance=distance, duration=duration, hold=hold, settle=settle), work)
                  for c, mu in runs],
                 functools.partial(_merge, runs=tuple(runs), start=t_cartesian + t_null, distance=distance))
 
@@ -205,7 +205,9 @@ def _label(case: str, mu: float) -> str:
 
 def _merge(outputs: list[dict[str, np.ndarray]], *, runs: tuple[tuple[str, float], ...], start: float,
            distance: float) -> Result:
-    rows, sweep, arrays = [], [], {}
+    rows: list[Row] = []
+    sweep: list[Row] = []
+    arrays: dict[str, np.ndarray] = {}
     meas = {}
     for (case, mu), out in zip(runs, outputs):
         m = push_measures(out["t"], out["tau"], start)
