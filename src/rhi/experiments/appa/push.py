@@ -245,5 +245,25 @@ def _merge(outputs: list[dict[str, np.ndarray]], *, runs: tuple[tuple[str, float
         "appa.box_push", "§A.4.3 / Fig. A.8: the 26 kg box push on the MuJoCo plant, with and without DM enhancement",
         tables, arrays,
         [f"Reading '{k}' (fixed before the first run): {what} ({why})." for k, (what, why) in READINGS.items()]
-        + [f"Alternative reading '{k}': {what} ({why})." for k, (what, why) in ALTERNATIVES.items()],
+        + [f"Alternative reading '{k}': {what} ({why})." for k, (what, why) in ALTERNATIVES.items()]
+        + [_over_friction(meas), _levers()],
     )
+
+
+def _over_friction(meas: dict[tuple[str, float], dict[str, float]]) -> str:
+    """The note on both Fig. A.8 claims at every μ of this run (the traditional J⁺ and eq. A.19 as printed)."""
+    parts = []
+    for mu in sorted({mu for case, mu in meas if case == "without" and ("with", mu) in meas}):
+        wo, w = meas["without", mu], meas["with", mu]
+        sat = "no joint saturates" if np.isnan(wo["joint"]) else f"joint {wo['joint']:.0f} saturates first"
+        parts.append(f"μ = {mu:.3f}: without DM {sat}, with DM the largest torque is {w['max']:.1f} N m")
+    return "Both claims at each friction of this run: " + "; ".join(parts) + "."
+
+
+def _levers() -> str:
+    """The note on which joint a pure x force at the end effector loads most, relative to its limit, at q0."""
+    per_n = np.abs(device("wmm").jacobian(Q0)[:, 3:].T @ np.array([1.0, 0.0, 0.0]))  # [N m per N]
+    order = np.argsort(-per_n / PUSH_LIMITS)
+    return (f"At q0 a pure x force at the end effector loads joint {order[0] + 1} most relative to its limit "
+            f"({per_n[order[0]]:.3f} N m per N) and joint 4 with {per_n[3]:.3f} N m per N; joint 4 saturates first "
+            "only where the force or the configuration differs from q0's pure push.")
