@@ -78,6 +78,29 @@ def test_teleoperation_and_chapter5_objectives_equal_the_python_loop(devices, ob
     assert np.isnan(a[0].extra["scale"]).all() and a[0].extra["held"].dtype == bool  # no passivity layer
 
 
+@pytest.mark.parametrize("k_q", [10.0, None])
+def test_fixed_slave_configuration_is_compiled_and_equals_the_live_python_loop(devices, k_q):
+    """ch5.fixed_point: TMI to a fixed slave configuration runs compiled (ˢM held), = ˢM read each tick in Python."""
+    dev, slave = devices
+    x0 = dev.fk(Q0)
+
+    def once(slave_q):
+        ctrl = NullSpaceController(dev, ControllerConfig(
+            ImpedanceControl(damping=2.0 * np.eye(2)), objectives=(ObjectiveTerm(TMIMatching(slave, slave_q, k_q=k_q), 1.0),),
+            damping=0.02, saturation="none", null_space="clipped"))
+        plant = Plant(dev)
+        plant.reset(Q0)
+        log = simulate(plant, ctrl, duration=0.5, hand=Hand(HandPath(x0[None]), stiffness=3000.0, damping=20.0))
+        return log, ctrl, fast_loop.last
+
+    a = once(Q_SLAVE.copy())
+    assert a[2] is not None and a[2].ticks == len(a[0]) == 500 and a[0].meta["route"] == "compiled loop (whole tick)"
+    b = once(lambda: Q_SLAVE)  # the route before: ˢM from a callable, read in Python each tick
+    assert b[2] is None and b[0].meta["route"].startswith("python loop (a Jacobian objective")
+    check_same(a[:2], b[:2])
+    assert np.abs(a[0].q[-1] - Q0).max() > 1e-4  # the objective moved the null space
+
+
 def test_teleoperated_ticks_handed_to_python_resume(devices, monkeypatch):
     """Compiled calls that end early hand ticks to the Python loop: the slave, the probe and the state carry on."""
     handed: list[int] = []

@@ -216,14 +216,16 @@ def test_whole_tick_along_a_path_with_reset_and_fallback(rhi4, monkeypatch):
 def test_whole_tick_computes_the_jacobian_objectives(rhi4, saturation, null_space, rng):
     """Chapter 5's Jacobian objectives in the whole tick = the reference (their `gradient_at` in Python), to 1e-10.
 
-    TMI matching to a slave ME that moves every tick, −log μ and −μ, with and without the joint-limit penalty.
+    TMI matching to a slave ME that moves every tick or to a fixed one, −log μ and −μ, with and without the joint-limit
+    penalty.
     """
     slave = rhi.device("rehab_slave")
     qs = np.array([0.4, 1.2])
     for objectives in ((ObjectiveTerm(TMIMatching(slave, lambda: qs, k_q=10.0), 0.02),
                         ObjectiveTerm(Manipulability(log=True, k_q=10.0), 0.05)),
                        (ObjectiveTerm(TMIMatching(slave, lambda: qs), 0.02), ObjectiveTerm(Manipulability(), 0.3),
-                        ObjectiveTerm(Manipulability(k_q=3.0), 0.1))):
+                        ObjectiveTerm(Manipulability(k_q=3.0), 0.1)),
+                       (ObjectiveTerm(TMIMatching(slave, [0.7, 0.9], k_q=10.0), 0.02),)):  # a fixed slave: ˢM held
         kw = dict(primary=ImpedanceControl(damping=0.5), objectives=objectives, saturation=saturation,
                   null_space=null_space)
         fast, ref = _pair(rhi4, **kw)

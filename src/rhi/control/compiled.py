@@ -70,9 +70,11 @@ class CompiledObjective:
             to Ω `desired` + (1 − Ω) `stiff` with the controller's torque weights, Ω from the ASO by `schedule`,
             eqs. 6.14–6.19; both compiled routes), "barrier" (`rhi.control.JointLimitBarrier` with `barrier`;
             the whole tick), "vme_live" (JBLD matching of J^q J^qᵀ to the (m, m) SPD desired that `live()` gives
-            at each tick, e.g. the slave's ME of `rhi.control.TMIMatching`, eq. 5.11; the whole tick) or
+            at each tick, or a fixed `desired` without `live`, e.g. the slave's ME of `rhi.control.TMIMatching`,
+            eq. 5.11; the whole tick) or
             "manipulability" (−log μ(J^q) with `log`, else −μ(J^q), eq. 5.14; the whole tick).
-        desired: (m, m) SPD desired ellipsoid ("vme", "fme"; M_Free^des of "fme_schedule").
+        desired: (m, m) SPD desired ellipsoid ("vme", "fme", "vme_live" without `live`; M_Free^des of
+            "fme_schedule").
         w2: (n,) torque weights 1/T_i² [1/(N m)²] ("fme").
         stiff: (m, m) SPD M_Stiff^des ("fme_schedule").
         schedule: (‖M_Free − M_Stiff‖_F, ε₁, ε₂, ρ [s]) of the transition ("fme_schedule", eqs. 6.15–6.19).

@@ -129,7 +129,7 @@ class TMIMatching:
         self.H = None if H is None else as_array("H", H, shape_tail=(slave.m, slave.m))
         self._plant = slave_q if hasattr(slave_q, "q") and hasattr(slave_q, "device") else None
         self._slave_q = slave_q if callable(slave_q) or self._plant is not None else as_array(
-            "slave_q", slave_q, shape_tail=(slave.n,))
+            "slave_q", slave_q, shape_tail=(slave.n,)).copy()  # fixed: the compiled tick holds its ˢM
         self._cache: tuple[bytes, np.ndarray] | None = None
         self.slave_ellipsoid()  # validate now
 
@@ -185,9 +185,14 @@ class TMIMatching:
         return jbld_velocity_gradient(self.slave_ellipsoid(), J, dJ, self.H)
 
     def compiled(self, device: Device) -> CompiledObjective | None:
-        """VME matching of J^q J^qᵀ to ˢM read at each tick (the whole compiled tick); None with H or a penalised ˢM."""
+        """VME matching of J^q J^qᵀ to ˢM (the whole compiled tick); None with H or a penalised ˢM.
+
+        ˢM is read at each tick from a callable or a plant, and held as `desired` for a fixed configuration.
+        """
         if self.H is not None or (self.penalize_slave and self.k_q is not None):
             return None
+        if self._plant is None and not callable(self._slave_q):
+            return CompiledObjective("vme_live", penalty=self.k_q, desired=self.slave_ellipsoid())
         return CompiledObjective("vme_live", penalty=self.k_q, live=self.slave_ellipsoid, slave=self._plant)
 
 

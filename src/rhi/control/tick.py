@@ -140,7 +140,8 @@ class KernelTick:
                 static.append((gain, c.w2, c.desired))
             elif c is not None and c.kind in ("vme_live", "manipulability"):
                 code = _objectives.JBLD if c.kind == "vme_live" else _objectives.LOG_MU if c.log else _objectives.MU
-                jac.append((code, gain, c.penalty or 0.0, dev.q_min, dev.q_max, np.eye(m)))
+                D = np.eye(m) if c.desired is None else c.desired  # a live one is written before each tick
+                jac.append((code, gain, c.penalty or 0.0, dev.q_min, dev.q_max, D))
                 live.append(c)
             else:
                 python.append(type(obj).__name__)
