@@ -5,9 +5,13 @@ from __future__ import annotations
 import numpy as np
 
 from rhi import metrics
-from rhi._validate import as_array, unit_vector
+from rhi._validate import as_array
 from rhi.devices.model import Device
-from rhi.errors import Singular
+from rhi.errors import InvalidInput
+
+_MX = "apparent_inertia M_x [kg] (3.12)"
+_FME = "force_ellipsoid M̂ (6.9)"
+_LP = "max_force (LP, dynamic projector) [N]"
 
 
 def all_measures(device: Device, q, u=None, *, exact_force: bool = True) -> dict[str, object]:
@@ -27,47 +31,39 @@ def all_measures(device: Device, q, u=None, *, exact_force: bool = True) -> dict
         listed under "undefined (singular J)".
     """
     q = as_array("q", q, shape_tail=(device.n,))
-    u = np.eye(device.m)[0] if u is None else unit_vector("u", u, device.m)
-    J = device.jacobian(q)
-    M = device.mass_matrix(q)
+    if q.ndim != 1:
+        raise InvalidInput(f"q: expected shape ({device.n},) (one configuration), got {q.shape}")
+    u = np.eye(device.m)[0] if u is None else u
+    th = device._theta(q)
+    J = device.jacobian_theta(th)
     lo, hi = device.torque_limits
-    tmax = np.maximum(np.abs(lo), np.abs(hi))
-    vme = metrics.velocity_ellipsoid(J)
-    rank = int(np.linalg.matrix_rank(J))
-    undefined: list[str] = []
-
-    def full_rank(key: str, fn):
-        try:
-            return fn()
-        except Singular:
-            undefined.append(key)
-            return None
-
+    lp = exact_force and device.n > device.m
+    r = metrics.measure_all(J, device._mass1(th), u, torque_min=lo, torque_max=hi, lp=lp)
+    undefined = [key for key, value in ((_MX, r.apparent_inertia), (_FME, r.force_ellipsoid)) if value is None]
     out: dict[str, object] = {
         "device": device.name,
         "q": q.tolist(),
-        "u": u.tolist(),
-        "singular": rank < device.m,
-        "rank J": rank,
-        "x [m]": device.fk(q).tolist(),
-        "within_limits": bool(device.within_limits(q)),
+        "u": r.u.tolist(),
+        "singular": r.rank < device.m,
+        "rank J": r.rank,
+        "x [m]": device.fk_theta(th).tolist(),
+        "within_limits": bool(device._within(q)),
         "J": J.tolist(),
-        "velocity_ellipsoid JJᵀ (3.5)": vme.tolist(),
-        "effective_manipulability ρ (3.6)": float(metrics.effective_manipulability(J, u)),
-        "effective_inertia Λ [kg] (3.13)": float(metrics.effective_inertia(J, M, u)),
-        "apparent_inertia M_x [kg] (3.12)": full_rank(
-            "apparent_inertia M_x [kg] (3.12)", lambda: metrics.apparent_inertia(J, M).tolist()),
-        "manipulability μ (4.7)": float(metrics.manipulability(J)),
-        "isotropy 1/κ (4.9)": float(metrics.isotropy(J)),
-        "velocity_transmission σ (4.4)": float(metrics.velocity_transmission(J, u)),
-        "reflected_friction λ (4.6)": float(metrics.reflected_friction(J, u)),
-        "force_ellipsoid M̂ (6.9)": full_rank("force_ellipsoid M̂ (6.9)", lambda: metrics.force_ellipsoid(J, tmax).tolist()),
-        "directional_manipulability DM [N] (A.8)": float(metrics.directional_manipulability(J, u, tmax)),
-        "max_force_scaling [N]": float(metrics.max_force_scaling(J, u, torque_min=lo, torque_max=hi)),
+        "velocity_ellipsoid JJᵀ (3.5)": r.velocity_ellipsoid.tolist(),
+        "effective_manipulability ρ (3.6)": r.effective_manipulability,
+        "effective_inertia Λ [kg] (3.13)": r.effective_inertia,
+        _MX: None if r.apparent_inertia is None else r.apparent_inertia.tolist(),
+        "manipulability μ (4.7)": r.manipulability,
+        "isotropy 1/κ (4.9)": r.isotropy,
+        "velocity_transmission σ (4.4)": r.effective_manipulability,
+        "reflected_friction λ (4.6)": r.reflected_friction,
+        _FME: None if r.force_ellipsoid is None else r.force_ellipsoid.tolist(),
+        "directional_manipulability DM [N] (A.8)": r.directional_manipulability,
+        "max_force_scaling [N]": r.max_force_scaling,
     }
-    if exact_force and device.n > device.m:
-        key = "max_force (LP, dynamic projector) [N]"
-        out[key] = full_rank(key, lambda: float(
-            metrics.max_force(J, u, torque_min=lo, torque_max=hi, projector="dynamic", M=M)))
+    if lp:
+        out[_LP] = r.max_force
+        if r.max_force is None:
+            undefined.append(_LP)
     out["undefined (singular J)"] = undefined
     return out

@@ -174,18 +174,24 @@ class Device:
 
     def within_limits(self, q, tol: float = 1e-9) -> np.ndarray:
         """Whether q: (..., n) satisfies the box and linear joint limits. Returns (...,) bool."""
-        q = self._q(q)
+        return self._within(self._q(q), tol)
+
+    def _within(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+        """`within_limits` of a checked q: (..., n)."""
         ok = np.all((q >= self.q_min - tol) & (q <= self.q_max + tol), axis=-1)
         if self.linear_limits is not None:
-            L = self.linear_limits
-            c = q @ L.C.T
+            L, c = self.linear_limits, q @ self.linear_limits.C.T
             ok &= np.all((c >= L.lower - tol) & (c <= L.upper + tol), axis=-1)
         return ok
 
     # ------------------------------------------------------------ kinematics
     def theta(self, q) -> np.ndarray:
         """Chain coordinates θ = A q + b: (..., nθ)."""
-        return self._q(q) @ self.A.T + self.b
+        return self._theta(self._q(q))
+
+    def _theta(self, q: np.ndarray) -> np.ndarray:
+        """`theta` of a checked q: (..., n)."""
+        return q @ self.A.T + self.b
 
     def fk(self, q) -> np.ndarray:
         """End-effector position in the world frame: (..., m) [m]."""

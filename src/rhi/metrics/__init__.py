@@ -26,9 +26,11 @@ from rhi.metrics.inertia import apparent_inertia, effective_inertia
 from rhi.metrics.inverses import dynamic_pinv, nullspace_projector, velocity_nullspace_projector, weighted_pinv
 from rhi.metrics.limits import joint_limit_penalty, penalized_jacobian
 from rhi.metrics.spd import desired_fme, desired_vme, jbld
+from rhi.metrics.summary import Measures, measure_all
 from rhi.metrics.teleop import joint_energy, teleoperation_ellipsoid, tmi
 
 __all__ = [
+    "Measures",
     "SINGULAR_RTOL",
     "apparent_inertia",
     "desired_fme",
@@ -48,6 +50,7 @@ __all__ = [
     "manipulability",
     "max_force",
     "max_force_scaling",
+    "measure_all",
     "nullspace_projector",
     "penalized_jacobian",
     "reflected_friction",

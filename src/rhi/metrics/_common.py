@@ -193,7 +193,7 @@ def inverse_gram(name: str, B: FloatArray) -> FloatArray:
     return 0.5 * (out + out.swapaxes(-1, -2))
 
 
-def _pad_axes(s: FloatArray, m: int) -> FloatArray:
+def pad_axes(s: FloatArray, m: int) -> FloatArray:
     """Zero-pad the singular values ``s`` (..., k) of an (..., m, k) map to m semi-axes."""
     k = s.shape[-1]
     return s if k >= m else np.concatenate([s, np.zeros(s.shape[:-1] + (m - k,))], axis=-1)
@@ -292,7 +292,7 @@ def singular_values(B: FloatArray) -> FloatArray:
         return singular_values2(B)
     if _jacobi(B):
         return _svd_rows(B, False)[0]
-    return _pad_axes(np.linalg.svd(B, compute_uv=False), B.shape[-2])
+    return pad_axes(np.linalg.svd(B, compute_uv=False), B.shape[-2])
 
 
 def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -310,7 +310,7 @@ def principal_axes_of_map(B: FloatArray) -> tuple[FloatArray, FloatArray]:
     if _jacobi(B):
         return _svd_rows(B, True)
     U, s, _ = np.linalg.svd(B, full_matrices=True)
-    return _pad_axes(s, B.shape[-2]), U
+    return pad_axes(s, B.shape[-2]), U
 
 
 def principal_axes_of_psd(name: str, A: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -349,6 +349,23 @@ def radius_along(s: FloatArray, U: FloatArray, u: FloatArray) -> FloatArray:
     q = (w * w).sum(axis=-1)  # s_max² uᵀA⁻¹u, in [|c|², |c|² / SINGULAR_RTOL²]
     nonzero = (q > 0) & ~blocked
     return np.where(nonzero, top[..., 0] / np.sqrt(np.where(nonzero, q, 1.0)), 0.0)
+
+
+def gram(B: FloatArray) -> FloatArray:
+    """The symmetric ``B Bᵀ`` (..., m, m) of B (..., m, n) (symmetrised against round-off)."""
+    A = B @ B.swapaxes(-1, -2)
+    return 0.5 * (A + A.swapaxes(-1, -2))
+
+
+def inverse_transmitted(B: FloatArray, u: FloatArray) -> FloatArray:
+    """``1 / |Bᵀu|`` (...,) of B (..., m, n) along unit u (..., m), ``inf`` where ``|Bᵀu| <= SINGULAR_RTOL |B|_F``."""
+    return inverse_norm(np.einsum("...ij,...i->...j", B, u), frobenius_norm(B))
+
+
+def axis_ratio(s: FloatArray) -> FloatArray:
+    """Shortest over longest of the descending semi-axes ``s`` (..., m): 1/κ, 0 for a zero ellipsoid."""
+    nonzero = s[..., 0] > 0
+    return np.where(nonzero, s[..., -1] / np.where(nonzero, s[..., 0], 1.0), 0.0)
 
 
 def inverse_norm(v: FloatArray, scale: FloatArray) -> FloatArray:

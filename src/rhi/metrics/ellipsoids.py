@@ -13,10 +13,11 @@ from numpy.typing import ArrayLike
 from rhi.errors import InvalidInput, Singular
 from rhi.metrics._common import (
     FloatArray,
+    axis_ratio,
     direction,
-    frobenius_norm,
+    gram,
     inverse_gram,
-    inverse_norm,
+    inverse_transmitted,
     jacobian,
     principal_axes_of_psd,
     radius_of_map,
@@ -37,9 +38,7 @@ def velocity_ellipsoid(J: ArrayLike) -> FloatArray:
         (..., m, m) symmetric PSD matrix; ``ẋᵀ(JJᵀ)⁻¹ẋ <= 1`` is the set of end-effector
         velocities reachable with ``|q̇| <= 1`` rad/s.
     """
-    J = jacobian("J", J)
-    A = J @ J.swapaxes(-1, -2)
-    return 0.5 * (A + A.swapaxes(-1, -2))
+    return gram(jacobian("J", J))
 
 
 def effective_manipulability(J: ArrayLike, u: ArrayLike) -> FloatArray:
@@ -98,9 +97,7 @@ def reflected_friction(J: ArrayLike, u: ArrayLike) -> FloatArray:
         configuration whose structure carries the load along ``u``).
     """
     J = jacobian("J", J)
-    u = direction("u", u, J.shape[-2])
-    v = np.einsum("...ij,...i->...j", J, u)
-    return inverse_norm(v, frobenius_norm(J))
+    return inverse_transmitted(J, direction("u", u, J.shape[-2]))
 
 
 def manipulability(J: ArrayLike) -> FloatArray:
@@ -155,9 +152,7 @@ def isotropy(J: ArrayLike) -> FloatArray:
         (...,) value in [0, 1]; 1 for an isotropic ``J``, 0 at a singularity, when
         ``n < m`` and for ``J = 0``.
     """
-    s = singular_values(jacobian("J", J))
-    nonzero = s[..., 0] > 0
-    return np.where(nonzero, s[..., -1] / np.where(nonzero, s[..., 0], 1.0), 0.0)
+    return axis_ratio(singular_values(jacobian("J", J)))
 
 
 def force_ellipsoid(J: ArrayLike, torque_max: ArrayLike | None = None) -> FloatArray:
@@ -211,9 +206,7 @@ def directional_manipulability(J: ArrayLike, u: ArrayLike, torque_max: ArrayLike
     if torque_max is None:
         raise InvalidInput("torque_max: required (the (n,) joint torque limits [N m])")
     w = torque_weights("torque_max", torque_max, J.shape[-1])
-    B = J * w[..., None, :]
-    v = np.einsum("...ij,...i->...j", B, u)
-    return inverse_norm(v, frobenius_norm(B))
+    return inverse_transmitted(J * w[..., None, :], u)
 
 
 def ellipsoid_axes(A: ArrayLike) -> tuple[FloatArray, FloatArray]:

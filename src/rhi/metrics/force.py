@@ -18,13 +18,8 @@ ProjectorKind = Literal["dynamic", "pseudoinverse"]
 Projector = ProjectorKind | None
 
 
-def _setup(
-    J: ArrayLike, u: ArrayLike, torque_min: ArrayLike, torque_max: ArrayLike
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Validate and return ``(J, t = Jᵀu, lo, hi)``."""
-    J = jacobian("J", J)
-    m, n = J.shape[-2:]
-    u = direction("u", u, m)
+def torque_box(torque_min: ArrayLike, torque_max: ArrayLike, n: int) -> tuple[FloatArray, FloatArray]:
+    """The checked limits ``(torque_min, torque_max)``, each (..., n) [N m], with ``torque_min <= 0 <= torque_max``."""
     lo, hi = limits_pair("torque_min", torque_min, "torque_max", torque_max, n)
     lo = as_array("torque_min", lo, shape_tail=(n,))
     hi = as_array("torque_max", hi, shape_tail=(n,))
@@ -32,6 +27,17 @@ def _setup(
         raise InfeasibleLimits("torque_min: every entry must be <= 0 (zero torque must be admissible)")
     if (hi < 0).any():
         raise InfeasibleLimits("torque_max: every entry must be >= 0 (zero torque must be admissible)")
+    return lo, hi
+
+
+def _setup(
+    J: ArrayLike, u: ArrayLike, torque_min: ArrayLike, torque_max: ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Validate and return ``(J, t = Jᵀu, lo, hi)``."""
+    J = jacobian("J", J)
+    m, n = J.shape[-2:]
+    u = direction("u", u, m)
+    lo, hi = torque_box(torque_min, torque_max, n)
     try:
         np.broadcast_shapes(J.shape[:-2], u.shape[:-1], lo.shape[:-1], hi.shape[:-1])
     except ValueError:
@@ -40,7 +46,7 @@ def _setup(
     return J, t, lo, hi
 
 
-def _scaling(J: FloatArray, t: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
+def scaling_optimum(J: FloatArray, t: FloatArray, lo: FloatArray, hi: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Closed-form largest ``f >= 0`` with ``lo <= f t <= hi``, and the torque ``f t``."""
     eps = SINGULAR_RTOL * frobenius_norm(J)[..., None]
     pos = t > eps
@@ -86,7 +92,7 @@ def max_force_scaling(
         InfeasibleLimits: ``torque_min > torque_max``, ``torque_min > 0`` or ``torque_max < 0``.
     """
     J, t, lo, hi = _setup(J, u, torque_min, torque_max)
-    f, torque = _scaling(J, t, lo, hi)
+    f, torque = scaling_optimum(J, t, lo, hi)
     return (f, torque) if return_torque else f
 
 
@@ -162,13 +168,31 @@ def max_force(
     if projector != "dynamic" and M is not None:
         raise InvalidInput(f"M: only used with projector='dynamic', got projector={projector!r}")
     J, t, lo, hi = _setup(J, u, torque_min, torque_max)
-    f_s, tau_s = _scaling(J, t, lo, hi)
+    f_s, tau_s = scaling_optimum(J, t, lo, hi)
     if projector is None:
         return (f_s, tau_s) if return_torque else f_s
+    N = nullspace_projector(J, M if projector == "dynamic" else None)
+    force, torque = lp_force(t, N, lo, hi, f_s, tau_s)
+    return (force, torque) if return_torque else force
+
+
+def lp_force(
+    t: FloatArray, N: FloatArray, lo: FloatArray, hi: FloatArray, f_s: FloatArray, tau_s: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The LP of `max_force` on checked arrays: ``(f (...,), torque (..., n))``.
+
+    Args:
+        t: (..., n) ``Jᵀu``.
+        N: (..., n, n) the torque null-space projector.
+        lo: (..., n) lower torque limits [N m].
+        hi: (..., n) upper torque limits [N m].
+        f_s: (...,) the closed-form `max_force_scaling` optimum [N] (kept where the solver's tolerance
+            leaves the LP below it).
+        tau_s: (..., n) its torques [N m].
+    """
     from scipy.optimize import linprog  # deferred: scipy.optimize costs ~0.4 s of `import rhi`
 
-    N = nullspace_projector(J, M if projector == "dynamic" else None)
-    n = J.shape[-1]
+    n = t.shape[-1]
     batch = np.broadcast_shapes(t.shape[:-1], lo.shape[:-1], hi.shape[:-1], N.shape[:-2])
     t_b = np.broadcast_to(t, batch + (n,))
     lo_b = np.broadcast_to(lo, batch + (n,))
@@ -199,4 +223,4 @@ def max_force(
         else:  # solver tolerance below the closed-form feasible point
             force[idx] = f_s[idx]
             torque[idx] = tau_s[idx]
-    return (force, torque) if return_torque else force
+    return force, torque

@@ -10,10 +10,9 @@ from rhi.metrics._common import (
     SMALL_BATCH_MIN,
     FloatArray,
     direction,
-    frobenius_norm,
     inertia_along,
     inverse_gram,
-    inverse_norm,
+    inverse_transmitted,
     jacobian,
     square,
     whitened,
@@ -80,7 +79,5 @@ def effective_inertia(J: ArrayLike, M: ArrayLike, u: ArrayLike) -> FloatArray:
     lead = np.broadcast_shapes(J.shape[:-2], M.shape[:-2], u.shape[:-1])
     if int(np.prod(lead, dtype=np.int64)) >= SMALL_BATCH_MIN:
         return inertia_along("M", J, M, u)
-    B = whitened("M", J, M)
-    v = np.einsum("...ij,...i->...j", B, u)
-    r = inverse_norm(v, frobenius_norm(B))
+    r = inverse_transmitted(whitened("M", J, M), u)
     return r * r

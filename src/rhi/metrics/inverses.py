@@ -23,9 +23,16 @@ def _weighted(J: ArrayLike, Q: ArrayLike | None, q_name: str) -> tuple[FloatArra
     except ValueError:
         raise InvalidInput(f"{q_name}: batch shape {Q.shape[:-2]} does not broadcast with J's {J.shape[:-2]}") from None
     L = cholesky(q_name, Q)
-    B_pinv = full_row_rank_pinv("J", whiten(J, L))  # B = J L^{-T}
-    Lt = np.swapaxes(L, -1, -2)
-    return J, np.linalg.solve(Lt, B_pinv)  # J_dagger = L^{-T} B^+
+    return J, right_inverse(whiten(J, L), L)
+
+
+def right_inverse(B: FloatArray, L: FloatArray) -> FloatArray:
+    """``J† = L⁻ᵀ B⁺`` (..., n, m) from the whitened ``B = J L⁻ᵀ`` (..., m, n) and the factor ``Q = L Lᵀ``.
+
+    Raises:
+        Singular: B loses rank.
+    """
+    return np.linalg.solve(np.swapaxes(L, -1, -2), full_row_rank_pinv("J", B))
 
 
 def weighted_pinv(J: ArrayLike, Q: ArrayLike | None = None) -> FloatArray:
