@@ -12,6 +12,7 @@ Conventions used throughout the subpackage:
 
 from __future__ import annotations
 
+import math
 from typing import Any, overload
 
 import numpy as np
@@ -108,7 +109,7 @@ def whitened(name: str, J: FloatArray, M: FloatArray) -> FloatArray:
     The batch axes of J (..., m, n) and M must broadcast.
     """
     lead = np.broadcast_shapes(J.shape[:-2], M.shape[:-2])
-    if int(np.prod(lead, dtype=np.int64)) < SMALL_BATCH_MIN:
+    if math.prod(lead) < SMALL_BATCH_MIN:
         return whiten(J, cholesky(name, M))
     from rhi.metrics._small import whiten as whiten_batch  # Numba: imported on the first large batch
 
@@ -206,7 +207,7 @@ SMALL_BATCH_MIN = 64
 
 def _batch_count(A: FloatArray) -> int:
     """Number of matrices in the batch A (..., k, l)."""
-    return int(np.prod(A.shape[:-2], dtype=np.int64))
+    return math.prod(A.shape[:-2])
 
 
 def _closed_form(B: FloatArray) -> bool:

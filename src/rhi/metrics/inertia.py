@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -77,7 +79,7 @@ def effective_inertia(J: ArrayLike, M: ArrayLike, u: ArrayLike) -> FloatArray:
     J, M = _checked(J, M)
     u = direction("u", u, J.shape[-2])
     lead = np.broadcast_shapes(J.shape[:-2], M.shape[:-2], u.shape[:-1])
-    if int(np.prod(lead, dtype=np.int64)) >= SMALL_BATCH_MIN:
+    if math.prod(lead) >= SMALL_BATCH_MIN:
         return inertia_along("M", J, M, u)
     r = inverse_transmitted(whitened("M", J, M), u)
     return r * r
