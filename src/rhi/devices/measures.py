@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi import metrics
-from rhi._validate import as_array
+from rhi._validate import as_array, unit_vector
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput
+from rhi.metrics.summary import measure_checked
 
 _MX = "apparent_inertia M_x [kg] (3.12)"
 _FME = "force_ellipsoid M̂ (6.9)"
@@ -33,12 +33,14 @@ def all_measures(device: Device, q, u=None, *, exact_force: bool = True) -> dict
     q = as_array("q", q, shape_tail=(device.n,))
     if q.ndim != 1:
         raise InvalidInput(f"q: expected shape ({device.n},) (one configuration), got {q.shape}")
-    u = np.eye(device.m)[0] if u is None else u
+    u = np.eye(device.m)[0] if u is None else unit_vector("u", u, device.m)
+    if u.ndim != 1:
+        raise InvalidInput(f"u: expected shape ({device.m},), got {u.shape}")
     th = device._theta(q)
     J = device.jacobian_theta(th)
     lo, hi = device.torque_limits
     lp = exact_force and device.n > device.m
-    r = metrics.measure_all(J, device._mass1(th), u, torque_min=lo, torque_max=hi, lp=lp)
+    r = measure_checked(J, device._mass1(th), u, lo, hi, lp=lp)
     undefined = [key for key, value in ((_MX, r.apparent_inertia), (_FME, r.force_ellipsoid)) if value is None]
     out: dict[str, object] = {
         "device": device.name,

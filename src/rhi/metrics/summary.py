@@ -90,8 +90,24 @@ def measure_all(
     lo, hi = torque_box(torque_min, torque_max, n)
     if lo.ndim != 1 or hi.ndim != 1:
         raise InvalidInput(f"torque_min/torque_max: expected shape ({n},), got {lo.shape} and {hi.shape}")
-    w = 1.0 / positive("torque_max", np.maximum(np.abs(lo), np.abs(hi)))
+    positive("torque_max", np.maximum(np.abs(lo), np.abs(hi)))
+    return measure_checked(J, M, u, lo, hi, lp=lp)
 
+
+def measure_checked(J: FloatArray, M: FloatArray, u: FloatArray, lo: FloatArray, hi: FloatArray, *,
+                    lp: bool = False) -> Measures:
+    """`measure_all` of arrays already checked, such as a device's own J, M and limits (no check repeated).
+
+    Args:
+        J: (m, n) finite Jacobian [m/rad].
+        M: (n, n) finite joint-space inertia [kg m²] (`NotSPD` if it is not symmetric positive definite).
+        u: (m,) unit direction.
+        lo: (n,) lower torque limits [N m], each <= 0.
+        hi: (n,) upper torque limits [N m], each >= 0, with max(|lo|, |hi|) > 0 per joint.
+        lp: also solve `max_force`'s linear program.
+    """
+    m, n = J.shape
+    w = 1.0 / np.maximum(np.abs(lo), np.abs(hi))
     U, s, _ = np.linalg.svd(J, full_matrices=True)
     axes = pad_axes(s, m)
     rho = float(radius_along(axes, U, u))
