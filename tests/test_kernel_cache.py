@@ -39,3 +39,29 @@ def test_stamp_follows_every_kernel_file(tmp_path: Path):
         f.write("\n# edited\n")
     assert kernel_cache.stamp(tmp_path) != before
     kernel_cache.stamp.cache_clear()
+
+
+def test_processes_saving_one_index_at_once_keep_every_entry(tmp_path: Path):
+    """Workers saving overloads of one function at once (xdist's, `rhi reproduce`'s): each key keeps its own data."""
+    import multiprocessing
+
+    from numba.core.caching import IndexDataCacheFile
+
+    def cache() -> IndexDataCacheFile:
+        return IndexDataCacheFile(str(tmp_path), "kernel-1.py311", kernel_cache.stamp())
+
+    def save(worker: int, start) -> None:
+        start.wait()
+        for i in range(40):
+            cache().save((worker, i), (worker, i, b"x" * 20000))
+
+    ctx = multiprocessing.get_context("fork")  # the children share this process's installed save
+    start = ctx.Barrier(4)
+    workers = [ctx.Process(target=save, args=(w, start)) for w in range(4)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join(timeout=120)
+    assert [w.exitcode for w in workers] == [0] * 4
+    loaded = {(w, i): cache().load((w, i)) for w in range(4) for i in range(40)}
+    assert all(v is not None and v[:2] == k for k, v in loaded.items()), [k for k, v in loaded.items() if v is None or v[:2] != k]

@@ -19,11 +19,14 @@ that a first use is not two minutes without a word. And it gives Numba's inliner
 function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size).
 `KernelRef` passes a compiled kernel to another as an argument (a function pointer), so that the caller
 is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick).
+Processes that share the cache (test workers, `rhi reproduce`'s workers) save into a function's index one at a
+time (`_save_locked`).
 """
 
 from __future__ import annotations
 
 import copy
+import fcntl
 import functools
 import hashlib
 import re
@@ -141,8 +144,27 @@ class _InlineCopy:
         return getattr(copy, name)
 
 
+#: Numba's own `IndexDataCacheFile.save` (also where this module is imported again after `install`)
+_NUMBA_SAVE = getattr(caching.IndexDataCacheFile.save, "__wrapped__", caching.IndexDataCacheFile.save)
+
+
+def _save_locked(self, key, data) -> None:
+    """Numba's cache save, one process at a time per index: an exclusive lock on a file beside the index.
+
+    Numba's own save reads the index, takes the lowest free data file number, and writes the index and then the
+    data file. Two processes saving two overloads of one function at once (e.g. two controllers' whole ticks, one
+    closure) took the same number: the index kept one key, and it could name the data file of the other overload.
+    """
+    with open(self._index_path + ".lock", "ab") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        _NUMBA_SAVE(self, key, data)
+
+
+_save_locked.__wrapped__ = _NUMBA_SAVE  # type: ignore[attr-defined]
+
+
 def install() -> None:
-    """Stamped locators first in Numba's list, a listener for a first compile, `_InlineCopy` (idempotent)."""
+    """Stamped locators first in Numba's list, a listener for a first compile, `_InlineCopy`, `_save_locked` (idempotent)."""
     classes = caching.CacheImpl._locator_classes
     if classes[:len(_LOCATORS)] != list(_LOCATORS):
         classes[:] = [*_LOCATORS, *(c for c in classes if c not in _LOCATORS)]
@@ -150,6 +172,8 @@ def install() -> None:
         event.register("numba:compile", _LISTENER)
     if not isinstance(inline_closurecall.copy, _InlineCopy):
         inline_closurecall.copy = _InlineCopy()  # type: ignore[assignment]
+    if caching.IndexDataCacheFile.save is not _save_locked:
+        caching.IndexDataCacheFile.save = _save_locked  # type: ignore[method-assign]
 
 
 install()  # before the decorator: the cache refreshes when any kernel source changes
