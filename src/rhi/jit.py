@@ -16,7 +16,9 @@ edit of any of them recompiles every rhi kernel once. Functions outside the rhi 
 locators. Uses Numba's cache-locator classes (``numba.core.caching``). It also listens to Numba's compile
 events: the first compile of an rhi kernel in a process (a cold cache) prints `COLD` once on stderr, so
 that a first use is not two minutes without a word. And it gives Numba's inliner one copy of an inlined
-function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size).
+function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size), copies
+IR blocks without `copy.deepcopy`'s generic dispatch (`_copy`) and runs an inlined rhi function's untyped passes
+once per process (`_untyped_once`; every parts set of the whole tick inlines the same `_whole`).
 `KernelRef` passes a compiled kernel to another as an argument (a function pointer), so that the caller
 is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick).
 Processes that share the cache (test workers, `rhi reproduce`'s workers) save into a function's index one at a
