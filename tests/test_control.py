@@ -754,7 +754,11 @@ def _tick_cases(dev, rng, count):
      ("rhi4", "ascm", "dynamic", "impedance")],
 )
 def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
-    """The fast tick (one Pinocchio pass, projector ASCM) equals the reference composition to 1e-10."""
+    """The fast tick (one Pinocchio pass, projector ASCM) equals the reference composition to 1e-10.
+
+    "lp"'s compiled branch is the active set: its oracle is the reference with that allocation (HiGHS's own vertex:
+    `test_lp_compiled_tick_reaches_the_highs_optimum`).
+    """
     dev = rhi.device(name)
     K, z = fme_shape(dev.jacobian(np.array([0.3, 0.5, 0.2, 0.4])[: dev.n]), dev.torque_max)
     friction = JointFriction(viscous=0.01, coulomb=0.005)
@@ -767,8 +771,9 @@ def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
         saturation=saturation, projector=projector,
     )
     fast = NullSpaceController(dev, ControllerConfig(**kw))
-    ref = NullSpaceController(dev, ControllerConfig(**kw, implementation="reference"))
-    cases = _tick_cases(dev, rng, 60 if saturation == "lp" else 250)
+    ref = NullSpaceController(dev, ControllerConfig(**{**kw, "saturation": "active_set" if saturation == "lp" else saturation},
+                                                    implementation="reference"))
+    cases = _tick_cases(dev, rng, 250)
     held = 0
     for k, (q, dq, F) in enumerate(cases):
         t = k * 1e-3
@@ -784,6 +789,40 @@ def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
     assert not fast.state.stopped and not ref.state.stopped
     if saturation in ("ascm", "scaling") and law == "render":
         assert held > len(cases) // 5  # saturation exercised
+
+
+@pytest.mark.parametrize("projector", ["dynamic", "pseudoinverse"])
+@pytest.mark.parametrize("name", ["rhi4", "planar3r"])
+def test_lp_compiled_tick_reaches_the_highs_optimum(name, projector, rng):
+    """saturation="lp": the compiled tick (the active set) and the reference (HiGHS) reach the same optimum α*.
+
+    Where the optimal face is more than a point they hold other joints (another vertex), so the torques are compared
+    on what is unique: α* (to the relative 1e-6 of `test_active_set_reaches_the_lp_optimum`; measured ≤ 4e-13), the
+    handle force α* F_render + F_extra (to 1e-9 N) and the box. No null-space torque of its own (safety room γ = 1).
+    """
+    dev = rhi.device(name)
+    lo, hi = dev.torque_limits
+    kw = dict(primary=ForceRendering(damping=0.01, passivity=None), damping=0.0, saturation="lp", projector=projector)
+    fast = NullSpaceController(dev, ControllerConfig(**kw))
+    ref = NullSpaceController(dev, ControllerConfig(**kw, implementation="reference"))
+    assert fast.route.name == "whole" and ref.route.name == "reference"
+    saturated = other_vertex = 0
+    for q, dq, F in _tick_cases(dev, rng, 150):
+        fast.reset(), ref.reset()
+        taus = fast.step(0.0, q, dq, {"force": F}), ref.step(0.0, q, dq, {"force": F})
+        kin = dev.terms(q, dq)
+        F_r, F_x = kw["primary"].forces(0.0, kin, {"force": F})
+        Jp_T = kin.Jsharp.T if projector == "dynamic" else np.linalg.pinv(kin.J).T
+        for tau, s in zip(taus, (fast.state, ref.state)):
+            assert not s.stopped and np.all(tau <= hi + 1e-12) and np.all(tau >= lo - 1e-12)
+            if not s.clipped:
+                np.testing.assert_allclose(Jp_T @ tau, Jp_T @ (s.alpha * (kin.J.T @ F_r) + kin.J.T @ F_x), rtol=0,
+                                           atol=1e-9)
+        assert fast.state.alpha == pytest.approx(ref.state.alpha, rel=1e-6, abs=1e-12)
+        saturated += ref.state.alpha < 1.0
+        other_vertex += bool(np.abs(taus[0] - taus[1]).max() > 1e-9)
+    assert saturated > 30  # the allocation acted
+    print(f"{name} {projector}: {saturated} saturated ticks of 150, {other_vertex} on another vertex of the optimal face")
 
 
 def test_ascm_projector_equals_ascm(rng):

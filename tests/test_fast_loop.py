@@ -52,13 +52,13 @@ def rhi4():
     return rhi.device("rhi4")
 
 
-def palpation(dev, passivity=True):
-    """The ch7 controller of benchmarks/bench_sim.py (force rendering, FME schedule, ASO, ASCM)."""
+def palpation(dev, passivity=True, saturation="ascm"):
+    """The ch7 controller of benchmarks/bench_sim.py (force rendering, FME schedule, ASO, ASCM or another allocation)."""
     K, z = fme_shape(dev.jacobian(np.zeros(4)), dev.torque_max, 5.0)
     law = ForceRendering(damping=0.01) if passivity else ForceRendering(damping=0.01, passivity=None)
     return NullSpaceController(dev, ControllerConfig(
         law, objectives=(ObjectiveTerm(FMESchedule(desired_fme_free([0, 1], K, z), desired_fme_stiff([0, 1], K, z)),
-                                       20.0),), saturation="ascm"))
+                                       20.0),), saturation=saturation))
 
 
 def run(dev, make_controller, *, python: bool, duration: float = 0.4, hand="push", physical=None, virtual=True,
@@ -129,6 +129,19 @@ def test_palpation_equals_python_loop(rhi4, monkeypatch, passivity):
     assert none is None
     check_same((log, ctrl), (ref, cref))
     assert np.all(log.t_tick > 0) and np.all(np.isnan(log.t_step))  # timing: per-call averages, not per tick
+
+
+def test_lp_allocation_palpation_equals_python_loop(rhi4, monkeypatch):
+    """ch7.palpation's "lp" case: the LP optimum's compiled branch (the active set) in the compiled loop = the Python loop."""
+    x0 = rhi4.fk(Q0)
+    hand = Hand(HandPath([x0, x0 + [0.01, 0.0], x0 + [0.01, 0.03]], speed=0.05), stiffness=2000.0)
+    make = lambda dev: palpation(dev, saturation="lp")  # noqa: E731
+    log, ctrl, fast = run(rhi4, make, python=False, duration=0.6, hand=hand)
+    assert fast is not None and fast.ticks == len(log) == 600 and log.meta["route"] == "compiled loop (whole tick)"
+    assert np.sum(log.alpha < 1.0) > 50  # the allocation scaled the force
+    ref, cref, none = run(rhi4, make, python=True, duration=0.6, hand=hand, monkeypatch=monkeypatch)
+    assert none is None
+    check_same((log, ctrl), (ref, cref))
 
 
 def test_physical_stop_no_virtual_and_no_hand(rhi4, monkeypatch):

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from rhi.control import (
+    Allocator,
     ControllerConfig,
     FMESchedule,
     ForceRendering,
@@ -25,6 +26,7 @@ from rhi.control import (
     ObjectiveTerm,
     SpringPalpation,
     VMEMatching,
+    allocate_lp,
     compiled as compiled_module,
     registry,
 )
@@ -161,19 +163,19 @@ def test_toy_objective_with_a_compiled_form_runs_compiled(rhi4, toy):
 
 
 def test_off_route_configuration_warns_once_and_the_run_names_it(rhi4, toy):
-    """A configuration off the compiled route (the LP allocation): one warning; the log and summary name the route."""
+    """An allocation without a compiled branch (HiGHS alone): one warning; the log and summary name the route."""
     law = SpringPalpation(stiffness=200.0, x0=rhi4.fk(Q0), damping=1.0, passivity=None)
-    cfg = ControllerConfig(primary=law, saturation="lp")
+    cfg = ControllerConfig(primary=law, saturation=Allocator("lp_highs", allocate_lp))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         ctrls = [NullSpaceController(rhi4, cfg) for _ in range(3)]
     said = [w for w in caught if issubclass(w.category, RouteWarning)]
-    assert len(said) == 1 and "allocation 'lp'" in str(said[0].message), [str(w.message) for w in caught]
+    assert len(said) == 1 and "allocation 'lp_highs'" in str(said[0].message), [str(w.message) for w in caught]
     assert ctrls[0].route.name == "reference"
     plant = Plant(rhi4)
     plant.reset(Q0)
     log = simulate(plant, ctrls[0], duration=0.01)
-    assert log.meta["route"].startswith("python loop") and "allocation 'lp'" in log.meta["route"]
+    assert log.meta["route"].startswith("python loop") and "allocation 'lp_highs'" in log.meta["route"]
     plant.reset(Q0)
     res = run(SimLink(plant), ctrls[1], duration=0.01, realtime=False)
     assert res.summary["route"] == str(ctrls[1].route) and res.log.meta["route"] == str(ctrls[1].route)

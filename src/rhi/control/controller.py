@@ -37,8 +37,8 @@ the kernel knows, the whole tick, passivity layer included, in one compiled call
 one compiled kernel; `rhi.control.tick` and `rhi.control._compiled`) and ``"reference"`` (`rhi.control.reference`:
 per-call Device methods, `null_basis` SVD, `ascm`/`tertiary` on the orthonormal basis,
 `rhi.metrics` projectors) — the readable composition of the equations, kept as the oracle
-the kernel is tested against. A strategy without a compiled branch (``kernel=None``: the LP,
-``saturation="lp"``) runs every tick in the reference.
+the kernel is tested against. A strategy without a compiled branch (``kernel=None``, e.g. one registered
+without one) runs every tick in the reference.
 """
 
 from __future__ import annotations

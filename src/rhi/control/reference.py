@@ -6,7 +6,8 @@ from an SVD (`null_basis`), the configured strategy's `allocate` on that basis (
 `tertiary`, `safety_room` and `held_part`, the objectives' own `gradient(device, q)` and the
 `rhi.metrics` projectors. ``ControllerConfig(implementation="reference")`` runs every tick
 here; the fast controller runs a tick here only where the kernel cannot decide accurately
-(a held set whose projector block is ill-conditioned) and for a strategy without a compiled branch (the LP).
+(a held set whose projector block is ill-conditioned, the LP's start outside the box) and for a strategy without a
+compiled branch.
 """
 
 from __future__ import annotations

@@ -35,7 +35,8 @@ class ControllerConfig:
         damping: null-space joint damping k_D [N m s/rad] (eqs. 3.20, 6.6).
         saturation: the allocation strategy (`rhi.control.allocation`), by name — "none" | "scaling" |
             "ascm" | "lp" | "active_set" (the LP optimum by an active-set method warm-started at ASCM;
-            "lp" solves the same LP with HiGHS) or any registered one — or an `AllocationMethod` itself.
+            "lp": the same optimum, HiGHS in the reference and the active set in the compiled tick) or any
+            registered one — or an `AllocationMethod` itself.
         projector: "dynamic" (J# = M⁻¹Jᵀ(JM⁻¹Jᵀ)⁻¹) or "pseudoinverse" (J⁺).
         torque_min, torque_max: (n,) limits [N m]; None: the device's.
         gravity_compensation: add the null-space part (I − JᵀJ#ᵀ) g(q) of the gravity torque;

@@ -384,9 +384,13 @@ def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
                 W[nw] = i_best
                 nw += 1
                 continue
-        lam = _inv(GW @ GWt) @ g0  # GWᵀ λ = e0 (GW has independent rows)
+        Ginv = _inv(GW @ GWt)
+        lam = Ginv @ g0  # GWᵀ λ = e0 (GW has independent rows)
         i_min = np.argmin(lam)
         if lam[i_min] >= -1e-12:
+            # one step of refinement onto the working set's constraints (GW x = h_W): the steps' rounding leaves
+            # the held joints up to ~1e-11 N m off their limits, which the box clip would turn into a handle force
+            x = x + GWt @ (Ginv @ (h[W[:nw]] - GW @ x))
             return True, x[0] / sa, x[1:].copy()
         for j in range(i_min, nw - 1):
             W[j] = W[j + 1]

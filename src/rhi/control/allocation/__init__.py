@@ -3,8 +3,8 @@
 Every strategy places ``τ(α, y) = α a + b + Z y`` in the torque box (thesis §7.3; the protocol,
 the result type and the registry are `rhi.control.allocation.base`). The bundled strategies:
 ``"none"`` (clip), ``"scaling"`` (simple scaling), ``"ascm"`` (Algorithm 1), ``"lp"`` (the LP
-optimum by HiGHS) and ``"active_set"`` (the same optimum by an active-set method warm-started
-at ASCM). Importing a strategy module registers it: `MODULES` is the registration.
+optimum: HiGHS in the reference, the active set in the compiled tick) and ``"active_set"`` (the same
+optimum by an active-set method warm-started at ASCM). Importing a strategy module registers it: `MODULES` is the registration.
 """
 
 from typing import Literal

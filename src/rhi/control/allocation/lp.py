@@ -1,6 +1,11 @@
 """The LP optimum (``saturation="lp"``): the largest α over every null-space torque, by HiGHS.
 
-No compiled branch: the controller runs every tick of this strategy through `rhi.control.reference`.
+`allocate_lp` (HiGHS) is this strategy's reference: ``implementation="reference"``, the static capability
+(`force_capability`) and the ticks the compiled tick hands back. The compiled tick reaches the same optimum α*
+by the active-set method warm-started at ASCM (its ACTIVE_SET branch, `rhi.control.allocation.active_set`).
+Where the optimal face is more than a point (α* = 1 reached with room to spare, or a degenerate vertex), the two
+return different null-space torques of it; both keep α*, the handle force (J#ᵀ τ = J#ᵀ(α* a + b)) and the box,
+and the tests compare those, not the vertex (HiGHS's choice of vertex is its own).
 """
 
 from __future__ import annotations
@@ -10,6 +15,7 @@ import dataclasses
 import numpy as np
 from scipy.optimize import linprog
 
+from rhi.control import _compiled as kernels
 from rhi.control.allocation.base import Allocation, Allocator, register
 from rhi.control.allocation.scaling import allocate_scaling
 from rhi.control.saturation import check_allocation
@@ -46,6 +52,6 @@ def allocate_lp(a, b, Z, *, torque_min, torque_max) -> Allocation:
     return Allocation(tau, alpha, sat, d, "lp")
 
 
-LP = register(Allocator("lp", allocate_lp))
+LP = register(Allocator("lp", allocate_lp, kernel=kernels.ACTIVE_SET))
 
 __all__ = ["LP", "allocate_lp"]
