@@ -19,9 +19,12 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
+from numba import types
+from numba.extending import intrinsic
+from numba.np.arrayobj import make_array, populate_array
 
 from rhi.control._compiled import passivity
 from rhi.control._compiled.objectives import objectives
@@ -121,6 +124,29 @@ class Parts(NamedTuple):
     passivity: bool
 
 
+@intrinsic
+def _borrowed(typingctx, arr):
+    """The array `arr` with no owner (meminfo NULL): every reference count of it and of its views is a null check.
+
+    Numba counts references to an array's owner with an atomic operation per count, and a tick's code counts hundreds
+    (every argument on entry and exit, every view, every call's arguments): most of its time. The kernel's
+    arguments outlive its call, so within it they need no counting. Only for arrays that outlive every use.
+    """
+    if not isinstance(arr, types.Array):
+        return None
+
+    def codegen(context, builder, sig, args):
+        src = make_array(arr)(context, builder, args[0])
+        dst = make_array(arr)(context, builder)
+        populate_array(dst, data=src.data, shape=src.shape, strides=src.strides, itemsize=src.itemsize, meminfo=None)
+        return dst._getvalue()
+
+    return arr(arr), codegen
+
+
+B: Any = _borrowed  # as the kernels call it (Numba's intrinsic takes the typing context first)
+
+
 @functools.cache
 def whole_for(parts: Parts):
     """The whole tick compiled for one set of `parts`: Numba types and compiles only the branches they use.
@@ -186,10 +212,13 @@ def whole_for(parts: Parts):
                     lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
                     x, buf, F_r, F_x, tau_out, sat, res):
         res[R_DONE] = 0.0
-        status = _whole(t, q, dq, force, (ints, joints, consts, A, b, rows, armature, supports, identity), ready,
-                        at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, (pc, pc_pos, pc_eff), (tank, tank_q, tank_e),
-                        (x, buf, F_r, F_x, tau_out, sat, res), code, scheduled, vme, safe, clipped_null, tank_on,
-                        objectives_on, passivity_on)
+        # the arguments outlive the call: no reference counting of them (or their views) within it
+        status = _whole(t, B(q), B(dq), B(force), (B(ints), B(joints), B(consts), B(A), B(b), B(rows), B(armature),
+                                                   B(supports), identity), ready,
+                        B(at), B(law), B(lo), B(hi), B(prm), B(tr), B(sch), B(vme_D), B(vme_gain), B(obj),
+                        (B(pc), B(pc_pos), B(pc_eff)), (B(tank), B(tank_q), B(tank_e)),
+                        (B(x), B(buf), B(F_r), B(F_x), B(tau_out), B(sat), B(res)), code, scheduled, vme, safe,
+                        clipped_null, tank_on, objectives_on, passivity_on)
         res[R_DONE] = 1.0
         return status
 
