@@ -354,11 +354,8 @@ def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
         if sat0[j]:
             W[nw] = j if tau0[j] >= 0.5 * (hi[j] + lo[j]) else n + j
             nw += 1
-    if alpha0 >= 1.0 - 1e-12 and nw < k:
-        W[nw] = 2 * n
-        nw += 1
-    elif alpha0 <= 1e-12 and nw < k:
-        W[nw] = 2 * n + 1
+    if nw < k and (alpha0 >= 1.0 - 1e-12 or alpha0 <= 1e-12):  # α at its upper or its lower bound
+        W[nw] = 2 * n if alpha0 >= 1.0 - 1e-12 else 2 * n + 1
         nw += 1
     gnorm = np.empty(2 * n + 2)
     for i in range(2 * n + 2):
@@ -387,10 +384,8 @@ def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
         Ginv = _inv(GW @ GWt)
         lam = Ginv @ g0  # GWᵀ λ = e0 (GW has independent rows)
         i_min = np.argmin(lam)
-        if lam[i_min] >= -1e-12:
-            # one step of refinement onto the working set's constraints (GW x = h_W): the steps' rounding leaves
-            # the held joints up to ~1e-11 N m off their limits, which the box clip would turn into a handle force
-            x = x + GWt @ (Ginv @ (h[W[:nw]] - GW @ x))
+        if lam[i_min] >= -1e-12:  # one refinement step onto GW x = h_W: rounding left held joints ~1e-11 N m off
+            x = x + GWt @ (Ginv @ (h[W[:nw]] - GW @ x))  # (the box clip would turn that into a handle force)
             return True, x[0] / sa, x[1:].copy()
         for j in range(i_min, nw - 1):
             W[j] = W[j + 1]
