@@ -16,9 +16,7 @@ edit of any of them recompiles every rhi kernel once. Functions outside the rhi 
 locators. Uses Numba's cache-locator classes (``numba.core.caching``). It also listens to Numba's compile
 events: the first compile of an rhi kernel in a process (a cold cache) prints `COLD` once on stderr, so
 that a first use is not two minutes without a word. And it gives Numba's inliner one copy of an inlined
-function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size), copies
-IR blocks without `copy.deepcopy`'s generic dispatch (`_copy`) and runs an inlined rhi function's untyped passes
-once per process (`_untyped_once`; every parts set of the whole tick inlines the same `_whole`).
+function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size).
 `KernelRef` passes a compiled kernel to another as an argument (a function pointer), so that the caller
 is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick).
 Processes that share the cache (test workers, `rhi reproduce`'s workers) save into a function's index one at a
@@ -36,7 +34,7 @@ import sys
 from pathlib import Path
 
 from numba import njit
-from numba.core import bytecode, caching, event, inline_closurecall, ir, types
+from numba.core import caching, event, inline_closurecall, ir, types
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
@@ -120,55 +118,14 @@ def announced(value: bool = True) -> None:
     _FirstCompile.said = value
 
 
-#: IR nodes `_InlineCopy` copies attribute by attribute (what `copy.deepcopy` does for them, minus its dispatch).
-_NODES = frozenset(c for c in vars(ir).values() if isinstance(c, type) and issubclass(c, (ir.Inst, ir.Arg, ir.Block))
-                   and "__deepcopy__" not in vars(c) and not hasattr(c, "__slots__"))
-#: Values shared by a copy, as `copy.deepcopy` shares the first four (a source location is only read).
-_SHARED = (str, int, float, bool, type(None), ir.Loc)
-
-
-def _copy(x, memo: dict):
-    """`copy.deepcopy` of a piece of Numba IR, 3–5× faster: IR nodes, lists, tuples and dicts copied here."""
-    cls = type(x)
-    if cls in _SHARED:
-        return x
-    y = memo.get(id(x))
-    if y is not None:
-        return y
-    if cls is ir.Var:  # as ir.Var.__deepcopy__
-        y = ir.Var(_copy(x.scope, memo), x.name, x.loc)
-    elif cls in _NODES:
-        y = object.__new__(cls)
-        memo[id(x)] = y
-        y.__dict__.update({k: _copy(v, memo) for k, v in x.__dict__.items()})
-        return y
-    elif cls is list:
-        y = []
-        memo[id(x)] = y
-        y.extend(_copy(v, memo) for v in x)
-        return y
-    elif cls is tuple:
-        y = tuple(_copy(v, memo) for v in x)
-    elif cls is dict:
-        y = {}
-        memo[id(x)] = y
-        y.update((_copy(k, memo), _copy(v, memo)) for k, v in x.items())
-        return y
-    else:
-        return copy.deepcopy(x, memo)
-    memo[id(x)] = y
-    return y
-
-
 class _InlineCopy:
-    """Numba's inliner's ``copy`` module, with a faster copy of IR blocks that share one copy of their scope.
+    """Numba's inliner's ``copy`` module, but the blocks of one copied function share one copy of its scope.
 
     Numba (0.68) inlines a function (``inline="always"``, `jit`'s ``inline=True``) by deep-copying its IR block by
     block, each block with a copy of the function's whole scope (every variable): quadratic in the function's size
     (12 s of the whole tick's cold compile). Here the first block copies the scope once and the function's other
     blocks reuse that copy and its variables, as the blocks of the original share one scope; the inliner then
-    renames the variables by name and gives every block the caller's scope. The blocks are copied by `_copy`
-    (the same copy as `copy.deepcopy`'s, a third of the inliner's time before). Anything else goes to `copy`.
+    renames the variables by name and gives every block the caller's scope. Anything else goes to `copy`.
     """
 
     def __init__(self) -> None:
@@ -181,7 +138,7 @@ class _InlineCopy:
             scope_memo: dict = {}
             copy.deepcopy(x.scope, scope_memo)
             self._last = (x.scope, scope_memo)
-        return _copy(x, dict(self._last[1]))
+        return copy.deepcopy(x, dict(self._last[1]))
 
     def __getattr__(self, name: str):
         return getattr(copy, name)
@@ -206,36 +163,8 @@ def _save_locked(self, key, data) -> None:
 _save_locked.__wrapped__ = _NUMBA_SAVE  # type: ignore[attr-defined]
 
 
-#: Numba's untyped IR of each inlined rhi function, by (function, SSA or not): the same at every call site.
-_UNTYPED: dict = {}
-#: Numba's own `InlineWorker.run_untyped_passes` (also where this module is imported again after `install`)
-_run_untyped = getattr(inline_closurecall.InlineWorker.run_untyped_passes, "__wrapped__",
-                       inline_closurecall.InlineWorker.run_untyped_passes)
-
-
-def _untyped_once(self, func, enable_ssa=False):
-    """`InlineWorker.run_untyped_passes`, once per process for a function of rhi (the inliner copies what it gets).
-
-    Numba runs an inlined function's untyped passes (its own inlining included) at each call site and each
-    compile; for rhi's kernels, whose untyped IR depends only on their code, the first result is kept. Each call
-    gets it under a new function identity (the inliner names the copied variables after it).
-    """
-    if not str(getattr(func, "__module__", "")).startswith("rhi."):
-        return _run_untyped(self, func, enable_ssa)
-    key = (func, enable_ssa)
-    if key not in _UNTYPED:
-        _UNTYPED[key] = _run_untyped(self, func, enable_ssa)
-    self.flags.enable_ssa = enable_ssa  # as Numba's, which sets it on the caller's flags
-    out = copy.copy(_UNTYPED[key])
-    out.func_id = bytecode.FunctionIdentity.from_function(func)
-    return out
-
-
-_untyped_once.__wrapped__ = _run_untyped  # type: ignore[attr-defined]
-
-
 def install() -> None:
-    """Stamped locators, a first-compile listener, `_InlineCopy`, `_save_locked`, `_untyped_once` (idempotent)."""
+    """Stamped locators first in Numba's list, a listener for a first compile, `_InlineCopy`, `_save_locked` (idempotent)."""
     classes = caching.CacheImpl._locator_classes
     if classes[:len(_LOCATORS)] != list(_LOCATORS):
         classes[:] = [*_LOCATORS, *(c for c in classes if c not in _LOCATORS)]
@@ -245,8 +174,6 @@ def install() -> None:
         inline_closurecall.copy = _InlineCopy()  # type: ignore[assignment]
     if caching.IndexDataCacheFile.save is not _save_locked:
         caching.IndexDataCacheFile.save = _save_locked  # type: ignore[method-assign]
-    if inline_closurecall.InlineWorker.run_untyped_passes is not _untyped_once:
-        inline_closurecall.InlineWorker.run_untyped_passes = _untyped_once  # type: ignore[method-assign]
 
 
 install()  # before the decorator: the cache refreshes when any kernel source changes
