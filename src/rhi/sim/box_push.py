@@ -16,12 +16,11 @@ Only the box's mass (26 kg) is in the thesis; every other number here is a readi
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import mujoco
 import numpy as np
 
-from rhi._validate import as_array
+from rhi._validate import as_array, scalar
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput, ModelError
 from rhi.sim.geometry import floor_height
@@ -30,12 +29,6 @@ from rhi.sim.mobile import MobilePlant, SlipModel, Trajectory
 #: The base's velocity servo in the push [N s/m, N m s/rad]: stiff, so that the wheels hold the base against
 #: the push's reaction (eq. A.3: pure rolling, the base moves as commanded); 100 N moves it by 1 mm/s.
 PUSH_BASE_KV = 1e5
-
-
-def _positive(name: str, v: float) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
-        raise InvalidInput(f"{name}: must be a finite number > 0, got {v!r}")
-    return float(v)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -62,7 +55,7 @@ class Box:
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
-            _positive(f"box.{f.name}", getattr(self, f.name))
+            scalar(f"box.{f.name}", getattr(self, f.name), positive=True)
 
 
 def minimum_jerk(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -85,10 +78,8 @@ def push_trajectory(x0, distance: float, *, start: float, duration: float, hold:
     x0 = as_array("x0", x0, shape_tail=(3,))
     if x0.ndim != 1:
         raise InvalidInput(f"x0: expected shape (3,), got {x0.shape}")
-    d, duration, dt = _positive("distance", distance), _positive("duration", duration), _positive("dt", dt)
-    for name, val in (("start", start), ("hold", hold)):
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val) or val < 0:
-            raise InvalidInput(f"{name}: must be a finite number >= 0 [s], got {val!r}")
+    d, duration, dt = (scalar(k, v, positive=True) for k, v in (("distance", distance), ("duration", duration), ("dt", dt)))
+    start, hold = scalar("start", start, nonnegative=True), scalar("hold", hold, nonnegative=True)
     t = np.arange(int(round((start + duration + hold) / dt)) + 1) * dt
     p, v, a = minimum_jerk((t - start) / duration)
     inside = (t > start) & (t < start + duration)
