@@ -224,6 +224,15 @@ def test_a_killed_writer_loses_and_repeats_nothing(tmp_path):
     assert [r["response"] for r in rows] == [str(e["response"]) for e in expect]
 
 
+def test_a_writer_killed_before_enrolment_leaves_no_second_header(tmp_path):
+    """Killed between writing the header and participant.json: the next start enrols afresh, one header."""
+    s = Session(tmp_path, load_protocol("ch3_stiffness_2afc"), "P01", fields={"handedness": "left"})
+    (s.folder / "participant.json").unlink()  # the state a kill at that moment leaves
+    s = Session(tmp_path, load_protocol("ch3_stiffness_2afc"), "P01", fields={"handedness": "left"})
+    s.commit(answer_row(s.plan[0], "P01", s.plan[0].percent, "first"))
+    assert [int(r["trial"]) for r in read_responses(s.folder / "responses.csv")] == [0]
+
+
 def test_simulate_reproduces_ch3_psychophysics_and_analyze_reads_it_back(tmp_path, monkeypatch):
     """`rhi study simulate` of the §3.6 protocol = ch3.psychophysics (same seed, same lookup); analyze = both."""
     from rhi.design import executors

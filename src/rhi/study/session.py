@@ -35,8 +35,8 @@ COLUMNS = ("trial", "subject", "block", "condition", "training", "reference", "s
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 
 
-def _fsync_append(path: Path, text: str) -> None:
-    with open(path, "a", encoding="utf-8", newline="") as fh:
+def _fsync_append(path: Path, text: str, mode: str = "a") -> None:
+    with open(path, mode, encoding="utf-8", newline="") as fh:
         fh.write(text)
         fh.flush()
         os.fsync(fh.fileno())
@@ -161,7 +161,8 @@ class Session:
             self.folder.mkdir(parents=True, exist_ok=True)
             (self.folder / "trials").mkdir(exist_ok=True)
             (self.folder / "protocol.toml").write_text(protocol.text or _no_text(protocol), encoding="utf-8")
-            _fsync_append(self.folder / "responses.csv", _row_text(dict(zip(COLUMNS, COLUMNS))))
+            # "w": a session killed before participant.json exists left at most a header, never a trial
+            _fsync_append(self.folder / "responses.csv", _row_text(dict(zip(COLUMNS, COLUMNS))), mode="w")
             meta = {"id": participant, "protocol": protocol.name, "index": int(index), "seed": [protocol.seed,
                     int(index)], "fields": record, "simulated": simulated, "created": time.time()}
             tmp = meta_path.with_suffix(".tmp")
