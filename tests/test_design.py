@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+import rhi
 from rhi.design import (
     DesignProblem,
     DeviceMaster,
@@ -88,6 +89,44 @@ def test_closed_form_phantom3_matches_device_ik():
     ea, eb = evaluate(fast, x), evaluate(slow, x)
     for k in ea:
         assert ea[k] == pytest.approx(eb[k], rel=1e-6)
+
+
+def _plane_reached(l2: float, z: float, r: np.ndarray) -> np.ndarray:
+    """Whether phantom3 reaches (r, z) on its vertical plane (r: (k,) [m]; z [m]).
+
+    Both elbow branches of (r, z) = l1 (c2, s2) + l2 (s3, −c3) (eq. 4.25b integrated), each checked against the
+    device's θ2, θ3 and parallelogram limits.
+    """
+    dev = rhi.device("phantom3")
+    q_min, q_max, lin = dev.q_min, dev.q_max, dev.linear_limits
+    l1 = Phantom3Master().l1
+    out = np.zeros(len(r), dtype=bool)
+    c = (r**2 + z**2 - l1**2 - l2**2) / (2 * l1 * l2)  # cos of the angle from link 1 to link 2
+    for sign in (1.0, -1.0):
+        rel = sign * np.arccos(np.clip(c, -1, 1))
+        t2 = np.arctan2(z, r) - np.arctan2(l2 * np.sin(rel), l1 + l2 * np.cos(rel))
+        t3 = t2 + rel + np.pi / 2  # link 2 points along (sin θ3, −cos θ3) = (cos(θ3 − 90°), sin(θ3 − 90°))
+        t3 = (t3 + np.pi) % (2 * np.pi) - np.pi
+        out |= ((np.abs(c) <= 1) & (t2 >= q_min[1] - 1e-12) & (t2 <= q_max[1] + 1e-12) & (t3 >= q_min[2] - 1e-12)
+                & (t3 <= q_max[2] + 1e-12) & (t2 - t3 >= lin.lower[0] - 1e-12) & (t2 - t3 <= lin.upper[0] + 1e-12))
+    return out
+
+
+@pytest.mark.parametrize(("l2", "z"), [(0.165, 0.0539), (0.269, -0.065), (0.365, -0.2162), (0.365, -0.51), (0.2, 0.15)])
+def test_radial_range_is_the_interval_the_hi_reaches(l2, z):
+    """r0 = "auto" places W's centre mid-way in this interval: its ends are reached, and nothing beyond them is.
+
+    The θ2 grid it was once computed on (2001 values) fell short of the outer end by 0.12 mm at §4.4's first
+    round (0.35370 instead of 0.35382 m), so §4.4's optima were found at a misplaced centre.
+    """
+    lo, hi = Phantom3Master().radial_range({"l2": l2, "z_ph": z})
+    r = np.linspace(1e-6, Phantom3Master().l1 + l2, 200_001)
+    reached = r[_plane_reached(l2, z, r)]
+    assert reached.size > 1000
+    assert lo <= reached.min() and reached.max() <= hi
+    assert _plane_reached(l2, z, np.array([hi - 1e-7, lo + 1e-7])).all()
+    assert not _plane_reached(l2, z, np.array([hi + 1e-6])).any()
+    assert lo < 1e-6 or not _plane_reached(l2, z, np.array([lo - 1e-6])).any()
 
 
 def test_compiled_planar_indices_match_the_metrics_composition():

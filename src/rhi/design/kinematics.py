@@ -127,15 +127,16 @@ class Phantom3Master:
     def _limits(self) -> tuple[np.ndarray, np.ndarray, float, float]:
         return _phantom3_limits()
 
-    def radial_range(self, params: Mapping[str, float], n: int = 2001) -> tuple[float, float]:
+    def radial_range(self, params: Mapping[str, float]) -> tuple[float, float]:
         """(min, max) horizontal distance from the yaw axis reachable on the plane z = z_ph within the limits [m].
 
-        Solves z_ph = l1 s2 − l2 c3 for θ3 on a grid of n values of θ2 (both elbow branches)
-        and keeps the joint-feasible solutions; (0, 0) if the plane is out of reach. Memoised
-        on (l1, l2, z_ph, n): a θz-only design evaluates it once.
+        Exact: on the plane, r = l1 c2 + l2 s3 has no stationary point inside the joint-limit polygon of
+        (θ2, θ3) (its Jacobian with z has determinant −l1 l2 cos(θ2 − θ3) ≠ 0 there, as |θ2 − θ3| <= 55°),
+        so its extremes lie where the curve z_ph = l1 s2 − l2 c3 crosses an edge of the polygon: θ2 or θ3
+        at a limit, or θ2 − θ3 at the parallelogram limit. (0, 0) if the plane is out of reach. Memoised
+        on (l1, l2, z_ph): a θz-only design evaluates it once.
         """
-        return _radial_range(float(self.l1), float(params.get("l2", 0.165)), float(params.get("z_ph", 0.0539)),
-                             int(n))
+        return _radial_range(float(self.l1), float(params.get("l2", 0.165)), float(params.get("z_ph", 0.0539)))
 
     def solve(self, params: Mapping[str, float], targets: np.ndarray) -> Solution:
         """IK at world targets (N, 2) [m] on the plane z = z_ph; J: (N, 2, 3) = [[cz, −sz, 0], [sz, cz, 0]] J_PH."""
@@ -155,24 +156,14 @@ class Phantom3Master:
                 raise InvalidInput(f"l2: link lengths must be positive, got l1={l1}, l2={l2_i}")
             per.append((l2_i, np.cos(tz_i), np.sin(tz_i), z_i))
         l2, cz, sz, z = (np.array(v, dtype=float)[:, None] for v in zip(*per, strict=True))
-        q_min, q_max, lin_lo, lin_hi = self._limits()
+        q_min, q_max, _, _ = self._limits()
         t = np.asarray(targets, dtype=float)
         xb = cz * t[..., 0] + sz * t[..., 1]  # world -> HI base frame (inverse yaw)
         yb = -sz * t[..., 0] + cz * t[..., 1]
         th1 = np.arctan2(yb, xb)
-        r = np.hypot(xb, yb)
-        d2 = r**2 + z**2
-        cd = (d2 - l1**2 - l2**2) / (2 * l1 * l2)
-        reach = np.abs(cd) <= 1.0
-        delta = np.arccos(np.clip(cd, -1.0, 1.0))  # α − β = θ2 − θ3 + 90° in [0, π]
-        alpha = np.arctan2(z, r) - np.arctan2(-l2 * np.sin(delta), l1 + l2 * np.cos(delta))
-        th2 = alpha
-        th3 = alpha - delta + np.pi / 2
+        th2, th3, ok = _plane_ik(l1, l2, np.hypot(xb, yb), z)
         q = np.stack([th1, th2, th3], -1)
-        tol = 1e-9
-        ok = reach & np.all((q >= q_min - tol) & (q <= q_max + tol), axis=-1)
-        lin = th2 - th3
-        ok &= (lin >= lin_lo - tol) & (lin <= lin_hi + tol)
+        ok &= (th1 >= q_min[0] - _TOL) & (th1 <= q_max[0] + _TOL)
         s1, c1, s2, c2, s3, c3 = np.sin(th1), np.cos(th1), np.sin(th2), np.cos(th2), np.sin(th3), np.cos(th3)
         a = l1 * c2 + l2 * s3
         J = np.empty(t.shape[:-1] + (2, 3))
@@ -186,30 +177,60 @@ class Phantom3Master:
 _LIMITS_CACHE: dict[str, tuple] = {}
 
 
-@functools.lru_cache(maxsize=8)
-def _radial_grid(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """θ2 grid (n,) over its limits with its sine and cosine (they do not depend on the design)."""
-    q_min, q_max, _, _ = _phantom3_limits()
-    th2 = np.linspace(q_min[1], q_max[1], n)
-    return th2, np.sin(th2), np.cos(th2)
+_TOL = 1e-9  # joint-limit tolerance of the IK [rad]
+
+
+def _plane_ik(l1: float, l2: float | np.ndarray, r: float | np.ndarray, z: float | np.ndarray,
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(θ2, θ3, ok) reaching (r, z) on the HI's vertical plane, within the θ2, θ3 and parallelogram limits.
+
+    The elbow branch is unique: the parallelogram limit keeps θ2 − θ3 + 90° in [35°, 145°]. Broadcasts.
+    """
+    q_min, q_max, lo, hi = _phantom3_limits()
+    cd = (r**2 + z**2 - l1**2 - l2**2) / (2 * l1 * l2)
+    delta = np.arccos(np.clip(cd, -1.0, 1.0))  # α − β = θ2 − θ3 + 90° in [0, π]
+    th2 = np.arctan2(z, r) - np.arctan2(-l2 * np.sin(delta), l1 + l2 * np.cos(delta))
+    th3 = th2 - delta + np.pi / 2
+    ok = ((np.abs(cd) <= 1.0) & (th2 >= q_min[1] - _TOL) & (th2 <= q_max[1] + _TOL) & (th3 >= q_min[2] - _TOL)
+          & (th3 <= q_max[2] + _TOL) & (th2 - th3 >= lo - _TOL) & (th2 - th3 <= hi + _TOL))
+    return th2, th3, ok
 
 
 @functools.lru_cache(maxsize=4096)
-def _radial_range(l1: float, l2: float, z: float, n: int) -> tuple[float, float]:
+def _radial_range(l1: float, l2: float, z: float) -> tuple[float, float]:
+    """`Phantom3Master.radial_range`: the edge crossings of the level curve, then which gaps between them are reached."""
     q_min, q_max, lo, hi = _phantom3_limits()
-    th2, s2, c2 = _radial_grid(n)
-    c3 = (l1 * s2 - z) / l2
-    valid = np.abs(c3) <= 1
-    a = np.arccos(np.clip(c3, -1, 1))
-    sa = np.sin(a)
-    x2 = l1 * c2
-    parts = []
-    for th3, s3 in ((a, sa), (-a, -sa)):  # both elbow branches (sin is odd)
-        ok = valid & (th3 >= q_min[2]) & (th3 <= q_max[2]) & (th2 - th3 >= lo) & (th2 - th3 <= hi)
-        parts.append((x2 + l2 * s3)[ok])
-    r = np.concatenate(parts)
-    r = r[r > 0]
-    return (float(r.min()), float(r.max())) if r.size else (0.0, 0.0)
+    th2: list[float] = []
+    th3: list[float] = []
+    for b2 in q_min[1], q_max[1]:  # θ2 at a limit: c3 = (l1 s2 − z) / l2
+        c3 = (l1 * np.sin(b2) - z) / l2
+        if abs(c3) <= 1:
+            th2 += [b2, b2]
+            th3 += [np.arccos(c3), -np.arccos(c3)]
+    for b3 in q_min[2], q_max[2]:  # θ3 at a limit: s2 = (z + l2 c3) / l1
+        s2 = (z + l2 * np.cos(b3)) / l1
+        if abs(s2) <= 1:
+            th2 += [np.arcsin(s2), np.pi - np.arcsin(s2)]
+            th3 += [b3, b3]
+    for d in lo, hi:  # θ3 = θ2 − d: (l1 − l2 sin d) s2 − l2 cos d c2 = R sin(θ2 + φ) = z
+        a, b = l1 - l2 * np.sin(d), -l2 * np.cos(d)
+        R, phi = np.hypot(a, b), np.arctan2(b, a)
+        if abs(z) <= R:
+            for t in np.arcsin(z / R) - phi, np.pi - np.arcsin(z / R) - phi:
+                th2.append(t)
+                th3.append(t - d)
+    t2 = (np.asarray(th2) + np.pi) % (2 * np.pi) - np.pi
+    t3 = (np.asarray(th3) + np.pi) % (2 * np.pi) - np.pi
+    on = ((t2 >= q_min[1] - _TOL) & (t2 <= q_max[1] + _TOL) & (t3 >= q_min[2] - _TOL) & (t3 <= q_max[2] + _TOL)
+          & (t2 - t3 >= lo - _TOL) & (t2 - t3 <= hi + _TOL))
+    # the reached r form intervals whose ends are these crossings (or r = 0): keep the gaps whose middle is reached
+    ends = np.unique(np.concatenate([[0.0], (l1 * np.cos(t2) + l2 * np.sin(t3))[on]]))
+    ends = ends[ends >= 0]
+    mid = 0.5 * (ends[:-1] + ends[1:])
+    reached = _plane_ik(l1, l2, mid, z)[2]
+    if not reached.any():
+        return (0.0, 0.0)
+    return (float(ends[:-1][reached].min()), float(ends[1:][reached].max()))
 
 
 def _phantom3_limits() -> tuple[np.ndarray, np.ndarray, float, float]:
