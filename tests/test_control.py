@@ -50,7 +50,7 @@ from rhi.control import (
     tertiary_projector,
     transition_step,
 )
-from rhi.control.allocation import Saturation, allocate_active_set, method_names, register
+from rhi.control.allocation import LPOptimum, Saturation, allocate_active_set, method_names, ramp_peak, register
 from rhi.errors import InfeasibleLimits, InvalidInput, NotSPD, Singular
 from rhi.metrics import apparent_inertia, dynamic_pinv, force_ellipsoid, nullspace_projector
 
@@ -565,8 +565,12 @@ def test_allocation_strategies_are_one_registry(planar3r, rng):
     which both implementations run (through the reference: it has no compiled branch).
     """
     assert set(typing.get_args(Saturation)) == set(method_names())  # a bundled strategy is in both
-    for name in typing.get_args(Saturation):
+    for name in set(typing.get_args(Saturation)) - {"active_set"}:
         assert allocation_method(name).name == name
+    # "active_set" is an alias: the LP optimum with the active-set solver in Python
+    assert allocation_method("active_set") == LPOptimum(solver="active_set") and allocation_method("lp") == LPOptimum()
+    with pytest.raises(InvalidInput, match="solver"):
+        LPOptimum(solver="simplex")  # type: ignore[arg-type]
     with pytest.raises(InvalidInput, match="saturation"):
         allocation_method("magic")
     with pytest.raises(InvalidInput, match="already registered"):
@@ -588,11 +592,16 @@ def test_allocation_strategies_are_one_registry(planar3r, rng):
         want = scaling.step(k * 1e-3, q, np.zeros(3), {"force": 0.5 * F})
         for c in new:
             np.testing.assert_allclose(c.step(k * 1e-3, q, np.zeros(3), {"force": F}), want, atol=1e-12)
-    # the capability of the active set (the LP optimum by another method) is the LP's
+    # the capability of the LP optimum is HiGHS's whatever the solver, and the active set's ramp reaches it
     J = planar3r.jacobian(np.array([0.3, 0.5, 0.2]))
     lim = dict(torque_min=planar3r.torque_min, torque_max=planar3r.torque_max, projector="pseudoinverse")
-    assert force_capability(J, [0.0, 1.0], method="active_set", **lim) == pytest.approx(
-        force_capability(J, [0.0, 1.0], method="lp", **lim), rel=1e-9)
+    f_lp = force_capability(J, [0.0, 1.0], method="lp", **lim)
+    assert force_capability(J, [0.0, 1.0], method="active_set", **lim) == f_lp
+    t, Z, box = J.T @ [0.0, 1.0], null_basis(J), dict(torque_min=planar3r.torque_min, torque_max=planar3r.torque_max)
+    f_s = force_capability(J, [0.0, 1.0], method="scaling", **lim)
+    assert f_s < f_lp * (1 - 1e-3)  # the null space adds force here
+    assert ramp_peak(lambda f: allocate_active_set(f * t, np.zeros(3), Z, **box).alpha, f_s, f_lp, 41) == pytest.approx(
+        f_lp, rel=1e-9)
     with pytest.raises(InvalidInput, match="method"):
         force_capability(J, [0.0, 1.0], method="none", **lim)
 
@@ -749,15 +758,14 @@ def _tick_cases(dev, rng, count):
     [("rhi4", "ascm", "dynamic", "render"), ("rhi4", "ascm", "pseudoinverse", "render"),
      ("planar3r", "ascm", "dynamic", "render"), ("rhi4", "scaling", "dynamic", "render"),
      ("rhi4", "none", "dynamic", "render"), ("rhi4", "lp", "dynamic", "render"),
-     ("rhi4", "active_set", "dynamic", "render"),
-     ("planar3r", "active_set", "pseudoinverse", "render"),
+     ("planar3r", "lp", "pseudoinverse", "render"),
      ("rhi4", "ascm", "dynamic", "impedance")],
 )
 def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
     """The fast tick (one Pinocchio pass, projector ASCM) equals the reference composition to 1e-10.
 
-    "lp"'s compiled branch is the active set: its oracle is the reference with that allocation (HiGHS's own vertex:
-    `test_lp_compiled_tick_reaches_the_highs_optimum`).
+    "lp"'s compiled branch is the active set: its oracle is the reference with that solver,
+    ``LPOptimum(solver="active_set")`` (HiGHS's own vertex: `test_lp_compiled_tick_reaches_the_highs_optimum`).
     """
     dev = rhi.device(name)
     K, z = fme_shape(dev.jacobian(np.array([0.3, 0.5, 0.2, 0.4])[: dev.n]), dev.torque_max)
@@ -771,8 +779,8 @@ def test_fast_tick_equals_reference(name, saturation, projector, law, rng):
         saturation=saturation, projector=projector,
     )
     fast = NullSpaceController(dev, ControllerConfig(**kw))
-    ref = NullSpaceController(dev, ControllerConfig(**{**kw, "saturation": "active_set" if saturation == "lp" else saturation},
-                                                    implementation="reference"))
+    oracle = LPOptimum(solver="active_set") if saturation == "lp" else saturation
+    ref = NullSpaceController(dev, ControllerConfig(**{**kw, "saturation": oracle}, implementation="reference"))
     cases = _tick_cases(dev, rng, 250)
     held = 0
     for k, (q, dq, F) in enumerate(cases):

@@ -34,9 +34,8 @@ class ControllerConfig:
             scheduled by the ASO (`rhi.control.schedule`, e.g. `FMESchedule`).
         damping: null-space joint damping k_D [N m s/rad] (eqs. 3.20, 6.6).
         saturation: the allocation strategy (`rhi.control.allocation`), by name — "none" | "scaling" |
-            "ascm" | "lp" | "active_set" (the LP optimum by an active-set method warm-started at ASCM;
-            "lp": the same optimum, HiGHS in the reference and the active set in the compiled tick) or any
-            registered one — or an `AllocationMethod` itself.
+            "ascm" | "lp" (the LP optimum, `rhi.control.allocation.lp`) or any registered one — or an
+            `AllocationMethod` itself (e.g. ``LPOptimum(solver="active_set")``).
         projector: "dynamic" (J# = M⁻¹Jᵀ(JM⁻¹Jᵀ)⁻¹) or "pseudoinverse" (J⁺).
         torque_min, torque_max: (n,) limits [N m]; None: the device's.
         gravity_compensation: add the null-space part (I − JᵀJ#ᵀ) g(q) of the gravity torque;

@@ -10,7 +10,7 @@ A file holds these tables (every key optional unless marked; the shipped files i
   ``lock``, ``armature``, ``torque_min``, ``torque_max``, ``friction`` (``damping``, ``frictionloss``) and
   ``inertia`` = "fill" (`rhi.devices.source`; relative paths from the configuration's folder).
 - ``[controller]`` (required): ``damping`` k_D [N m s/rad], ``saturation`` ("none", "scaling", "ascm", "lp",
-  "active_set", or a strategy registered with `rhi.control.allocation.register`),
+  or a strategy registered with `rhi.control.allocation.register`),
   ``projector`` ("dynamic", "pseudoinverse"), ``torque_min``/``torque_max`` [N m],
   ``gravity_compensation``, ``aso_shape``, ``implementation``, ``null_space`` ("scaled", "clipped") — the fields
   of `rhi.control.ControllerConfig`; ``[controller.tank]`` (``initial``, ``capacity`` [J]) turns on the null-space

@@ -323,7 +323,7 @@ def active_set_start(a, b, P, lo, hi, r, sat):
 
 @jit(inline=True)
 def active_set(a, b, Z, lo, hi, alpha0, tau0, sat0, max_iter):
-    """The primal active-set method of `rhi.control.allocation.active_set` from a feasible start: (ok, α, y).
+    """The primal active-set method of `rhi.control.allocation.lp` from a feasible start: (ok, α, y).
 
     Maximises α s.t. lo <= α a + b + Z y <= hi, 0 <= α <= 1 over x = (α |a|, y), from the
     start (α0, τ0 with the joints sat0 held); ok False when it does not settle (use the LP).

@@ -3,7 +3,7 @@
 `tick` computes steps 2–6 of `rhi.control.controller` (τ_m, the ASO volume V of eq. 6.14,
 the FME transition of eqs. 6.15–6.19, the FME- and VME-matching gradients of eqs. 6.10 and
 3.22, the allocation — none, simple scaling, ASCM (Algorithm 1) in projector form, or the
-active-set method on ASCM's LP started at ASCM (`rhi.control.allocation.active_set`) —, the
+active-set method on ASCM's LP started at ASCM (`rhi.control.allocation.lp`) —, the
 safety torque and the tertiary torque of Algorithm 2) on small arrays, without a Python
 call in between. The readable composition of the same equations is
 `rhi.control.reference`, the oracle this kernel is tested against (same torques to

@@ -2,15 +2,14 @@
 
 Every strategy places ``τ(α, y) = α a + b + Z y`` in the torque box (thesis §7.3; the protocol,
 the result type and the registry are `rhi.control.allocation.base`). The bundled strategies:
-``"none"`` (clip), ``"scaling"`` (simple scaling), ``"ascm"`` (Algorithm 1), ``"lp"`` (the LP
-optimum: HiGHS in the reference, the active set in the compiled tick) and ``"active_set"`` (the same
-optimum by an active-set method warm-started at ASCM). Importing a strategy module registers it: `MODULES` is the registration.
+``"none"`` (clip), ``"scaling"`` (simple scaling), ``"ascm"`` (Algorithm 1) and ``"lp"`` (the LP
+optimum; its solvers and the alias ``"active_set"``: `rhi.control.allocation.lp`). Importing a strategy
+module registers it: `MODULES` is the registration.
 """
 
 from typing import Literal
 
-from rhi.control.allocation import active_set, compensation, lp, none, scaling
-from rhi.control.allocation.active_set import allocate_active_set
+from rhi.control.allocation import compensation, lp, none, scaling
 from rhi.control.allocation.base import (
     Allocation,
     AllocationMethod,
@@ -21,21 +20,22 @@ from rhi.control.allocation.base import (
 )
 from rhi.control.allocation.capability import force_capability, ramp_peak
 from rhi.control.allocation.compensation import ascm, ascm_projector
-from rhi.control.allocation.lp import allocate_lp
+from rhi.control.allocation.lp import LPOptimum, allocate_active_set, allocate_lp
 from rhi.control.allocation.none import allocate_none
 from rhi.control.allocation.scaling import allocate_scaling
 
 #: The strategy modules, one per strategy (ASCM's is `compensation`); importing one registers its strategy.
-MODULES = (none, scaling, compensation, lp, active_set)
+MODULES = (none, scaling, compensation, lp)
 
-#: The bundled strategies' names, for type checkers and the run-configuration schema (`method_names`
-#: also lists strategies registered elsewhere; tests/test_control.py checks the bundled ones agree).
+#: The bundled strategies' names and the alias "active_set" (of "lp"), for type checkers and the run-configuration
+#: schema (`method_names` also lists strategies registered elsewhere; tests/test_control.py checks the bundled ones agree).
 Saturation = Literal["none", "scaling", "ascm", "lp", "active_set"]
 
 __all__ = [
     "Allocation",
     "AllocationMethod",
     "Allocator",
+    "LPOptimum",
     "MODULES",
     "Saturation",
     "allocate_active_set",

@@ -30,7 +30,7 @@ class Allocation:
         alpha: force scaling α ∈ [0, 1] of the rendered force (eq. 7.9).
         saturated: (n,) bool, the selection matrix 𝒮 of ASCM (joints held at a limit).
         tau_null: (n,) null-space part N τ_N [N m].
-        method: name of the strategy that made it ("none", "scaling", "ascm", "lp", "active_set", ...).
+        method: name of the strategy that made it ("none", "scaling", "ascm", "lp", ...).
         clipped: whether a last-resort clip to the box was needed (b itself infeasible).
     """
 
@@ -99,21 +99,27 @@ class Allocator:
 _METHODS: dict[str, AllocationMethod] = {}
 
 
-def register(method: AllocationMethod) -> AllocationMethod:
-    """Make `method` selectable as ``ControllerConfig(saturation=method.name)``; returns it.
+def register(method: AllocationMethod, *, name: str | None = None) -> AllocationMethod:
+    """Make `method` selectable as ``ControllerConfig(saturation=name)``; returns it.
+
+    Args:
+        method: the strategy.
+        name: the ``saturation`` string; default ``method.name``. Another string is an alias of a strategy
+            registered under its own name (the one bundled: ``"active_set"``, `rhi.control.allocation.lp`).
 
     Raises:
         InvalidInput: another strategy already has that name.
     """
-    old = _METHODS.get(method.name)
+    key = method.name if name is None else name
+    old = _METHODS.get(key)
     if old is not None and old is not method:
-        raise InvalidInput(f"method: an allocation strategy named {method.name!r} is already registered")
-    _METHODS[method.name] = method
+        raise InvalidInput(f"method: an allocation strategy named {key!r} is already registered")
+    _METHODS[key] = method
     return method
 
 
 def method_names() -> tuple[str, ...]:
-    """Names of the registered strategies, in registration order."""
+    """The ``saturation`` strings of the registered strategies (aliases included), in registration order."""
     return tuple(_METHODS)
 
 

@@ -8,6 +8,7 @@ from typing import Literal
 import numpy as np
 
 from rhi.control.allocation.base import allocation_method
+from rhi.control.allocation.lp import LPOptimum
 from rhi.control.saturation import check_torque_limits, null_basis
 from rhi.errors import InvalidInput
 from rhi.metrics import max_force, max_force_scaling
@@ -30,7 +31,7 @@ def force_capability(
         u: (m,) direction; normalised internally.
         torque_min: (n,) lower torque limits [N m].
         torque_max: (n,) upper torque limits [N m].
-        method: "scaling" | "ascm" | "lp" | "active_set" | another registered strategy (`rhi.control.allocation`).
+        method: "scaling" | "ascm" | "lp" | another registered strategy (`rhi.control.allocation`).
         projector: "dynamic" (J#, eq. 7.5; needs M) or "pseudoinverse" (J⁺).
         M: (n, n) inertia [kg m²], required for (and only used by) ``projector="dynamic"``.
         samples: requests in the ramp (for the strategies without a closed form).
@@ -49,7 +50,7 @@ def force_capability(
     if method == "scaling":
         return f_s
     f_lp = float(max_force(J, u, torque_min=lo, torque_max=hi, projector=projector, M=M))
-    if method == "lp":
+    if isinstance(strategy, LPOptimum):  # whatever its solver
         return f_lp
     Z = null_basis(np.asarray(J, dtype=float), M)
     t = np.asarray(J, dtype=float).T @ u
