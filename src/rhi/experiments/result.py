@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -151,27 +152,58 @@ class Result:
         }
 
 
-def result_from_json(d: dict[str, Any]) -> Result:
+def result_from_json(d: Any, path: str = "result") -> Result:
     """A `Result` back from its `Result.to_json(arrays=False)` form (thesis values by their `rhi.thesis` key).
 
+    Keys the form derives (difference, relative, within, arrays, ...) are not read.
+
     Raises:
-        InvalidInput: a missing key (named by its path) or a thesis key `rhi.thesis` does not know.
+        InvalidInput: a missing key or a value of the wrong type (named by its key path under `path`, e.g.
+            ``result.tables[0].rows[2].rhi``) or a thesis key `rhi.thesis` does not know.
     """
     from rhi import thesis as T
+    from rhi.runtime import schema as S  # deferred: rhi.runtime costs a second to import
 
-    try:
-        tables = []
-        for t in d["tables"]:
-            rows = []
-            for r in t["rows"]:
-                thesis = T.get(r["source"]) if r["source"] else r["thesis"]
-                own_tol = isinstance(thesis, ThesisValue) and r["tolerance"] == thesis.tol
-                rows.append(Row(r["quantity"], thesis, math.nan if r["rhi"] is None else float(r["rhi"]), r["unit"],
-                                r["note"], None if own_tol or r["bound"] else r["tolerance"], r["bound"]))
-            tables.append(Table(t["title"], rows))
-        return Result(d["name"], d["title"], tables, {}, list(d["notes"]))
-    except KeyError as e:
-        raise InvalidInput(f"results: key {e.args[0]!r} missing in {d.get('name', '?')!r}") from None
+    r = _result_form()(path, d)
+    tables = []
+    for i, t in enumerate(r["tables"]):
+        rows = []
+        for j, row in enumerate(t["rows"]):
+            where = f"{path}.tables[{i}].rows[{j}]"
+            thesis = S.prefixed(f"{where}.source", T.get, row["source"]) if row["source"] else row["thesis"]
+            own_tol = isinstance(thesis, ThesisValue) and row["tolerance"] == thesis.tol
+            rows.append(S.prefixed(where, Row, row["quantity"], thesis, math.nan if row["rhi"] is None else row["rhi"],
+                                   row["unit"], row["note"], None if own_tol or row["bound"] else row["tolerance"],
+                                   row["bound"]))
+        tables.append(Table(t["title"], rows))
+    return Result(r["name"], r["title"], tables, {}, list(r["notes"]))
+
+
+def _result_form() -> Callable[[str, Any], Any]:
+    """The check of a result's JSON form (`rhi.runtime.schema`): the keys it reads, their types."""
+    from rhi.runtime import schema as S
+
+    def read(spec: S.Spec) -> S.Check:  # a table; the keys `Result.to_json` derives are not read
+        def check(path: str, d: Any) -> dict:
+            if not isinstance(d, dict):
+                raise InvalidInput(f"{path}: expected a table, got {d!r:.80}")
+            return S.parse(path, {k: v for k, v in d.items() if k in spec}, spec)
+
+        return check
+
+    def notes(path: str, v: Any) -> list[str]:
+        if not isinstance(v, list):
+            raise InvalidInput(f"{path}: expected a list of strings, got {v!r:.80}")
+        return [S.string(f"{path}[{i}]", x) for i, x in enumerate(v)]
+
+    number = S.optional(S.number())
+    row = {"quantity": (S.string, S.REQUIRED), "thesis": (number, S.REQUIRED), "rhi": (number, S.REQUIRED),
+           "unit": (S.string, S.REQUIRED), "note": (S.string, S.REQUIRED),
+           "tolerance": (S.optional(S.number(low=0.0)), S.REQUIRED),
+           "bound": (S.optional(S.choice("max", "min")), S.REQUIRED), "source": (S.optional(S.string), S.REQUIRED)}
+    table = {"title": (S.string, S.REQUIRED), "rows": (S.tables(read(row)), S.REQUIRED)}
+    return read({"name": (S.string, S.REQUIRED), "title": (S.string, S.REQUIRED),
+                 "tables": (S.tables(read(table)), S.REQUIRED), "notes": (notes, S.REQUIRED)})
 
 
 def _jsonable(v: np.ndarray) -> Any:

@@ -36,7 +36,7 @@ def load_runs(runs: Sequence[str | Path]) -> tuple[list[Result], dict]:
     """The results of one or more runs' results.json (an experiment in a later run replaces it) and their meta.
 
     Raises:
-        InvalidInput: a folder without a readable results.json.
+        InvalidInput: a folder without a readable results.json, or one of another form (the key path named).
     """
     by_name: dict[str, Result] = {}
     modes = []
@@ -46,9 +46,14 @@ def load_runs(runs: Sequence[str | Path]) -> tuple[list[Result], dict]:
             data = json.loads(path.read_text())
         except (OSError, ValueError) as e:
             raise InvalidInput(f"runs: cannot read {path}: {e}") from None
-        for res in data.get("results", []):
-            by_name[res["name"]] = result_from_json(res)
-        modes.append(str(data.get("meta", {}).get("mode", "?")))
+        if not isinstance(data, dict) or not isinstance(data.get("results", []), list):
+            raise InvalidInput(f"runs: {path} is not a results.json of `rhi reproduce` (an object with a list "
+                               "'results')")
+        for i, res in enumerate(data.get("results", [])):
+            r = result_from_json(res, f"runs: {path}: results[{i}]")
+            by_name[r.name] = r
+        meta = data.get("meta")
+        modes.append(str(meta.get("mode", "?")) if isinstance(meta, dict) else "?")
     chapters = dict.fromkeys(name.split(".")[0] for name in by_name)
     return list(by_name.values()), {"mode": "/".join(sorted(set(modes))), "chapters": ", ".join(chapters)}
 

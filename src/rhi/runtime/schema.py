@@ -114,6 +114,11 @@ def matrix(path: str, v) -> np.ndarray:
     return np.array(v, dtype=float)
 
 
+def optional(check: Check) -> Check:
+    """None (a JSON null) or a value `check` accepts."""
+    return lambda path, v: None if v is None else check(path, v)
+
+
 def either(*checks: Check, want: str) -> Check:
     """The first of `checks` that accepts the value (e.g. a number or a matrix)."""
 
