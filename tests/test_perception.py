@@ -16,12 +16,12 @@ import pytest  # noqa: E402
 from conftest import row
 
 from rhi import thesis as T  # noqa: E402
+from rhi.control import ZeroTorque  # noqa: E402
 from rhi.devices.model import device  # noqa: E402
 from rhi.errors import InvalidInput  # noqa: E402
 from rhi.experiments import identification as ID  # noqa: E402
 from rhi.experiments.ch3 import discrimination as D, sysid_table_3_2  # noqa: E402
 from rhi.experiments.ch6 import sysid_table_6_1  # noqa: E402
-from rhi.experiments.setups import ZeroTorque  # noqa: E402
 from rhi.metrics import effective_inertia  # noqa: E402
 from rhi.plots import perception as plots  # noqa: E402
 

@@ -18,6 +18,7 @@ from rhi.control.controller import (
     ControllerConfig,
     ControllerState,
     NullSpaceController,
+    ZeroTorque,
     output_force,
 )
 from rhi.control.manipulability import Manipulability, TMIMatching
@@ -90,6 +91,7 @@ __all__ = [
     "TransitionState",
     "VMEMatching",
     "WeightedSum",
+    "ZeroTorque",
     "allocate_active_set",
     "allocate_lp",
     "allocate_none",

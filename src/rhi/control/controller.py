@@ -319,6 +319,26 @@ class NullSpaceController:
         return tau
 
 
+class ZeroTorque:
+    """The motors off: τ = 0 every tick, the device's own dynamics (`rhi.sim.simulate` runs it compiled).
+
+    Args:
+        n: number of motors.
+
+    Raises:
+        InvalidInput: n is not a positive integer.
+    """
+
+    def __init__(self, n: int) -> None:
+        if type(n) is bool or not isinstance(n, int | np.integer) or n < 1:
+            raise InvalidInput(f"n: expected a positive integer (the number of motors), got {n!r}")
+        self.n = int(n)
+
+    def step(self, t: float, q: np.ndarray, dq: np.ndarray, sensors: dict) -> np.ndarray:
+        """τ: (n,) zeros [N m]."""
+        return np.zeros(self.n)
+
+
 def output_force(J: np.ndarray, tau: np.ndarray, M: np.ndarray | None = None) -> np.ndarray:
     """Task-space force produced by joint torques, J#ᵀ τ (dynamic) or J⁺ᵀ τ (pseudoinverse) [N]: (m,).
 
@@ -335,5 +355,6 @@ __all__ = [
     "ControllerConfig",
     "ControllerState",
     "NullSpaceController",
+    "ZeroTorque",
     "output_force",
 ]

@@ -65,10 +65,11 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from rhi.analysis.sysid import Record, SysidResult, identify
+from rhi.control import ZeroTorque
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput
 from rhi.experiments.result import Row
-from rhi.experiments.setups import Progress, ZeroTorque
+from rhi.experiments.setups import Progress
 from rhi.metrics import effective_inertia
 from rhi.sim import Plant, PushForce, device_friction, simulate
 from rhi.sim.loop import Controller

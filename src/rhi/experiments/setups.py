@@ -1,4 +1,4 @@
-"""Set-ups the thesis experiments share: hands, the motors off, one simulated run, progress.
+"""Set-ups the thesis experiments share: hands, one simulated run, progress.
 
 The chapters' own set-ups (their constants, controllers and start configurations) are the
 ``setup`` module of each chapter package (`rhi.experiments.ch3.nullspace` for ch. 3,
@@ -24,21 +24,6 @@ from rhi.sim import Hand, HandPath, Log, Plant, simulate
 
 #: A progress callback: progress(done, total), in ticks or items.
 Progress = Callable[[int, int], None]
-
-
-class ZeroTorque:
-    """The motors off: τ = 0 (the device's own dynamics).
-
-    Args:
-        n: number of motors.
-    """
-
-    def __init__(self, n: int) -> None:
-        self.n = n
-
-    def step(self, t, q, dq, sensors) -> np.ndarray:
-        """τ: (n,) zeros [N m]."""
-        return np.zeros(self.n)
 
 
 def vme_values(dev: Device, objective: VMEMatching | EllipsoidMatching, q: np.ndarray) -> np.ndarray:

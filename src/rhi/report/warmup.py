@@ -64,9 +64,9 @@ def _simulate(dev, q0: np.ndarray, controller) -> None:
 
 def _batch_design_and_simulation() -> None:
     """The batch kernel (rhi.devices._compiled.batch), the planar design indices and the simulation's kernels."""
+    from rhi.control import ZeroTorque
     from rhi.design.planar import planar_indices
     from rhi.devices.model import BATCH_MIN, device
-    from rhi.experiments.setups import ZeroTorque
 
     for name in ("rhi4", "gen3"):  # a planar RHI and a spatial one (3 task rows)
         dev = device(name)
@@ -74,7 +74,7 @@ def _batch_design_and_simulation() -> None:
     rng = np.random.default_rng(0)
     planar_indices(rng.normal(size=(4, 2, 3)), rng.normal(size=(4, 2, 3)), np.ones(4, dtype=bool), np.ones(4))
     dev = device("rhi4")
-    _simulate(dev, _middle(dev), ZeroTorque(dev.n))  # the Python loop: its kernels, not the compiled loop's
+    _simulate(dev, _middle(dev), ZeroTorque(dev.n))  # the motors-off loop and the kernels the Python loop shares
 
 
 #: The warm-up's groups, each run by one process; no kernel is in two groups (no compile twice at once).

@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from rhi._validate import scalar
+from rhi.control.controller import ZeroTorque
 from rhi.devices import batch
 from rhi.errors import InvalidInput
 from rhi.sim.environment import describe
@@ -185,7 +186,7 @@ class Session:
 
         if not hand_supported(hand, phys, self.plant.m):
             return None
-        self._fused = (hand_period, hand_constants(hand, phys))
+        self._fused = (hand_period, hand_constants(hand, phys, self.plant.m))
         self._fused_for = (hand, phys)
         return self._fused
 
@@ -279,16 +280,16 @@ def simulate(
     dev = getattr(controller, "device", plant.device)
     ms = teleop.slave.m if teleop is not None else 0
     kin = Kinematics(dev, virtual) if (virtual is not None or teleop is not None) else None
-    from rhi.sim._compiled import fast_loop
+    from rhi.sim._compiled import fast_loop, motors_off
 
     columns = layout(n, m, ms)
-    fast = fast_loop.FastLoop.build(sess, controller, kin, virtual=virtual, teleop=teleop, record=record,
-                                    columns=columns)
-    why = "" if fast is not None else (fast_loop.FastLoop.why_not(sess, controller, kin, virtual=virtual,
-                                                                  teleop=teleop, record=record) or "switched off")
+    compiled = motors_off.MotorsOffLoop if type(controller) is ZeroTorque else fast_loop.FastLoop
+    fast = compiled.build(sess, controller, kin, virtual=virtual, teleop=teleop, record=record, columns=columns)
+    why = "" if fast is not None else (compiled.why_not(sess, controller, kin, virtual=virtual, teleop=teleop,
+                                                        record=record) or "switched off")
     w = LogWriter(columns, log, meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate),
                                       "source": "simulate", "environment": describe(virtual),
-                                      "route": _route(why, controller)})
+                                      "route": fast.route if fast is not None else _route(why, controller)})
     c = w.cols
     # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `_compiled.io.log_row`), the scalars
     # from work to alpha_pc, then seq, the timing columns and safety: one write each.
@@ -356,11 +357,12 @@ def simulate(
             progress(k + 1, N)
         return False
 
-    fast_loop.last = fast
+    fast_loop.last = fast if isinstance(fast, fast_loop.FastLoop) else None
+    motors_off.last = fast if isinstance(fast, motors_off.MotorsOffLoop) else None
     try:
         k = 0
         while k < N:
-            if fast is not None and not (fast.ctrl.state.stopped and w.fault is None):
+            if fast is not None and not (fast.stopped and w.fault is None):
                 k, ended = _fast_block(fast, w, k, N, t_start, telemetry, progress, every)
                 if ended or k == N:
                     break
@@ -375,9 +377,7 @@ def simulate(
 
 
 def _route(why: str, controller) -> str:
-    """The log's ``route``: the compiled loop, or the Python loop, why, and the controller's route."""
-    if not why:
-        return "compiled loop (whole tick)"
+    """The log's ``route`` of a run on the Python loop: why, and the controller's route."""
     route = getattr(controller, "route", None)
     return f"python loop ({why})" + ("" if route is None or why.endswith(str(route)) else f"; controller: {route}")
 

@@ -28,6 +28,8 @@ Imported by `rhi.sim.loop.simulate`, not with ``import rhi`` (Numba).
 from __future__ import annotations
 
 import math
+import weakref
+from typing import Any
 
 import numpy as np
 from numba import typeof, types
@@ -43,7 +45,6 @@ from rhi.sim._compiled.handle import (
     hand_period,
     hand_supported,
     handle_state,
-    physical_constants,
 )
 from rhi.sim._compiled.io import log_row, sensors
 from rhi.sim._compiled.slave import slave_period, slave_torque
@@ -72,6 +73,8 @@ L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS, L_TELE, L
 
 #: The compiled loop of the last `simulate` run, None where it ran in Python (set by `rhi.sim.loop.simulate`).
 last: FastLoop | None = None
+#: Each controller's whole tick as `ticks` calls it, by its `KernelTick` (whose arguments are the same arrays every call).
+_refs: weakref.WeakKeyDictionary[Any, KernelRef] = weakref.WeakKeyDictionary()
 
 
 @jit
@@ -237,11 +240,6 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
         st[S_T] = t + dt
 
 
-def _no_hand(m: int, wall) -> np.ndarray:
-    """`hand_constants` of a hand that never pushes (stiffness and damping 0), with the physical wall (or none)."""
-    return np.array([1, m, 0.0, 0.0, 0.0, 0.0, np.inf, *physical_constants(wall, m), 0.0, *([0.0] * m)], dtype=float)
-
-
 def _intent_args(intent, kt, m: int) -> tuple:
     """`ticks`' intent argument for an `IntentController` (None: a stand-in of the same types)."""
     ci = None if intent is None else intent.estimator.compiled()
@@ -274,16 +272,16 @@ class FastLoop:
         recorded: where `run` appends the `Probe`'s values of its ticks (`rhi.sim.probe.Recorded`), or None.
     """
 
+    #: the log's ``route`` of a run on this loop
+    route = "compiled loop (whole tick)"
+
     def __init__(self, sess, controller, kin, columns: list[tuple[str, int]], probe: Probe | None = None) -> None:
         self.intent = controller if type(controller) is IntentController else None
         controller = controller.controller if self.intent is not None else controller
         plant, kt = sess.plant, controller._kernel
         self.sess, self.ctrl, self.kt = sess, controller, kt
         m = plant.m
-        if sess.hand is not None:
-            c = hand_constants(sess.hand, sess.physical)
-        else:
-            c = _no_hand(m, sess.physical)
+        c = hand_constants(sess.hand, sess.physical, m)
         self._mj = sess._addr
         d = plant.data
         self._sens = (plant._ten, plant._tenv, d.sensordata, plant._R,
@@ -295,8 +293,11 @@ class FastLoop:
             self._kin = (np.zeros(1, np.int64), np.zeros((1, 1)), np.zeros(1))
         self._hand = (plant._sd, sess._idx, c, sess._F, plant._xfrc, sess._acc, plant._wnum, sess._badv, sess._at)
         self._wargs = whole_args(controller)
-        vec = types.float64[::1]  # t, q, dq and the force as `ticks` passes them, then the controller's arguments
-        self._whole = KernelRef(kt._whole_fn, (types.float64, vec, vec, vec, *(typeof(a) for a in self._wargs)))
+        self._whole = _refs.get(kt)
+        if self._whole is None or self._whole.kernel is not kt._whole_fn:  # typed once per controller (its arrays)
+            vec = types.float64[::1]  # t, q, dq and the force as `ticks` passes them, then the controller's arguments
+            self._whole = _refs[kt] = KernelRef(kt._whole_fn, (types.float64, vec, vec, vec,
+                                                               *(typeof(a) for a in self._wargs)))
         self._cs = (kt._tr, kt._pc, kt._pc_pos, kt._pc_eff, kt._tau, kt._sat, kt._res, kt._tank, kt._tank_q,
                     kt._tank_e)
         names = [name for name, _ in columns]
@@ -332,6 +333,11 @@ class FastLoop:
         self._snap_at = {name: (ends[i], ends[i + 1]) for i, (name, _) in enumerate(SNAPSHOT)}
         self._snap_width = ends[-1]
         self.calls = self.ticks = 0
+
+    @property
+    def stopped(self) -> bool:
+        """Whether the controller has stopped (`simulate` hands its next tick to Python while that is not logged)."""
+        return self.ctrl.state.stopped
 
     @staticmethod
     def build(sess, controller, kin, *, virtual, teleop, record, columns) -> FastLoop | None:

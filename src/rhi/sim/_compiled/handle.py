@@ -7,8 +7,8 @@ joints j supporting the frame, with the linear Jacobian column J_j = ω_j × (p 
 revolute joint and ω_j for a prismatic one (ω_j = R_j a_j the joint's world axis, o_j its
 origin); each joint's frame by `rhi.devices._compiled.chain.joint_frame` (Pinocchio's conventions), without the
 inertias, the Jacobian's angular rows or the dynamics; with the virtual environment's force (walls,
-fixtures and their sums). `hand_step` is `rhi.sim.Hand.force` (or `rhi.sim.MinimumJerkPalpation.force`)
-plus a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
+fixtures and their sums). `hand_step` is `rhi.sim.Hand.force` (`rhi.sim.MinimumJerkPalpation.force`,
+`rhi.sim.PushForce.force`) plus a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
 handle's applied force in the same call; `hand_period` runs a control period's physics steps with it
 (with the hand of each step's time for a `rhi.sim.HandSequence`), MuJoCo's step included (`rhi.sim.mjc`).
 Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
@@ -24,7 +24,7 @@ from rhi.devices._compiled.chain import joint_frame
 from rhi.devices.batch import AXIS_COLUMN as _AX
 from rhi.jit import jit
 from rhi.sim.environment import Compose, Fixture, Wall
-from rhi.sim.hand import Hand, HandSequence, MinimumJerkPalpation
+from rhi.sim.hand import Hand, HandSequence, MinimumJerkPalpation, PushForce
 from rhi.sim.mjc import step1, step2
 
 #: `hand_period`'s outcomes: the period ran; a step's force was not finite; MuJoCo flagged a step as diverged.
@@ -161,29 +161,35 @@ def _wall_push(x, v, c, o):
     return max(c[o + 2 * m] * depth + c[o + 2 * m + 1] * rate, 0.0)
 
 
-def hand_constants(hand, wall) -> np.ndarray:
-    """The flat constants of `hand_period` for a `hand_supported` hand and a physical `Wall` (or None).
+def hand_constants(hand, wall, m: int) -> np.ndarray:
+    """The flat constants of `hand_period` for a `hand_supported` hand (or None) and a physical `Wall` (or None).
 
-    A `HandSequence` of P hands: −P, its switch times (P − 1,) [s], the offsets (P,) of its hands' blocks,
-    then the blocks; each block as one hand's (`hand_step`'s constants, the wall repeated in each).
+    Every hand as a sequence of P hands (P = 1 but for a `HandSequence`): P, the switch times (P − 1,) [s], the
+    offsets (P,) of the hands' blocks, then the blocks, each one hand's `hand_step` constants (the wall repeated
+    in each). No hand: a hand that never pushes (a one-point path with stiffness and damping 0), for a handle
+    of m task rows.
     """
-    if type(hand) is not HandSequence:
-        return _hand_block(hand, wall)
-    blocks = [_hand_block(h, wall) for h in hand.hands]
+    hands, switch = (hand.hands, hand.switch) if type(hand) is HandSequence else ((hand,), ())
+    blocks = [_hand_block(h, wall, m) for h in hands]
     P = len(blocks)
     offsets = 2 * P + np.cumsum([0] + [len(b) for b in blocks[:-1]])
-    return np.concatenate([[-P, *hand.switch], offsets, *blocks]).astype(float)
+    return np.concatenate([[P, *switch], offsets, *blocks]).astype(float)
 
 
-def _hand_block(hand, wall) -> np.ndarray:
-    """`hand_step`'s constants for a `rhi.sim.Hand` or `MinimumJerkPalpation` and a physical `Wall` (or None).
+def _hand_block(hand, wall, m: int) -> np.ndarray:
+    """`hand_step`'s constants for a `Hand`, `MinimumJerkPalpation`, `PushForce` or None and a `Wall` (or None).
 
     Layout: k, m, start [s], speed [m/s], K_h [N/m], B_h [N s/m], max |F_h| [N] (inf: none), then the
     wall flag (1/0), its point (m,) [m], normal (m,), K_e [N/m] and B_e [N s/m] (zeros without a wall),
     then for a `Hand` the path's arc lengths (k,) [m], its points (k, m) [m] and segment directions
     (k − 1, m); for a `MinimumJerkPalpation` k = 0, the stroke's duration [s] in place of the speed, then
-    its depth [m], start (m,) [m] and direction (m,).
+    its depth [m], start (m,) [m] and direction (m,); for a `PushForce` k = −1 and its force (m,) [N].
     """
+    if hand is None:
+        return np.array([1, m, 0.0, 0.0, 0.0, 0.0, np.inf, *physical_constants(wall, m), 0.0, *([0.0] * m)])
+    if type(hand) is PushForce:
+        head = [-1, m, hand.start, 0.0, 0.0, 0.0, np.inf]
+        return np.array([*head, *physical_constants(wall, m), *(hand.magnitude * hand.direction).tolist()])
     if type(hand) is MinimumJerkPalpation:
         m = hand.start.shape[0]
         head = [0, m, 0.0, hand.duration, hand.stiffness, hand.damping, hand.max_force]
@@ -205,7 +211,7 @@ def physical_constants(wall, m: int) -> list[float]:
 def hand_supported(hand, wall, m: int) -> bool:
     """Whether `hand_constants` describes `hand` and the physical `wall` (or None) for a handle of m task rows.
 
-    A `Hand`, a `MinimumJerkPalpation` or a `HandSequence` of them.
+    A `Hand`, a `MinimumJerkPalpation`, a `PushForce` or a `HandSequence` of them.
     """
     if type(hand) is HandSequence:
         return all(type(h) is not HandSequence and hand_supported(h, wall, m) for h in hand.hands)
@@ -213,6 +219,8 @@ def hand_supported(hand, wall, m: int) -> bool:
         dim = hand.path.points.shape[1]
     elif type(hand) is MinimumJerkPalpation:
         dim = hand.start.shape[0]
+    elif type(hand) is PushForce:
+        dim = hand.direction.shape[0]
     else:
         return False
     return dim == m and (wall is None or (type(wall) is Wall and wall.point.shape == (m,)))
@@ -225,7 +233,8 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
     First adds the user's work of the previous step, acc[1] · F_h·ẋ (F the previous step's hand
     force, ẋ the handle velocity now, acc[1] the timestep) to acc[0] when acc[2] is nonzero; then
     F_h = K_h (x_r − x) + B_h (ẋ_r − ẋ) at the reference x_r, ẋ_r of the path (or the stroke) at time t
-    (saturated at max |F_h|), as `rhi.sim.Hand.force` (`MinimumJerkPalpation.force`), plus the wall's
+    (saturated at max |F_h|), as `rhi.sim.Hand.force` (`MinimumJerkPalpation.force`), or a push's constant
+    force from its start (`PushForce.force`), plus the wall's
     −max(K_e d + B_e ḋ, 0) n while d = nᵀ(x − point) > 0, as `rhi.sim.Wall.force`.
 
     Args:
@@ -233,7 +242,7 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
         sd: MuJoCo's sensordata.
         idx: (3 m,) int64: the handle position's and velocity's sensordata indices, then the task rows
             of the applied force.
-        c: one hand's constants (`hand_constants` of a `Hand` or a `MinimumJerkPalpation`).
+        c: one hand's constants (a block of `hand_constants`).
         F: (m,) in: the previous hand force [N]; out: the hand force F_h [N].
         xfrc: (6,) the handle body's applied force and torque: the total force written on the task rows [N].
         acc: (3,) work so far [J], timestep [s], whether to add the previous step's work.
@@ -248,8 +257,11 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
             wd += F[j] * sd[idx[m + j]]
         acc[0] += wd * acc[1]
     start, speed, K, B, fmax = c[2], c[3], c[4], c[5], c[6]
-    o = 7 + 2 * m + 3  # the path's arc lengths, or the stroke's depth
-    if k == 0:  # `MinimumJerkPalpation.force`: s(τ) = 10τ³ − 15τ⁴ + 6τ⁵, τ = t / duration (speed holds the duration)
+    o = 7 + 2 * m + 3  # the path's arc lengths, the stroke's depth or the push's force
+    if k == -1:  # `PushForce.force`: its force from its start, else zero
+        for j in range(m):
+            F[j] = c[o + j] if t >= start else 0.0
+    elif k == 0:  # `MinimumJerkPalpation.force`: s(τ) = 10τ³ − 15τ⁴ + 6τ⁵, τ = t / duration (speed holds the duration)
         depth = c[o]
         tau = min(max(t / speed, 0.0), 1.0)
         sj = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
@@ -308,7 +320,7 @@ def hand_period(model, data, sub, t0, sd, idx, c, F, xfrc, acc, wn, bad, at):
         t0: time of the period's first step [s].
         sd: MuJoCo's sensordata.
         idx: `hand_step`'s indices.
-        c: `hand_constants` (a `HandSequence`'s: each step with the block of its time).
+        c: `hand_constants` (each step with the block of the hand of its time).
         F: (m,) in: the previous hand force [N]; out: the period's last hand force F_h [N].
         xfrc: (6,) the handle body's applied force and torque.
         acc: (3,) work so far [J], timestep [s], 0 (the first step adds no previous work); advanced.
@@ -320,15 +332,12 @@ def hand_period(model, data, sub, t0, sd, idx, c, F, xfrc, acc, wn, bad, at):
         PERIOD_OK, PERIOD_NONFINITE (a non-finite force, written to xfrc and not stepped) or
         PERIOD_UNSTABLE (MuJoCo flagged the step as diverged and reset its data).
     """
-    m, P = F.shape[0], int(-c[0])
+    m, P = F.shape[0], int(c[0])
     for s in range(sub):
-        t, o = t0 + s * acc[1], 0
-        if P > 0:  # a `HandSequence`: the block of the hand of time t
-            b = 0
-            while b < P - 1 and t >= c[1 + b]:
-                b += 1
-            o = int(c[P + b])
-        n2 = hand_step(t, sd, idx, c[o:], F, xfrc, acc)  # adds the previous step's work (acc[2] = 1)
+        t, b = t0 + s * acc[1], 0
+        while b < P - 1 and t >= c[1 + b]:  # the block of the hand of time t
+            b += 1
+        n2 = hand_step(t, sd, idx, c[int(c[P + b]):], F, xfrc, acc)  # adds the previous step's work (acc[2] = 1)
         if not math.isfinite(n2):
             at[0] = s
             return PERIOD_NONFINITE
