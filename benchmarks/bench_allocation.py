@@ -20,7 +20,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from rhi.control._compiled import allocation
+from rhi.control._compiled import allocation, lp
 from rhi.control.allocation import allocate_active_set, allocate_lp, ascm
 from rhi.control.saturation import null_basis
 from rhi.devices.model import device
@@ -48,14 +48,14 @@ def _timed(fn, *args):
 def _in_tick(a, b, P, lo, hi, r):
     """The active-set allocation as the controller's compiled tick runs it (start, basis of P, iteration)."""
     sat = np.zeros(a.shape[0], bool)
-    tau, alpha, clipped = allocation.active_set_start(a, b, P, lo, hi, r, sat)
+    tau, alpha, clipped = lp.active_set_start(a, b, P, lo, hi, r, sat)
     if clipped:
         return allocate_active_set(a, b, allocation.basis(P, r), torque_min=lo, torque_max=hi)
     Z = allocation.basis(P, r)
-    ok, alpha, y = allocation.active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
+    ok, alpha, y = lp.active_set(a, b, Z, lo, hi, alpha, tau, sat, 50)
     if not ok:
         return allocate_active_set(a, b, Z, torque_min=lo, torque_max=hi)
-    tau, alpha = allocation.active_set_result(alpha, y, a, b, Z, lo, hi, sat)
+    tau, alpha = lp.active_set_result(alpha, y, a, b, Z, lo, hi, sat)
     return SimpleNamespace(tau=tau, alpha=alpha)
 
 

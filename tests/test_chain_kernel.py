@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 from test_batch import _device
 
-from rhi.devices import batch
+from rhi.devices import batch, terms_pass
 from rhi.devices.model import Device, available_devices, device
 
 NAMES = available_devices() + ["panda", "ur5", "panda_tree"]
@@ -85,4 +85,19 @@ def test_chain_path_equals_pinocchio_path(name, monkeypatch):
     for term in ("x", "J", "dJ", "M", "g", "Minv", "Lambda", "Jsharp", "Gx", "xdot", "Jdot", "C", "Cx"):
         want = getattr(slow, term)
         np.testing.assert_allclose(getattr(fast, term), want, rtol=0, atol=1e-12 * max(1.0, np.abs(want).max()),
+                                   err_msg=term)
+
+
+@pytest.mark.parametrize("name", ["rhi4", "gen3"])
+def test_pinocchio_pass_equals_the_chain_pass(name, monkeypatch):
+    """The pass for joints that are not one-DoF (`terms_pass.pinocchio_terms`) equals the chain pass on every term."""
+    q, dq = np.full(device(name).n, 0.3), np.linspace(-1.0, 1.0, device(name).n)
+    fast = device(name).terms(q, dq)
+    monkeypatch.setattr(terms_pass, "hessian_mask", lambda model: None)  # as for a joint that is not one-DoF
+    dev = device(name)
+    slow = dev.terms(q, dq)
+    assert dev._fast_maps.kernel is None and dev._fast_maps.chain is None
+    for term in ("x", "J", "dJ", "M", "g", "Minv", "Lambda", "Jsharp", "Gx", "xdot", "Jdot", "C", "Cx"):
+        want = getattr(slow, term)
+        np.testing.assert_allclose(getattr(fast, term), want, rtol=0, atol=1e-10 * max(1.0, np.abs(want).max()),
                                    err_msg=term)

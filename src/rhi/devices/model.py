@@ -26,7 +26,8 @@ from rhi._validate import as_array, limits_pair
 from rhi.devices import batch
 from rhi.devices.ik import ik as solve_ik
 from rhi.devices.spec import MODELS, DeviceSpec, LinearLimits, available_devices, build_model, bundled_spec, read_spec
-from rhi.devices.terms import DeviceTerms, FastMaps, compiled_terms, eye, fast_maps, inv_small, lazy
+from rhi.devices.terms import DeviceTerms, eye, inv_small, lazy
+from rhi.devices.terms_pass import FastMaps, compiled_terms, fast_maps, pinocchio_terms
 from rhi.devices.variant import read_variant
 from rhi.errors import InvalidInput, ModelError
 
@@ -210,7 +211,7 @@ class Device:
 
     def jacobian_derivative(self, q) -> np.ndarray:
         """∂J/∂q: (..., m, n, n) with [..., i, j, k] = ∂J_ij/∂q_k."""
-        return self._map(q, (self.m, self.n, self.n), self._djac1, "dJ")
+        return self._map(q, (self.m, self.n, self.n), self.jacobian_derivative_theta, "dJ")
 
     def mass_matrix(self, q) -> np.ndarray:
         """Joint-space inertia M(q) = Aᵀ M_θ A + diag(armature): (..., n, n) [kg m²]."""
@@ -235,12 +236,10 @@ class Device:
         """Every kinematic and dynamic term of one state from a single pass.
 
         Trees of revolute/prismatic joints: one compiled call (`rhi.devices._compiled.chain`, equal to
-        Pinocchio's algorithms to round-off). Otherwise one `computeJointJacobians` (forward
-        kinematics + joint Jacobians), the frame Jacobian, `crba` and `computeGeneralizedGravity`; ∂J/∂q follows in closed form
-        from the 6-D frame Jacobian (∂J_j/∂θ_k = ω_k × J_j when joint k supports joint j,
-        ω_j × J_k otherwise; one-DoF joints). Equal to `fk`, `jacobian`,
-        `jacobian_derivative`, `mass_matrix` and `gravity` called one by one, several
-        times faster; with one-DoF joints M_x, J#, C_x, G_x too (compiled `rhi.devices._compiled.terms`).
+        Pinocchio's algorithms to round-off); other one-DoF joints: Pinocchio's, then a compiled call; otherwise
+        Pinocchio's alone (`rhi.devices.terms_pass`). Equal to `fk`, `jacobian`, `jacobian_derivative`,
+        `mass_matrix` and `gravity` called one by one, several times faster; with one-DoF joints M_x, J#, C_x,
+        G_x too (∂J/∂q in closed form from the 6-D frame Jacobian, `rhi.devices._compiled.terms`).
         A call with the same q and dq as the previous one returns the same snapshot (a
         simulation tick reads it for the virtual environment, then the controller).
 
@@ -273,27 +272,8 @@ class Device:
             th += self.b
         if fast.kernel is not None:  # every term, the task-space dynamics included, compiled
             terms = compiled_terms(self, fast, fast.kernel, q, dq, th)
-            self._last_terms = (key, terms)
-            return terms
-        model, data, fid = self.model, self.data, self.ee_frame_id
-        pin.computeJointJacobians(model, data, th)
-        J6 = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)
-        x = data.oMf[fid].translation[fast.rows].copy()
-        Mt = pin.crba(model, data, th)  # a chain with a joint that is not one-DoF
-        if not fast.crba_symmetric:
-            il = fast.tril
-            Mt[il] = Mt.T[il]  # this Pinocchio fills only the upper triangle
-        gt = pin.computeGeneralizedGravity(model, data, th)
-        if fast.identity:
-            J = J6[fast.rows].copy()
-            M = Mt + fast.armature
-            g = gt.copy()
         else:
-            At = fast.At
-            J = J6[fast.rows].dot(self.A)
-            M = At.dot(Mt).dot(self.A) + fast.armature
-            g = At.dot(gt)
-        terms = DeviceTerms(self, q, dq, x=x, J=J, dJ=self._djac1(th), M=M, g=g, theta=th)
+            terms = pinocchio_terms(self, fast, q, dq, th)
         self._last_terms = (key, terms)
         return terms
 
@@ -421,8 +401,8 @@ class Device:
         J = pin.computeFrameJacobian(self.model, self.data, th, self.ee_frame_id, pin.LOCAL_WORLD_ALIGNED)
         return J[self._rows] @ self.A
 
-    def _djac1(self, th: np.ndarray) -> np.ndarray:
-        # dJ/dt for θ̇ = e_k is ∂J_θ/∂θ_k (exact, from Pinocchio's Jacobian time variation)
+    def jacobian_derivative_theta(self, th: np.ndarray) -> np.ndarray:
+        """∂J/∂q (m, n, n) at chain coordinates θ: (nθ,), unchecked (∂J_θ/∂θ_k is dJ/dt at θ̇ = e_k, Pinocchio)."""
         cols = []
         for k in range(self.model.nv):
             pin.computeJointJacobiansTimeVariation(self.model, self.data, th, np.eye(self.model.nv)[k])

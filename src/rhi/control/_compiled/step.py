@@ -23,9 +23,6 @@ import math
 import numpy as np
 
 from rhi.control._compiled.allocation import (
-    active_set,
-    active_set_result,
-    active_set_start,
     allocate_scaling,
     any_nonzero,
     any_true,
@@ -41,6 +38,7 @@ from rhi.control._compiled.allocation import (
     tertiary,
     well_conditioned,
 )
+from rhi.control._compiled.lp import active_set, active_set_result, active_set_start
 from rhi.control._compiled.tank import TK_GATE, TK_ON, TK_THETA, _null, blend, direction, gate, gated, null_inertia
 from rhi.devices._compiled.terms import add, axpy, dot, inv as _inv, mm, mtv, mv, sub
 from rhi.jit import jit

@@ -16,7 +16,7 @@ is the optimum. One computation, two solvers (`LPOptimum.solver`):
   negative Lagrange multiplier (a held joint released; a joint at one limit that the ratio test then stops
   at the other is flipped). It ends where every multiplier is >= 0, at a per-tick cost of a few small solves.
 
-The compiled tick always runs the active set (its ACTIVE_SET branch, `rhi.control._compiled.allocation`);
+The compiled tick always runs the active set (its ACTIVE_SET branch, `rhi.control._compiled.lp`);
 the solver chooses what runs in Python: ``implementation="reference"`` and the ticks the compiled tick
 hands back. With ``"active_set"`` the reference is the compiled branch's oracle (same torques). Where the
 optimal face is more than a point (α* = 1 reached with room to spare, or a degenerate vertex), the two
@@ -81,7 +81,7 @@ def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | 
 
     Same problem and optimum α* as `allocate_lp`. Falls back to `allocate_lp` if ASCM's start is not
     feasible (b itself outside the box) or the iteration does not settle within `max_iter` steps
-    (degenerate cycling). The iteration is the compiled `rhi.control._compiled.active_set`.
+    (degenerate cycling). The iteration is the compiled `rhi.control._compiled.lp.active_set`.
 
     Args:
         a: (n,) torque of the rendered force, Jᵀ F_render [N m] (scaled by α).
@@ -90,7 +90,7 @@ def allocate_active_set(a, b, Z, *, torque_min, torque_max, start: Allocation | 
         torque_min: (n,) lower torque limits [N m].
         torque_max: (n,) upper torque limits [N m].
         start: a feasible allocation to start from (default: ASCM in projector form on P = Z Zᵀ, or
-            simple scaling where that form cannot decide; `rhi.control._compiled.allocation.active_set_start`).
+            simple scaling where that form cannot decide; `rhi.control._compiled.lp.active_set_start`).
         max_iter: iteration limit.
 
     Returns:
