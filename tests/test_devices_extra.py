@@ -318,3 +318,25 @@ def test_phantom3_limits_and_home():
     # eq. (4.25b) at θ = 0: x = l1, z = −l2
     np.testing.assert_allclose(dev.fk([0, 0, 0]), [0.21, 0.0, -0.165], atol=1e-15)
     np.testing.assert_allclose(dev.fk([0, np.pi / 2, np.pi / 2]), [0.165, 0.0, 0.21], atol=1e-15)
+
+
+def test_per_joint_values_are_checked_by_name():
+    """A device's and the plant's per-joint values go through one check (`rhi._validate.per_joint`).
+
+    A scalar is every joint's; a bad value is refused naming its argument.
+    """
+    from rhi.devices.model import Device
+    from rhi.sim.mjcf import PlantFriction
+
+    base = load_device_by_name("planar3r")
+    kw = dict(name="p", ee_frame=base.ee_frame, task_axes="xy", torque_max=base.torque_max)
+    dev = Device(base.model, velocity_max=2.0, damping=[0.1, 0.2, 0.3], **kw)
+    np.testing.assert_array_equal(dev.velocity_max, [2.0, 2.0, 2.0])
+    np.testing.assert_array_equal(dev.armature, 0.0)
+    for arg, bad in (("velocity_max", [1.0, 0.0, 1.0]), ("acceleration_max", [1.0, 1.0]), ("damping", -0.1),
+                     ("frictionloss", [0.0, np.nan, 0.0]), ("armature", "heavy")):
+        with pytest.raises(InvalidInput, match=f"^{arg}:"):
+            Device(base.model, **{**kw, arg: bad})
+    assert PlantFriction(0.1, [0.0, 0.1, 0.2]).check(3).damping.tolist() == [0.1, 0.1, 0.1]
+    with pytest.raises(InvalidInput, match="^frictionloss:"):
+        PlantFriction(0.1, [0.0, -0.1, 0.2]).check(3)

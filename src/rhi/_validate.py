@@ -81,6 +81,21 @@ def limits_pair(name_min: str, lo, name_max: str, hi, n: int | None = None) -> t
     return lo, hi
 
 
+def per_joint(name: str, value, n: int, *, positive: bool = False) -> np.ndarray:
+    """`value` as (n,) floats, one a joint (a scalar is every joint's): each finite and >= 0 (> 0 with `positive`).
+
+    Raises:
+        InvalidInput: not a number or an (n,) array of them, non-finite, or out of range (naming `name`).
+    """
+    v = as_array(name, value)
+    v = np.full(n, float(v)) if v.ndim == 0 else v
+    if v.shape != (n,):
+        raise InvalidInput(f"{name}: expected a scalar or {n} values, got shape {v.shape}")
+    if np.any(v <= 0) if positive else np.any(v < 0):
+        raise InvalidInput(f"{name}: expected {n} values {'> 0' if positive else '>= 0'}, got {v.tolist()}")
+    return v
+
+
 def unit_vector(name: str, u, m: int | None = None) -> np.ndarray:
     """Return `u` normalised along its last axis; raise if any vector has zero length."""
     u = as_array(name, u, ndim_min=1, shape_tail=(m,) if m else ())

@@ -33,15 +33,9 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import i0e, i1e
 
+from rhi._validate import scalar
 from rhi.control.compiled import CompiledIntent
 from rhi.errors import InvalidInput
-
-
-def _pos(name: str, v: float, *, zero: bool = False) -> float:
-    v = float(v)
-    if not math.isfinite(v) or v < 0 or (v == 0 and not zero):
-        raise InvalidInput(f"{name}: must be finite and {'>=' if zero else '>'} 0, got {v!r}")
-    return v
 
 
 def _unit(name: str, u, m: int | None = None) -> np.ndarray:
@@ -90,9 +84,9 @@ class _Evidence:
         if self.m not in (2, 3):
             raise InvalidInput(f"m: expected 2 or 3 task dimensions, got {self.m!r}")
         self.u0 = _unit("u0", self.u0, self.m)
-        _pos("force_scale", self.force_scale)
-        _pos("speed_scale", self.speed_scale)
-        _pos("min_evidence", self.min_evidence, zero=True)
+        scalar("force_scale", self.force_scale, positive=True)
+        scalar("speed_scale", self.speed_scale, positive=True)
+        scalar("min_evidence", self.min_evidence, nonnegative=True)
 
     def _evidence_settings(self) -> dict[str, float]:
         return {"force_scale": self.force_scale, "speed_scale": self.speed_scale, "min_evidence": self.min_evidence}
@@ -135,9 +129,9 @@ class FilteredIntent(_Evidence):
 
     def __post_init__(self) -> None:
         self._check()
-        _pos("tau", self.tau)
-        _pos("dt", self.dt)
-        _pos("deadband", self.deadband, zero=True)
+        scalar("tau", self.tau, positive=True)
+        scalar("dt", self.dt, positive=True)
+        scalar("deadband", self.deadband, nonnegative=True)
         if not 0.0 <= self.c_off <= self.c_on <= 1.0:
             raise InvalidInput(f"c_off/c_on: need 0 <= c_off <= c_on <= 1, got {self.c_off}, {self.c_on}")
         self._cos_deadband = math.cos(self.deadband)
@@ -190,7 +184,7 @@ class HMMIntent(_Evidence):
 
     def __post_init__(self) -> None:
         self._check()
-        _pos("kappa", self.kappa)
+        scalar("kappa", self.kappa, positive=True)
         if not 0.0 < self.switch < 1.0:
             raise InvalidInput(f"switch: must be in (0, 1), got {self.switch!r}")
         if self.k is None:

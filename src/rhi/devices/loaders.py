@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from rhi._validate import as_array, scalar
+from rhi._validate import as_array, per_joint, scalar
 from rhi.devices._description_checks import MAX_JOINTS, check_finite_numbers
 from rhi.devices._urdf import UNBOUNDED, JointInfo, check_urdf, description_roots, read_description, stderr_captured
 from rhi.devices.model import Device
@@ -354,13 +354,7 @@ def _per_motor(arg: str, value, motors: list[str], own: Mapping[str, float]) -> 
     n = len(motors)
     if value is None:
         return np.array([own.get(m, 0.0) for m in motors], dtype=float)
-    v = as_array(arg, value)
-    v = np.full(n, float(v)) if v.ndim == 0 else v
-    if v.shape != (n,):
-        raise InvalidInput(f"{arg}: expected a scalar or {n} values (motors {motors}), got shape {v.shape}")
-    if np.any(v < 0):
-        raise InvalidInput(f"{arg}: must be >= 0, got {v.tolist()}")
-    return v
+    return per_joint(arg, value, n)
 
 
 def _torque_limits(motors: list[str], effort: Mapping[str, float], torque_min, torque_max):

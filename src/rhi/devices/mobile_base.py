@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from rhi._validate import as_array
+from rhi._validate import as_array, scalar
 from rhi.devices.spec import bundled_spec
 from rhi.errors import InvalidInput, ModelError
 
@@ -25,13 +25,6 @@ if TYPE_CHECKING:
     from rhi.devices.model import Device
 
 BASE_JOINTS = ("x_b", "y_b", "theta_b")
-
-
-def _positive(name: str, value: float) -> float:
-    v = float(value)
-    if not np.isfinite(v) or v <= 0:
-        raise InvalidInput(f"{name}: must be a positive finite length [m], got {value!r}")
-    return v
 
 
 def body_map(*, wheel_radius: float, half_length: float, half_width: float) -> np.ndarray:
@@ -45,8 +38,8 @@ def body_map(*, wheel_radius: float, half_length: float, half_width: float) -> n
     Returns:
         (3, 4) matrix: [v_x, v_y, ω] (base frame) [m/s, m/s, rad/s] per wheel speed [rad/s].
     """
-    R = _positive("wheel_radius", wheel_radius)
-    L = _positive("half_length", half_length) + _positive("half_width", half_width)
+    R = scalar("wheel_radius", wheel_radius, positive=True)
+    L = scalar("half_length", half_length, positive=True) + scalar("half_width", half_width, positive=True)
     return (R / 4.0) * np.array(
         [
             [1.0, 1.0, 1.0, 1.0],

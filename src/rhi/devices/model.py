@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from rhi import plugins
-from rhi._validate import as_array, limits_pair
+from rhi._validate import as_array, limits_pair, per_joint
 from rhi.devices import batch
 from rhi.devices.ik import ik as solve_ik
 from rhi.devices.spec import MODELS, DeviceSpec, LinearLimits, available_devices, build_model, bundled_spec, read_spec
@@ -129,33 +129,18 @@ class Device:
         if not (np.all(np.isfinite(self.torque_min)) and np.all(self.torque_min < 0)):
             raise ModelError(f"torque_min: {name} needs finite, negative torque limits, got {self.torque_min.tolist()}")
         self.linear_limits = linear_limits
-        self.armature = self._nonneg("armature", armature, n)
-        self.damping = self._nonneg("damping", damping, n)
-        self.frictionloss = self._nonneg("frictionloss", frictionloss, n)
-        self.velocity_max = None if velocity_max is None else self._positive("velocity_max", velocity_max, n)
+        self.armature = per_joint("armature", 0.0 if armature is None else armature, n)
+        self.damping = per_joint("damping", 0.0 if damping is None else damping, n)
+        self.frictionloss = per_joint("frictionloss", 0.0 if frictionloss is None else frictionloss, n)
+        self.velocity_max = None if velocity_max is None else per_joint("velocity_max", velocity_max, n, positive=True)
         self.acceleration_max = (None if acceleration_max is None
-                                 else self._positive("acceleration_max", acceleration_max, n))
+                                 else per_joint("acceleration_max", acceleration_max, n, positive=True))
         self.params = dict(params or {})
         self.spec: DeviceSpec | None = None
         #: the description whose visuals are drawn (rhi.viz), or None: ("urdf", its XML, folders for its mesh
         #: paths) or ("mjcf", the file's path, ())
         self.visual_description: tuple[str, str, tuple[str, ...]] | None = None
         self.locked_joints: dict[str, float] = {}
-
-    @staticmethod
-    def _nonneg(arg: str, value, n: int) -> np.ndarray:
-        v = np.zeros(n) if value is None else as_array(arg, value)
-        v = np.full(n, float(v)) if v.ndim == 0 else v
-        if v.shape != (n,) or np.any(v < 0):
-            raise InvalidInput(f"{arg}: expected {n} finite non-negative values, got {v.tolist()}")
-        return v
-
-    @staticmethod
-    def _positive(arg: str, value, n: int) -> np.ndarray:
-        v = as_array(arg, value)
-        if v.shape != (n,) or np.any(v <= 0):
-            raise InvalidInput(f"{arg}: expected {n} finite positive values, got {v.tolist()}")
-        return v
 
     # ------------------------------------------------------------------ limits
     @property

@@ -242,26 +242,13 @@ def _primary(dev: Device, p: dict):
     return S.prefixed("controller.primary", cls, **p)
 
 
-def _keyed(path: str, keys, fn, *args, **kwargs):
-    """fn(*args, **kwargs); an `RhiError` it raises is re-raised with `path` before it.
-
-    As ``path.key: ...`` where its message starts with one of `keys`, else ``path: ...``.
-    """
-    try:
-        return fn(*args, **kwargs)
-    except RhiError as exc:
-        msg = str(exc)
-        head = msg.partition(":")[0]
-        raise type(exc)(f"{path}.{msg}" if head in keys else f"{path}: {msg}") from None
-
-
 def _objective(path: str, dev: Device, o: dict, hi: np.ndarray):
     """The objective of a ``[[controller.objectives]]`` table: a registered type (`rhi.control.registry`) or a plugin's."""
     kind = o["type"]
     t = objective_type(kind)
     if t is None:
         return objective_plugins.build(path, kind, dev, o)
-    return _keyed(path, t.keys, t.build, dev, hi, **{k: o[k] for k in t.keys})
+    return S.keyed(path, t.keys, t.build, dev, hi, **{k: o[k] for k in t.keys})
 
 
 def _controller(dev: Device, c: dict) -> ControllerConfig:
@@ -285,7 +272,7 @@ def _controller(dev: Device, c: dict) -> ControllerConfig:
         f = c["fme"]
         _dim("controller.fme.free_direction", f["free_direction"], (dev.m,))
         _dim("controller.fme.contact_direction", f["contact_direction"], (dev.m,))
-        K, z = _keyed("controller.fme", ("mu", "home"), fme_axes, dev, t_hi, f["mu"], f["home"])
+        K, z = S.keyed("controller.fme", ("mu", "home"), fme_axes, dev, t_hi, f["mu"], f["home"])
         tc = S.prefixed("controller.fme.transition", TransitionConfig, **f["transition"])
         free = S.prefixed("controller.fme.free_direction", desired_fme_free, f["free_direction"], K, z)
         stiff = S.prefixed("controller.fme.contact_direction", desired_fme_stiff, f["contact_direction"], K, z)

@@ -10,7 +10,7 @@ evaluated: values are only type-checked and converted.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from typing import cast
 
 import numpy as np
@@ -206,7 +206,13 @@ def parse(path: str, d, spec: Spec) -> dict:
 
 def prefixed(path: str, fn: Callable, *args, **kwargs):
     """Call fn(*args, **kwargs); an `RhiError` it raises is re-raised, same class, with `path` before its message."""
+    return keyed(path, (), fn, *args, **kwargs)
+
+
+def keyed(path: str, keys: Collection[str], fn: Callable, *args, **kwargs):
+    """`prefixed`, as ``path.key: ...`` where the error's message starts with one of `keys` (``key: ...``)."""
     try:
         return fn(*args, **kwargs)
     except RhiError as exc:
-        raise type(exc)(f"{path}: {exc}") from None
+        msg = str(exc)
+        raise type(exc)(f"{path}.{msg}" if msg.partition(":")[0] in keys else f"{path}: {msg}") from None

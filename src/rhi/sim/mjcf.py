@@ -26,6 +26,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
+from rhi._validate import per_joint
 from rhi.devices.model import Device
 from rhi.errors import InvalidInput, ModelError
 from rhi.sim.geometry import (
@@ -62,14 +63,7 @@ class PlantFriction:
 
     def check(self, n: int) -> PlantFriction:
         """The friction as (n,) arrays (a scalar is broadcast); raise InvalidInput unless finite and >= 0."""
-        out = {}
-        for f in ("damping", "frictionloss"):
-            v = np.asarray(getattr(self, f), dtype=float)
-            v = np.full(n, float(v)) if v.ndim == 0 else v
-            if v.shape != (n,) or not np.all(np.isfinite(v)) or np.any(v < 0):
-                raise InvalidInput(f"{f}: expected {n} finite values >= 0, got {np.asarray(getattr(self, f)).tolist()}")
-            out[f] = v
-        return PlantFriction(**out)
+        return PlantFriction(per_joint("damping", self.damping, n), per_joint("frictionloss", self.frictionloss, n))
 
 
 def left_null_space(A: np.ndarray, tol: float = 1e-10) -> np.ndarray:
