@@ -10,6 +10,8 @@ import copy
 import gzip
 import json
 import math
+import re
+import shutil
 from pathlib import Path
 
 import pytest
@@ -19,6 +21,9 @@ from hypothesis import given, strategies as st
 from rhi.cli import main
 from rhi.errors import RhiError
 from rhi.report.fidelity import load_runs
+from rhi.study.protocol import load_protocol
+from rhi.study.results import responses_of
+from rhi.study.session import COLUMNS, Session, answer_row, participants
 
 QUICK = json.loads(gzip.decompress((Path(__file__).parent / "data" / "quick_results.json.gz").read_bytes()))[:3]
 JSON_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-10, 10), st.floats(), st.text(max_size=4),
@@ -85,3 +90,91 @@ def test_fidelity_cli_refuses_a_results_json_of_another_form(tmp_path, capsys):
         assert _exit(["fidelity", str(tmp_path)]) == 2, text
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and want in err[0] and "Traceback" not in err[0], (text, err)
+
+
+# ------------------------------------------------------------------ study folders edited by hand
+def _study_template() -> Path:
+    """A study folder with one participant and 6 committed trials of the §3.6 protocol (made once)."""
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix="rhi-study-"))
+    s = Session(folder, load_protocol("ch3_stiffness_2afc"), "P01", fields={"handedness": "left"})
+    for t in s.plan[:6]:
+        s.commit(answer_row(t, "P01", t.percent, "first" if t.index % 2 else "second", response_time=0.8,
+                            t_start=1.7e9 + t.index, t_end=1.7e9 + t.index + 0.5))
+    return folder
+
+
+STUDY = _study_template()
+CELL_TEXT = st.one_of(st.sampled_from(["", "nan", "inf", "-1", "2", "1e999", "0x1", "1_0", "first", "x", "P02", "RHI",
+                                       "Rehab", "1.5", " 1", "１"]), st.text(max_size=4))
+
+
+def _edit_study(data, folder: Path) -> str:
+    """One generated damage to one file of the participant's folder; its description."""
+    which = data.draw(st.sampled_from(["responses.csv", "participant.json", "protocol.toml"]), label="file")
+    path = folder / "P01" / which
+    text = path.read_text()
+    how = data.draw(st.sampled_from(["cut", "value"]), label="how")
+    if how == "cut":
+        at = data.draw(st.integers(0, len(text)), label="cut at")
+        path.write_text(text[:at])
+        return f"{which} cut at {at}"
+    if which == "responses.csv":
+        lines = text.splitlines()
+        i = data.draw(st.integers(1, len(lines) - 1), label="line")
+        c = data.draw(st.integers(0, len(COLUMNS) - 1), label="column")
+        cells = lines[i].split(",")
+        cells[c] = data.draw(CELL_TEXT, label="cell")
+        lines[i] = ",".join(cells)
+        path.write_text("\n".join(lines) + "\n")
+        return f"line {i + 1} {COLUMNS[c]}={cells[c]!r}"
+    if which == "participant.json":
+        meta = json.loads(text)
+        key = data.draw(st.sampled_from(sorted(meta)), label="key")
+        meta[key] = data.draw(JSON_VALUES, label="value")
+        path.write_text(json.dumps(meta))
+        return f"participant.json {key}={meta[key]!r}"
+    path.write_text(text.replace("50.0", data.draw(st.sampled_from(["nan", "-1", '"x"', "1e400", "[]"]), label="v")))
+    return "protocol.toml reference"
+
+
+@examples(80)
+@given(data=st.data())
+def test_a_hand_edited_study_folder_is_read_or_refused(data, tmp_path_factory):
+    """Resuming or analysing a damaged participant folder: consistent rows, or an rhi.errors error naming the file."""
+    folder = tmp_path_factory.mktemp("study") / "s"
+    shutil.copytree(STUDY, folder)
+    what = _edit_study(data, folder)
+    try:
+        rows = [r for s in participants(folder) for r in s.rows]
+    except RhiError as exc:
+        assert "P01" in str(exc), (what, str(exc))
+        return
+    except Exception as exc:  # noqa: BLE001 - the point of the suite
+        pytest.fail(f"{what}: foreign {type(exc).__name__}: {exc}")
+    for r in rows:
+        assert r["subject"] == "P01" and r["training"] in ("0", "1") and r["response"] in ("", "0", "1"), (what, r)
+        assert all(math.isfinite(float(r[c])) for c in ("reference", "stimulus", "percent") if r[c]), (what, r)
+    try:
+        responses_of(rows)
+    except RhiError:
+        pass
+    except Exception as exc:  # noqa: BLE001
+        pytest.fail(f"{what}: foreign {type(exc).__name__}: {exc}")
+
+
+def test_study_folder_damage_names_the_file_and_the_place(tmp_path):
+    for file, old, new, want in [("participant.json", '"index": 0', '"index": "a"', "participant.json: key 'index'"),
+                                 ("participant.json", "{", "[", "participant.json: not JSON"),
+                                 ("responses.csv", ",second,1,", ",second,x,", "column 'response': 'x' is not 0, 1"),
+                                 ("responses.csv", ",50.0,", ",abc,", "column 'reference'"),
+                                 ("responses.csv", ",Rehab,", ",RHI,", "column 'condition': expected 'Rehab'"),
+                                 ("protocol.toml", "[", "", "protocol.toml")]:
+        folder = tmp_path / file / new
+        shutil.copytree(STUDY, folder)
+        path = folder / "P01" / file
+        assert old in path.read_text(), (file, old)
+        path.write_text(path.read_text().replace(old, new, 1))
+        with pytest.raises(RhiError, match=re.escape(want)):
+            participants(folder)

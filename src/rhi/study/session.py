@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from rhi.errors import InvalidInput
+from rhi.runtime.schema import prefixed
 from rhi.study.protocol import Protocol, parse_protocol
 from rhi.study.sequence import PlannedTrial, plan
 
@@ -48,6 +49,53 @@ def _row_text(row: dict[str, Any]) -> str:
     return buf.getvalue()
 
 
+def _read_text(path: Path) -> str:
+    """The text of a file of a participant's folder."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"{path}: cannot read it ({exc})") from None
+
+
+def _read_meta(path: Path) -> dict[str, Any]:
+    """participant.json, checked: an object with the protocol's name, the enrolment index and the fields."""
+    text = _read_text(path)
+    try:
+        meta = json.loads(text)
+    except ValueError as exc:
+        raise InvalidInput(f"{path}: not JSON ({exc})") from None
+    if not isinstance(meta, dict):
+        raise InvalidInput(f"{path}: expected a JSON object, got {type(meta).__name__}")
+    checks = {"protocol": (lambda v: isinstance(v, str), "a string"), "fields": (lambda v: isinstance(v, dict), "an object"),
+              "index": (lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0, "an integer >= 0")}
+    for key, (ok, want) in checks.items():
+        if key not in meta:
+            raise InvalidInput(f"{path}: key {key!r} missing")
+        if not ok(meta[key]):
+            raise InvalidInput(f"{path}: key {key!r}: expected {want}, got {meta[key]!r:.60}")
+    return meta
+
+
+def _stored_protocol(path: Path, text: str, name: str) -> Protocol:
+    """The protocol a participant started with (the folder's protocol.toml)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InvalidInput(f"{path}: cannot read it as TOML ({exc})") from None
+    return prefixed(str(path), parse_protocol, data, name=name, source=str(path), text=text)
+
+
+#: what each column of responses.csv holds (a row of `read_responses` is checked against it): a pattern of its text.
+_NUMBER = r"|[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?"  # empty, or a finite number as Python writes it
+_FORMS = {"trial": r"\d+", "block": r"\d+", "training": r"[01]", "comparison_first": r"|[01]", "response": r"|[01]",
+          "answer": r"|first|second", **{c: _NUMBER for c in ("reference", "stimulus", "percent", "response_time",
+                                                               "t_start", "t_end", "tracking_error", "effort",
+                                                               "completion_time")}}
+_ANSWERED = ("reference", "stimulus", "percent", "comparison_first", "answer", "response")
+_WANT = {"trial": "an integer", "block": "an integer", "training": "0 or 1", "comparison_first": "0, 1 or empty",
+         "response": "0, 1 or empty", "answer": "first, second or empty"}
+
+
 def read_responses(path: str | Path) -> list[dict[str, str]]:
     """The committed rows of a responses.csv (a last line cut short by a kill is not one).
 
@@ -57,7 +105,7 @@ def read_responses(path: str | Path) -> list[dict[str, str]]:
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
-    except OSError as exc:
+    except (OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"{path}: cannot read the responses ({exc})") from None
     if not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]  # the uncommitted tail
@@ -69,7 +117,18 @@ def read_responses(path: str | Path) -> list[dict[str, str]]:
         if len(r) != len(COLUMNS) or r[0] != str(len(out)):
             raise InvalidInput(f"{path}, line {line}: expected trial {len(out)} with {len(COLUMNS)} fields, "
                                f"got {r[:1]} with {len(r)}")
-        out.append(dict(zip(COLUMNS, r)))
+        for c, v in zip(COLUMNS, r):
+            if c in _FORMS and not re.fullmatch(_FORMS[c], v):
+                raise InvalidInput(f"{path}, line {line}, column {c!r}: {v!r} is not {_WANT.get(c, 'a finite number')}")
+        row = dict(zip(COLUMNS, r))
+        if row["answer"] or row["response"]:  # an answered 2AFC trial (`answer_row`): all of it, and consistent
+            empty = [c for c in _ANSWERED if not row[c]]
+            if empty:
+                raise InvalidInput(f"{path}, line {line}, column {empty[0]!r}: empty in an answered trial")
+            if row["response"] != str(int((row["answer"] == "first") == (row["comparison_first"] == "1"))):
+                raise InvalidInput(f"{path}, line {line}, column 'response': {row['response']!r} contradicts the "
+                                   f"answer {row['answer']!r} (comparison_first {row['comparison_first']})")
+        out.append(row)
     return out
 
 
@@ -137,14 +196,13 @@ class Session:
         self.id = participant
         meta_path = self.folder / "participant.json"
         if meta_path.exists():
-            meta = json.loads(meta_path.read_text(encoding="utf-8"))
+            meta = _read_meta(meta_path)
             stored = self.folder / "protocol.toml"
-            text = stored.read_text(encoding="utf-8")
+            text = _read_text(stored)
             if protocol is not None and protocol.text and protocol.text != text:
                 raise InvalidInput(f"protocol: differs from the one {participant} started with ({stored}); "
                                    "resume with that one")
-            self.protocol = protocol if protocol is not None else \
-                parse_protocol(tomllib.loads(text), name=meta["protocol"], source=str(stored), text=text)
+            self.protocol = protocol if protocol is not None else _stored_protocol(stored, text, meta["protocol"])
             if fields and self.protocol.participant_record(fields) != meta["fields"]:
                 raise InvalidInput(f"fields: differ from those stored for {participant} ({meta_path})")
             if index is not None and index != meta["index"]:
@@ -172,6 +230,7 @@ class Session:
         self.plan: list[PlannedTrial] = plan(self.protocol, self.index)
         self._truncate_uncommitted()
         self.rows = read_responses(self.folder / "responses.csv")
+        self._check_rows()
         self._keep_interrupted()
 
     # ------------------------------------------------------------------ state
@@ -217,9 +276,20 @@ class Session:
         t = time.strftime("%Y-%m-%dT%H:%M:%S")
         _fsync_append(self.folder / "notes.txt", f"{t}\ttrial {self.next_trial}\t{' '.join(str(text).split())}\n")
 
+    def _check_rows(self) -> None:
+        """The committed rows are this participant's planned trials (a hand-edited responses.csv is refused)."""
+        if len(self.rows) > len(self.plan):
+            raise InvalidInput(f"{self.folder / 'responses.csv'}: {len(self.rows)} trials, the plan has {len(self.plan)}")
+        for row, t in zip(self.rows, self.plan):
+            want = {"subject": self.id, "block": str(t.block), "condition": t.condition, "training": str(int(t.training))}
+            for k, v in want.items():
+                if row[k] != v:
+                    raise InvalidInput(f"{self.folder / 'responses.csv'}, trial {t.index}, column {k!r}: expected {v!r} "
+                                       f"(the plan of {self.id}), got {row[k]!r}")
+
     def _truncate_uncommitted(self) -> None:
         path = self.folder / "responses.csv"
-        data = path.read_bytes()
+        data = path.read_bytes() if path.is_file() else b""  # no file: read_responses says so
         if data and not data.endswith(b"\n"):
             with open(path, "r+b") as fh:
                 fh.truncate(data.rfind(b"\n") + 1)
