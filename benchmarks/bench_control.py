@@ -1,7 +1,7 @@
 """One full rhi4 controller tick: primary law + FME matching (ASO, transition) + ASCM + tertiary objective.
 
-Also the same stack with the active-set allocation (`saturation="active_set"`), with the LP,
-and on gen3 as a spatial RHI (7 joints, 3 task rows).
+Also the same stack with the LP optimum, its reference solved by the active set (`LPOptimum(solver="active_set")`,
+the compiled tick's method) and by HiGHS (`saturation="lp"`), and on gen3 as a spatial RHI (7 joints, 3 task rows).
 
 The controller is the thesis's rhi4 setup: force rendering with B^d = 0.01 N s/m and the
 C_x ẋ + G_x compensation of eq. 7.2, ASO-switched FME matching (μ = 5, β = 20, eqs.
@@ -33,6 +33,7 @@ import numpy as np
 
 import rhi
 from rhi.control import (
+    AllocationMethod,
     ControllerConfig,
     FMESchedule,
     ForceRendering,
@@ -43,12 +44,13 @@ from rhi.control import (
     desired_fme_stiff,
     fme_shape,
 )
+from rhi.control.allocation import LPOptimum
 
 TARGET_US = 100.0
 Q0 = np.array([0.3, 0.5, 0.2, 0.4])
 
 
-def make(dev: rhi.Device, saturation: str = "ascm", implementation: str = "fast") -> NullSpaceController:
+def make(dev: rhi.Device, saturation: str | AllocationMethod = "ascm", implementation: str = "fast") -> NullSpaceController:
     u = np.zeros(dev.m)
     u[1] = 1.0
     K, z = fme_shape(dev.jacobian(np.full(dev.n, 0.3) if dev.m == 3 else np.zeros(dev.n)), dev.torque_max, 5.0)
@@ -94,7 +96,7 @@ def _run(c: NullSpaceController, path) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return wall, cpu, taus, held
 
 
-def bench_ticks(saturation: str, count: int, rounds: int = 2, name: str = "rhi4") -> dict[str, np.ndarray]:
+def bench_ticks(saturation: str | AllocationMethod, count: int, rounds: int = 2, name: str = "rhi4") -> dict[str, np.ndarray]:
     """Fast and reference passes over the same ticks, alternated `rounds` times (both see the same machine load).
 
     Returns wall and CPU µs per tick (first 10% of each pass dropped as warm-up).
@@ -143,8 +145,10 @@ def _row(label: str, us: np.ndarray) -> str:
 def main(count: int = 5000) -> None:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"rhi4 controller tick, {count} ticks (first 10% dropped); load average {load:.1f} on {os.cpu_count()} CPUs")
-    for name, sat, n in (("rhi4", "ascm", count), ("rhi4", "active_set", count), ("rhi4", "lp", max(count // 10, 200)),
-                         ("gen3", "ascm", max(count // 2, 200))):
+    cases: tuple[tuple[str, str | AllocationMethod, int], ...] = (
+        ("rhi4", "ascm", count), ("rhi4", LPOptimum(solver="active_set"), count), ("rhi4", "lp", max(count // 10, 200)),
+        ("gen3", "ascm", max(count // 2, 200)))
+    for name, sat, n in cases:
         r = bench_ticks(sat, n, name=name)
         print(f"{name} (m = {rhi.device(name).m}), saturation={sat!r}: {100 * r['held']:.0f}% of ticks hold a joint "
               "at its limit; "
