@@ -8,9 +8,10 @@ revolute joint and ω_j for a prismatic one (ω_j = R_j a_j the joint's world ax
 origin); each joint's frame by `rhi.devices._compiled.chain.joint_frame` (Pinocchio's conventions), without the
 inertias, the Jacobian's angular rows or the dynamics; with the virtual environment's force (walls,
 fixtures and their sums). `hand_step` is `rhi.sim.Hand.force` (`rhi.sim.MinimumJerkPalpation.force`,
-`rhi.sim.PushForce.force`) plus a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's sensors and written to the
-handle's applied force in the same call; `hand_period` runs a control period's physics steps with it
-(with the hand of each step's time for a `rhi.sim.HandSequence`), MuJoCo's step included (`rhi.sim.mjc`).
+`rhi.sim.PushForce.force`) plus a physical `rhi.sim.Wall.force` at one physics step, read from MuJoCo's
+sensors and written to the handle's applied force in the same call; `hand_period` runs a control period's
+physics steps with it (with the hand of each step's time for a `rhi.sim.HandSequence`), MuJoCo's step
+included (`rhi.sim.mjc`).
 Imported by `rhi.sim.loop`, not with ``import rhi`` (Numba).
 """
 
