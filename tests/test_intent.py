@@ -20,6 +20,7 @@ from rhi.experiments.beyond.intent import error_and_lag, trained_hmm
 from rhi.experiments.ch6 import setup as ch6
 from rhi.experiments.setups import path_hand
 from rhi.sim import Hand, HandPath, Plant, simulate
+from rhi.sim._compiled import fast_loop
 from rhi.sim.strokes import synthetic_strokes
 
 #: Stated bounds (measured on 40 test strokes, seed 202: filtered 9.4° / 10.8°, HMM 5.4° / 9.3° mean axial error
@@ -71,8 +72,8 @@ def _run(dev, ctrl, q0, hand, duration=0.3):
 def test_known_u_equals_existing_controllers():
     """A known intent gives the existing objectives' torques.
 
-    The VME, static FME and barrier objectives run compiled in the controller, the intent ones in Python: equal
-    to rounding.
+    The static FME and barrier objectives run in the whole compiled tick; the intent ones too, in the compiled
+    simulation loop, which writes M_Stiff^des(u) of the known u before each tick: equal to rounding.
     """
     dev = rhi.device("rhi4")
     u, x0 = np.array(ch6.U), np.array(ch6.X0)
@@ -82,11 +83,12 @@ def test_known_u_equals_existing_controllers():
     law = SpringPalpation(ch6.K_E, tuple(x0), normal=tuple(u), damping=0.0, coriolis=False, gravity=False)
     common = dict(primary=law, damping=ch6.K_D, saturation="scaling", aso_shape=ch6.ASO_S)
     ref = NullSpaceController(dev, ControllerConfig(objectives=ch6.controller_terms(Ms, dev.torque_max), **common))
-    terms = (ObjectiveTerm(IntentFME(KnownIntent(u), K, zeta, dev.torque_max, "stiff"), ch6.BETA),
+    known = KnownIntent(u)
+    terms = (ObjectiveTerm(IntentFME(known, K, zeta, dev.torque_max, "stiff"), ch6.BETA),
              ObjectiveTerm(ch6.BARRIER, ch6.LIMIT_GAIN))
-    new = IntentController(NullSpaceController(dev, ControllerConfig(objectives=terms, **common)), KnownIntent(u))
+    new = IntentController(NullSpaceController(dev, ControllerConfig(objectives=terms, **common)), known)
     a, b = _run(dev, ref, q0, hand()), _run(dev, new, q0, hand())
-    assert ref._kernel.whole_ok and not new.controller._kernel.whole_ok  # compiled FME + barrier vs Python ones
+    assert ref._kernel.whole_ok and new.controller._kernel.whole_ok and fast_loop.last.ticks == len(b) == 300
     np.testing.assert_allclose(a.tau, b.tau, rtol=0, atol=1e-11)
     np.testing.assert_allclose(a.q, b.q, rtol=0, atol=1e-12)
     # VME matching (ch. 3/5) with the impedance law
@@ -164,3 +166,31 @@ def test_bad_input():
         IntentVME(object())
     with pytest.raises(InvalidInput, match="force/xdot"):
         HMMIntent.fit(np.zeros((5, 2)), np.zeros((5, 3)), np.zeros((5, 2)))
+
+
+def test_intent_palpation_runs_compiled_and_equals_the_python_loop(monkeypatch):
+    """beyond.intent_palpation: every run on the compiled loop (which writes `IntentFME`'s M_Stiff^des(u) of the
+    estimator's u before each tick); its table and arrays equal those of the Python loop."""
+    from rhi.experiments import setups
+    from rhi.experiments.beyond import intent as exin
+
+    routes, simulate_ = [], setups.simulate
+
+    def spy(*args, **kw):
+        log = simulate_(*args, **kw)
+        routes.append((log.meta["route"], fast_loop.last is not None and fast_loop.last.ticks == len(log)))
+        return log
+
+    monkeypatch.setattr(setups, "simulate", spy)
+    kw = dict(settle=0.1, depth=0.01, speed=0.02, hold=0.05, starts=1)
+    a = exin.intent_palpation(**kw)
+    assert routes == [("compiled loop (whole tick)", True)] * 4  # known, filtered, hmm, fixed
+    monkeypatch.setattr(fast_loop.FastLoop, "build", staticmethod(lambda *a, **k: None))
+    b = exin.intent_palpation(**kw)
+    assert [r.startswith("python loop") for r, _ in routes[4:]] == [True] * 4
+    ra, rb = a.tables[0].rows, b.tables[0].rows
+    assert [r.quantity for r in ra] == [r.quantity for r in rb]
+    np.testing.assert_allclose([r.ours for r in ra], [r.ours for r in rb], rtol=1e-9, atol=1e-9)
+    assert a.arrays.keys() == b.arrays.keys()
+    for key in a.arrays:
+        np.testing.assert_allclose(a.arrays[key], b.arrays[key], rtol=1e-9, atol=1e-9, err_msg=key)  # err: deg

@@ -65,8 +65,8 @@ class CompiledObjective:
 
     Attributes:
         kind: "vme" (JBLD matching of J Jᵀ to `desired`, eqs. 3.22–3.23; both compiled routes), "fme"
-            (JBLD matching of the torque-weighted FME to a fixed `desired`, eqs. 6.9–6.10, with weights
-            `w2`; the whole tick), "fme_schedule" (a scheduled objective, `rhi.control.schedule`: FME matching
+            (JBLD matching of the torque-weighted FME to `desired`, eqs. 6.9–6.10, with weights `w2`, fixed or,
+            with `live`, the one `live()` gives at each tick; the whole tick), "fme_schedule" (a scheduled objective, `rhi.control.schedule`: FME matching
             to Ω `desired` + (1 − Ω) `stiff` with the controller's torque weights, Ω from the ASO by `schedule`,
             eqs. 6.14–6.19; both compiled routes), "barrier" (`rhi.control.JointLimitBarrier` with `barrier`;
             the whole tick), "vme_live" (JBLD matching of J^q J^qᵀ to the (m, m) SPD desired that `live()` gives
@@ -82,13 +82,15 @@ class CompiledObjective:
             0: the gradient) ("barrier").
         penalty: k_q of the joint-limit penalised Jacobian J^q = J diag(P(q)) (eqs. 4.19–4.20); None: J^q = J
             ("vme_live", "manipulability").
-        live: () -> (m, m) the desired ellipsoid of the tick ("vme_live").
+        live: () -> (m, m) the desired ellipsoid of the tick ("vme_live", "fme").
         slave: the slave `rhi.sim.Plant` whose encoders `live` reads, D = J_s J_sᵀ at them ("vme_live"; None: another
             source), so that `rhi.sim`'s compiled loop computes D from its own teleoperated slave.
         log: −log μ instead of −μ ("manipulability").
-        source: the intent estimator whose u gives the desired M_des(u) of eq. 3.23 with minor axis `beta`
-            ("vme_live" of `rhi.control.intent_control.IntentVME`), so that the compiled loop computes it.
-        beta: β of M_des(u) (with `source`).
+        source: the intent estimator whose u gives the desired a û ûᵀ + b (I − û ûᵀ), (a, b) = `axes`
+            ("vme_live" of `rhi.control.intent_control.IntentVME`, "fme" of `IntentFME`), so that the compiled
+            loop computes it (`rhi.control._compiled.intent.desired`).
+        axes: (a, b), the desired's eigenvalues along and across u (with `source`): (1, β) for M_des of eq. 3.23,
+            (𝒦, ζ) for M_Stiff^des (eq. 6.13), (ζ, 𝒦) for M_Free^des (eq. 6.12).
     """
 
     kind: Literal["vme", "fme", "fme_schedule", "barrier", "vme_live", "manipulability"]
@@ -102,7 +104,7 @@ class CompiledObjective:
     slave: object | None = None
     log: bool = False
     source: object | None = None
-    beta: float = 0.0
+    axes: tuple[float, float] = (1.0, 0.0)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)

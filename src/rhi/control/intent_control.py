@@ -10,6 +10,7 @@ the wrapper adds nothing to the tick.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
@@ -72,7 +73,8 @@ class IntentVME(_FollowsIntent):
 
     def compiled(self, device: Device) -> CompiledObjective:
         """VME matching to M_des of the estimator's u of each tick, computed by the whole compiled tick."""
-        return CompiledObjective("vme_live", live=lambda: self.current().desired(), source=self.source, beta=self.beta)
+        return CompiledObjective("vme_live", live=lambda: self.current().desired(), source=self.source,
+                                 axes=(1.0, self.beta))
 
 
 class IntentFME(_FollowsIntent):
@@ -93,6 +95,14 @@ class IntentFME(_FollowsIntent):
     def _build(self, u: np.ndarray) -> FMEMatching:
         make = desired_fme_free if self.mode == "free" else desired_fme_stiff
         return FMEMatching(make(u, self.K, self.zeta), self.torque_max)
+
+    def compiled(self, device: Device) -> CompiledObjective | None:
+        """FME matching to M_des of the estimator's u of each tick, computed by the whole compiled tick."""
+        c = self.current().compiled(device)
+        if c is None:
+            return None
+        axes = (self.K, self.zeta) if self.mode == "stiff" else (self.zeta, self.K)
+        return dataclasses.replace(c, live=lambda: self.current().desired, source=self.source, axes=axes)
 
 
 class IntentController:

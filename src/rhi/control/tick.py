@@ -129,6 +129,7 @@ class KernelTick:
         python = []  # names of the objectives and barriers only Python computes (the whole tick does not apply)
         jac: list = []  # the Jacobian objectives the whole tick computes (`rhi.control._compiled.objectives.pack`)
         live: list = []  # the compiled form of each (its desired of the tick: `live`)
+        live_fme: list = []  # (index among the FME terms, compiled form) of those whose desired is `live`
         for gain, obj in ctrl.objectives:
             c = compiled_form(obj, dev)
             if c is not None and c.kind == "vme":
@@ -137,6 +138,8 @@ class KernelTick:
                 continue
             self._grads.append((gain, gradient_function(obj, dev)))
             if c is not None and c.kind == "fme":
+                if c.live is not None:
+                    live_fme.append((len(static), c))
                 static.append((gain, c.w2, c.desired))
             elif c is not None and c.kind in ("vme_live", "manipulability"):
                 code = _objectives.JBLD if c.kind == "vme_live" else _objectives.LOG_MU if c.log else _objectives.MU
@@ -182,9 +185,10 @@ class KernelTick:
             self._law = law
             rows = limit_rows(dev) if bars else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
             self._obj = _objectives.pack(n, m, static, bars, rows, jac)
-            # (slot of D in the objective vector, compiled form) of each Jacobian objective: `whole` writes D
-            # (``live()``, where it has one) before each tick
+            # (slot of D in the objective vector, compiled form) of each Jacobian objective and each FME term
+            # with a live desired: `whole` writes D (``live()``, where it has one) before each tick
             self.live = [(_objectives.desired_slot(self._obj, n, m, i), c) for i, c in enumerate(live)]
+            self.live += [(_objectives.fme_slot(self._obj, n, m, i), c) for i, c in live_fme]
             self._force = compiled_law.kind == "force"  # reads sensors["force"]
             self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
             self._no_force = np.zeros(m)

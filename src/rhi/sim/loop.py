@@ -279,9 +279,11 @@ def simulate(
     n, m = plant.n, plant.m
     dev = getattr(controller, "device", plant.device)
     ms = teleop.slave.m if teleop is not None else 0
-    kin = Kinematics(dev, virtual) if (virtual is not None or teleop is not None) else None
     from rhi.sim._compiled import fast_loop, motors_off
 
+    # the handle's kinematics: the virtual force, the slave's target, the compiled loop's intent estimator's ẋ
+    handle = virtual is not None or teleop is not None or type(controller) is fast_loop.IntentController
+    kin = Kinematics(dev, virtual) if handle else None
     columns = layout(n, m, ms)
     compiled = motors_off.MotorsOffLoop if type(controller) is ZeroTorque else fast_loop.FastLoop
     fast = compiled.build(sess, controller, kin, virtual=virtual, teleop=teleop, record=record, columns=columns)

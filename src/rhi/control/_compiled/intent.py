@@ -5,7 +5,8 @@ structure tensor, its principal axis and the hysteresis) and `HMMIntent` (the po
 primitives and its principal axis), and a known direction along a polyline path (the reference's unit
 velocity, kept while it rests; `rhi.experiments.beyond.intent.PathIntent`), with the 2 × 2 principal axis
 in closed form instead of LAPACK's `eigh` (equal to rounding; its sign is set from the evidence, as in
-Python). `desired` is M_des(u) of eq. 3.23 (`rhi.metrics.desired_vme`). The estimator's state travels in
+Python). `desired` is the desired ellipsoid of u: M_des(u) of eq. 3.23 (`rhi.metrics.desired_vme`) or the
+desired FMEs of eqs. 6.12–6.13 (`rhi.metrics.desired_fme`). The estimator's state travels in
 one vector (`ST_*` slots after u), its settings in another (`P_*` slots).
 """
 
@@ -130,8 +131,12 @@ def update(kind, prm, table, knots, st, p, F, v, t):
 
 
 @jit
-def desired(u, beta, D):
-    """M_des = û ûᵀ + β (I − û ûᵀ) (eq. 3.23, û = u/‖u‖) into D (m, m)."""
+def desired(u, along, across, D):
+    """M(u) = a û ûᵀ + b (I − û ûᵀ) (û = u/‖u‖, a = `along`, b = `across`) into D (m, m).
+
+    VME's M_des (eq. 3.23): a = 1, b = β; FME's M_Stiff^des (eq. 6.13): a = 𝒦, b = ζ; M_Free^des (eq. 6.12):
+    a = ζ, b = 𝒦 (`rhi.metrics.desired_fme`).
+    """
     m = u.shape[0]
     n = 0.0
     for i in range(m):
@@ -140,4 +145,4 @@ def desired(u, beta, D):
     for i in range(m):
         for j in range(m):
             uu = (u[i] / n) * (u[j] / n)
-            D[i, j] = uu + beta * ((1.0 if i == j else 0.0) - uu)
+            D[i, j] = along * uu + across * ((1.0 if i == j else 0.0) - uu)

@@ -1,8 +1,9 @@
 """Null-space objectives and joint-limit barriers inside the whole tick (`rhi.control._compiled.whole`).
 
 The objectives the controller would otherwise compute in Python every tick (`gradient_at`):
-FME matching to a fixed desired FME (`rhi.control.FMEMatching`, eqs. 6.9–6.10, through
-`rhi.control._compiled.step.fme_gradient`, the gradient the FME schedule uses), the joint-limit
+FME matching to a desired FME (`rhi.control.FMEMatching`, eqs. 6.9–6.10, through
+`rhi.control._compiled.step.fme_gradient`, the gradient the FME schedule uses; one that changes with the
+user's intent, `rhi.control.intent_control.IntentFME`, is written at `fme_slot` before the tick), the joint-limit
 barrier (`rhi.control.JointLimitBarrier`) and the Jacobian objectives of chapter 5 on the joint-limit
 penalised Jacobian J^q = J diag(P(q)) (eqs. 4.19–4.20): JBLD matching of J^q J^qᵀ to a desired D that
 may change every tick (`rhi.control.TMIMatching`, eq. 5.11: D the slave's ME; the caller writes it at
@@ -62,6 +63,11 @@ def pack(n: int, m: int, fme: list[tuple[float, np.ndarray, np.ndarray]],
     for code, gain, k_q, q_min, q_max, D in jac:
         parts += [np.array([code, gain, k_q], dtype=float), q_min, q_max, np.asarray(D, dtype=float).reshape(m * m)]
     return np.ascontiguousarray(np.concatenate(parts), dtype=np.float64)
+
+
+def fme_slot(obj: np.ndarray, n: int, m: int, i: int) -> int:
+    """Where M_des (m × m, row-major) of FME term i starts in the objective vector `obj`."""
+    return N_OBJ + int(obj[OBJ_ROWS]) * (n + 2) + i * (1 + n + m * m) + 1 + n
 
 
 def desired_slot(obj: np.ndarray, n: int, m: int, i: int) -> int:

@@ -114,7 +114,8 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
             objective vector, the objective vector) (`FastLoop`; a stand-in where lay[L_TELE] is 0).
         intent: the intent estimator's (kind, settings, table, knots, state, posterior) of
             `rhi.control._compiled.intent.update`, (m,) int64 F/T rows of the task axes, (k,) int64 slots of
-            M_des(u) in the objective vector and (k,) their β (a stand-in where lay[L_INTENT] is 0).
+            the desired ellipsoids of u in the objective vector and (k, 2) their axes (`CompiledObjective.axes`)
+            (a stand-in where lay[L_INTENT] is 0).
         snap: (>= count, width) the snapshot rows (`SNAPSHOT`) to write where lay[L_SNAP].
         whole: the controller's whole tick (`rhi.control._compiled.whole.whole_for`'s kernel, a `rhi.jit.KernelRef`).
     """
@@ -123,7 +124,7 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
     sd, idx, c, F, xfrc, acc, wn, bad, at = hand
     mj_s, sub_s, pd, M_s, tau_s, ctrl_s, xfrc_s, sd_s, pos_s, wn_s, bad_s, slots, obj = tele
     n_s = tau_s.shape[0]
-    kind, iprm, table, knots, ist, ip, irows, islots, betas = intent
+    kind, iprm, table, knots, ist, ip, irows, islots, axes = intent
     ist0, ip0, Fi, Di = ist.copy(), ip.copy(), np.empty(m), np.empty((m, m))
     read = np.empty(2 * n + 6)
     kout = np.empty((3, m))
@@ -153,13 +154,13 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
                 for i in range(m):
                     for k in range(m):
                         obj[o + i * m + k] = M_s[i, k]
-        if lay[L_INTENT] != 0:  # `IntentController.step`: the estimate from F_h and ẋ, then M_des(u) of its objectives
+        if lay[L_INTENT] != 0:  # `IntentController.step`: the estimate from F_h and ẋ, then its objectives' M(u)
             ist0[:], ip0[:] = ist, ip
             for i in range(m):
                 Fi[i] = ft[irows[i]]
             _intent.update(kind, iprm, table, knots, ist, ip, Fi, kx[1], t)
             for k in range(islots.shape[0]):
-                _intent.desired(ist[:m], betas[k], Di)
+                _intent.desired(ist[:m], axes[k, 0], axes[k, 1], Di)
                 for i in range(m):
                     for r in range(m):
                         obj[islots[k] + i * m + r] = Di[i, r]
@@ -245,14 +246,14 @@ def _intent_args(intent, kt, m: int) -> tuple:
     ci = None if intent is None else intent.estimator.compiled()
     rows = np.array(intent.device.task_rows if intent is not None else range(m), dtype=np.int64)
     slots = [slot for slot, c in kt.live if intent is not None and c.source is intent.estimator]
-    betas = [c.beta for _, c in kt.live if intent is not None and c.source is intent.estimator]
+    axes = [c.axes for _, c in kt.live if intent is not None and c.source is intent.estimator]
     prm = np.array([0.0 if ci is None else float(ci.settings.get(k, 0.0)) for k in _intent.SETTINGS])
     table = np.zeros((1, m)) if ci is None or ci.table is None else np.ascontiguousarray(ci.table, dtype=float)
     knots = np.zeros(1) if ci is None or ci.knots is None else np.ascontiguousarray(ci.knots, dtype=float)
     p = getattr(intent.estimator, "p", None) if intent is not None else None
     return (0 if ci is None else _intent.KINDS[ci.kind], prm, table, knots, np.zeros(m + 2 + m * m),
             np.zeros(1) if p is None else np.array(p, dtype=float), rows, np.array(slots, dtype=np.int64),
-            np.array(betas, dtype=float))
+            np.array(axes, dtype=float).reshape(len(axes), 2))
 
 
 def whole_args(controller) -> tuple:
@@ -381,7 +382,8 @@ class FastLoop:
         for _, c in controller._kernel.live:
             if c.live is not None and not ((c.slave is not None and c.slave is getattr(teleop, "slave", None)) or (
                     intent is not None and c.source is intent.estimator)):
-                return "a Jacobian objective's desired ellipsoid is read in Python each tick (not the run's slave)"
+                return ("an objective's desired ellipsoid is read in Python each tick (not the run's slave or its "
+                        "intent estimator)")
         if teleop is not None:
             sp = teleop.slave
             if type(teleop) is not Teleoperation or kin is None or kin._compiled is None:
@@ -415,7 +417,7 @@ class FastLoop:
         if ps is not None:
             kt._pc[_whole.PC_SCALE] = ps.scale
         lay = self._lay
-        snap = np.empty((len(rows) if self.probe is not None else 1, max(self._snap_width, 1)))
+        snap = np.empty((len(rows) if lay[L_SNAP] else 1, max(self._snap_width, 1)))  # the probe's or the intent's
         t_slave = None if sess.teleop is None else sess.teleop.slave.data.time
         est = None if self.intent is None else self.intent.estimator
         ist, ip = self._intent[4], self._intent[5]
