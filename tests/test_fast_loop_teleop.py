@@ -96,7 +96,7 @@ def test_fixed_slave_configuration_is_compiled_and_equals_the_live_python_loop(d
     a = once(Q_SLAVE.copy())
     assert a[2] is not None and a[2].ticks == len(a[0]) == 500 and a[0].meta["route"] == "compiled loop (whole tick)"
     b = once(lambda: Q_SLAVE)  # the route before: ˢM from a callable, read in Python each tick
-    assert b[2] is None and b[0].meta["route"].startswith("python loop (a Jacobian objective")
+    assert b[2] is None and b[0].meta["route"].startswith("python loop (an objective's desired ellipsoid")
     check_same(a[:2], b[:2])
     assert np.abs(a[0].q[-1] - Q0).max() > 1e-4  # the objective moved the null space
 

@@ -23,6 +23,22 @@ def test_every_rhi_kernel_carries_the_package_stamp():
         assert fn._cache._cache_file._source_stamp == kernel_cache.stamp(), fn
 
 
+def test_each_whole_tick_has_symbol_names_of_its_own():
+    """Two parts sets' whole ticks never share a name whichever processes compiled them.
+
+    Numba names a kernel's symbols after its qualified name, argument types and the compiling process's counter
+    of functions: two sets compiled first in two processes (both "v1") and loaded from the cache into a third
+    had one cfunc name, and the compiled loop's pointer to the second set's tick ran the first's (every tick of
+    an intent run handed back to Python).
+    """
+    from rhi.control._compiled import whole
+
+    sets = [whole.Parts(0, False, True, False, True, False, False, False),
+            whole.Parts(2, False, False, True, True, True, False, False)]
+    names = {whole.whole_for(p).py_func.__qualname__ for p in sets}
+    assert len(names) == len(sets)
+
+
 def test_stamp_follows_every_kernel_file(tmp_path: Path):
     src = Path(kernel_cache.__file__).parent
     for name, to in (("devices/_compiled/terms.py", "terms_kernel.py"), ("devices/model.py", "device.py")):

@@ -152,8 +152,8 @@ def whole_for(parts: Parts):
     """The whole tick compiled for one set of `parts`: Numba types and compiles only the branches they use.
 
     A cold start compiles only what one controller runs (e.g. ASCM without the active set, the tank and the
-    passivity layer); each set is compiled once and cached on disk (the flags are constants of the closure, part
-    of Numba's cache key). The settings must agree with `parts`; the status is that of
+    passivity layer); each set is compiled once and cached on disk under a name of its own (the flags are
+    constants of the closure, part of Numba's cache key). The settings must agree with `parts`; the status is that of
     `rhi.control._compiled.step.tick` (OK, FALLBACK, SINGULAR).
 
     Args:
@@ -207,7 +207,6 @@ def whole_for(parts: Parts):
     code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on = (
         int(parts[0]), *(bool(p) for p in parts[1:]))
 
-    @jit
     def whole_parts(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
                     lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
                     x, buf, F_r, F_x, tau_out, sat, res):
@@ -222,7 +221,12 @@ def whole_for(parts: Parts):
         res[R_DONE] = 1.0
         return status
 
-    return whole_parts
+    # One name per set: Numba names a kernel's symbols after its qualified name, its argument types and a counter
+    # of the process that compiled it, so two sets compiled by two processes (test workers, `rhi reproduce`'s)
+    # could share every symbol name once both are loaded from the cache, and an address looked up by name
+    # (`rhi.jit.KernelRef`, Numba's own entry points) would be the other set's code.
+    whole_parts.__qualname__ += "_" + "_".join(str(int(p)) for p in parts)
+    return jit(whole_parts)
 
 
 @jit(inline=True)
