@@ -169,8 +169,10 @@ def test_bad_input():
 
 
 def test_intent_palpation_runs_compiled_and_equals_the_python_loop(monkeypatch):
-    """beyond.intent_palpation: every run on the compiled loop (which writes `IntentFME`'s M_Stiff^des(u) of the
-    estimator's u before each tick); its table and arrays equal those of the Python loop."""
+    """beyond.intent_palpation: every run on the compiled loop, its table and arrays equal to the Python loop's.
+
+    The compiled loop writes `IntentFME`'s M_Stiff^des(u) of the estimator's u before each tick.
+    """
     from rhi.experiments import setups
     from rhi.experiments.beyond import intent as exin
 

@@ -66,8 +66,9 @@ class CompiledObjective:
     Attributes:
         kind: "vme" (JBLD matching of J Jᵀ to `desired`, eqs. 3.22–3.23; both compiled routes), "fme"
             (JBLD matching of the torque-weighted FME to `desired`, eqs. 6.9–6.10, with weights `w2`, fixed or,
-            with `live`, the one `live()` gives at each tick; the whole tick), "fme_schedule" (a scheduled objective, `rhi.control.schedule`: FME matching
-            to Ω `desired` + (1 − Ω) `stiff` with the controller's torque weights, Ω from the ASO by `schedule`,
+            with `live`, the one `live()` gives at each tick; the whole tick), "fme_schedule" (a scheduled
+            objective, `rhi.control.schedule`: FME matching to Ω `desired` + (1 − Ω) `stiff` with the controller's
+            torque weights, Ω from the ASO by `schedule`,
             eqs. 6.14–6.19; both compiled routes), "barrier" (`rhi.control.JointLimitBarrier` with `barrier`;
             the whole tick), "vme_live" (JBLD matching of J^q J^qᵀ to the (m, m) SPD desired that `live()` gives
             at each tick, or a fixed `desired` without `live`, e.g. the slave's ME of `rhi.control.TMIMatching`,
