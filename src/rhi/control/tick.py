@@ -125,7 +125,7 @@ class KernelTick:
             self._tank[_tank.TK_GATE], self._tank[_tank.TK_THETA] = float(cfg.tank.allocation == "gate"), 1.0
         vme, gains = [], []
         self._grads = []  # (gain, terms -> ∂ν/∂q) of the objectives computed in Python
-        static = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
+        static: list = []  # (gain, w2, M_des) of the static FME-matching terms the whole tick computes
         python = []  # names of the objectives and barriers only Python computes (the whole tick does not apply)
         jac: list = []  # the Jacobian objectives the whole tick computes (`rhi.control._compiled.objectives.pack`)
         live: list = []  # the compiled form of each (its desired of the tick: `live`)
