@@ -12,8 +12,11 @@ import json
 import math
 import re
 import shutil
+import tomllib
+import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 from bad_values import examples
 from hypothesis import given, strategies as st
@@ -21,8 +24,9 @@ from hypothesis import given, strategies as st
 from rhi.cli import main
 from rhi.errors import RhiError
 from rhi.report.fidelity import load_runs
-from rhi.study.protocol import load_protocol
+from rhi.study.protocol import load_protocol, parse_protocol, protocol_path, shipped_protocols
 from rhi.study.results import responses_of
+from rhi.study.sequence import plan
 from rhi.study.session import COLUMNS, Session, answer_row, participants
 
 QUICK = json.loads(gzip.decompress((Path(__file__).parent / "data" / "quick_results.json.gz").read_bytes()))[:3]
@@ -178,3 +182,50 @@ def test_study_folder_damage_names_the_file_and_the_place(tmp_path):
         path.write_text(path.read_text().replace(old, new, 1))
         with pytest.raises(RhiError, match=re.escape(want)):
             participants(folder)
+
+
+# ------------------------------------------------------------------ study protocols
+PROTOCOLS = {name: tomllib.loads(protocol_path(name).read_text()) for name in shipped_protocols()}
+PROTOCOL_PATHS = [(name, path) for name, doc in PROTOCOLS.items() for path in _key_paths(doc)]
+TOML_VALUES = st.one_of(st.text(max_size=3), st.booleans(), st.integers(-10**30, 10**30), st.floats(),
+                        st.sampled_from([10**12, 1e300, -1e300, [1e300, 1e300], [], {}, [[1.0], [2.0, 3.0]]]),
+                        st.lists(st.floats(-1e3, 1e3), max_size=4))
+
+
+@examples(100)
+@given(data=st.data())
+def test_study_protocol_with_a_generated_value_at_any_key(data):
+    """A protocol with any value at any key path: a Protocol whose plan is made, or an error naming the key path."""
+    name, path = data.draw(st.sampled_from(PROTOCOL_PATHS), label="key path")
+    value = data.draw(TOML_VALUES, label="value")
+    doc = copy.deepcopy(PROTOCOLS[name])
+    node = doc
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = value
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # an overflow is a silent inf
+        try:
+            trials = plan(parse_protocol(doc, name=name), 1)
+        except RhiError as exc:
+            assert str(path[0]) in str(exc), (path, value, str(exc))
+            return
+        except Exception as exc:  # noqa: BLE001 - the point of the suite
+            pytest.fail(f"{name} {path}={value!r:.60}: foreign {type(exc).__name__}: {exc}")
+    assert 0 < len(trials) <= 10**6, (path, value)
+
+
+def test_study_protocol_bounds_and_overflow():
+    for path, value, want in [(("stimulus", "repetitions"), 10**12, "stimulus.repetitions"),
+                              (("blocks", "training"), 10**30, "blocks.training"),
+                              (("fixture", "stiffness"), 1e300, "fixture.stiffness")]:
+        doc = copy.deepcopy(PROTOCOLS["ch3_stiffness_2afc"])
+        doc.setdefault(path[0], {})[path[1]] = value
+        with pytest.raises(RhiError, match=re.escape(want)):
+            parse_protocol(doc)
+    doc = copy.deepcopy(PROTOCOLS["ch3_stiffness_2afc"])
+    doc["fixture"]["direction"] = [1e300, -1e300]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        d = parse_protocol(doc).fixture["direction"]
+    assert np.allclose(d / np.linalg.norm(d), [2 ** -0.5, -(2 ** -0.5)])

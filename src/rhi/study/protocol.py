@@ -51,6 +51,8 @@ _TASK_ELEMENTS = {"discrimination_2afc": ("next", "answers", "progress", "rest")
 
 _pos, _nonneg = S.number(low=0.0, strict=True), S.number(low=0.0)
 _pct = S.number()
+_stiff, _damp = S.number(low=0.0, high=1e6), S.number(low=0.0, high=1e4)  # of a rendered environment [N/m, N s/m]
+_count = S.integer(low=1, high=10_000)  # repetitions, trials: a session of a person (and of plausible memory)
 _R = S.REQUIRED
 
 
@@ -82,13 +84,13 @@ _TASK = S.tagged("kind", {
 })
 _REF = {"reference": (_pos, 50.0), "unit": (S.string, "N/m")}
 _STIMULUS = S.tagged("method", {
-    "constant": {**_REF, "comparisons_percent": (S.vector(), _R), "repetitions": (S.integer(low=1), _R)},
+    "constant": {**_REF, "comparisons_percent": (S.vector(), _R), "repetitions": (_count, _R)},
     "staircase": {**_REF, "start_percent": (_pct, _R), "step_percent": (_pos, _R), "down": (S.integer(low=1), 2),
-                  "up": (S.integer(low=1), 1), "trials": (S.integer(low=1), _R), "min_percent": (_pct, _R),
+                  "up": (S.integer(low=1), 1), "trials": (_count, _R), "min_percent": (_pct, _R),
                   "max_percent": (_pct, _R)},
-    "quest": {**_REF, "trials": (S.integer(low=1), _R), "min_percent": (_pct, _R), "max_percent": (_pct, _R),
+    "quest": {**_REF, "trials": (_count, _R), "min_percent": (_pct, _R), "max_percent": (_pct, _R),
               "step_percent": (_pos, 2.5), "lapse": (S.number(low=0.0), 0.02)},
-    "none": {"repetitions": (S.integer(low=1), _R)},
+    "none": {"repetitions": (_count, _R)},
 })
 _CONDITION = {"name": (S.string, _R), "device": (S.string, _R), "config": (S.string, None),
               "params": (S.numbers_table, {}), "description": (S.string, "")}
@@ -102,10 +104,10 @@ _ROOT = {
                        "pair": (S.choice("random", "reference_first"), "random")}), {}),
     "blocks": (S.table({"rest_every": (S.integer(low=0), 0), "rest_seconds": (_nonneg, 600.0),
                         "long_rest_every": (S.integer(low=0), 0), "long_rest_seconds": (_nonneg, 3600.0),
-                        "training": (S.integer(low=0), 0)}), {}),
-    "fixture": (S.table({"point": (S.vector(), _R), "direction": (S.vector(), _R), "stiffness": (_nonneg, 1000.0),
-                         "damping": (_nonneg, 5.0)}), None),
-    "obstacle": (S.table({"distance": (_pos, _R), "stiffness": (_nonneg, 2.0e4), "damping": (_nonneg, 50.0)}), None),
+                        "training": (S.integer(low=0, high=10_000), 0)}), {}),
+    "fixture": (S.table({"point": (S.vector(), _R), "direction": (S.vector(), _R), "stiffness": (_stiff, 1000.0),
+                         "damping": (_damp, 5.0)}), None),
+    "obstacle": (S.table({"distance": (_pos, _R), "stiffness": (_stiff, 2.0e4), "damping": (_damp, 50.0)}), None),
     "teleoperation": (S.table({"slave": (S.string, "rehab_slave"), "slave_params": (S.numbers_table, {}),
                                "kp": (_nonneg, 2000.0), "kd": (_nonneg, 60.0), "scale": (_pos, 1.0),
                                "offset": (S.vector(), None)}), {}),
@@ -305,8 +307,9 @@ def parse_protocol(data: dict, *, name: str = "protocol", source: str = "<dict>"
     if fx is not None:
         if fx["point"].shape != fx["direction"].shape:
             raise InvalidInput("fixture.direction: must have the length of fixture.point")
-        if not np.linalg.norm(fx["direction"]) > 0:
+        if not np.abs(fx["direction"]).max() > 0:
             raise InvalidInput("fixture.direction: must be non-zero")
+        fx["direction"] = fx["direction"] / np.abs(fx["direction"]).max()  # its norm cannot overflow (e.g. 1e300)
     return Protocol(name=name, source=source, text=text, description=d["description"], seed=d["seed"],
                     task=d["task"], stimulus=st, conditions=conds, order=d["order"], blocks=d["blocks"],
                     fixture=fx, obstacle=ob, teleoperation=_teleoperation(kind, d, "teleoperation" in data),
