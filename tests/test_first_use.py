@@ -81,9 +81,12 @@ def test_a_cold_cache_says_so_once(tmp_path):
 
 
 def test_warmup_runs_every_step(capsys):
-    assert main(["warmup", "--quiet"]) == 0
+    """On a pool of two processes (whatever the CPU count): every step once, reported in `STEPS` order."""
+    assert main(["warmup", "--quiet", "--workers", "2"]) == 0
     out = capsys.readouterr().out.splitlines()
     from rhi.cli_warmup import STEPS
 
     assert [ln[:44].strip() for ln in out[:-1]] == [name for name, _ in STEPS]
     assert out[-1].startswith("kernels ready")
+    assert main(["warmup", "--quiet", "--workers", "0"]) == 2
+    assert "workers" in capsys.readouterr().err
