@@ -229,3 +229,64 @@ def test_study_protocol_bounds_and_overflow():
         warnings.simplefilter("error", RuntimeWarning)
         d = parse_protocol(doc).fixture["direction"]
     assert np.allclose(d / np.linalg.norm(d), [2 ** -0.5, -(2 ** -0.5)])
+
+
+# ------------------------------------------------------------------ INFO of a device (docs/protocol.md §2)
+def _info_packet(body: bytes, n: int = 4, k: int = 7) -> bytes:
+    from rhi.runtime import protocol as P
+
+    return P._INFO.pack(P.INFO, P.VERSION, n, k, 0, 1000.0, 0.02, 7) + body
+
+
+GOOD_INFO = {"device": "rhi4", "sensors": [["x", 2], ["xdot", 2], ["F_hand", 2], ["work", 1]],
+             "joint_names": ["a", "b", "c", "d"], "torque_min": [-1.0] * 4, "torque_max": [1, 1, 1, 1], "lockstep": False}
+INFO_KEYS = sorted(GOOD_INFO) + ["sensors.0", "sensors.0.0", "sensors.0.1"]
+
+
+@examples(150)
+@given(data=st.data())
+def test_device_info_with_generated_descriptions(data):
+    """A host reading an INFO with any value at any key (or garbage JSON): its description, or a LinkError."""
+    from rhi.errors import LinkError
+    from rhi.runtime.protocol import parse_info
+
+    doc = copy.deepcopy(GOOD_INFO)
+    key = data.draw(st.sampled_from([*INFO_KEYS, "whole"]), label="key")
+    value = data.draw(st.one_of(JSON_VALUES, st.sampled_from([math.inf, -math.inf, 2.5, 2.0, "no", [1.0] * 4,
+                                                              ["a"] * 4, [math.nan] * 4])), label="value")
+    if key == "whole":
+        body = json.dumps(value).encode()
+    else:
+        node, *rest = key.split(".")
+        if rest:
+            target = doc[node]
+            for r in rest[:-1]:
+                target = target[int(r)]
+            target[int(rest[-1])] = value
+        else:
+            doc[node] = value
+        body = json.dumps(doc).encode()
+    try:
+        info = parse_info(_info_packet(body))
+    except LinkError:
+        return
+    except Exception as exc:  # noqa: BLE001 - the point of the suite
+        pytest.fail(f"{key}={value!r:.60}: foreign {type(exc).__name__}: {exc}")
+    assert all(isinstance(name, str) and type(w) is int and w > 0 for name, w in info["sensors"]), (key, value)
+    assert isinstance(info.get("lockstep", False), bool) and isinstance(info.get("device", ""), str), (key, value)
+    for t in ("torque_min", "torque_max"):
+        assert t not in info or (len(info[t]) == 4 and all(math.isfinite(x) for x in info[t])), (key, value)
+
+
+def test_device_info_garbage_the_old_parser_let_through():
+    from rhi.errors import LinkError
+    from rhi.runtime.protocol import parse_info
+
+    for body, want in [(b'{"device": "rhi4", "sensors": [["x", Infinity]]}', "sensors"),
+                       (b"[" * 30000 + b"]" * 30000, "not a JSON object"),
+                       (json.dumps({**GOOD_INFO, "lockstep": "no"}).encode(), '"lockstep" must be true or false'),
+                       (json.dumps({**GOOD_INFO, "sensors": [["x", 2.0], ["xdot", 5.0]]}).encode(), "an integer"),
+                       (json.dumps({**GOOD_INFO, "torque_max": [1.0, 2.0]}).encode(), '"torque_max"')]:
+        with pytest.raises(LinkError, match=re.escape(want)):
+            parse_info(_info_packet(body))
+    assert parse_info(_info_packet(json.dumps(GOOD_INFO).encode()))["sensors"][0] == ("x", 2)

@@ -137,16 +137,33 @@ def parse_info(pkt: bytes) -> dict:
     _, _, n, k, _, rate, wd, session = _INFO.unpack_from(pkt)
     try:
         meta = json.loads(pkt[_INFO.size:].decode())
-        widths = [(str(a), int(b)) for a, b in meta["sensors"]]
-    except (ValueError, KeyError, TypeError) as exc:
-        raise LinkError(f"device: INFO description is not a JSON object with \"sensors\": [[name, width]]: {exc}") \
-            from None
+    except (ValueError, RecursionError) as exc:  # not UTF-8, not JSON, nested too deep
+        raise LinkError(f"device: INFO description is not a JSON object: {str(exc)[:200]}") from None
+    pairs = meta.get("sensors") if isinstance(meta, dict) else None
+    if not isinstance(pairs, list) or not all(
+            isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) and _is_int(p[1]) for p in pairs):
+        raise LinkError(f"device: INFO description is not a JSON object with \"sensors\": [[name, width]] (a string "
+                        f"and an integer each), got {str(meta)[:200]}")
+    widths = [(a, b) for a, b in pairs]
+    for key, ok, want in [("device", lambda v: isinstance(v, str), "a string"),
+                          ("lockstep", lambda v: isinstance(v, bool), "true or false"),
+                          ("joint_names", lambda v: isinstance(v, list) and len(v) == n
+                           and all(isinstance(x, str) for x in v), f"a list of {n} strings"),
+                          *[(t, lambda v: isinstance(v, list) and len(v) == n and all(
+                              isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v),
+                             f"a list of {n} finite numbers") for t in ("torque_min", "torque_max")]]:
+        if key in meta and not ok(meta[key]):
+            raise LinkError(f"device: INFO \"{key}\" must be {want}, got {str(meta[key])[:100]}")
     if sum(w for _, w in widths) != k or any(w <= 0 for _, w in widths):
         raise LinkError(f"device: INFO sensor widths {widths} do not add up to k={k}")
     if not (math.isfinite(rate) and rate > 0 and math.isfinite(wd) and wd > 0):
         raise LinkError(f"device: INFO rate {rate!r} Hz or watchdog {wd!r} s is not finite and positive")
     return {**meta, "sensors": widths, "version": ver, "session": session, "n": n, "k": k, "rate": rate,
             "watchdog": wd}
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
 
 
 def parse_command(pkt: bytes, n: int) -> tuple[int, int, int, int, float, np.ndarray] | None:
