@@ -290,3 +290,48 @@ def test_device_info_garbage_the_old_parser_let_through():
         with pytest.raises(LinkError, match=re.escape(want)):
             parse_info(_info_packet(body))
     assert parse_info(_info_packet(json.dumps(GOOD_INFO).encode()))["sensors"][0] == ("x", 2)
+
+
+# ------------------------------------------------------------------ logs exported to CSV and read back
+def _csv_log(path: Path) -> list[str]:
+    from rhi.sim.log import LogWriter, layout
+
+    w = LogWriter(layout(4, 2), path.with_suffix(".rhilog"), meta={"device": "rhi4"}, chunk=4)
+    for k in range(5):
+        row = w.row()
+        row[:] = 0.0
+        row[0] = k * 1e-3
+    w.close()
+    from rhi.sim import Log
+
+    Log.load(path.with_suffix(".rhilog")).to_csv(path)
+    return path.read_text().splitlines()
+
+
+@examples(60)
+@given(data=st.data())
+def test_a_csv_log_with_generated_columns_dropped_is_read_or_refused(data, tmp_path_factory):
+    """`Log.load` (and `rhi log export`, `rhi view`) of a CSV missing some columns: a Log, or an error naming the file."""
+    from rhi.sim import Log
+
+    path = tmp_path_factory.mktemp("csv") / "log.csv"
+    lines = _csv_log(path)
+    header = lines[0].split(",")
+    keep = sorted(data.draw(st.sets(st.integers(1, len(header) - 1), max_size=len(header) - 1), label="kept"))
+    cols = [0, *keep]
+    path.write_text("\n".join(",".join(line.split(",")[i] for i in cols) for line in lines) + "\n")
+    try:
+        log = Log.load(path)
+    except RhiError as exc:
+        assert str(path) in str(exc), str(exc)
+        return
+    except Exception as exc:  # noqa: BLE001 - the point of the suite
+        pytest.fail(f"columns {[header[i] for i in cols]}: foreign {type(exc).__name__}: {exc}")
+    assert len(log.t) == 5
+
+
+def test_log_export_of_a_csv_without_the_log_columns(tmp_path, capsys):
+    (tmp_path / "two.csv").write_text("t,q0\n0,1\n0.001,2\n")
+    assert _exit(["log", "export", str(tmp_path / "two.csv"), "--to", "mcap"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no column F_env" in err[0], err

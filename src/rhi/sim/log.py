@@ -340,6 +340,19 @@ class LogWriter:
         return log
 
 
+def _check_columns(path: Path, columns: list[tuple[str, int]]) -> None:
+    """A log file has a column of every field of `Log`.
+
+    Raises:
+        InvalidInput: a field without a column (a file rhi did not write, or a damaged one).
+    """
+    required = {f.name for f in dataclasses.fields(Log)
+                if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING} - {"slave_x"}
+    missing = sorted(required - {c for c, _ in columns})
+    if missing:
+        raise InvalidInput(f"path: {str(path)!r} is not a log rhi wrote, or is damaged: no column {', '.join(missing)}")
+
+
 def _from_array(data: np.ndarray, columns: list[tuple[str, int]]) -> Log:
     arrays: dict[str, Any] = {}
     i = 0
@@ -356,11 +369,7 @@ def _from_array(data: np.ndarray, columns: list[tuple[str, int]]) -> Log:
 
 def _load_binary(path: Path) -> Log:
     columns, meta, offset = read_header(path)
-    required = {f.name for f in dataclasses.fields(Log)
-                if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING} - {"slave_x"}
-    missing = sorted(required - {c for c, _ in columns})
-    if missing:
-        raise InvalidInput(f"path: {str(path)!r} has a damaged log header (no column {', '.join(missing)})")
+    _check_columns(path, columns)
     width = sum(w for _, w in columns)
     rows = (path.stat().st_size - offset) // (8 * width)
     data = (np.memmap(path, dtype="<f8", mode="r", offset=offset, shape=(rows, width)) if rows
@@ -403,6 +412,7 @@ def _load_csv(path: Path) -> Log:
         else:
             columns.append((base if base != nm else nm, 1))
     # a multi-column field of width 1 (e.g. q1 for n = 1) keeps its matrix shape
+    _check_columns(path, columns)
     log = _from_array(data.reshape(-1, len(names)), columns)
     for c, w in columns:
         if w == 1 and c != "t" and c in {"q", "dq", "tau", "x", "xdot", "F_hand", "F_env", "slave_x"}:
