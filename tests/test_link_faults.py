@@ -252,3 +252,24 @@ def test_the_host_says_bye_after_refusing_an_info():
     s.close()
     (session, cmd), = got
     assert cmd is not None and cmd[0] == session and cmd[3] == P.BYE
+
+
+def test_a_link_error_names_the_link_once(dev):
+    """A link's own LinkError ("link: ...") is the fault reason as it is; another gets "link: " before it."""
+
+    class Failing(_Clock):
+        def __init__(self, link, message) -> None:
+            super().__init__(link, lambda t: t)
+            self.message, self.reads = message, 0
+
+        def read(self):
+            self.reads += 1
+            if self.reads > 3:
+                raise LinkError(self.message)
+            return super().read()
+
+    cfg = load_config("ch5_tmi")
+    for message, want in [("link: reading 4 has status bits 0xffe0", "link: reading 4 has status bits 0xffe0"),
+                          ("device: reading of protocol wire version 1", "link: device: reading of protocol wire")]:
+        res = run(Failing(cfg.sim_link(), message), cfg.controller(), duration=0.02, realtime=False)
+        assert res.fault is not None and res.fault.startswith(want) and "link: link:" not in res.fault, res.fault

@@ -186,7 +186,7 @@ def run(
                 try:
                     r = link.read()
                 except LinkError as exc:
-                    guard.trip(getattr(exc, "kind", "link"), f"link: {exc}")
+                    guard.trip(getattr(exc, "kind", "link"), _link_reason(exc))
                 tr = time.monotonic()
                 if r is not None:
                     if r.seq != last_seq:
@@ -214,7 +214,7 @@ def run(
                 try:
                     link.write(tau, enable=ok)
                 except LinkError as exc:
-                    guard.trip(getattr(exc, "kind", "link"), f"link: {exc}")
+                    guard.trip(getattr(exc, "kind", "link"), _link_reason(exc))
                 te = time.monotonic()
                 row = w.row()
                 row[0] = t_dev
@@ -273,6 +273,12 @@ def run(
     summary["round_trip"] = nan_stats(np.frombuffer(ages, dtype=float) if len(ages) else np.zeros(0))
     return RunResult(result_log, summary)
 
+
+
+def _link_reason(exc: LinkError) -> str:
+    """The fault reason of a link's error: its message, which names the link once."""
+    msg = str(exc)
+    return msg if msg.startswith("link:") else f"link: {msg}"
 
 def _check_sensors(link: DeviceLink, controller) -> None:
     """At connect: the device reports every sensor the controller needs (`required_sensors`), at its width.
