@@ -279,3 +279,18 @@ def test_follow_stops_when_idle_and_bad_input(tmp_path, capsys):
         export(path, path, to="csv")
     assert main(["log", "export", str(tmp_path / "none.rhilog"), "--to", "mcap"]) == 2
     assert "no log file" in capsys.readouterr().err
+
+
+def test_in_memory_writer_keeps_every_row_across_chunks_blocks_and_a_second_close():
+    w = LogWriter(layout(1, 1), chunk=3)  # in memory: rows stay in their chunk, no copy
+    for k in range(4):  # rows 0-3: a full chunk, then one row of the next
+        w.row()[0] = k
+    rows = w.block(5)  # the rest of that chunk (2 rows)
+    assert len(rows) == 2
+    rows[:, 0] = [4, 5]
+    w.commit(2)
+    w.row()[0] = 6  # a new chunk
+    np.testing.assert_array_equal(w.to_log().t, np.arange(7.0))
+    w.row()[0] = 7  # after closing: the next rows join the log at the next close
+    np.testing.assert_array_equal(w.to_log().t, np.arange(8.0))
+    assert len(LogWriter(layout(1, 1)).to_log().t) == 0

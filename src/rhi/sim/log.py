@@ -238,7 +238,8 @@ class LogWriter:
         columns: [(name, width)] (see `layout`).
         path: the ``.rhilog`` file to write (its events beside it), or None (in memory).
         meta: JSON-serialisable run description stored in the header (device, rate, ...).
-        chunk: rows per chunk (flushed to disk when full; 200 rows = 0.2 s at 1 kHz).
+        chunk: rows per chunk (flushed to disk when full; 200 rows = 0.2 s at 1 kHz); in memory, the rows
+            allocated at a time.
     """
 
     def __init__(self, columns: list[tuple[str, int]], path=None, *, meta: dict | None = None,
@@ -254,7 +255,8 @@ class LogWriter:
         self.width = i
         self.meta = dict(meta or {})
         self.path = None if path is None else Path(path)
-        self._buf = np.full((int(chunk), self.width), np.nan)
+        self._chunk = int(chunk)
+        self._buf = np.full((self._chunk, self.width), np.nan)
         self._k = 0
         self._chunks: list[np.ndarray] = []
         self.rows = 0
@@ -312,9 +314,11 @@ class LogWriter:
         if self._fh is not None:
             self._fh.write(np.ascontiguousarray(block, dtype="<f8").tobytes())
             self._fh.flush()
-        else:
-            self._chunks.append(block.copy())
-        self._buf.fill(np.nan)
+            self._buf.fill(np.nan)
+        else:  # in memory the rows stay where they are; the next go to the rest of the buffer, or to a new chunk
+            self._chunks.append(block)
+            rest = self._buf[self._k:]
+            self._buf = rest if len(rest) else np.full((self._chunk, self.width), np.nan)
         self._k = 0
 
     def close(self) -> None:
@@ -334,7 +338,7 @@ class LogWriter:
         self.close()
         if self.path is not None:
             return _load_binary(self.path)
-        data = np.vstack(self._chunks) if self._chunks else np.zeros((0, self.width))
+        data = self._chunks[0] if len(self._chunks) == 1 else np.vstack(self._chunks or [np.zeros((0, self.width))])
         log = _from_array(data, self.columns)
         log.events, log.fault, log.meta = list(self.events), self.fault, dict(self.meta)
         return log

@@ -291,7 +291,8 @@ def simulate(
                                                         record=record) or "switched off")
     w = LogWriter(columns, log, meta={"device": dev.name, "task_axes": dev.task_axes, "rate": float(rate),
                                       "source": "simulate", "environment": describe(virtual),
-                                      "route": fast.route if fast is not None else _route(why, controller)})
+                                      "route": fast.route if fast is not None else _route(why, controller)},
+                  chunk=N if log is None else 200)
     c = w.cols
     # Row blocks (see `layout`): the arrays from q to ft (one compiled call, `_compiled.io.log_row`), the scalars
     # from work to alpha_pc, then seq, the timing columns and safety: one write each.

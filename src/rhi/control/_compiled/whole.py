@@ -124,22 +124,35 @@ class Parts(NamedTuple):
     passivity: bool
 
 
+def _borrow(context, builder, ty, value):
+    """`value` of Numba type `ty` with every array in it (a tuple's, recursively) given no owner; other items increfed."""
+    if isinstance(ty, types.Array):
+        src = make_array(ty)(context, builder, value)
+        dst = make_array(ty)(context, builder)
+        populate_array(dst, data=src.data, shape=src.shape, strides=src.strides, itemsize=src.itemsize, meminfo=None)
+        return dst._getvalue()
+    if isinstance(ty, types.BaseTuple):
+        parts = ty.types  # type: ignore[attr-defined]
+        items = [_borrow(context, builder, t, builder.extract_value(value, i)) for i, t in enumerate(parts)]
+        return context.make_tuple(builder, ty, items)
+    context.nrt.incref(builder, ty, value)  # the result is a new reference: its items that are not arrays too
+    return value
+
+
 @intrinsic
 def _borrowed(typingctx, arr):
     """The array `arr` with no owner (meminfo NULL): every reference count of it and of its views is a null check.
 
     Numba counts references to an array's owner with an atomic operation per count, and a tick's code counts hundreds
     (every argument on entry and exit, every view, every call's arguments): most of its time. The kernel's
-    arguments outlive its call, so within it they need no counting. Only for arrays that outlive every use.
+    arguments outlive its call, so within it they need no counting. Only for arrays that outlive every use. A tuple
+    (e.g. of arrays) gives the tuple of its items so borrowed.
     """
-    if not isinstance(arr, types.Array):
+    if not isinstance(arr, (types.Array, types.BaseTuple)):
         return None
 
     def codegen(context, builder, sig, args):
-        src = make_array(arr)(context, builder, args[0])
-        dst = make_array(arr)(context, builder)
-        populate_array(dst, data=src.data, shape=src.shape, strides=src.strides, itemsize=src.itemsize, meminfo=None)
-        return dst._getvalue()
+        return _borrow(context, builder, sig.args[0], args[0])
 
     return arr(arr), codegen
 

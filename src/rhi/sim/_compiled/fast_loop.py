@@ -35,6 +35,7 @@ import numpy as np
 from numba import typeof, types
 
 from rhi.control._compiled import intent as _intent, tank as _tank, whole as _whole
+from rhi.control._compiled.whole import B
 from rhi.control.controller import NullSpaceController
 from rhi.control.intent_control import IntentController
 from rhi.devices.terms import layout
@@ -121,18 +122,27 @@ def ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, 
     """
     n, m = ctrl.shape[0], F_hand.shape[0]
     tr, pc, pc_pos, pc_eff, tau, sat, res, tank, tank_q, tank_e = cs
+    ist, ip = intent[4], intent[5]
+    # scratch, and the state before a tick (restored where the tick is Python's)
+    own = (np.empty(2 * n + 6), np.empty((3, m)), np.empty((2, m)), np.zeros(m), np.zeros(n), np.empty(m),
+           np.empty((m, m)), ist.copy(), ip.copy(), tr.copy(), pc.copy(), pc_pos.copy(), pc_eff.copy(), tau.copy(),
+           sat.copy(), tank.copy(), tank_q.copy(), tank_e.copy())
+    # every array outlives the call (`own` is passed along to keep it): no reference counting of them within it
+    _ticks(count, k0, dt, sub, mj, B(sens), B(kin), B(hand), B(ctrl), B(F_hand), B(wargs), B(cs), B(st), B(lay), B(xv),
+           B(rows), B(tele), B(intent), B(snap), whole, B(own), own)
+
+
+@jit
+def _ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st, lay, xv, rows, tele, intent, snap,
+           whole, scratch, keep):
+    """`ticks`' loop on its arguments and `scratch` (`keep`: the owner of scratch, unused)."""
+    n, m = ctrl.shape[0], F_hand.shape[0]
+    tr, pc, pc_pos, pc_eff, tau, sat, res, tank, tank_q, tank_e = cs
     sd, idx, c, F, xfrc, acc, wn, bad, at = hand
     mj_s, sub_s, pd, M_s, tau_s, ctrl_s, xfrc_s, sd_s, pos_s, wn_s, bad_s, slots, obj = tele
     n_s = tau_s.shape[0]
     kind, iprm, table, knots, ist, ip, irows, islots, axes = intent
-    ist0, ip0, Fi, Di = ist.copy(), ip.copy(), np.empty(m), np.empty((m, m))
-    read = np.empty(2 * n + 6)
-    kout = np.empty((3, m))
-    kx = np.empty((2, m))
-    F_env = np.zeros(m)
-    zero_n = np.zeros(n)
-    tr0, pc0, pos0, eff0, tau0, sat0 = tr.copy(), pc.copy(), pc_pos.copy(), pc_eff.copy(), tau.copy(), sat.copy()
-    tk0, tq0, te0 = tank.copy(), tank_q.copy(), tank_e.copy()
+    read, kout, kx, F_env, zero_n, Fi, Di, ist0, ip0, tr0, pc0, pos0, eff0, tau0, sat0, tk0, tq0, te0 = scratch
     lay[L_DONE], lay[L_OUT], lay[L_STATUS] = 0, DONE, PERIOD_OK
     for j in range(count):
         t = st[S_T]
