@@ -19,6 +19,7 @@ that a first use is not two minutes without a word. And it gives Numba's inliner
 function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size).
 `KernelRef` passes a compiled kernel to another as an argument (a function pointer), so that the caller
 is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick).
+`stack_empty` gives a kernel an array on its own stack for local scratch: no allocation, no reference counting.
 Processes that share the cache (test workers, `rhi reproduce`'s workers) save into a function's index one at a
 time (`_save_locked`).
 """
@@ -32,9 +33,13 @@ import hashlib
 import re
 import sys
 from pathlib import Path
+from typing import Any
 
+from llvmlite import ir as llvm_ir
 from numba import njit
 from numba.core import caching, event, inline_closurecall, ir, types
+from numba.extending import intrinsic
+from numba.np.arrayobj import make_array, populate_array
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
@@ -222,3 +227,52 @@ class KernelRef(types.WrapperAddressProtocol):
     def signature(self):
         """The kernel's Numba signature (return type and argument types)."""
         return self._sig
+
+
+@intrinsic
+def _stack_empty(typingctx, shape, dtype):
+    """``stack_empty(shape, dtype)`` in compiled code: an uninitialised C-contiguous array on the function's stack.
+
+    `shape` an int or a tuple of ints, `dtype` a NumPy scalar type (``np.float64``, ``np.bool_``, ...). No
+    allocation, no owner (meminfo NULL), so no reference counting of it or its views (an array from the heap costs
+    a malloc, a free and an atomic operation per count). Freed when the compiled function holding it returns (the
+    caller, where that function is inlined): only for arrays that do not outlive it (never returned or kept), never
+    inside a long loop (each evaluation takes more stack until the function returns), small sizes only.
+    """
+    if isinstance(shape, types.Integer):
+        nd = 1
+    elif isinstance(shape, types.BaseTuple) and all(isinstance(t, types.Integer) for t in shape.types):  # type: ignore[attr-defined]
+        nd = len(shape.types)  # type: ignore[attr-defined]
+    else:
+        return None
+    if not isinstance(dtype, types.NumberClass):
+        return None
+    ret = types.Array(dtype.instance_type, nd, "C")
+
+    def codegen(context, builder, sig, args):
+        shape_ty, intp = sig.args[0], context.get_value_type(types.intp)
+        if isinstance(shape_ty, types.Integer):
+            dims = [context.cast(builder, args[0], shape_ty, types.intp)]
+        else:
+            dims = [context.cast(builder, builder.extract_value(args[0], i), t, types.intp)
+                    for i, t in enumerate(shape_ty.types)]
+        total = llvm_ir.Constant(intp, 1)
+        for d in dims:
+            total = builder.mul(total, d)
+        element = context.get_data_type(ret.dtype)
+        data = builder.alloca(element, size=total)
+        data.align = 16
+        itemsize = context.get_abi_sizeof(element)
+        strides: list = []
+        step = llvm_ir.Constant(intp, itemsize)
+        for d in reversed(dims):
+            strides.insert(0, step)
+            step = builder.mul(step, d)
+        out = make_array(ret)(context, builder)
+        populate_array(out, data=data, shape=dims, strides=strides, itemsize=itemsize, meminfo=None)
+        return out._getvalue()
+
+    return ret(shape, dtype), codegen
+
+
+stack_empty: Any = _stack_empty  # as kernels call it: stack_empty(shape, dtype) (the intrinsic takes the typing context first)

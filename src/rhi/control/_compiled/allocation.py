@@ -17,7 +17,7 @@ import math
 import numpy as np
 
 from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mv, sub
-from rhi.jit import jit
+from rhi.jit import jit, stack_empty
 
 _TOL = 1e-12  # ASCM: relative overload below this is no overload
 _FAST_TOL = 1e-4  # smallest eigenvalue of P[S, S] the projector form trusts (σ_min(Z_S) >= 0.01)
@@ -57,9 +57,9 @@ def max_abs(x):
 def null_projector(A):
     """I − Qᵀ Q with Q an orthonormal basis of the rows of A (m, n), by CGS2; None-free: returns (P, ok)."""
     m, n = A.shape
-    Q = np.zeros((m, n))
+    Q, v = stack_empty((m, n), np.float64), stack_empty(n, np.float64)
     for i in range(m):
-        v = A[i].copy()
+        assign(v, A[i])
         scale = math.sqrt(dot(v, v))
         for _ in range(2):
             for j in range(i):
@@ -225,8 +225,9 @@ def clip(x, lo, hi):
 def allocate_scaling(a, b, lo, hi, sat):
     """Simple scaling into sat (n,) bool; returns (τ, α, clipped)."""
     n = a.shape[0]
-    alpha = scaling_alpha(a, b, lo, hi, np.ones(n, np.bool_))
-    sat[:] = False
+    every = stack_empty(n, np.bool_)
+    every[:], sat[:] = True, False
+    alpha = scaling_alpha(a, b, lo, hi, every)
     if alpha < 0.0:
         return clip(b, lo, hi), 0.0, True
     tau = clip(axpy(alpha, a, b), lo, hi)
@@ -245,12 +246,11 @@ def ascm(a, b, P, lo, hi, r, sat):
     """
     n = a.shape[0]
     base = add(a, b)
-    S, S2 = np.empty(n, np.int64), np.empty(n, np.int64)  # held joints, sorted; the next set (buffers, swapped)
+    S, S2 = stack_empty(n, np.int64), stack_empty(n, np.int64)  # held joints, sorted; the next set (swapped)
     k = np.int64(0)  # not the literal 0: one compiled version of held_torque
-    held = np.zeros(n, np.bool_)
-    ts, d, rr = np.zeros(n), np.zeros(n), np.empty(n)
-    tl = base.copy()
-    Z = np.zeros((n, r))
+    held, ts, d, rr = stack_empty(n, np.bool_), stack_empty(n, np.float64), stack_empty(n, np.float64), stack_empty(n, np.float64)
+    tl, Z = base.copy(), stack_empty((n, r), np.float64)  # tl is returned: on the heap
+    held[:], ts[:], d[:], Z[:, :] = False, 0.0, 0.0, 0.0
     square = False  # S holds r joints: held torques from the basis Z
     for _ in range(n + 1):
         if k:
@@ -298,7 +298,7 @@ def ascm(a, b, P, lo, hi, r, sat):
         ha = held_torque_square(Z, S, k, rr) if square else held_torque(P, S, k, rr)
         p = sub(a, ha)
         c = add(add(b, d), ha)
-        free = np.empty(n, np.bool_)
+        free = stack_empty(n, np.bool_)
         for i in range(n):
             free[i] = not held[i]
         alpha = scaling_alpha(p, c, lo, hi, free)
@@ -370,8 +370,8 @@ def safety_room(tau, b, delta, lo, hi):
     if not max_abs(delta) > negligible(delta):
         return tau, 1.0
     n = tau.shape[0]
-    every = np.ones(n, np.bool_)
-    c = add(b, delta)
+    every = stack_empty(n, np.bool_)
+    every[:], c = True, add(b, delta)
     gamma = scaling_alpha(sub(tau, b), c, lo, hi, every)
     if gamma < 0.0:
         sigma = scaling_alpha(delta, clip(tau, lo, hi), lo, hi, every)
@@ -390,7 +390,7 @@ def tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r):
             return np.zeros(n), 0.0, True
         if not well_conditioned(P, S, k):
             return np.zeros(n), 0.0, False
-        rr = np.empty(k)
+        rr = stack_empty(k, np.float64)
         for i in range(k):
             rr[i] = dl[S[i]]
         dl = sub(dl, held_torque(P, S, k, rr))

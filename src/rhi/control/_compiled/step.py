@@ -40,8 +40,8 @@ from rhi.control._compiled.allocation import (
 )
 from rhi.control._compiled.lp import active_set, active_set_result, active_set_start
 from rhi.control._compiled.tank import TK_GATE, TK_ON, TK_THETA, _null, blend, direction, gate, gated, null_inertia
-from rhi.devices._compiled.terms import add, axpy, dot, inv as _inv, mm, mtv, mv, sub
-from rhi.jit import jit
+from rhi.devices._compiled.terms import add, axpy, dot, inv as _inv, inv_to, mm, mtv, mv, sub
+from rhi.jit import jit, stack_empty
 
 #: Status of `tick`.
 OK, FALLBACK, SINGULAR = 0, 1, 2
@@ -114,7 +114,8 @@ def vme_gradient(D, J, dJ):
 def fme_gradient(D, J, dJ, w2):
     """∂/∂q of JBLD(M̂, D), M̂ = (J W² Jᵀ)⁻¹ (eqs. 6.9–6.10): −2 Σ (Hᵀ J W²)_ij ∂J_ij/∂q_k. (n,)."""
     m, n = J.shape
-    Jw, A, T, K = np.empty((m, n)), np.empty((m, m)), np.empty((m, m)), np.empty((m, n))
+    Jw, A, T = stack_empty((m, n), np.float64), stack_empty((m, m), np.float64), stack_empty((m, m), np.float64)
+    K = stack_empty((m, n), np.float64)
     for i in range(m):  # scalar loops into a few arrays: no temporary per product
         for j in range(n):
             Jw[i, j] = J[i, j] * w2[j]
@@ -124,11 +125,12 @@ def fme_gradient(D, J, dJ, w2):
             for l in range(n):
                 s += Jw[i, l] * J[j, l]
             A[i, j] = s
-    Mh = _inv(A)
+    Mh, G = stack_empty((m, m), np.float64), stack_empty((m, m), np.float64)
+    inv_to(A, Mh)
     for i in range(m):
         for j in range(m):
             T[i, j] = 0.5 * (Mh[i, j] + D[i, j])
-    G = _inv(T)
+    inv_to(T, G)
     for i in range(m):
         for j in range(m):
             G[i, j] = 0.5 * (G[i, j] - A[i, j])
@@ -299,7 +301,8 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     Jsharp = terms[at[7]:at[7] + n * m].reshape((n, m))
     Gx = terms[at[8]:at[8] + m]
     gravity = prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0
-    a, b, tau_m, tau_s, tau_to = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    a, b, tau_m = stack_empty(n, np.float64), stack_empty(n, np.float64), stack_empty(n, np.float64)
+    tau_s, tau_to = stack_empty(n, np.float64), stack_empty(n, np.float64)
     for j in range(n):  # a = Jᵀ F_r, b = Jᵀ F_x (+ g − Jᵀ G_x), τ_m = a + b; scalar loops, no temporaries
         sa, sb, sg = 0.0, 0.0, 0.0
         for i in range(m):
@@ -340,8 +343,10 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     r = n - m
     dynamic = prm[P_DYNAMIC] != 0.0
     have_P = False
-    P = np.eye(n)
-    Ntau = np.empty(n)
+    P, Ntau = stack_empty((n, n), np.float64), stack_empty(n, np.float64)  # local: on the stack
+    for i in range(n):
+        for j in range(n):
+            P[i, j] = 1.0 if i == j else 0.0
     if dynamic:
         dynamic_null(J, Jsharp, tau_to, Ntau)
     else:
@@ -358,7 +363,8 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     ok, tau, alpha, clipped = allocate(code, V, a, b, tau_m, P, lo, hi, r, sat)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
-    g_null = np.zeros(n)
+    g_null = stack_empty(n, np.float64)
+    g_null[:] = 0.0
     if prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0:
         g_null = sub(g, mtv(J, Gx))
     gate_on = tank_on and tank[TK_GATE] != 0.0

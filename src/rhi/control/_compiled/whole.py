@@ -31,7 +31,7 @@ from rhi.control._compiled.objectives import objectives
 from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
 from rhi.devices._compiled.chain import chain_terms
 from rhi.devices._compiled.terms import assign, dot, mm
-from rhi.jit import jit
+from rhi.jit import jit, stack_empty
 
 __all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "whole_for"]
 
@@ -256,7 +256,7 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
     x, buf, F_r, F_x, tau_out, sat, res = outs
     n, m = q.shape[0], rows.shape[0]
     if not ready:
-        th = np.empty(A.shape[0])  # θ = A q + b
+        th = stack_empty(A.shape[0], np.float64)  # θ = A q + b
         for i in range(A.shape[0]):
             s = 0.0
             for j in range(n):
@@ -274,7 +274,8 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
     xdot = buf[at[9]:at[9] + m]
     Cx = buf[at[12]:at[12] + m * m].reshape((m, m))
     _law(law, n, m, x, xdot, dq, force, Cx, Gx, g, Jsharp, F_r, F_x)
-    tau_s, tau_to = np.zeros(n), np.zeros(n)
+    tau_s, tau_to = stack_empty(n, np.float64), stack_empty(n, np.float64)
+    tau_s[:], tau_to[:] = 0.0, 0.0
     if objectives_on:
         objectives(obj, q, dq, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
     tr0, tr1, tr2, tr3 = tr[0], tr[1], tr[2], tr[3]

@@ -30,7 +30,7 @@ import numpy as np
 
 from rhi.devices._compiled.terms import task_terms
 from rhi.devices.batch import _ARM, _AX, _COM, _MASS, _P, _ROT, _T
-from rhi.jit import jit
+from rhi.jit import jit, stack_empty
 
 
 @jit(inline=True)
@@ -144,8 +144,20 @@ def _take(w, pos, size):
 
 
 @jit(inline=True)
+def work_size(nt):
+    """Floats of `chain_dynamics`' work vector for a chain of nt joints."""
+    return 67 * nt + 21 + 20 * nt * nt + nt * nt * nt
+
+
+@jit
 def chain_dynamics(ints, joints, consts, th, dth):
-    """x, J6, M_θ, g_θ, C_θ of one state.
+    """x, J6, M_θ, g_θ, C_θ of one state (views of one new work vector; `chain_dynamics_in` on a given one)."""
+    return chain_dynamics_in(ints, joints, consts, th, dth, np.empty(work_size(th.shape[0])))
+
+
+@jit(inline=True)
+def chain_dynamics_in(ints, joints, consts, th, dth, w):
+    """x, J6, M_θ, g_θ, C_θ of one state, as views of the work vector w (`work_size` floats).
 
     Args:
         ints: the model's integer constants (`rhi.devices.batch.pack`).
@@ -153,6 +165,7 @@ def chain_dynamics(ints, joints, consts, th, dth):
         consts: its frame and gravity constants.
         th: (nθ,) chain coordinates [rad or m].
         dth: (nθ,) chain velocities [rad/s or m/s].
+        w: the work vector every result and scratch array is a view of.
 
     Returns:
         p (3,) end-effector position [m], J6 (6, nθ) frame Jacobian (LOCAL_WORLD_ALIGNED, linear rows
@@ -160,8 +173,7 @@ def chain_dynamics(ints, joints, consts, th, dth):
         C (nθ, nθ) Coriolis matrix (C θ̇ [N m]).
     """
     nt = th.shape[0]
-    # every float array below is a view of one work vector (one allocation: one per array costs more)
-    w = np.empty(67 * nt + 21 + 20 * nt * nt + nt * nt * nt)
+    # every float array below is a view of the one work vector (one allocation, or none: `chain_terms`)
     oR, p = _take(w, 0, 9 * nt)
     o, p = _take(w, p, 3 * nt)
     S, p = _take(w, p, 6 * nt)
@@ -183,7 +195,8 @@ def chain_dynamics(ints, joints, consts, th, dth):
     X, Y, Z = X.reshape((nt, nt, 6)), Y.reshape((nt, nt, 6)), Z.reshape((nt, nt, 6))
     D, C = D.reshape((nt, nt, nt)), C.reshape((nt, nt))
     _forward(ints, joints, th, oR, o, S, Ic, RP, T)
-    sup = np.zeros((nt, nt), dtype=np.bool_)  # sup[a, b]: joint a supports joint b (or is b)
+    sup = stack_empty((nt, nt), np.bool_)  # sup[a, b]: joint a supports joint b (or is b)
+    sup[:, :] = False
     for j in range(nt):
         k = j
         while k >= 0:
@@ -296,13 +309,14 @@ def chain_terms(ints, joints, consts, th, A, rows, armature, supports, identity,
         out: flat float64 output of `task_terms`.
     """
     nt, n = A.shape
-    dth = np.empty(nt)
+    dth = stack_empty(nt, np.float64)
     for i in range(nt):
         s = 0.0
         for j in range(n):
             s += A[i, j] * dq[j]
         dth[i] = s
-    pt, J6, Mt, gt, Ct = chain_dynamics(ints, joints, consts, th, dth)
+    w = stack_empty(work_size(nt), np.float64)  # the terms are read here: on this call's stack
+    pt, J6, Mt, gt, Ct = chain_dynamics_in(ints, joints, consts, th, dth, w)
     for i in range(rows.shape[0]):
         x[i] = pt[rows[i]]
     task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, False, dq, out)

@@ -11,14 +11,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.jit import jit
+from rhi.jit import jit, stack_empty
 
 
 @jit
 def inv(A):
     """Inverse of a small (k, k) matrix: closed form for k <= 3, Gauss-Jordan otherwise (singular: inf/NaN)."""
+    out = np.empty(A.shape)
+    inv_to(A, out)
+    return out
+
+
+@jit
+def inv_to(A, out):
+    """`inv` of A written into `out` (k, k), another array than A."""
     k = A.shape[0]
-    out = np.empty((k, k))
     if k == 1:
         out[0, 0] = 1.0 / A[0, 0]
     elif k == 2:
@@ -62,7 +69,6 @@ def inv(A):
                         for j in range(k):
                             W[r, j] -= f * W[c, j]
                             out[r, j] -= f * out[c, j]
-    return out
 
 
 @jit
@@ -155,7 +161,7 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
             for j in range(nt):
                 s += A[j, a] * J6[r, j]
             out[oJ + i * n + a] = s
-    W = np.empty((max(n, nt), max(n, nt)))  # scratch: Aᵀ X products
+    W = stack_empty((max(n, nt), max(n, nt)), np.float64)  # scratch: Aᵀ X products
     for a in range(n):  # M = Aᵀ M_θ A (+ armature); M_θ's upper triangle alone when fill_lower
         for k in range(nt):
             s = 0.0
@@ -177,7 +183,7 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
         out[og + a] = s
         gg += s * s
     # ∂J_j/∂θ_k = ω_k × v_j when joint k supports joint j, ω_j × v_k otherwise (v, ω: J6's linear, angular rows)
-    D = np.empty((m, nt, nt))
+    D = stack_empty((m, nt, nt), np.float64)
     for j in range(nt):
         for k in range(nt):
             w, v = (k, j) if supports[j, k] else (j, k)
@@ -204,27 +210,23 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
                     for k in range(nt):
                         s += W[a, k] * A[k, c]
                     out[odJ + (i * n + a) * n + c] = s
-    Minv = inv(out[oM:oM + n * n].reshape((n, n)))
-    for a in range(n):
-        for c in range(n):
-            out[oMi + a * n + c] = Minv[a, c]
+    Minv = out[oMi:oMi + n * n].reshape((n, n))
+    inv_to(out[oM:oM + n * n].reshape((n, n)), Minv)
     for i in range(m):  # J M⁻¹
         for c in range(n):
             s = 0.0
             for a in range(n):
                 s += out[oJ + i * n + a] * Minv[a, c]
             out[oJMi + i * n + c] = s
-    L = np.empty((m, m))  # J M⁻¹ Jᵀ
+    L = stack_empty((m, m), np.float64)  # J M⁻¹ Jᵀ
     for i in range(m):
         for j in range(m):
             s = 0.0
             for c in range(n):
                 s += out[oJMi + i * n + c] * out[oJ + j * n + c]
             L[i, j] = s
-    Lam = inv(L)
-    for i in range(m):
-        for j in range(m):
-            out[oL + i * m + j] = Lam[i, j]
+    Lam = out[oL:oL + m * m].reshape((m, m))
+    inv_to(L, Lam)
     for a in range(n):  # J# = (J M⁻¹)ᵀ Λ
         for j in range(m):
             s = 0.0

@@ -23,7 +23,7 @@ import numpy as np
 
 from rhi.devices._compiled.chain import joint_frame
 from rhi.devices.batch import AXIS_COLUMN as _AX
-from rhi.jit import jit
+from rhi.jit import jit, stack_empty
 from rhi.sim.environment import Compose, Fixture, Wall
 from rhi.sim.hand import Hand, HandSequence, MinimumJerkPalpation, PushForce
 from rhi.sim.mjc import step1, step2
@@ -48,22 +48,21 @@ def handle_state(ints, joints, fc, q, dq, out):
             of `fc`.
     """
     nt, n, m = joints.shape[0], q.shape[0], out.shape[1]
-    oR = np.empty((nt, 3, 3))
-    o = np.empty((nt, 3))
-    RP = np.empty((3, 3))
-    T = np.empty((3, 3))
+    oR, o = stack_empty((nt, 3, 3), np.float64), stack_empty((nt, 3), np.float64)  # local: on the stack
+    RP, T = stack_empty((3, 3), np.float64), stack_empty((3, 3), np.float64)
     for j in range(nt):
         th = fc[12 + j]
         for k in range(n):
             th += fc[12 + nt + j * n + k] * q[k]
         joint_frame(ints, joints, j, th, oR, o, RP, T)
     f = ints[2 * nt]
-    pt = np.empty(3)
+    pt = stack_empty(3, np.float64)
     for r in range(3):
         pt[r] = fc[9 + r]
         if f >= 0:
             pt[r] = o[f, r] + oR[f, r, 0] * fc[9] + oR[f, r, 1] * fc[10] + oR[f, r, 2] * fc[11]
-    v = np.zeros(3)
+    v = stack_empty(3, np.float64)
+    v[:] = 0.0
     j = f
     while j >= 0:  # the joints supporting the frame, from its own joint to the root
         dth = 0.0
