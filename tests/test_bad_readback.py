@@ -97,11 +97,10 @@ def test_fidelity_cli_refuses_a_results_json_of_another_form(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ study folders edited by hand
-def _study_template() -> Path:
-    """A study folder with one participant and 6 committed trials of the §3.6 protocol (made once)."""
-    import tempfile
-
-    folder = Path(tempfile.mkdtemp(prefix="rhi-study-"))
+@pytest.fixture(scope="module")
+def study(tmp_path_factory) -> Path:
+    """A study folder with one participant and 6 committed trials of the §3.6 protocol (made once per module)."""
+    folder = tmp_path_factory.mktemp("study-template")
     s = Session(folder, load_protocol("ch3_stiffness_2afc"), "P01", fields={"handedness": "left"})
     for t in s.plan[:6]:
         s.commit(answer_row(t, "P01", t.percent, "first" if t.index % 2 else "second", response_time=0.8,
@@ -109,7 +108,6 @@ def _study_template() -> Path:
     return folder
 
 
-STUDY = _study_template()
 CELL_TEXT = st.one_of(st.sampled_from(["", "nan", "inf", "-1", "2", "1e999", "0x1", "1_0", "first", "x", "P02", "RHI",
                                        "Rehab", "1.5", " 1", "１"]), st.text(max_size=4))
 
@@ -145,10 +143,10 @@ def _edit_study(data, folder: Path) -> str:
 
 @examples(80)
 @given(data=st.data())
-def test_a_hand_edited_study_folder_is_read_or_refused(data, tmp_path_factory):
+def test_a_hand_edited_study_folder_is_read_or_refused(data, tmp_path_factory, study):
     """Resuming or analysing a damaged participant folder: consistent rows, or an rhi.errors error naming the file."""
     folder = tmp_path_factory.mktemp("study") / "s"
-    shutil.copytree(STUDY, folder)
+    shutil.copytree(study, folder)
     what = _edit_study(data, folder)
     try:
         rows = [r for s in participants(folder) for r in s.rows]
@@ -168,7 +166,7 @@ def test_a_hand_edited_study_folder_is_read_or_refused(data, tmp_path_factory):
         pytest.fail(f"{what}: foreign {type(exc).__name__}: {exc}")
 
 
-def test_study_folder_damage_names_the_file_and_the_place(tmp_path):
+def test_study_folder_damage_names_the_file_and_the_place(tmp_path, study):
     for file, old, new, want in [("participant.json", '"index": 0', '"index": "a"', "participant.json: key 'index'"),
                                  ("participant.json", "{", "[", "participant.json: not JSON"),
                                  ("responses.csv", ",second,1,", ",second,x,", "column 'response': 'x' is not 0, 1"),
@@ -176,7 +174,7 @@ def test_study_folder_damage_names_the_file_and_the_place(tmp_path):
                                  ("responses.csv", ",Rehab,", ",RHI,", "column 'condition': expected 'Rehab'"),
                                  ("protocol.toml", "[", "", "protocol.toml")]:
         folder = tmp_path / file / new
-        shutil.copytree(STUDY, folder)
+        shutil.copytree(study, folder)
         path = folder / "P01" / file
         assert old in path.read_text(), (file, old)
         path.write_text(path.read_text().replace(old, new, 1))
