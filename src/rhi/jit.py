@@ -11,7 +11,7 @@ kernels of other files (`rhi.control._compiled.whole` calls `step`, `allocation`
 `passivity`, `rhi.devices._compiled.terms` and `rhi.devices._compiled.chain`, and the compiled simulation
 loop calls the whole tick) would then load machine code compiled from the old callees after an edit of theirs.
 `install` (run here, before the decorator is made) registers cache locators for the files of the rhi
-package whose stamp is one hash of every rhi module that defines compiled functions (`kernel_files`): an
+package whose stamp is one hash of every rhi module that defines compiled functions or intrinsics (`kernel_files`): an
 edit of any of them recompiles every rhi kernel once. Functions outside the rhi package keep Numba's own
 locators. Uses Numba's cache-locator classes (``numba.core.caching``). It also listens to Numba's compile
 events: the first compile of an rhi kernel in a process (a cold cache) prints `COLD` once on stderr, so
@@ -43,11 +43,11 @@ from numba.np.arrayobj import make_array, populate_array
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
-_DECORATED = re.compile(rb"^@jit\b", re.M)
+_DECORATED = re.compile(rb"^@(jit|intrinsic)\b", re.M)  # kernels and the intrinsics they inline
 
 
 def kernel_files(root: Path = _ROOT) -> list[Path]:
-    """The modules under `root` (default: the rhi package) that define compiled functions, sorted."""
+    """The modules under `root` (default: the rhi package) that define compiled functions or intrinsics, sorted."""
     return sorted(p for p in root.rglob("*.py") if _DECORATED.search(p.read_bytes()))
 
 
