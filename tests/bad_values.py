@@ -12,6 +12,16 @@ from hypothesis import HealthCheck, settings, strategies as st
 from rhi.errors import RhiError
 
 
+def cli_exit(argv: list[str]) -> int:
+    """`rhi.cli.main(argv)`'s exit status, whether it returns or raises SystemExit."""
+    from rhi.cli import main
+
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+
+
 def examples(n: int):
     """Hypothesis settings: `n` examples, derandomized (a reproducible suite), no deadline."""
     return settings(max_examples=n, derandomize=True, deadline=None, database=None,

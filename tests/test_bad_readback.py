@@ -18,10 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bad_values import examples
+from bad_values import cli_exit, examples
 from hypothesis import given, strategies as st
 
-from rhi.cli import main
 from rhi.errors import RhiError
 from rhi.report.fidelity import load_runs
 from rhi.study.protocol import load_protocol, parse_protocol, protocol_path, shipped_protocols
@@ -44,13 +43,6 @@ def _key_paths(d, prefix=()):
 
 
 PATHS = list(_key_paths({"results": QUICK, "meta": {"mode": "quick"}}))
-
-
-def _exit(argv) -> int:
-    try:
-        return main(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
 
 
 @examples(150)
@@ -91,7 +83,7 @@ def test_fidelity_cli_refuses_a_results_json_of_another_form(tmp_path, capsys):
                         ' "notes": []}]}', "results[0].tables[0].rows[0].thesis: missing"),
                        (json.dumps({"results": [{**QUICK[0], "notes": "a"}]}), "results[0].notes")]:
         (tmp_path / "results.json").write_text(text)
-        assert _exit(["fidelity", str(tmp_path)]) == 2, text
+        assert cli_exit(["fidelity", str(tmp_path)]) == 2, text
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and want in err[0] and "Traceback" not in err[0], (text, err)
 
@@ -330,6 +322,6 @@ def test_a_csv_log_with_generated_columns_dropped_is_read_or_refused(data, tmp_p
 
 def test_log_export_of_a_csv_without_the_log_columns(tmp_path, capsys):
     (tmp_path / "two.csv").write_text("t,q0\n0,1\n0.001,2\n")
-    assert _exit(["log", "export", str(tmp_path / "two.csv"), "--to", "mcap"]) == 2
+    assert cli_exit(["log", "export", str(tmp_path / "two.csv"), "--to", "mcap"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no column F_env" in err[0], err

@@ -15,13 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bad_values import NON_FINITE, NOT_A_NUMBER, bad_matrix, bad_object, bad_scalar, bad_vector, examples, expect_error
+from bad_values import NON_FINITE, NOT_A_NUMBER, bad_matrix, bad_object, bad_scalar, bad_vector, cli_exit, examples, expect_error
 from hypothesis import given, strategies as st
 
 import rhi
 from rhi import control as ctl
 from rhi._validate import writable_file
-from rhi.cli import main
 from rhi.errors import InvalidInput, RhiError
 from rhi.runtime import SafetyConfig, SimLink, run
 from rhi.runtime.config import config_path, parse_config
@@ -276,19 +275,12 @@ FLAGS = [
 ]
 
 
-def _exit(argv: list[str]) -> int:
-    try:
-        return main(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
-
-
 @examples(150)
 @given(data=st.data())
 def test_cli_flags_refuse_generated_bad_values(data, capsys):
     before, flag, values = data.draw(st.sampled_from(FLAGS), label="flag")
     value = data.draw(values, label="value")
-    assert _exit([*before, f"{flag}={value}"]) == 2, (flag, value)
+    assert cli_exit([*before, f"{flag}={value}"]) == 2, (flag, value)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and flag in err[0] and "Traceback" not in err[0], (flag, value, err)
 
@@ -300,7 +292,7 @@ def test_cli_run_checks_its_outputs_before_the_run(which, where, tmp_path_factor
     (tmp / "afile").write_text("x")
     target = {"dir": tmp, "proc": Path("/proc/rhi-no/x.json"), "file_parent": tmp / "afile" / "x.json"}[where]
     before = set(Path("out").glob("run-*"))
-    assert _exit(["run", "rhi4", "--config", "ch7_full", "--duration", "60", which, str(target)]) == 2
+    assert cli_exit(["run", "rhi4", "--config", "ch7_full", "--duration", "60", which, str(target)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{which}:" in err[0], err
     assert set(Path("out").glob("run-*")) == before  # a refused run leaves no folder behind
@@ -323,7 +315,7 @@ def test_cli_other_bad_combinations(tmp_path, capsys):
                        (["view", str(tmp_path / "cut.rhilog")], "path:")]:
         if want == "path:":
             (tmp_path / "cut.rhilog").write_bytes(b"RHILOG\x00\x01\x02")
-        assert _exit(argv) == 2, argv
+        assert cli_exit(argv) == 2, argv
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and want in err[0], (argv, err)
 
