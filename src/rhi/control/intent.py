@@ -33,19 +33,17 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import i0e, i1e
 
-from rhi._validate import scalar
+from rhi._validate import scalar, unit_vector
 from rhi.control.compiled import CompiledIntent
 from rhi.errors import InvalidInput
 
 
 def _unit(name: str, u, m: int | None = None) -> np.ndarray:
-    u = np.asarray(u, dtype=float)
-    if u.ndim != 1 or (m is not None and u.shape != (m,)) or not np.all(np.isfinite(u)):
-        raise InvalidInput(f"{name}: expected a finite ({m or 'm'},) vector, got {u.tolist()}")
-    n = float(np.linalg.norm(u))
-    if n == 0.0:
-        raise InvalidInput(f"{name}: zero-length direction")
-    return u / n
+    """One direction: `u` normalised, a (m,) vector (`unit_vector` also takes batches)."""
+    v = unit_vector(name, u, m)
+    if v.ndim != 1:
+        raise InvalidInput(f"{name}: expected one ({m or 'm'},) vector, got shape {v.shape}")
+    return v
 
 
 def axial_error(u_est, u_true) -> np.ndarray:
