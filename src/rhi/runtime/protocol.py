@@ -63,6 +63,17 @@ def command(session: int, seq: int, ack: int, flags: int, t_host: float, tau: np
     return _CMD.pack(COMMAND, VERSION, flags, session, seq & NO_SEQ, ack & NO_SEQ, len(tau), 0, t_host) + tau.tobytes()
 
 
+def command_into(buf: bytearray, session: int, seq: int, ack: int, flags: int, t_host: float) -> None:
+    """Write a COMMAND's header into `buf` (36 + 8n bytes) in place; its torques go to the n floats after it."""
+    _CMD.pack_into(buf, 0, COMMAND, VERSION, flags, session, seq & NO_SEQ, ack & NO_SEQ, (len(buf) - _CMD.size) // 8, 0,
+                   t_host)
+
+
+def reading_header(buf) -> tuple[bytes, int, int, int, int, int, int, int, float]:
+    """A READING's header fields from the start of `buf`: (magic, version, status, session, seq, cmd_seq, n, k, t_dev)."""
+    return _READ.unpack_from(buf)
+
+
 def reading(session: int, seq: int, cmd_seq: int, status: int, t_dev: float, q, dq, s) -> bytes:
     """A READING packet (device → host): session, sequence numbers, status, device time [s], q, q̇ (n,), sensors (k,)."""
     q = np.ascontiguousarray(q, dtype="<f8")

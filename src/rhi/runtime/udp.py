@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import secrets
+import select
 import socket
 import time
 import urllib.parse
@@ -91,10 +92,19 @@ class UDPLink:
         self._last: Reading | None = None
         self._last_seq: int | None = None
         self._seq = 0
-        self._sent_seq = np.full(self._RING, -1, dtype=np.int64)
-        self._sent_t = np.zeros(self._RING)
+        self._sent_seq = [-1] * self._RING
+        self._sent_t = [0.0] * self._RING
         self._first_sent: float | None = None
         self._wall = True
+        # the per-tick buffers, allocated once (`open`): datagrams are received into `_rx` and a reading's floats
+        # copied out of it in one call; commands are packed into `_tx` in place
+        self._rx = bytearray(65536)
+        self._poll = select.poll()
+        self._size = P.READING_SIZE  # a reading's size in bytes (`open`: with the device's floats)
+        self._values = np.zeros(0)
+        self._slices: list[tuple[str, slice]] = []
+        self._tx = bytearray(P.COMMAND_SIZE)
+        self._tx_tau = np.zeros(0)
 
     @classmethod
     def from_url(cls, url: str, **kw) -> UDPLink:
@@ -116,6 +126,8 @@ class UDPLink:
         except OSError as exc:
             raise LinkError(f"link: cannot reach {self.addr[0]}:{self.addr[1]}: {exc}") from None
         self._sock = s
+        self._poll = select.poll()
+        self._poll.register(s, select.POLLIN)
         self.session = secrets.randbits(64) or 1
         end = time.monotonic() + self.connect_timeout
         pkt = None
@@ -123,9 +135,10 @@ class UDPLink:
             self._send(P.hello(self.session, P.TAKEOVER if self.takeover else 0))
             until = time.monotonic() + min(0.2, max(end - time.monotonic(), 0.0))
             while pkt is None and time.monotonic() < until:
-                got = self._recv(max(until - time.monotonic(), 0.0))
-                if got is None:
+                size = self._recv(max(until - time.monotonic(), 0.0))
+                if size < 0:
                     break
+                got = bytes(self._rx[:size])
                 if P.kind(got) == P.ERROR or (P.kind(got) == P.INFO and (
                         P.version(got) != P.VERSION or len(got) < P.INFO_SIZE
                         or int.from_bytes(got[28:36], "little") == self.session)):
@@ -148,6 +161,12 @@ class UDPLink:
             raise
         self.n, self.sensors = int(self.info["n"]), list(self.info["sensors"])
         self._k = int(self.info["k"])
+        self._size = P.READING_SIZE + 8 * (2 * self.n + self._k)
+        self._values = np.frombuffer(self._rx, dtype="<f8", count=2 * self.n + self._k, offset=P.READING_SIZE)
+        ends = np.cumsum([2 * self.n] + [w for _, w in self.sensors]).tolist()
+        self._slices = [(name, slice(a, b)) for (name, _), a, b in zip(self.sensors, ends, ends[1:])]
+        self._tx = bytearray(P.COMMAND_SIZE + 8 * self.n)
+        self._tx_tau = np.frombuffer(self._tx, dtype="<f8", count=self.n, offset=P.COMMAND_SIZE)
         self._rest = spin_rest(1.0 / self.rate, self.spin)
         self._wall = not self.info.get("lockstep", False)  # a lock-step simulation's time stops while it waits
         if abs(self.info["rate"] - self.rate) > 1e-9 * self.rate:
@@ -162,7 +181,7 @@ class UDPLink:
         self.close()
         raise LinkError(f"link: {why}")
 
-    def _send(self, pkt: bytes) -> None:
+    def _send(self, pkt: bytes | bytearray) -> None:
         if self._sock is None:
             raise LinkError("link: not open")
         try:
@@ -171,21 +190,22 @@ class UDPLink:
             raise LinkError(f"link: send to {self.addr[0]}:{self.addr[1]} failed: {exc}") from None
         self.stats["sent"] += 1
 
-    def _recv(self, timeout: float) -> bytes | None:
+    def _recv(self, timeout: float) -> int:
+        """Receive the next datagram into `_rx` within `timeout` [s]: its size, or -1 when none came."""
         s = self._sock
         if s is None:
             raise LinkError("link: not open")
         try:
-            if timeout > 0 and not wait_readable(s, timeout):
-                return None
-            return s.recv(65536, socket.MSG_DONTWAIT)
+            if not self._poll.poll(0) and (timeout <= 0 or not wait_readable(s, timeout)):
+                return -1
+            return s.recv_into(self._rx, 0, socket.MSG_DONTWAIT)
         except BlockingIOError:
-            return None
+            return -1
         except OSError as exc:  # e.g. ECONNREFUSED: the device process is gone
             raise LinkError(f"link: {self.addr[0]}:{self.addr[1]} unreachable: {exc}") from None
 
-    def _wait(self, end: float) -> bytes | None:
-        """The next datagram, by the monotonic time `end` [s] at the latest (None: none came).
+    def _wait(self, end: float) -> int:
+        """Receive the next datagram into `_rx` by the monotonic time `end` [s] at the latest: its size, or -1.
 
         Asleep in `select` until one arrives; `spin`: polling the non-blocking socket on a busy core (after
         `spin_rest`'s short sleep where the kernel would otherwise throttle a real-time loop).
@@ -193,16 +213,16 @@ class UDPLink:
         if not self.spin:
             return self._recv(max(end - time.monotonic(), 0.0))
         if self._rest:
-            pkt = self._recv(min(self._rest, max(end - time.monotonic(), 0.0)))
-            if pkt is not None:
-                return pkt
+            size = self._recv(min(self._rest, max(end - time.monotonic(), 0.0)))
+            if size >= 0:
+                return size
         s = self._sock
         while True:
             try:
-                return s.recv(65536, socket.MSG_DONTWAIT)  # type: ignore[union-attr]
+                return s.recv_into(self._rx, 0, socket.MSG_DONTWAIT)  # type: ignore[union-attr]
             except BlockingIOError:
                 if time.monotonic() >= end:
-                    return None
+                    return -1
             except OSError as exc:
                 raise LinkError(f"link: {self.addr[0]}:{self.addr[1]} unreachable: {exc}") from None
 
@@ -219,12 +239,12 @@ class UDPLink:
         newest = None
         end = time.monotonic() + self.timeout
         while True:
-            pkt = self._recv(0.0) if newest is not None else self._wait(end)
-            if pkt is None:
+            size = self._recv(0.0) if newest is not None else self._wait(end)
+            if size < 0:
                 if newest is not None or time.monotonic() >= end:
                     break
                 continue
-            r = self._parse(pkt, time.monotonic())
+            r = self._parse(size, time.monotonic())
             if r is not None:
                 if newest is not None:
                     self.stats["skipped"] += 1  # the host fell a device period behind
@@ -236,20 +256,18 @@ class UDPLink:
         self._last = newest
         return newest
 
-    def _parse(self, pkt: bytes, now: float) -> Reading | None:
-        if P.kind(pkt) != P.READING:
-            if P.kind(pkt) == P.ERROR:
-                code, session, msg = P.parse_error(pkt)
-                if code == P.E_SESSION_LOST and session == self.session:
-                    raise SessionLost(f"SESSION_LOST: {msg}")
-                if session in (0, self.session):
-                    raise LinkError(f"link: device error: {P.ERROR_NAMES.get(code, 'ERROR')}: {msg}")
-            return None  # e.g. a repeated INFO
-        v = P.parse_reading(pkt, self.n, self._k)
-        if v is None:
+    def _parse(self, size: int, now: float) -> Reading | None:
+        """The reading in the first `size` bytes of `_rx` (None: another message, malformed or foreign)."""
+        rx = self._rx
+        if size != self._size or not rx.startswith(P.READING):  # not a well-formed reading of this device
+            return self._other(bytes(rx[:size]))
+        _, ver, status, session, seq, cmd_seq, nn, kk, t = P.reading_header(rx)
+        if ver != P.VERSION:
+            raise LinkError(f"device: reading of protocol wire version {ver}, this host speaks v{P.NAME} "
+                            f"(wire version {P.VERSION})")
+        if nn != self.n or kk != self._k:
             self.stats["invalid"] += 1
             return None
-        session, seq, cmd_seq, status, t, q, dq, s = v
         if session != self.session:
             self.stats["foreign"] += 1
             return None
@@ -264,14 +282,25 @@ class UDPLink:
                 self.stats["reordered"] += 1
                 raise LinkError(f"link: out-of-order datagram: reading {seq} arrived after reading {self._last_seq}")
         self._last_seq = seq
-        sensors, i = {}, 0
-        for name, w in self.sensors:
-            sensors[name] = s[i:i + w]
-            i += w
+        v = self._values.astype(float)  # a copy: the reading keeps its values when the next datagram arrives
+        n = self.n
+        sensors = {name: v[at] for name, at in self._slices}
         if not self._wall:
-            return Reading(t, seq, q, dq, sensors, status, -1 if cmd_seq == P.NO_SEQ else cmd_seq)
-        return Reading(t, seq, q, dq, sensors, status, -1 if cmd_seq == P.NO_SEQ else cmd_seq, "", now,
+            return Reading(t, seq, v[:n], v[n:2 * n], sensors, status, -1 if cmd_seq == P.NO_SEQ else cmd_seq)
+        return Reading(t, seq, v[:n], v[n:2 * n], sensors, status, -1 if cmd_seq == P.NO_SEQ else cmd_seq, "", now,
                        self._age(cmd_seq, now))
+
+    def _other(self, pkt: bytes) -> None:
+        """A datagram that is not a reading of this device's size: an error to raise, else ignored (counted)."""
+        if P.kind(pkt) == P.ERROR:
+            code, session, msg = P.parse_error(pkt)
+            if code == P.E_SESSION_LOST and session == self.session:
+                raise SessionLost(f"SESSION_LOST: {msg}")
+            if session in (0, self.session):
+                raise LinkError(f"link: device error: {P.ERROR_NAMES.get(code, 'ERROR')}: {msg}")
+        elif P.kind(pkt) == P.READING and P.parse_reading(pkt, self.n, self._k) is None:  # (raises on a version)
+            self.stats["invalid"] += 1
+        return None  # e.g. a repeated INFO
 
     def _age(self, cmd_seq: int, now: float) -> float:
         """Arrival time minus the send time of command `cmd_seq` (of the first command while none is echoed)."""
@@ -290,7 +319,9 @@ class UDPLink:
         ack = self._last.seq if self._last is not None else P.NO_SEQ
         self._seq = (self._seq + 1) & P.NO_SEQ
         t = time.monotonic()
-        self._send(P.command(self.session, self._seq, ack, flags | (P.ENABLE if enable else 0), t, tau))
+        P.command_into(self._tx, self.session, self._seq, ack, flags | (P.ENABLE if enable else 0), t)
+        self._tx_tau[:] = tau
+        self._send(self._tx)
         i = self._seq % self._RING
         self._sent_seq[i], self._sent_t[i] = self._seq, t
         if self._first_sent is None:
