@@ -260,7 +260,8 @@ class UDPLink:
         """The reading in the first `size` bytes of `_rx` (None: another message, malformed or foreign)."""
         rx = self._rx
         if size != self._size or not rx.startswith(P.READING):  # not a well-formed reading of this device
-            return self._other(bytes(rx[:size]))
+            self._other(bytes(rx[:size]))
+            return None
         _, ver, status, session, seq, cmd_seq, nn, kk, t = P.reading_header(rx)
         if ver != P.VERSION:
             raise LinkError(f"device: reading of protocol wire version {ver}, this host speaks v{P.NAME} "
@@ -291,7 +292,7 @@ class UDPLink:
                        self._age(cmd_seq, now))
 
     def _other(self, pkt: bytes) -> None:
-        """A datagram that is not a reading of this device's size: an error to raise, else ignored (counted)."""
+        """A datagram that is not a reading of this device's size: an error to raise, a malformed reading counted."""
         if P.kind(pkt) == P.ERROR:
             code, session, msg = P.parse_error(pkt)
             if code == P.E_SESSION_LOST and session == self.session:
@@ -300,7 +301,7 @@ class UDPLink:
                 raise LinkError(f"link: device error: {P.ERROR_NAMES.get(code, 'ERROR')}: {msg}")
         elif P.kind(pkt) == P.READING and P.parse_reading(pkt, self.n, self._k) is None:  # (raises on a version)
             self.stats["invalid"] += 1
-        return None  # e.g. a repeated INFO
+        # anything else (e.g. a repeated INFO) is ignored
 
     def _age(self, cmd_seq: int, now: float) -> float:
         """Arrival time minus the send time of command `cmd_seq` (of the first command while none is echoed)."""
