@@ -4,7 +4,7 @@ Controller: force rendering of a 1000 N/m wall (B = 0.01 N s/m) + FME matching w
 its transition + ASCM + the VME tertiary objective (the thesis's ch7 stack; `--config NAME` runs a
 run configuration's instead).
 
-For each rate, two runs of `rhi.runtime.run` with the same controller:
+For each rate, runs of `rhi.runtime.run` with the same controller:
 - in the loop: a device process on loopback serves docs/protocol.md at that rate (by default kit/c's
   reference device, built here with the C compiler, on its own core; `--device python`: `rhi
   device-server`'s MuJoCo plant with a hand stroking in and out of the wall); the host is paced by the
@@ -12,6 +12,9 @@ For each rate, two runs of `rhi.runtime.run` with the same controller:
 - back to back (the baseline): the readings that run received, replayed in order through the same
   loop body (link read, rendering, safety check, controller step, filter, write, log row) with no
   wait between ticks; the controller sees the same inputs, so it ticks the same way.
+- the same replay with an idle pause before each reading, as long as the in-loop run's median wait, once asleep
+  and once spinning on the clock: the back-to-back loop on a core that idled like the loop's, with no socket and
+  no device (what the idle stretch alone costs the step).
 
 The step (`t_step`: reading in hand → torque computed, the controller's part of the tick) is compared:
 in-loop median / back-to-back median (target ≤ 1.5×), in-loop p99.9 / its median (target < 3×), and the
@@ -36,6 +39,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -55,6 +59,7 @@ from rhi.control import (
 from rhi.runtime import Reading, SafetyConfig, SimLink, run
 from rhi.runtime.config import load_config
 from rhi.runtime.link import Status
+from rhi.runtime.realtime import spin_rest
 from rhi.runtime.udp import UDPLink
 from rhi.sim import Hand, HandPath, Log, Plant, Wall
 
@@ -84,10 +89,14 @@ def plant_and_hand(dev: rhi.Device, duration: float) -> tuple[Plant, Hand, Wall]
 
 
 class ReplayLink:
-    """The readings of a logged run, one per `read`, in order; `write` sends nothing (the back-to-back baseline)."""
+    """The readings of a logged run, one per `read`, in order; `write` sends nothing (the back-to-back baseline).
 
-    def __init__(self, log: Log, rate: float) -> None:
-        self.n, self.rate = log.q.shape[1], rate
+    `pause` [s]: each `read` first idles this long, asleep or (`spin`) polling the clock on a busy core: the loop
+    body back to back but for an idle stretch as long as the in-loop wait, without a socket or a device.
+    """
+
+    def __init__(self, log: Log, rate: float, pause: float = 0.0, spin: bool = False) -> None:
+        self.n, self.rate, self.pause, self.spin = log.q.shape[1], rate, pause, spin
         ok = np.isfinite(log.seq)
         _, first = np.unique(log.seq[ok], return_index=True)  # each reading once, as it first arrived
         idx = np.flatnonzero(ok)[np.sort(first)]
@@ -100,6 +109,13 @@ class ReplayLink:
         self.k = 0
 
     def read(self) -> Reading:
+        if self.pause > 0.0 and not self.spin:
+            time.sleep(self.pause)
+        elif self.pause > 0.0:  # (after the short sleep that keeps a spinning SCHED_FIFO loop clear of throttling)
+            end = time.perf_counter() + self.pause
+            time.sleep(spin_rest(1.0 / self.rate, True))
+            while time.perf_counter() < end:
+                pass
         self.k += 1
         return self.readings[min(self.k, len(self.readings)) - 1]
 
@@ -191,8 +207,12 @@ def core_counters(cpu: int | None) -> tuple[float, int]:
         return float("nan"), -1
 
 
-def one_rate(rate: float, wait: str, a, tmp: Path) -> tuple[dict, dict]:
-    """In the loop over UDP at `rate` waiting as `wait`, then the same readings back to back: both summaries."""
+def one_rate(rate: float, wait: str, a, tmp: Path) -> tuple[dict, list[dict]]:
+    """In the loop over UDP at `rate` waiting as `wait`, then the same readings back to back: their summaries.
+
+    The back-to-back summaries: without a pause, after an asleep pause and after a spinning pause, each pause as
+    long as the in-loop run's median wait for a reading.
+    """
     spin, latency = wait == "spin", 0.0 if wait == "sleep+qos" else None
     dev, ctrl, safety, wall, q0 = setup(a.config)
     cpu = None if a.cpu < 0 else a.cpu
@@ -216,10 +236,13 @@ def one_rate(rate: float, wait: str, a, tmp: Path) -> tuple[dict, dict]:
     s["missed"] = link.stats["skipped"]
     s["missed_pct"] = 100.0 * s["missed"] / max(s["ticks"] + s["missed"], 1)
     s["lost"] = link.stats["lost"]
-    _, ctrl, safety, wall, _ = setup(a.config)
-    replay = ReplayLink(res.log, rate)
-    base = run(replay, ctrl, rate=rate, duration=len(replay.readings) / rate, virtual=wall, safety=safety,
-               realtime=False, cpu=cpu, priority=prio, cpu_latency=latency).summary
+    pause = s["t_read"]["p50"]  # the in-loop wait for the next reading
+    base = []
+    for idle, spins in ((0.0, False), (pause, False), (pause, True)):
+        _, ctrl, safety, wall, _ = setup(a.config)
+        replay = ReplayLink(res.log, rate, idle, spins)
+        base.append(run(replay, ctrl, rate=rate, duration=len(replay.readings) / rate, virtual=wall, safety=safety,
+                        realtime=False, cpu=cpu, priority=prio, cpu_latency=latency).summary)
     return s, base
 
 
@@ -240,25 +263,31 @@ def main() -> None:
     us = lambda d: "  ".join(f"{k} {1e6 * v:7.1f}" for k, v in d.items())  # noqa: E731
     with tempfile.TemporaryDirectory() as tmp:
         for rate, wait in ((r, w) for r in a.rates for w in a.wait):
-            s, b = one_rate(rate, wait, a, Path(tmp))
+            s, (b, asleep, spun) = one_rate(rate, wait, a, Path(tmp))
             print(f"\n{rate:g} Hz over UDP ({a.device} device, waiting {wait}): {s['ticks']} ticks in "
                   f"{s['duration']:.1f} s, fault: {s['fault']}; readings lost {s['lost']}")
             print(f"  step in the loop [µs]     {us(s['t_step'])}")
             print(f"  step back to back [µs]    {us(b['t_step'])}   ({b['ticks']} ticks, fault: {b['fault']})")
+            pause = 1e6 * s["t_read"]["p50"]
+            print(f"  after {pause:.0f} µs asleep   {us(asleep['t_step'])}   (fault: {asleep['fault']})")
+            print(f"  after {pause:.0f} µs spinning {us(spun['t_step'])}   (fault: {spun['fault']})")
             print(f"  read (wait) [µs]          {us(s['t_read'])}")
             print(f"  write [µs]                {us(s['t_write'])}")
             print(f"  host core during the run: steal {1e3 * s['steal']:.0f} ms (its virtual CPU waiting for the "
                   f"hypervisor), {s['irqs']} interrupts")
-            rows.append((rate, wait, s, b))
+            rows.append((rate, wait, s, b, asleep, spun))
     print(f"\nissue 29: the step inside `rhi run` over UDP vs the same step back to back (cpu {a.cpu}, device cpu "
           f"{a.device_cpu}, SCHED_FIFO {a.priority or 'off'}, {a.duration:g} s per run)")
     print(f"  {'rate':>7s} {'wait':>9s} {'loop p50':>9s} {'b2b p50':>8s} {'p50 ratio':>9s} {'loop p99.9':>10s} {'p99.9/p50':>9s} "
-          f"{'missed':>7s} {'missed %':>9s}")
-    for rate, wait, s, b in rows:
+          f"{'missed':>7s} {'missed %':>9s} {'asleep':>7s} {'spinning':>8s}")
+    for rate, wait, s, b, asleep, spun in rows:
         st, bt = s["t_step"], b["t_step"]
         print(f"  {rate:5.0f} Hz {wait:>9s} {1e6 * st['p50']:7.1f}µs {1e6 * bt['p50']:6.1f}µs {st['p50'] / bt['p50']:8.2f}x "
-              f"{1e6 * st['p99.9']:8.1f}µs {st['p99.9'] / st['p50']:8.2f}x {s['missed']:7d} {s['missed_pct']:8.3f}%")
+              f"{1e6 * st['p99.9']:8.1f}µs {st['p99.9'] / st['p50']:8.2f}x {s['missed']:7d} {s['missed_pct']:8.3f}% "
+              f"{asleep['t_step']['p50'] / bt['p50']:6.2f}x {spun['t_step']['p50'] / bt['p50']:7.2f}x")
     print("  targets: p50 ratio <= 1.5x and p99.9/p50 < 3x at 1 kHz; missed < 0.1 % at 4 kHz (pinned, quiet core)")
+    print("  asleep, spinning: the back-to-back step after an idle pause as long as the in-loop wait (asleep, or polling")
+    print("  the clock on the busy core), over the back-to-back median: what the idle stretch alone costs, no socket")
 
 
 if __name__ == "__main__":
