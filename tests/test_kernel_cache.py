@@ -5,6 +5,8 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import pytest
+
 from rhi import jit as kernel_cache
 
 
@@ -82,3 +84,34 @@ def test_processes_saving_one_index_at_once_keep_every_entry(tmp_path: Path):
     assert [w.exitcode for w in workers] == [0] * 4
     loaded = {(w, i): cache().load((w, i)) for w in range(4) for i in range(40)}
     assert all(v is not None and v[:2] == k for k, v in loaded.items()), [k for k, v in loaded.items() if v is None or v[:2] != k]
+
+
+def _compile_at_once(cache_dir: str, start, out) -> None:
+    """A fresh dispatcher of `rhi.devices._compiled.terms.dot` on `cache_dir`: compile (float32) after `start`."""
+    from numba import config, types
+
+    from rhi.devices._compiled import terms
+
+    config.CACHE_DIR = cache_dir  # read by the cache locator when the dispatcher is made
+    kernel = kernel_cache.jit(terms.dot.py_func)
+    vec = types.Array(types.float32, 1, "C")
+    start.wait()
+    kernel.compile((vec, vec))
+    out.put(sum(kernel._cache_misses.values()))  # 1: compiled here; 0: loaded what another process saved
+
+
+@pytest.mark.realtime
+def test_processes_starting_cold_at_once_compile_each_kernel_once(tmp_path: Path):
+    """Four processes on one cold cache compiling one kernel at once: one compiles it, the others load it."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    start, out = ctx.Barrier(4), ctx.Queue()
+    workers = [ctx.Process(target=_compile_at_once, args=(str(tmp_path), start, out)) for _ in range(4)]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join(timeout=300)
+    assert [w.exitcode for w in workers] == [0] * 4
+    assert sorted(out.get(timeout=10) for _ in workers) == [0, 0, 0, 1]
+    assert list(tmp_path.rglob("*.claim"))  # the claim files lie beside the index

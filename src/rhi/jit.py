@@ -20,8 +20,9 @@ function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in th
 `KernelRef` passes a compiled kernel to another as an argument (a function pointer), so that the caller
 is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick).
 `stack_empty` gives a kernel an array on its own stack for local scratch: no allocation, no reference counting.
-Processes that share the cache (test workers, `rhi reproduce`'s workers) save into a function's index one at a
-time (`_save_locked`).
+Processes that share the cache (test workers, `rhi reproduce`'s workers, `rhi warmup`'s) save into a function's index
+one at a time (`_save_locked`), and compile one kernel for one signature one at a time (`_compile_claimed`): a
+process that finds another compiling it waits, then loads what that one saved.
 """
 
 from __future__ import annotations
@@ -37,7 +38,8 @@ from typing import Any
 
 from llvmlite import ir as llvm_ir
 from numba import njit
-from numba.core import caching, event, inline_closurecall, ir, types
+from numba.core import caching, dispatcher, event, inline_closurecall, ir, sigutils, types
+from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
@@ -168,8 +170,57 @@ def _save_locked(self, key, data) -> None:
 _save_locked.__wrapped__ = _NUMBA_SAVE  # type: ignore[attr-defined]
 
 
+#: Numba's own `Dispatcher.compile` (also where this module is imported again after `install`)
+_NUMBA_COMPILE = getattr(dispatcher.Dispatcher.compile, "__wrapped__", dispatcher.Dispatcher.compile)
+
+
+def claim_path(cache: caching.Cache, args: tuple) -> str:
+    """The lock file of one kernel's compile for the Numba argument types `args`: beside its cache index."""
+    key = hashlib.sha256(repr(tuple(str(a) for a in args)).encode()).hexdigest()[:16]
+    return f"{cache._cache_file._index_path}.{key}.claim"
+
+
+def _compile_claimed(self, sig):
+    """Numba's `Dispatcher.compile` of an rhi kernel, holding an exclusive lock on its `claim_path` meanwhile.
+
+    Without it, processes starting on a cold cache at once (`rhi warmup`'s workers, test workers) each compiled
+    every kernel they shared. With it the first to reach a kernel compiles and saves it while the others wait,
+    then load it from the cache (Numba's compile looks there first). Held under Numba's compiler lock, which is
+    re-entrant and taken by every compile anyway: a thread never waits on a claim another thread of its process
+    holds. The claims a process holds are its kernel and the callees it is compiling, taken in call order, so
+    two processes cannot wait on each other. A process that dies releases its claims.
+    """
+    cache = self._cache
+    if not isinstance(cache, caching.Cache) or not isinstance(cache._impl.locator, _PackageStamp):
+        return _NUMBA_COMPILE(self, sig)
+    with global_compiler_lock:
+        args = tuple(sigutils.normalize_signature(sig)[0])
+        if args in self.overloads:
+            return _NUMBA_COMPILE(self, sig)
+        path = claim_path(cache, args)
+        if path in _HELD:  # a kernel whose compile reaches itself (recursion): this process holds its claim
+            return _NUMBA_COMPILE(self, sig)
+        try:
+            claim = open(path, "ab")
+        except OSError:  # a read-only cache: Numba compiles in memory
+            return _NUMBA_COMPILE(self, sig)
+        with claim:
+            fcntl.flock(claim, fcntl.LOCK_EX)  # released when the file closes
+            _HELD.add(path)
+            try:
+                return _NUMBA_COMPILE(self, sig)
+            finally:
+                _HELD.discard(path)
+
+
+_HELD: set[str] = set()  # the claims this process holds (a second lock of one file by one process would wait forever)
+
+
+_compile_claimed.__wrapped__ = _NUMBA_COMPILE  # type: ignore[attr-defined]
+
+
 def install() -> None:
-    """Stamped locators first in Numba's list, a listener for a first compile, `_InlineCopy`, `_save_locked` (idempotent)."""
+    """Stamped locators, the first-compile listener, `_InlineCopy`, `_save_locked`, `_compile_claimed` (idempotent)."""
     classes = caching.CacheImpl._locator_classes
     if classes[:len(_LOCATORS)] != list(_LOCATORS):
         classes[:] = [*_LOCATORS, *(c for c in classes if c not in _LOCATORS)]
@@ -179,6 +230,8 @@ def install() -> None:
         inline_closurecall.copy = _InlineCopy()  # type: ignore[assignment]
     if caching.IndexDataCacheFile.save is not _save_locked:
         caching.IndexDataCacheFile.save = _save_locked  # type: ignore[method-assign]
+    if dispatcher.Dispatcher.compile is not _compile_claimed:
+        dispatcher.Dispatcher.compile = _compile_claimed  # type: ignore[method-assign]
 
 
 install()  # before the decorator: the cache refreshes when any kernel source changes
