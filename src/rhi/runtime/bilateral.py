@@ -168,6 +168,8 @@ class BilateralLog:
         beta, alpha: (N,) passivity-controller gains at the master [N s/m] and the slave [m/(N s)].
         tmi: (N,) teleoperation manipulability index of the master–slave pair (eq. 4.17), NaN between samples.
         fault: why a plant stopped, if one did.
+        route: the loop that ran it: the compiled loop (`rhi.runtime.compiled_bilateral`), or the Python loop and
+            why.
     """
 
     t: np.ndarray
@@ -188,6 +190,7 @@ class BilateralLog:
     alpha: np.ndarray
     tmi: np.ndarray
     fault: str | None = None
+    route: str = ""
 
     @property
     def generated(self) -> np.ndarray:
@@ -210,7 +213,9 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
                        slave=None) -> BilateralLog:
     """Both sides in one lock-step loop over a seeded delayed channel (deterministic).
 
-    The two-process version runs the same `Master` and `Slave` over `UDPEnd`s with `rhi.runtime.run`.
+    The two-process version runs the same `Master` and `Slave` over `UDPEnd`s with `rhi.runtime.run`. Runs whose
+    parts the kernels know run on the compiled loop (`rhi.runtime.compiled_bilateral`, the channel on its
+    `rhi.runtime.channel.schedule`), the others on this Python loop (the reference); `BilateralLog.route` says which.
 
     Args:
         master_plant: the master's MuJoCo plant (already reset).
@@ -231,6 +236,7 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
     """
     from rhi.metrics import tmi as tmi_fn
     from rhi.runtime.channel import ChannelConfig, local_pair
+    from rhi.runtime.compiled_bilateral import BilateralLoop
     from rhi.sim.loop import Session
 
     metered = None if tissue is None else _Metered(tissue)
@@ -239,16 +245,29 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
     dt = ms.dt
     if scalar("duration", duration) < dt:
         raise InvalidInput(f"duration: must be at least one period ({dt} s), got {duration!r}")
-    m_end, s_end = local_pair(forward or ChannelConfig(), backward or ChannelConfig(seed=1), dt)
-    mst = (master or Master)(master_controller, m_end, passivity=passivity, dt=dt)
-    slv = (slave or Slave)(slave_plant.device, s_end, kp=kp, kd=kd, passivity=passivity, dt=dt)
     N = int(round(duration / dt))
+    forward, backward = forward or ChannelConfig(), backward or ChannelConfig(seed=1)
+    master, slave = master or Master, slave or Slave
+    kp, kd = scalar("kp", kp, nonnegative=True), scalar("kd", kd, nonnegative=True)
+    why = BilateralLoop.why_not(master, slave, master_controller, ms, ss, tissue)
+    fast = None if why else BilateralLoop(ms, ss, master_controller, tissue, forward, backward, _settings(passivity),
+                                          (kp, kd), N)
+    m_end, s_end = fast.ends if fast is not None else local_pair(forward, backward, dt)
+    mst = master(master_controller, m_end, passivity=passivity, dt=dt)
+    slv = slave(slave_plant.device, s_end, kp=kp, kd=kd, passivity=passivity, dt=dt)
     m = master_plant.m
     z = lambda *s: np.zeros((N, *s))  # noqa: E731
     log = BilateralLog(z(), z(m), z(m), z(m), z(m), z(m), z(m), z(m), z(), z(), z(), z(), z(), z(), z(), z(),
-                       np.full(N, np.nan))
+                       np.full(N, np.nan), route=fast.route if fast is not None else f"python loop ({why})")
     dm, ds = master_plant.device, slave_plant.device
-    for k in range(N):
+    k = 0
+    while k < N:
+        if fast is not None and not master_controller.state.stopped:
+            k, fault = fast.run(k, mst, slv, metered, log, tmi_every)
+            if fault is not None:
+                return _cut(log, fault, k)
+            if k == N:
+                break
         mp, sp = master_plant, slave_plant
         tau_m = mst.step(ms.t, mp.q, mp.dq, {"ft": mp.ft()})
         tau_s = slv.step(ss.t, sp.q, sp.dq, {"ft": sp.ft()})
@@ -262,13 +281,20 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
         log.E_M_in[k], log.E_M_out[k] = mst.port.E_in, mst.port.E_out
         log.E_S_in[k], log.E_S_out[k] = slv.port.E_in, slv.port.E_out
         log.beta[k], log.alpha[k] = mst.port.gain, slv.port.gain
+        k += 1
         if fault is not None:
-            log.fault = fault
-            for f in dataclasses.fields(log):
-                v = getattr(log, f.name)
-                if isinstance(v, np.ndarray):
-                    setattr(log, f.name, v[:k + 1])
-            break
+            return _cut(log, fault, k)
+    return log
+
+
+def _cut(log: BilateralLog, fault: str, ticks: int) -> BilateralLog:
+    """The log of a run a plant fault ended after `ticks` ticks: its arrays cut there, the fault recorded."""
+    log.fault = fault
+    for f in dataclasses.fields(log):
+        v = getattr(log, f.name)
+        if isinstance(v, np.ndarray):
+            setattr(log, f.name, v[:ticks])
+    return log
     return log
 
 

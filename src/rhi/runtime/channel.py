@@ -6,6 +6,8 @@ the draws come from a seeded generator, so a schedule is reproducible. A receive
 newest packet by sequence number (a late packet never overwrites a newer one).
 
 - `DelayLine` + `LocalEnd`: ticks of a lock-step simulation (delays rounded up to whole ticks).
+- `schedule` + `ScheduledEnd`: the same lock-step channel with every packet's arrival drawn up front (which
+  packet each end sees at each tick), for the compiled bilateral loop.
 - `UDPEnd`: two processes on UDP; the delay is applied by the sender on the wall clock.
 """
 
@@ -120,6 +122,61 @@ def local_pair(forward: ChannelConfig, backward: ChannelConfig, dt: float) -> tu
     """(master end, slave end) of a lock-step channel."""
     f, b = DelayLine(forward, dt), DelayLine(backward, dt)
     return LocalEnd(f, b), LocalEnd(b, f)
+
+
+def schedule(config: ChannelConfig, dt: float, ticks: int, *, lag: int = 0) -> np.ndarray:
+    """Which packet the receiver of a `DelayLine` sees at each tick, the sender sending one packet per tick.
+
+    The draws of `DelayLine.send` (jitter, then loss, from the same seeded generator) for packets 0 .. ticks − 1,
+    packet s sent at tick s; the receiver keeps the newest packet arrived (`LocalEnd`).
+
+    Args:
+        config: the direction's conditions.
+        dt: the tick [s].
+        ticks: N, the ticks of the run.
+        lag: 1 where the receiver ticks before the sender within a tick (a packet due at its own tick is seen
+            one tick later), else 0.
+
+    Returns:
+        (N,) int64: the index of the newest packet the receiver holds at tick k, −1 before the first.
+    """
+    c = config
+    per = int(c.jitter > 0) + int(c.loss > 0)
+    draws = np.random.default_rng(c.seed).random(per * ticks).reshape(ticks, per)
+    extra = c.jitter * draws[:, 0] if c.jitter > 0 else np.zeros(ticks)
+    sent = np.arange(ticks)
+    due = np.maximum(sent + np.ceil((c.delay + extra) / float(dt) - 1e-9).astype(np.int64), sent + lag)
+    ok = due < ticks if c.loss == 0 else (due < ticks) & (draws[:, -1] >= c.loss)
+    seen = np.full(ticks, -1, dtype=np.int64)
+    np.maximum.at(seen, due[ok], sent[ok])
+    return np.maximum.accumulate(seen)
+
+
+class ScheduledEnd:
+    """One end of a lock-step channel on a `schedule`: the packets of both ends kept in two (N, width) arrays.
+
+    Args:
+        out: (N, width) the packets this end sends (row k: the packet of tick k), written.
+        inp: (N, width) the packets the other end sends.
+        seen: (N,) int64 this end's `schedule` of `inp`.
+    """
+
+    def __init__(self, out: np.ndarray, inp: np.ndarray, seen: np.ndarray) -> None:
+        self.out, self.inp, self.seen = out, inp, seen
+        self.k = -1  # the current tick
+
+    def tick(self) -> None:
+        """Advance one tick."""
+        self.k += 1
+
+    def send(self, values: np.ndarray) -> None:
+        """Send `values` (width,) to the other end."""
+        self.out[self.k] = values
+
+    def latest(self) -> np.ndarray | None:
+        """The newest packet received so far (None before the first)."""
+        i = self.seen[self.k]
+        return None if i < 0 else self.inp[i]
 
 
 class UDPEnd:
