@@ -87,6 +87,12 @@ def _mobile() -> None:
                     stage="dm_null")
 
 
+def _bilateral() -> None:
+    from rhi.experiments.beyond.bilateral import scenario
+
+    scenario(0.01, True, duration=0.02)  # the compiled bilateral loop (`rhi.runtime._compiled.bilateral_loop`)
+
+
 def _design() -> None:
     from rhi.design.planar import planar_indices
 
@@ -98,6 +104,7 @@ STEPS: list[tuple[str, Callable[[], None]]] = [
     ("controllers (every shipped configuration)", _controllers),
     ("simulation loop", _simulation),
     ("mobile manipulator loop", _mobile),
+    ("bilateral teleoperation loop", _bilateral),
     ("device terms (every bundled device)", _terms),
     ("batch terms and measures", _batch),
     ("design indices", _design),

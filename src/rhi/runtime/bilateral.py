@@ -168,7 +168,7 @@ class BilateralLog:
         beta, alpha: (N,) passivity-controller gains at the master [N s/m] and the slave [m/(N s)].
         tmi: (N,) teleoperation manipulability index of the master–slave pair (eq. 4.17), NaN between samples.
         fault: why a plant stopped, if one did.
-        route: the loop that ran it: the compiled loop (`rhi.runtime.compiled_bilateral`), or the Python loop and
+        route: the loop that ran it: the compiled loop (`rhi.runtime._compiled.bilateral`), or the Python loop and
             why.
     """
 
@@ -214,7 +214,7 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
     """Both sides in one lock-step loop over a seeded delayed channel (deterministic).
 
     The two-process version runs the same `Master` and `Slave` over `UDPEnd`s with `rhi.runtime.run`. Runs whose
-    parts the kernels know run on the compiled loop (`rhi.runtime.compiled_bilateral`, the channel on its
+    parts the kernels know run on the compiled loop (`rhi.runtime._compiled.bilateral`, the channel on its
     `rhi.runtime.channel.schedule`), the others on this Python loop (the reference); `BilateralLog.route` says which.
 
     Args:
@@ -236,7 +236,7 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
     """
     from rhi.metrics import tmi as tmi_fn
     from rhi.runtime.channel import ChannelConfig, local_pair
-    from rhi.runtime.compiled_bilateral import BilateralLoop
+    from rhi.runtime._compiled.bilateral import BilateralLoop
     from rhi.sim.loop import Session
 
     metered = None if tissue is None else _Metered(tissue)
@@ -249,7 +249,7 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
     forward, backward = forward or ChannelConfig(), backward or ChannelConfig(seed=1)
     master, slave = master or Master, slave or Slave
     kp, kd = scalar("kp", kp, nonnegative=True), scalar("kd", kd, nonnegative=True)
-    why = BilateralLoop.why_not(master, slave, master_controller, ms, ss, tissue)
+    why = BilateralLoop.why_not(master is Master and slave is Slave, master_controller, ms, ss, tissue)
     fast = None if why else BilateralLoop(ms, ss, master_controller, tissue, forward, backward, _settings(passivity),
                                           (kp, kd), N)
     m_end, s_end = fast.ends if fast is not None else local_pair(forward, backward, dt)

@@ -151,7 +151,9 @@ def ticks(count, k0, dt, mst, slv, chan, cfg, wargs, cs, whole, st, vec, lay, ro
         wargs: the whole tick's arguments after (t, q, dq, force), ready = True.
         cs: the controller's arrays the whole tick advances (restored where a tick is Python's).
         whole: the controller's whole tick (a `rhi.jit.KernelRef`).
-        st: (N_ST,) float state; vec: (N_V, m) vectors; lay: int layout and outcome (L_* slots).
+        st: (N_ST,) float state (S_* slots and the ports), advanced.
+        vec: (N_V, m) the state's vectors (V_* rows), advanced.
+        lay: (5,) int64 layout and outcome (L_* slots).
         rows: (>= count, width) the log rows to write (`COLUMNS`, then q_m, q_s).
     """
     mj_m, sub_m, sens_m, hand, ctrl_m, chain_m, at_m, x_m, buf_m = mst

@@ -80,7 +80,10 @@ def correct(p, v, F_e, E_other, drift, dt, cfg):
 
 
 def settings(passivity) -> np.ndarray:
-    """The kernels' cfg of the TDPA's settings (a `rhi.runtime.tdpa.TDPA`, or None: off): on, max force, max damping, drift rate, drift speed, correction."""
+    """The kernels' cfg: the TDPA's settings (a `rhi.runtime.tdpa.TDPA`, or None: off) as one vector (6,).
+
+    On (1/0), max force [N], max damping [N s/m], drift rate [1/s], max drift speed [m/s], max correction speed [m/s].
+    """
     if passivity is None:
         return np.zeros(6)
     p = passivity

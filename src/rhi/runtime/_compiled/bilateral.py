@@ -89,12 +89,13 @@ class BilateralLoop:
         self.calls = self.ticks = 0
 
     @staticmethod
-    def why_not(master_cls, slave_cls, controller, ms, ss, tissue) -> str:
-        """Why this run is not one the compiled loop computes ("" where it is; see the module)."""
-        from rhi.runtime.bilateral import Master, Slave
+    def why_not(plain: bool, controller, ms, ss, tissue) -> str:
+        """Why this run is not one the compiled loop computes ("" where it is; see the module).
 
+        plain: the sides are `rhi.runtime.bilateral.Master` and `Slave` themselves (not subclasses).
+        """
         mp, sp = ms.plant, ss.plant
-        if master_cls is not Master or slave_cls is not Slave:
+        if not plain:
             return "the master or the slave is a subclass"
         if type(controller) is not NullSpaceController or "step" in controller.__dict__:
             return f"the master's controller ({type(controller).__name__}) is not a plain NullSpaceController"
