@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 
 from rhi.experiments.beyond.bilateral import scenario
-from rhi.runtime._compiled import bilateral as cb
-from rhi.runtime._compiled import bilateral_loop as bl, tdpa as ktdpa
+from rhi.runtime._compiled import bilateral as cb, bilateral_loop as bl, tdpa as ktdpa
 from rhi.runtime.bilateral import Slave
 from rhi.runtime.channel import ChannelConfig, local_pair, schedule
 from rhi.runtime.tdpa import TDPA, PortEnergy, correct, damp

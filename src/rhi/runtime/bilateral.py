@@ -235,8 +235,8 @@ def simulate_bilateral(master_plant, master_controller, slave_plant, *, duration
         slave: the `Slave` class (or a subclass), called as ``slave(device, end, kp=, kd=, passivity=, dt=)``.
     """
     from rhi.metrics import tmi as tmi_fn
-    from rhi.runtime.channel import ChannelConfig, local_pair
     from rhi.runtime._compiled.bilateral import BilateralLoop
+    from rhi.runtime.channel import ChannelConfig, local_pair
     from rhi.sim.loop import Session
 
     metered = None if tissue is None else _Metered(tissue)
