@@ -139,3 +139,13 @@ def test_a_run_the_kernels_do_not_know_stays_on_the_python_loop():
     """A subclass of the slave runs on the Python loop, and its route says why."""
     log = scenario(0.0, True, duration=0.05, slave=_Quiet)
     assert log.route == "python loop (the master or the slave is a subclass)"
+
+
+def test_a_plant_fault_ends_both_loops_at_the_same_tick(monkeypatch):
+    """A tissue too stiff for the slave's physics step: the same fault, at the same tick, the logs cut there."""
+    fast = scenario(0.0, True, stiffness=1e12, duration=1.0)
+    assert fast.route == cb.BilateralLoop.route and fast.fault is not None and "unstable" in fast.fault
+    python_loop(monkeypatch)
+    ref = scenario(0.0, True, stiffness=1e12, duration=1.0)
+    assert len(fast.t) == len(ref.t) < 1000
+    same_logs(fast, ref)

@@ -109,8 +109,8 @@ STEPS: list[tuple[str, Callable[[], None]]] = [
     ("batch terms and measures", _batch),
     ("design indices", _design),
 ]
-"""What `warmup` runs, the heaviest first (cold: 41, 29, 15, 6, 8 and 1 % of the CPU): each calls the kernels of its
-part once."""
+"""What `warmup` runs, the heaviest first (cold: 41, 29, 15, 6, 8 and 1 % of the CPU of the other steps; the bilateral
+loop's own kernels about 30 s of CPU, as much as the mobile loop's): each calls the kernels of its part once."""
 
 
 def _step(k: int) -> float:
