@@ -11,8 +11,10 @@ earlier one compiled):
 Cold: a fresh temporary ``NUMBA_CACHE_DIR``; warm: a second process on the cache the cold one left.
 Baseline measured in the same run: the warm process (its ratio cold / warm is printed), and with
 ``--previous REV`` the package at that git revision run the same way (extracted with `git archive`).
-Times are CPU seconds of the child (steadier than wall clock on a shared machine) and wall seconds.
-Issue 29's target: ≤ 20 s from a fresh install to the first compiled tick (stages 1 + 2, cold) on 2 cores.
+Times are CPU seconds of the stage process (steadier than wall clock on a shared machine) and wall seconds (on a
+shared machine they measure its load too); the whole process's CPU with any children it waited for is printed too.
+Each stage makes its own controller just before it (a controller made on a cold cache may start compiling).
+Issue 29's target: ≤ 20 s wall from a fresh install to the first compiled tick (stages 1 + 2, cold) on 2 cores.
 
 ``--kernels K`` adds the K kernels whose cold compile took the most CPU, each split into Numba's front end
 (typing and lowering to LLVM IR), LLVM's function and module optimisation passes, and machine code
@@ -26,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -94,9 +97,8 @@ def stages(kernels: bool) -> dict:
     dev = rhi.device("rhi4")
     a = bc.ticks(3)[1]
     ctrl = bc.make(dev)
-    sim_ctrl = bs.full_controller()
     cpu, wall = [], []
-    for call in (lambda: dev.terms(a[1], a[2]), lambda: ctrl.step(*a), lambda: bs.run(sim_ctrl, 0.05)):
+    for call in (lambda: dev.terms(a[1], a[2]), lambda: ctrl.step(*a), lambda: bs.run(bs.full_controller(), 0.05)):
         c0, w0 = time.process_time(), time.perf_counter()
         call()
         cpu.append(time.process_time() - c0)
@@ -108,11 +110,15 @@ def stages(kernels: bool) -> dict:
 def measure(src: Path, cache: str, kernels: bool = False) -> dict | str:
     """`stages` for the package in `src` in a new process on the Numba cache folder `cache`, or why it failed."""
     env = {**os.environ, "PYTHONPATH": str(src), "NUMBA_CACHE_DIR": cache}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     out = subprocess.run([sys.executable, __file__, "--stages-only", *(["--kernels", "1"] if kernels else [])],
                          capture_output=True, text=True, env=env)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if out.returncode != 0:
         return f"failed: {out.stderr.strip().splitlines()[-1] if out.stderr.strip() else out.returncode}"
-    return json.loads(out.stdout.strip().splitlines()[-1])
+    res = json.loads(out.stdout.strip().splitlines()[-1])
+    res["process_cpu"] = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime  # with its children
+    return res
 
 
 def cold_warm(src: Path, kernels: bool = False) -> tuple[dict, dict] | str:
@@ -172,8 +178,11 @@ def main() -> None:
             print(f"  {name:28s} {cold_cpu[k]:10.2f} {cold_wall[k]:11.2f} {warm_cpu[k]:10.3f} {warm_wall[k]:11.3f} "
                   f"{cold_cpu[k] / warm_cpu[k]:12.0f}x")
         first = cold_cpu[0] + cold_cpu[1]
-        print(f"  to the first compiled tick (stages 1 + 2): cold {first:.1f} s CPU ({cold_wall[0] + cold_wall[1]:.1f} "
-              f"s wall), warm {warm_cpu[0] + warm_cpu[1]:.3f} s CPU; target (issue 29) <= 20 s")
+        print(f"  to the first compiled tick (stages 1 + 2): cold {cold_wall[0] + cold_wall[1]:.1f} s wall, {first:.1f} s CPU "
+              f"of the process; warm {warm_wall[0] + warm_wall[1]:.3f} s wall, {warm_cpu[0] + warm_cpu[1]:.3f} s CPU; "
+              f"target (issue 29) <= 20 s wall on 2 cores")
+        print(f"  CPU of the whole cold process with its children (imports and the 3 stages): "
+              f"{min(c['process_cpu'] for c, _ in rs):.1f} s")
     first_runs = runs["this tree"][0][0]["kernels"]
     if a.kernels and first_runs:
         cols = ("front end", "function passes", "module passes", "machine code")
