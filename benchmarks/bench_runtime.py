@@ -59,7 +59,7 @@ from rhi.control import (
 from rhi.runtime import Reading, SafetyConfig, SimLink, run
 from rhi.runtime.config import load_config
 from rhi.runtime.link import Status
-from rhi.runtime.realtime import spin_rest
+from rhi.runtime.realtime import spin_rest, wait_until
 from rhi.runtime.udp import UDPLink
 from rhi.sim import Hand, HandPath, Log, Plant, Wall
 
@@ -97,6 +97,7 @@ class ReplayLink:
 
     def __init__(self, log: Log, rate: float, pause: float = 0.0, spin: bool = False) -> None:
         self.n, self.rate, self.pause, self.spin = log.q.shape[1], rate, pause, spin
+        self.rest = spin_rest(False)
         ok = np.isfinite(log.seq)
         _, first = np.unique(log.seq[ok], return_index=True)  # each reading once, as it first arrived
         idx = np.flatnonzero(ok)[np.sort(first)]
@@ -107,15 +108,13 @@ class ReplayLink:
 
     def open(self) -> None:
         self.k = 0
+        self.rest = spin_rest(self.spin)  # (in the loop's thread, under its priority)
 
     def read(self) -> Reading:
         if self.pause > 0.0 and not self.spin:
             time.sleep(self.pause)
-        elif self.pause > 0.0:  # (after the short sleep that keeps a spinning SCHED_FIFO loop clear of throttling)
-            end = time.perf_counter() + self.pause
-            time.sleep(spin_rest(1.0 / self.rate, True))
-            while time.perf_counter() < end:
-                pass
+        elif self.pause > 0.0:  # (asleep where a spinning SCHED_FIFO loop must sleep: `spin_rest`)
+            wait_until(time.monotonic() + self.pause, True, self.rest)
         self.k += 1
         return self.readings[min(self.k, len(self.readings)) - 1]
 

@@ -434,19 +434,42 @@ def test_spin_waits_on_a_busy_core(dev):
     assert res.log.wall[-1] >= 0.19  # paced on the clock, not run as fast as it can
 
 
-def test_a_spinning_sched_fifo_loop_rests_where_the_kernel_throttles_it():
-    """Spinning under a throttled SCHED_FIFO priority, each wait first sleeps 8 % of a period (`spin_rest`)."""
+def test_a_spinning_sched_fifo_loop_sleeps_whole_waits_where_the_kernel_throttles_it():
+    """Spinning under a throttled SCHED_FIFO priority, whole waits are slept, 8 % of the time (`spin_rest`)."""
     from rhi.runtime.realtime import realtime_thread, rt_throttled, spin_rest
 
-    assert spin_rest(1e-3, True) == spin_rest(1e-3, False) == 0.0  # not real-time
+    assert spin_rest(True).share == spin_rest(False).share == 0.0  # not real-time
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         with realtime_thread(None, 1):
             granted = not any("not applied" in str(w.message) for w in caught)
-            rest, asleep = spin_rest(1e-3, True), spin_rest(1e-3, False)
+            rest, asleep = spin_rest(True), spin_rest(False)
     if not granted or not rt_throttled():
         pytest.skip("SCHED_FIFO not granted here, or the kernel does not throttle real-time tasks")
-    assert rest == pytest.approx(8e-5) and asleep == 0.0
+    assert rest.share == 0.08 and asleep.share == 0.0
+
+
+@pytest.mark.parametrize("busy", [0.2e-3, 0.9e-3])
+def test_spin_rest_sleeps_few_whole_waits_and_enough_of_the_time(busy):
+    """On a clock of 1 ms ticks busy `busy` [s]: the waits slept are whole, spread out, 8 % of each half second."""
+    from rhi.runtime.realtime import SpinRest
+
+    rest, never = SpinRest(0.08), SpinRest(0.0)
+    now, slept, asleep = 0.0, 0.0, []
+    for _ in range(3000):
+        now += busy
+        assert not never.due(now)
+        due = rest.due(now)
+        asleep.append(due)
+        if due:
+            rest.slept(1e-3 - busy)
+            slept += 1e-3 - busy
+        now += 1e-3 - busy
+    wait = 1e-3 - busy  # (a window may end one wait short of its share, or over it)
+    assert 0.05 < 0.08 - wait / SpinRest.WINDOW <= slept / now <= 0.08 + wait / SpinRest.WINDOW
+    if wait >= 0.5e-3:  # one slept wait pays for the next five or more
+        assert not any(a and b for a, b in zip(asleep, asleep[1:]))  # never two slept waits in a row
+    assert sum(asleep) <= 0.08 * now / wait + 3 * now / SpinRest.WINDOW
 
 
 def test_a_cpu_latency_request_is_held_for_the_loop_and_released_after():

@@ -174,7 +174,7 @@ def run(
             _check_sensors(link, controller)
             for msg in notes:
                 w.event(0.0, "info", msg)
-            rest = spin_rest(period, spin)
+            rest = spin_rest(spin)
             t0 = time.monotonic()
             next_report = t0 + 0.5
             while (N is None or (slot if realtime else k) < N) and not (until is not None and until.is_set()):

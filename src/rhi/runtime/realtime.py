@@ -2,7 +2,7 @@
 
 `realtime_thread` applies them around a loop (`rhi.runtime.run`, `rhi.runtime.server.DeviceServer`);
 `wait_until` and `wait_readable` wait for a deadline or a datagram, asleep or on a busy core; `spin_rest`
-is the short sleep that keeps a spinning SCHED_FIFO loop clear of the kernel's real-time throttling.
+says which waits a spinning SCHED_FIFO loop sleeps to stay clear of the kernel's real-time throttling.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import gc
+import math
 import os
 import select
 import struct
@@ -118,29 +119,66 @@ def rt_throttled() -> bool:
         return False
 
 
-def spin_rest(period: float, spin: bool) -> float:
-    """The least sleep [s] of each wait of a spinning loop of `period` [s] in this thread.
+class SpinRest:
+    """The sleep a spinning SCHED_FIFO loop owes the kernel, taken as whole waits rather than a slice of each.
 
-    8 % of the period under a SCHED_FIFO priority that the kernel throttles (`kernel.sched_rt_runtime_us`: a
-    real-time thread busy for more than 95 % of a second is stopped for the other 50 ms), else 0.
+    Linux stops a real-time thread busy for more than 95 % of a second for the rest of it (`rt_throttled`), so
+    a spinning loop must sleep some of its waits. A sleep hands the core to other work, which evicts the caches
+    and predictors the next tick runs from: asleep 100 µs cost the next step as much as asleep 900 µs
+    (`benchmarks/bench_runtime_parts.py`), so a short sleep before every wait leaves every tick cold. Here the
+    waits slept are whole ones, as few as keep at least `share` of each half second asleep: one tick in a dozen
+    or so wakes cold instead of each.
+
+    Args:
+        share: the least share of the time asleep (0: never asleep).
+    """
+
+    WINDOW = 0.5  # [s]
+
+    def __init__(self, share: float = 0.0) -> None:
+        self.share = share
+        self._t0 = -math.inf
+        self._slept = 0.0
+
+    def due(self, now: float) -> bool:
+        """Whether the wait that begins at the monotonic time `now` [s] is slept (then tell `slept` how long)."""
+        if self.share <= 0.0:
+            return False
+        if now - self._t0 > self.WINDOW:
+            self._t0, self._slept = now, 0.0
+        return self._slept < self.share * (now - self._t0)
+
+    def slept(self, seconds: float) -> None:
+        """A wait was slept for `seconds` [s]."""
+        self._slept += seconds
+
+
+def spin_rest(spin: bool) -> SpinRest:
+    """The sleeps of a spinning loop in this thread (`SpinRest`).
+
+    8 % of the time under a SCHED_FIFO priority that the kernel throttles (`kernel.sched_rt_runtime_us`: a
+    real-time thread busy for more than 95 % of a second is stopped for the other 50 ms), else none.
     """
     try:
         fifo = os.sched_getscheduler(0) == os.SCHED_FIFO
     except (AttributeError, OSError):
         fifo = False
-    return 0.08 * period if spin and fifo and rt_throttled() else 0.0
+    return SpinRest(0.08 if spin and fifo and rt_throttled() else 0.0)
 
 
-def wait_until(deadline: float, spin: bool = False, rest: float = 0.0) -> None:
+def wait_until(deadline: float, spin: bool = False, rest: SpinRest | None = None) -> None:
     """Return at the monotonic time `deadline` [s]: asleep, the last 50 µs spinning; `spin`: spinning throughout.
 
-    `rest` [s]: with `spin`, sleep this long first (`spin_rest`; cut short at the deadline). Spinning keeps the
-    core out of its idle state and to this thread, so the tick that follows finds its caches warm (and, on a
+    `rest`: with `spin`, the waits it says are due are slept instead (`spin_rest`). Spinning keeps the core
+    out of its idle state and to this thread, so the tick that follows finds its caches warm (and, on a
     virtual machine, does not wait for the hypervisor to wake it); it costs that core at 100 % (docs/runtime.md
     has the measured effect).
     """
-    if spin and rest > 0.0:
-        time.sleep(max(min(rest, deadline - time.monotonic()), 0.0))
+    now = time.monotonic()
+    if spin and rest is not None and rest.due(now):
+        wait_until(deadline)
+        rest.slept(time.monotonic() - now)
+        return
     while True:
         left = deadline - time.monotonic()
         if left <= 0:

@@ -191,7 +191,7 @@ class DeviceServer:
         end = None if duration is None else int(round(duration * self.rate))
         try:
             with realtime_thread(self.cpu, self.priority, self.cpu_latency):
-                rest = spin_rest(1.0 / self.rate, self.spin)
+                rest = spin_rest(self.spin)
                 # the first reading goes out as soon as a client said HELLO
                 while self.client is None and not self._stop:
                     self._poll(0.05)

@@ -15,7 +15,7 @@ from rhi._validate import scalar
 from rhi.errors import InvalidInput, LinkError
 from rhi.runtime import protocol as P
 from rhi.runtime.link import Reading
-from rhi.runtime.realtime import spin_rest, wait_readable
+from rhi.runtime.realtime import SpinRest, spin_rest, wait_readable
 
 
 class SessionLost(LinkError):
@@ -81,7 +81,7 @@ class UDPLink:
         self.timeout = scalar("timeout", timeout, positive=True)
         self.connect_timeout = scalar("connect_timeout", connect_timeout, positive=True)
         self.spin = bool(spin)
-        self._rest = 0.0  # the least sleep of a spinning wait [s] (`rhi.runtime.realtime.spin_rest`)
+        self._rest = SpinRest()  # which spinning waits are slept (`rhi.runtime.realtime.spin_rest`)
         self.takeover = bool(takeover)
         self.n = 0
         self.session = 0
@@ -167,7 +167,7 @@ class UDPLink:
         self._slices = [(name, slice(a, b)) for (name, _), a, b in zip(self.sensors, ends, ends[1:])]
         self._tx = bytearray(P.COMMAND_SIZE + 8 * self.n)
         self._tx_tau = np.frombuffer(self._tx, dtype="<f8", count=self.n, offset=P.COMMAND_SIZE)
-        self._rest = spin_rest(1.0 / self.rate, self.spin)
+        self._rest = spin_rest(self.spin)
         self._wall = not self.info.get("lockstep", False)  # a lock-step simulation's time stops while it waits
         if abs(self.info["rate"] - self.rate) > 1e-9 * self.rate:
             self.refuse(f"the device runs at {self.info['rate']:g} Hz, the loop at {self.rate:g} Hz")
@@ -207,15 +207,16 @@ class UDPLink:
     def _wait(self, end: float) -> int:
         """Receive the next datagram into `_rx` by the monotonic time `end` [s] at the latest: its size, or -1.
 
-        Asleep in `select` until one arrives; `spin`: polling the non-blocking socket on a busy core (after
-        `spin_rest`'s short sleep where the kernel would otherwise throttle a real-time loop).
+        Asleep in `select` until one arrives; `spin`: polling the non-blocking socket on a busy core (asleep in
+        the waits `spin_rest` says are due, where the kernel would otherwise throttle a real-time loop).
         """
+        now = time.monotonic()
         if not self.spin:
-            return self._recv(max(end - time.monotonic(), 0.0))
-        if self._rest:
-            size = self._recv(min(self._rest, max(end - time.monotonic(), 0.0)))
-            if size >= 0:
-                return size
+            return self._recv(max(end - now, 0.0))
+        if self._rest.due(now):
+            size = self._recv(max(end - now, 0.0))
+            self._rest.slept(time.monotonic() - now)
+            return size
         s = self._sock
         while True:
             try:
