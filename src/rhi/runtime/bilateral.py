@@ -25,7 +25,7 @@ import numpy as np
 
 from rhi._validate import scalar
 from rhi.errors import InvalidInput
-from rhi.runtime.tdpa import DEFAULT, TDPA, PortEnergy, correct, damp
+from rhi.runtime.tdpa import DEFAULT, TDPA, PortEnergy, correct, damp, dot, smallest_mass
 
 
 def _settings(passivity) -> TDPA | None:
@@ -64,9 +64,9 @@ class Master:
         kin = self.device.terms(q, dq, check=False)
         if self._held is not None:  # the force held over the last sample against the displacement over it
             x0, F0 = self._held
-            self.port.book(float(F0 @ (kin.x - x0)))
+            self.port.book(dot(F0, kin.x - x0))
         if self.passivity is not None:
-            F = damp(self.port, F, kin.xdot, float(np.linalg.eigvalsh(kin.Lambda)[0]), E_other, self.dt,
+            F = damp(self.port, F, kin.xdot, smallest_mass(kin.Lambda), E_other, self.dt,
                      self.passivity)
         self.force = F
         self.end.send(np.concatenate([kin.x, [self.port.E_in]]))
@@ -122,11 +122,12 @@ class Slave:
         v = v_nom if self.passivity is None else correct(self.port, v_nom, F_e, E_other, self.drift, self.dt,
                                                          self.passivity)
         self.drift = self.drift + (v - v_nom) * self.dt
-        self.port.book(-float(F_e @ v) * self.dt)
+        self.port.book(-dot(F_e, v) * self.dt)
         self.x_d = x_nom + self.drift
         self.end.send(np.concatenate([F_e, [self.port.E_in]]))
         F = self.kp * (self.x_d - kin.x) + self.kd * (v - kin.xdot)
-        return kin.J.T @ F + kin.g
+        J, g = kin.J, kin.g  # Jᵀ F + g, each sum in order (`dot`), as the compiled loop
+        return np.array([dot(J[:, a], F) + g[a] for a in range(len(g))])
 
 
 class _Metered:
@@ -147,7 +148,7 @@ class _Metered:
         if self._last is None:
             return self.work
         x0, F = self._last
-        return self.work + float(F @ (np.asarray(x, dtype=float) - x0))
+        return self.work + dot(F, np.asarray(x, dtype=float) - x0)
 
 
 @dataclasses.dataclass

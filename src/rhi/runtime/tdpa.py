@@ -57,6 +57,30 @@ from rhi.errors import InvalidInput
 _EPS_V, _EPS_F = 1e-6, 1e-6
 
 
+def dot(a, b) -> float:
+    """The dot product a · b of two small vectors, summed in order from 0.0 (the compiled twins' arithmetic).
+
+    Not NumPy's ``a @ b``: BLAS may fuse a multiply and an add (an FMA, depending on the CPU), and the TDPA's
+    decisions (W ≥ 0) at a tie would then depend on the machine, and differ from the compiled loop's.
+    """
+    s = 0.0
+    for x, y in zip(np.asarray(a, dtype=float).tolist(), np.asarray(b, dtype=float).tolist()):
+        s += x * y
+    return s
+
+
+def smallest_mass(Lambda: np.ndarray) -> float:
+    """The smallest eigenvalue of the symmetric apparent mass Λ (m, m) [kg]: closed form for m ≤ 2 (its lower triangle)."""
+    L = np.asarray(Lambda, dtype=float)
+    if L.shape == (1, 1):
+        return float(L[0, 0])
+    if L.shape == (2, 2):
+        a, c, d = float(L[0, 0]), float(L[1, 0]), float(L[1, 1])
+        h = 0.5 * (a - d)
+        return 0.5 * (a + d) - math.sqrt(h * h + c * c)
+    return float(np.linalg.eigvalsh(L)[0])
+
+
 @dataclasses.dataclass(frozen=True)
 class TDPA:
     """Settings of the TDPA on both sides of the channel.
@@ -129,8 +153,8 @@ def damp(port: PortEnergy, F: np.ndarray, v: np.ndarray, mass: float, E_other: f
         cfg: the bounds.
     """
     port.gain, port.deficit = 0.0, 0.0
-    W = E_other - port.E_out - max(float(F @ v), 0.0) * dt
-    vv = float(v @ v)
+    W = E_other - port.E_out - max(dot(F, v), 0.0) * dt
+    vv = dot(v, v)
     if W >= 0:
         return F
     if vv <= _EPS_V**2:
@@ -157,10 +181,10 @@ def correct(port: PortEnergy, v: np.ndarray, F_e: np.ndarray, E_other: float, dr
         cfg: the drift compensation's rate and bound.
     """
     port.gain, port.deficit = 0.0, 0.0
-    P = -float(F_e @ v)
+    P = -dot(F_e, v)
     A = E_other - port.E_out
     W = A - max(P, 0.0) * dt
-    ff = float(F_e @ F_e)
+    ff = dot(F_e, F_e)
     if W < 0 and ff > _EPS_F**2:
         alpha = min(-W / (dt * ff), cfg.max_correction_speed / math.sqrt(ff))
         port.gain = alpha
@@ -170,13 +194,13 @@ def correct(port: PortEnergy, v: np.ndarray, F_e: np.ndarray, E_other: float, dr
     if W < 0:
         port.deficit = -W
         return v
-    dn = float(np.sqrt(drift @ drift))
+    dn = math.sqrt(dot(drift, drift))
     if cfg.drift_rate == 0.0 or dn == 0.0:
         return v
     vc = -min(cfg.drift_rate, cfg.max_drift_speed / dn) * drift
-    cost = -float(F_e @ vc)  # the power the correction adds at the port [W]
+    cost = -dot(F_e, vc)  # the power the correction adds at the port [W]
     s = 1.0 if cost <= 0 else min(1.0, max(0.0, (A / dt - P) / cost))
     return v + s * vc
 
 
-__all__ = ["DEFAULT", "TDPA", "PortEnergy", "correct", "damp"]
+__all__ = ["DEFAULT", "TDPA", "PortEnergy", "correct", "damp", "dot", "smallest_mass"]
