@@ -216,10 +216,11 @@ class PassivityController:
         else:
             pos, v, Mp, Mi = kin.x, kin.xdot, kin.Lambda, kin.JMinv.dot(kin.J.T)
         prev = s.position is not None
-        tau = np.empty(tau0.shape[0])
-        s.energy, s.alpha, s.scale, dissipated, s.effort = _kernel.apply(
+        tau, effort = np.empty(tau0.shape[0]), np.empty(len(pos))
+        s.energy, s.alpha, s.scale, dissipated = _kernel.apply(
             s.energy, prev, s.position if prev else pos, s.effort if prev else pos, t - s.t, pos, v, Mp, Mi, kin.J,
-            kin.Jsharp, tau0, lo, hi, motors, self.config.mode, self._alpha_max, tau)
+            kin.Jsharp, tau0, lo, hi, motors, self.config.mode, self._alpha_max, tau, effort)
+        s.effort = effort
         s.dissipated += dissipated
         s.t, s.position = t, np.array(pos, dtype=float)
         return tau

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from rhi.devices._compiled.terms import add, assign, axpy, dot, inv as _inv, mm, mv, sub
+from rhi.devices._compiled.terms import assign, axpy, dot, inv as _inv, inv_to, mv
 from rhi.jit import jit, stack_empty
 
 _TOL = 1e-12  # ASCM: relative overload below this is no overload
@@ -54,8 +54,11 @@ def max_abs(x):
 
 
 @jit
-def null_projector(A):
-    """I − Qᵀ Q with Q an orthonormal basis of the rows of A (m, n), by CGS2; None-free: returns (P, ok)."""
+def null_projector(A, P):
+    """Write I − Qᵀ Q into P (n, n), Q an orthonormal basis of the rows of A (m, n), by CGS2; returns ok.
+
+    ok False: A is rank-deficient (P unspecified).
+    """
     m, n = A.shape
     Q, v = stack_empty((m, n), np.float64), stack_empty(n, np.float64)
     for i in range(m):
@@ -68,14 +71,20 @@ def null_projector(A):
                     v[c] = v[c] - s * Q[j, c]
         nv = math.sqrt(dot(v, v))
         if not nv > 1e-12 * scale:
-            return np.eye(n), False
+            return False
         for c in range(n):
             Q[i, c] = v[c] / nv
-    P = mm(Q.T, Q)
-    for r in range(n):  # I − P, in place (loops: less code to compile than array expressions)
+    for r in range(n):  # Qᵀ Q (`mm`'s arithmetic), then I − Qᵀ Q in place (loops: less code than array expressions)
+        for c in range(n):
+            P[r, c] = 0.0
+        for j in range(m):
+            a = Q[j, r]
+            for c in range(n):
+                P[r, c] += a * Q[j, c]
+    for r in range(n):
         for c in range(n):
             P[r, c] = (1.0 if r == c else 0.0) - P[r, c]
-    return P, True
+    return True
 
 
 @jit
@@ -156,19 +165,23 @@ def blocks_all(P, S, k, r):
 
 
 @jit
-def held_torque(P, S, k, r):
-    """Least-norm null-space torque with entries r (k,) on the joints S[:k]: P[:, S] P[S, S]⁻¹ r. (n,)."""
+def held_torque(P, S, k, r, out):
+    """Least-norm null-space torque with entries r[:k] on the joints S[:k]: P[:, S] P[S, S]⁻¹ r, written into out (n,)."""
     n = P.shape[0]
-    PSS = np.empty((k, k))
+    PSS, G, y = stack_empty((k, k), np.float64), stack_empty((k, k), np.float64), stack_empty(k, np.float64)
     for i in range(k):
         for j in range(k):
             PSS[i, j] = P[S[i], S[j]]
-    y = mv(_inv(PSS), r)
-    out = np.zeros(n)
+    inv_to(PSS, G)
+    for i in range(k):  # `mv`'s arithmetic
+        s = 0.0
+        for j in range(k):
+            s += G[i, j] * r[j]
+        y[i] = s
     for i in range(n):
+        out[i] = 0.0
         for j in range(k):
             out[i] += P[i, S[j]] * y[j]
-    return out
 
 
 @jit
@@ -192,9 +205,9 @@ def square_rank(Z, S, k):
 
 
 @jit
-def held_torque_square(Z, S, k, r):
-    """`held_torque` from the basis Z (n, k) when Z_𝒮 is square: Z Z_𝒮⁻¹ r, accurate to ε cond(Z_𝒮). (n,)."""
-    return mv(Z, mv(_inv(_rows(Z, S, k)), r))
+def held_torque_square(Z, S, k, r, out):
+    """`held_torque` from the basis Z (n, k) when Z_𝒮 is square: Z Z_𝒮⁻¹ r, accurate to ε cond(Z_𝒮), into out (n,)."""
+    assign(out, mv(Z, mv(_inv(_rows(Z, S, k)), r)))
 
 
 @jit
@@ -211,6 +224,13 @@ def _rows(Z, S, k):
 def clip(x, lo, hi):
     """X clipped to the box [lo, hi] (NaN stays NaN); a loop, a tenth of the code NumPy's broadcasting compiles to."""
     out = np.empty(x.shape[0])
+    clip_to(x, lo, hi, out)
+    return out
+
+
+@jit
+def clip_to(x, lo, hi, out):
+    """`clip` written into out (n,)."""
     for i in range(x.shape[0]):
         v = x[i]
         if v < lo[i]:
@@ -218,7 +238,6 @@ def clip(x, lo, hi):
         if v > hi[i]:
             v = hi[i]
         out[i] = v
-    return out
 
 
 @jit
@@ -245,7 +264,9 @@ def ascm(a, b, P, lo, hi, r, sat):
     with a basis Z of P instead (Z_𝒮 square: `square_rank`, `held_torque_square`).
     """
     n = a.shape[0]
-    base = add(a, b)
+    base = stack_empty(n, np.float64)  # a + b
+    for i in range(n):
+        base[i] = a[i] + b[i]
     S, S2 = stack_empty(n, np.int64), stack_empty(n, np.int64)  # held joints, sorted; the next set (swapped)
     k = np.int64(0)  # not the literal 0: one compiled version of held_torque
     held, ts, d, rr = stack_empty(n, np.bool_), stack_empty(n, np.float64), stack_empty(n, np.float64), stack_empty(n, np.float64)
@@ -256,7 +277,10 @@ def ascm(a, b, P, lo, hi, r, sat):
         if k:
             for i in range(k):
                 rr[i] = ts[S[i]] - base[S[i]]
-            d = held_torque_square(Z, S, k, rr) if square else held_torque(P, S, k, rr)  # read rr[:k]
+            if square:
+                held_torque_square(Z, S, k, rr, d)
+            else:
+                held_torque(P, S, k, rr, d)  # reads rr[:k]
             for i in range(n):
                 tl[i] = base[i] + d[i]
         j, worst = -1, _TOL
@@ -295,9 +319,15 @@ def ascm(a, b, P, lo, hi, r, sat):
         # τ(α) = α p + c with S held at ts: p = a − P_S P_SS⁻¹ a_S, c = b + d + (a − p)
         for i in range(k):
             rr[i] = a[S[i]]
-        ha = held_torque_square(Z, S, k, rr) if square else held_torque(P, S, k, rr)
-        p = sub(a, ha)
-        c = add(add(b, d), ha)
+        ha = stack_empty(n, np.float64)
+        if square:
+            held_torque_square(Z, S, k, rr, ha)
+        else:
+            held_torque(P, S, k, rr, ha)
+        p, c = stack_empty(n, np.float64), stack_empty(n, np.float64)
+        for i in range(n):
+            p[i] = a[i] - ha[i]
+            c[i] = (b[i] + d[i]) + ha[i]
         free = stack_empty(n, np.bool_)
         for i in range(n):
             free[i] = not held[i]
@@ -354,14 +384,19 @@ def negligible(x):
 @jit
 def held_set(sat):
     """The held joints: (indices (n,) of which the first k are the True entries of sat, k)."""
-    n = sat.shape[0]
-    S = np.empty(n, np.int64)
+    S = np.empty(sat.shape[0], np.int64)
+    return S, held_into(sat, S)
+
+
+@jit
+def held_into(sat, S):
+    """`held_set` written into S (n,) int64: returns k."""
     k = 0
-    for i in range(n):
+    for i in range(sat.shape[0]):
         if sat[i]:
             S[k] = i
             k += 1
-    return S, k
+    return k
 
 
 @jit(inline=True)
@@ -370,35 +405,62 @@ def safety_room(tau, b, delta, lo, hi):
     if not max_abs(delta) > negligible(delta):
         return tau, 1.0
     n = tau.shape[0]
-    every = stack_empty(n, np.bool_)
-    every[:], c = True, add(b, delta)
-    gamma = scaling_alpha(sub(tau, b), c, lo, hi, every)
+    every, c, d = stack_empty(n, np.bool_), stack_empty(n, np.float64), stack_empty(n, np.float64)
+    every[:] = True
+    for i in range(n):  # c = b + δ, d = τ − b
+        c[i] = b[i] + delta[i]
+        d[i] = tau[i] - b[i]
+    gamma = scaling_alpha(d, c, lo, hi, every)
     if gamma < 0.0:
-        sigma = scaling_alpha(delta, clip(tau, lo, hi), lo, hi, every)
+        box = stack_empty(n, np.float64)
+        clip_to(tau, lo, hi, box)
+        sigma = scaling_alpha(delta, box, lo, hi, every)
         return axpy(max(sigma, 0.0), delta, tau), 1.0
-    return clip(axpy(gamma, sub(tau, b), c), lo, hi), gamma
+    for i in range(n):  # `axpy`'s arithmetic, into d
+        d[i] = gamma * d[i] + c[i]
+    return clip(d, lo, hi), gamma
 
 
 @jit
 def tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r):
     """Algorithm 2 in projector form: (β δ, β, ok); ok False: use the basis form."""
+    dl = np.empty(tau.shape[0])
+    beta, ok = tertiary_to(tau, sat, P, tau_to, Ntau, lo, hi, r, dl)
+    return dl, beta, ok
+
+
+@jit
+def tertiary_to(tau, sat, P, tau_to, Ntau, lo, hi, r, dl):
+    """`tertiary` with β δ written into dl (n,), another array than Ntau (zero where β is 0): (β, ok)."""
     n = tau.shape[0]
-    dl = Ntau.copy()
-    S, k = held_set(sat)
+    assign(dl, Ntau)
+    S = stack_empty(n, np.int64)
+    k = held_into(sat, S)
+    beta, ok = 0.0, True
     if k:
         if n - k <= n - r:  # no redundancy left (Algorithm 2, line 2)
-            return np.zeros(n), 0.0, True
+            dl[:] = 0.0
+            return beta, ok
         if not well_conditioned(P, S, k):
-            return np.zeros(n), 0.0, False
+            dl[:] = 0.0
+            return beta, False
         rr = stack_empty(k, np.float64)
         for i in range(k):
             rr[i] = dl[S[i]]
-        dl = sub(dl, held_torque(P, S, k, rr))
+        held = stack_empty(n, np.float64)
+        held_torque(P, S, k, rr, held)
+        for i in range(n):
+            dl[i] = dl[i] - held[i]
     if max_abs(dl) <= negligible(tau_to):
-        return np.zeros(n), 0.0, True
-    beta = scaling_alpha(dl, clip(tau, lo, hi), lo, hi, np.ones(n, np.bool_))
+        dl[:] = 0.0
+        return beta, ok
+    box, every = stack_empty(n, np.float64), stack_empty(n, np.bool_)
+    clip_to(tau, lo, hi, box)
+    every[:] = True
+    beta = scaling_alpha(dl, box, lo, hi, every)
     if beta < 0.0:
-        return np.zeros(n), 0.0, True
+        dl[:] = 0.0
+        return 0.0, ok
     for i in range(n):
         dl[i] *= beta
-    return dl, beta, True
+    return beta, ok

@@ -28,7 +28,7 @@ import numpy as np
 
 from rhi.control._compiled.step import _contract, fme_gradient, vme_gradient
 from rhi.devices._compiled.terms import inv, mm
-from rhi.jit import jit
+from rhi.jit import jit, stack_empty
 
 #: Head slots of the objective vector: counts of FME terms, barrier terms, limit rows and Jacobian objectives.
 OBJ_FME, OBJ_BARRIER, OBJ_ROWS, OBJ_JAC = range(4)
@@ -94,9 +94,10 @@ def objectives(obj, q, dq, J, dJ, tau_s, tau_to):
     m, n = J.shape
     kf, kb, r, kj = int(obj[OBJ_FME]), int(obj[OBJ_BARRIER]), int(obj[OBJ_ROWS]), int(obj[OBJ_JAC])
     o = N_OBJ + r * (n + 2)
+    grad = stack_empty(n, np.float64)
     for _ in range(kf):
         gain = obj[o]
-        grad = fme_gradient(obj[o + 1 + n:o + 1 + n + m * m].reshape((m, m)), J, dJ, obj[o + 1:o + 1 + n])
+        fme_gradient(obj[o + 1 + n:o + 1 + n + m * m].reshape((m, m)), J, dJ, obj[o + 1:o + 1 + n], grad)
         for i in range(n):
             tau_to[i] -= gain * grad[i]
         o += 1 + n + m * m

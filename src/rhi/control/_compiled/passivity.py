@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from rhi.devices._compiled.terms import dot, mtv, mv
-from rhi.jit import jit
+from rhi.devices._compiled.terms import dot
+from rhi.jit import jit, stack_empty
 
 
 @jit
@@ -48,9 +48,26 @@ def _largest_scale(E, base, part, v, Minv, dt):
 
 
 @jit
-def _effort(motors, Jsharp, tau):
-    """τ (motor port) or J#ᵀτ (handle port)."""
-    return tau.copy() if motors else mtv(Jsharp, tau)
+def _effort(motors, Jsharp, tau, out):
+    """Write τ (motor port) or J#ᵀτ (handle port) into out (k,); returns out."""
+    if motors:
+        for i in range(tau.shape[0]):
+            out[i] = tau[i]
+        return out
+    _mtv_to(Jsharp, tau, out)
+    return out
+
+
+@jit
+def _mtv_to(A, v, out):
+    """Write Aᵀ v into out (n,) for A (k, n), v (k,): `rhi.devices._compiled.terms.mtv`'s arithmetic, no allocation."""
+    k, n = A.shape
+    for j in range(n):
+        out[j] = 0.0
+    for i in range(k):
+        vi = v[i]
+        for j in range(n):
+            out[j] += A[i, j] * vi
 
 
 #: Codes of `apply`'s mode: observe only, series damper and energy bounding, the series damper only,
@@ -60,14 +77,17 @@ OBSERVE, DAMPER_BOUNDING, DAMPER, BOUNDING = 0, 1, 2, 3
 
 @jit(inline=True)
 def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsharp, tau0, lo, hi, motors, mode,
-          alpha_max, tau):
+          alpha_max, tau, eff):
     """PO then PC of one tick (steps 1–4 of `PassivityController.apply`).
+
+    Its temporaries live on the stack (`rhi.jit.stack_empty`): no allocation; the arithmetic is that of the array
+    expressions it replaced, element by element.
 
     Args:
         E: E_obs before this tick [J].
         has_prev: a torque was sent at an earlier tick (pos_prev, eff_prev hold it).
         pos_prev: (k,) port position of that tick.
-        eff_prev: (k,) port effort of that tick.
+        eff_prev: (k,) port effort of that tick (read before eff is written: may be the same array).
         dt: time since that tick [s] (≤ 0 or non-finite: observe only).
         pos: (k,) port position now (q [rad] or x [m]).
         v: (k,) port velocity now (q̇ or ẋ).
@@ -75,7 +95,7 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
         Minv_port: (k, k) its inverse.
         J: (m, n) task Jacobian.
         Jsharp: (n, m) its dynamically consistent inverse J#.
-        tau0: (n,) the law's torque [N m].
+        tau0: (n,) the law's torque [N m] (another array than tau).
         lo: (n,) lower bound of the torque box [N m].
         hi: (n,) upper bound of the torque box [N m].
         motors: the motor port (else the handle port).
@@ -83,9 +103,10 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
             (steps 1, 2 and 4: no damper).
         alpha_max: bound on α [1/s] (≤ 0: 0.5 / dt).
         tau: (n,) output, the torque to send [N m].
+        eff: (k,) output, the effort sent (τ at the motor port, J#ᵀτ at the handle port).
 
     Returns:
-        (E_obs(n) [J], α [1/s], λ, energy the damping is predicted to take out [J], (k,) effort sent).
+        (E_obs(n) [J], α [1/s], λ, energy the damping is predicted to take out [J]).
     """
     if has_prev:
         s = 0.0
@@ -93,34 +114,58 @@ def apply(E, has_prev, pos_prev, eff_prev, dt, pos, v, M_port, Minv_port, J, Jsh
             s += eff_prev[i] * (pos[i] - pos_prev[i])
         E -= s
     alpha, scale, dissipated = 0.0, 1.0, 0.0
-    n = tau0.shape[0]
+    n, k = tau0.shape[0], pos.shape[0]
     for i in range(n):
         tau[i] = tau0[i]
     if mode != OBSERVE and dt > 0.0 and math.isfinite(dt):
-        e0 = _effort(motors, Jsharp, tau0)
+        e0, e1 = stack_empty(k, np.float64), stack_empty(k, np.float64)
+        _effort(motors, Jsharp, tau0, e0)
         w0 = _work(e0, v, Minv_port, dt)
         if w0 > E:
-            Mv = mv(M_port, v)
+            Mv = stack_empty(k, np.float64)
+            for i in range(k):  # M v
+                s = 0.0
+                for j in range(k):
+                    s += M_port[i, j] * v[j]
+                Mv[i] = s
             ke2 = dot(v, Mv)  # 2 × the kinetic energy of the port's motion [J]
-            tau_d = np.zeros(n)
+            tau_d, out = stack_empty(n, np.float64), stack_empty(n, np.float64)
+            for i in range(n):
+                tau_d[i] = 0.0
             if ke2 > 0.0 and mode != BOUNDING:
                 a_max = 0.5 / dt if alpha_max <= 0.0 else alpha_max
                 alpha = min((w0 - E) / (dt * ke2), a_max)
-                tau_d = -alpha * Mv if motors else mtv(J, -alpha * Mv)
-                tau_d = np.minimum(np.maximum(tau_d, lo), hi)
-                dissipated = -_work(_effort(motors, Jsharp, tau_d), v, Minv_port, dt)
+                na = -alpha
+                for i in range(k):  # −α M v
+                    Mv[i] = na * Mv[i]
+                if motors:
+                    for i in range(n):
+                        tau_d[i] = Mv[i]
+                else:
+                    _mtv_to(J, Mv, tau_d)
+                for i in range(n):  # np.minimum(np.maximum(τ_d, lo), hi): NaN propagates
+                    tau_d[i] = np.minimum(np.maximum(tau_d[i], lo[i]), hi[i])
+                dissipated = -_work(_effort(motors, Jsharp, tau_d, e1), v, Minv_port, dt)
             if mode == DAMPER:
-                out = tau0 + tau_d
+                for i in range(n):
+                    out[i] = tau0[i] + tau_d[i]
             elif motors:  # the null-space part yields first, then the task part
-                tau_t = mtv(J, mtv(Jsharp, tau0))
-                tau_n = tau0 - tau_t
-                lam_n = _largest_scale(E, tau_t + tau_d, tau_n, v, Minv_port, dt)
+                tau_t, tau_n, base = stack_empty(n, np.float64), stack_empty(n, np.float64), stack_empty(n, np.float64)
+                _mtv_to(Jsharp, tau0, e1[:J.shape[0]])
+                _mtv_to(J, e1[:J.shape[0]], tau_t)
+                for i in range(n):
+                    tau_n[i] = tau0[i] - tau_t[i]
+                    base[i] = tau_t[i] + tau_d[i]
+                lam_n = _largest_scale(E, base, tau_n, v, Minv_port, dt)
                 lam_t = 1.0 if lam_n > 0.0 else _largest_scale(E, tau_d, tau_t, v, Minv_port, dt)
-                out = lam_t * tau_t + lam_n * tau_n + tau_d
+                for i in range(n):
+                    out[i] = lam_t * tau_t[i] + lam_n * tau_n[i] + tau_d[i]
                 scale = lam_t
             else:
-                scale = _largest_scale(E, _effort(motors, Jsharp, tau_d), e0, v, Minv_port, dt)
-                out = scale * tau0 + tau_d
+                scale = _largest_scale(E, _effort(motors, Jsharp, tau_d, e1), e0, v, Minv_port, dt)
+                for i in range(n):
+                    out[i] = scale * tau0[i] + tau_d[i]
             for i in range(n):
                 tau[i] = min(max(out[i], lo[i]), hi[i])
-    return E, alpha, scale, dissipated, _effort(motors, Jsharp, tau)
+    _effort(motors, Jsharp, tau, eff)
+    return E, alpha, scale, dissipated

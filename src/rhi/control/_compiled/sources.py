@@ -65,10 +65,11 @@ def _held(x, P, S, k, r):
         return np.zeros(x.shape[0])
     if k >= r:
         return mv(P, x)
-    rr = np.empty(k)
+    rr, out = np.empty(k), np.empty(x.shape[0])
     for i in range(k):
         rr[i] = x[S[i]]
-    return held_torque(P, S, k, rr)
+    held_torque(P, S, k, rr, out)
+    return out
 
 
 @jit
@@ -126,12 +127,14 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     tau_to = add(tau_to, fme_sum)
     o = N_OBJ + int(obj[OBJ_ROWS]) * (n + 2)
     for i in range(kf):
-        grad = fme_gradient(obj[o + 1 + n:o + 1 + n + m * m].reshape((m, m)), J, dJ, obj[o + 1:o + 1 + n])
+        grad = np.empty(n)
+        fme_gradient(obj[o + 1 + n:o + 1 + n + m * m].reshape((m, m)), J, dJ, obj[o + 1:o + 1 + n], grad)
         for j in range(n):
             pushes[i, j] = -(obj[o] * grad[j])
         o += 1 + n + m * m
     dynamic = prm[P_DYNAMIC] != 0.0
-    P, ok = null_projector(JMinv if dynamic else J)
+    P = np.empty((n, n))
+    ok = null_projector(JMinv if dynamic else J, P)
     if not ok:
         return FALLBACK
     sat = np.zeros(n, np.bool_)

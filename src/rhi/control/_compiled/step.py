@@ -30,12 +30,14 @@ from rhi.control._compiled.allocation import (
     basis,
     blocks_all,
     clip,
+    held_into,
     held_set,
     held_torque,
     null_projector,
     safety_room,
     square_rank,
     tertiary,
+    tertiary_to,
     well_conditioned,
 )
 from rhi.control._compiled.lp import active_set, active_set_result, active_set_start
@@ -83,14 +85,22 @@ def flags(prm: np.ndarray, sch: np.ndarray, vme_gain: np.ndarray, tank: np.ndarr
 @jit
 def _contract(Y, dJ):
     """Σ_ij Y_ij ∂J_ij/∂q_k: (n,) for Y: (m, n), dJ: (m, n, n)."""
+    out = np.empty(Y.shape[1])
+    _contract_to(Y, dJ, out)
+    return out
+
+
+@jit
+def _contract_to(Y, dJ, out):
+    """`_contract` written into out (n,)."""
     m, n = Y.shape
-    out = np.zeros(n)
+    for k in range(n):
+        out[k] = 0.0
     for i in range(m):
         for j in range(n):
             y = Y[i, j]
             for k in range(n):
                 out[k] += y * dJ[i, j, k]
-    return out
 
 
 @jit
@@ -111,8 +121,8 @@ def vme_gradient(D, J, dJ):
 
 
 @jit
-def fme_gradient(D, J, dJ, w2):
-    """∂/∂q of JBLD(M̂, D), M̂ = (J W² Jᵀ)⁻¹ (eqs. 6.9–6.10): −2 Σ (Hᵀ J W²)_ij ∂J_ij/∂q_k. (n,)."""
+def fme_gradient(D, J, dJ, w2, out):
+    """∂/∂q of JBLD(M̂, D), M̂ = (J W² Jᵀ)⁻¹ (eqs. 6.9–6.10): −2 Σ (Hᵀ J W²)_ij ∂J_ij/∂q_k, written into out (n,)."""
     m, n = J.shape
     Jw, A, T = stack_empty((m, n), np.float64), stack_empty((m, m), np.float64), stack_empty((m, m), np.float64)
     K = stack_empty((m, n), np.float64)
@@ -152,10 +162,20 @@ def fme_gradient(D, J, dJ, w2):
             for l in range(m):
                 s += A[l, i] * Jw[l, j]
             K[i, j] = s
-    out = _contract(K, dJ)
+    _contract_to(K, dJ, out)
     for k in range(n):
         out[k] = -2.0 * out[k]
-    return out
+
+
+@jit
+def _mv_to(A, v, out):
+    """Write A v into out (k,) for A (k, n), v (n,): `rhi.devices._compiled.terms.mv`'s arithmetic, no allocation."""
+    k, n = A.shape
+    for i in range(k):
+        s = 0.0
+        for j in range(n):
+            s += A[i, j] * v[j]
+        out[i] = s
 
 
 @jit
@@ -326,11 +346,12 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
             if omega == 0.0:
                 D = stiff
             elif omega != 1.0:
-                D = np.empty((m, m))
+                D = stack_empty((m, m), np.float64)
                 for i in range(m):
                     for j in range(m):
                         D[i, j] = omega * free[i, j] + (1.0 - omega) * stiff[i, j]
-            grad = fme_gradient(D, J, dJ, w2)
+            grad = stack_empty(n, np.float64)
+            fme_gradient(D, J, dJ, w2, grad)
             for i in range(n):
                 tau_to[i] = -sch[SCH_GAIN] * grad[i] + tau_to[i]
     if vme:
@@ -350,13 +371,13 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     if dynamic:
         dynamic_null(J, Jsharp, tau_to, Ntau)
     else:
-        P, ok = null_projector(J)
+        ok = null_projector(J, P)
         if not ok:
             return SINGULAR, 1.0, 0.0, V, omega, False
         have_P = True
-        Ntau = mv(P, tau_to)
+        _mv_to(P, tau_to, Ntau)
     if (code == ASCM or code == ACTIVE_SET) and not V > 0.0 and not have_P:
-        P, ok = null_projector(JMinv)
+        ok = null_projector(JMinv, P)
         if not ok:
             return SINGULAR, 1.0, 0.0, V, omega, False
         have_P = True
@@ -380,27 +401,27 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     gamma = 1.0
     if safe and any_true(sat):  # the safety torque the held joints would block
         if not have_P:
-            P, ok = null_projector(JMinv)
+            ok = null_projector(JMinv, P)
             if not ok:
                 return SINGULAR, 1.0, 0.0, V, omega, False
             have_P = True
-        Nsafe = np.empty(n)
+        Nsafe, held, S = stack_empty(n, np.float64), stack_empty(n, np.float64), stack_empty(n, np.int64)
         if dynamic:
             dynamic_null(J, Jsharp, tau_s, Nsafe)
         else:
-            Nsafe = mv(P, tau_s)
-        S, k = held_set(sat)
+            _mv_to(P, tau_s, Nsafe)
+        k = held_into(sat, S)
         if k >= r:  # no redundancy left (e.g. an LP vertex with more than r joints at a limit): all of it is held
             if not blocks_all(P, S, k, r) and (k != r or square_rank(basis(P, r), S, k) != 1):
                 return FALLBACK, 1.0, 0.0, V, omega, False
-            held = mv(P, Nsafe)
+            _mv_to(P, Nsafe, held)
         else:
             if not well_conditioned(P, S, k):
                 return FALLBACK, 1.0, 0.0, V, omega, False
-            rr = np.empty(k)
+            rr = stack_empty(k, np.float64)
             for i in range(k):
                 rr[i] = Nsafe[S[i]]
-            held = held_torque(P, S, k, rr)
+            held_torque(P, S, k, rr, held)
         if not clipped:
             tau, gamma = safety_room(tau, b, held, lo, hi)
     if clipped_null:  # null_space="clipped": τ + N τ_to, each joint clipped at its limit (eqs. 6.2–6.6)
@@ -408,10 +429,11 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
             tau_out[i] = _clip1(tau[i] + Ntau[i], lo[i], hi[i])
         return OK, gamma * alpha, 1.0, V, omega, clipped
     if not have_P and any_true(sat):
-        P, ok = null_projector(JMinv)
+        ok = null_projector(JMinv, P)
         if not ok:
             return SINGULAR, 1.0, 0.0, V, omega, False
-    delta, beta, ok = tertiary(tau, sat, P, tau_to, Ntau, lo, hi, r)
+    delta = stack_empty(n, np.float64)
+    beta, ok = tertiary_to(tau, sat, P, tau_to, Ntau, lo, hi, r, delta)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
     if not tank_on:

@@ -77,7 +77,9 @@ def direction(Q, dq, S, k, tau):
                     G[i, j] = Q[A[i], A[j]]
             if not above(G, _FACE_TOL * tr):
                 continue
-            d = base - held_torque(Q, A, ka, rr)
+            h = np.empty(n)
+            held_torque(Q, A, ka, rr, h)
+            d = base - h
         ok = True
         for j in range(k):
             if not (mask >> j & 1) and math.copysign(1.0, tau[S[j]]) * d[S[j]] < -_INWARD_TOL:

@@ -30,7 +30,7 @@ from rhi.control._compiled import passivity
 from rhi.control._compiled.objectives import objectives
 from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
 from rhi.devices._compiled.chain import chain_terms
-from rhi.devices._compiled.terms import assign, dot, mm
+from rhi.devices._compiled.terms import assign, dot
 from rhi.jit import jit, stack_empty
 
 __all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "whole_for"]
@@ -290,18 +290,25 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
     if status != OK or pc[PC_ON] == 0.0 or not math.isfinite(dot(tau_out, tau_out)):
         return status
     motors = pc[PC_MOTORS] != 0.0
+    Mi = stack_empty((m, m), np.float64)  # the handle port's J M⁻¹ Jᵀ (`mm`'s arithmetic, on the stack)
     if motors:
         pos, v, Mp, Mi = q, dq, M, Minv
     else:
-        pos, v, Mp, Mi = x, xdot, Lam, mm(JMinv, J.T)
-    tau0 = tau_out.copy()
+        Mi[:, :] = 0.0
+        for i in range(m):
+            for k in range(n):
+                a = JMinv[i, k]
+                for j in range(m):
+                    Mi[i, j] += a * J[j, k]
+        pos, v, Mp = x, xdot, Lam
+    tau0 = stack_empty(n, np.float64)
+    assign(tau0, tau_out)
     prev = pc[PC_PREV] != 0.0
-    E, a_pc, scale, dissipated, eff = passivity.apply(
+    E, a_pc, scale, dissipated = passivity.apply(
         pc[PC_E], prev, pc_pos if prev else pos, pc_eff if prev else pos, t - pc[PC_T], pos, v, Mp, Mi, J, Jsharp,
-        tau0, lo, hi, motors, int(pc[PC_CONTROL]), pc[PC_ALPHA_MAX], tau_out)
+        tau0, lo, hi, motors, int(pc[PC_CONTROL]), pc[PC_ALPHA_MAX], tau_out, pc_eff)  # eff_prev read before written
     pc[PC_E], pc[PC_ALPHA], pc[PC_SCALE], pc[PC_DISSIPATED] = E, a_pc, scale, dissipated
     pc[PC_PREV], pc[PC_T] = 1.0, t
     assign(pc_pos, pos)
-    assign(pc_eff, eff)
     res[R_PC] = 1.0
     return status

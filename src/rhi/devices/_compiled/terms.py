@@ -45,7 +45,10 @@ def inv_to(A, out):
         out[1, 2] = (A[0, 2] * A[1, 0] - A[0, 0] * A[1, 2]) / det
         out[2, 2] = (A[0, 0] * A[1, 1] - A[0, 1] * A[1, 0]) / det
     else:  # Gauss-Jordan with partial pivoting (no LAPACK call overhead at these sizes)
-        W = A.copy()
+        W = stack_empty((k, k), np.float64)  # the elimination's work copy of A
+        for i in range(k):
+            for j in range(k):
+                W[i, j] = A[i, j]
         out[:, :] = 0.0
         for i in range(k):
             out[i, i] = 1.0
