@@ -115,3 +115,38 @@ def test_processes_starting_cold_at_once_compile_each_kernel_once(tmp_path: Path
     assert [w.exitcode for w in workers] == [0] * 4
     assert sorted(out.get(timeout=10) for _ in workers) == [0, 0, 0, 1]
     assert list(tmp_path.rglob("*.claim"))  # the claim files lie beside the index
+
+
+def _aside_then_load(cache_dir: str, out) -> None:
+    """`compile_aside` of `rhi.devices._compiled.terms.dot` (float32) on a cold `cache_dir`, then this process's compile."""
+    import os
+
+    from numba import config, types
+
+    from rhi.devices._compiled import terms
+
+    config.CACHE_DIR = os.environ["NUMBA_CACHE_DIR"] = cache_dir  # this process's locator and the child's
+    kernel = kernel_cache.jit(terms.dot.py_func)
+    vec = types.Array(types.float32, 1, "C")
+    was = kernel_cache.cached(kernel, (vec, vec))
+    child = kernel_cache.compile_aside(kernel, "rhi.devices._compiled.terms:dot", None, (vec, vec))
+    code = None if child is None else child.wait(timeout=300)
+    again = kernel_cache.compile_aside(kernel, "rhi.devices._compiled.terms:dot", None, (vec, vec))
+    now = kernel_cache.cached(kernel, (vec, vec))
+    kernel.compile((vec, vec))
+    out.put((was, code, again is None, now, sum(kernel._cache_misses.values())))
+
+
+@pytest.mark.realtime
+def test_a_kernel_compiled_aside_is_loaded_not_compiled(tmp_path: Path):
+    """`rhi.jit.compile_aside` on a cold cache: a child compiles and saves the kernel, this process then loads it."""
+    import multiprocessing
+
+    ctx = multiprocessing.get_context("fork")
+    out = ctx.Queue()
+    worker = ctx.Process(target=_aside_then_load, args=(str(tmp_path), out))
+    worker.start()
+    worker.join(timeout=400)
+    assert worker.exitcode == 0
+    # not cached before; the child ran to its end; asked once per process; cached after; no compile here
+    assert out.get(timeout=10) == (False, 0, True, True, 0)

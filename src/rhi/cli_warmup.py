@@ -118,6 +118,7 @@ def _step(k: int) -> float:
     from rhi import jit
 
     jit.announced(True)  # the parent's bar says it; no "compiling ..." line besides
+    jit.ASIDE[0] = False  # the steps are this pool's parallel work: no child compiles besides
     t0 = time.perf_counter()
     STEPS[k][1]()
     return time.perf_counter() - t0

@@ -22,7 +22,9 @@ is compiled once for all kernels of one signature (the compiled simulation loop,
 `stack_empty` gives a kernel an array on its own stack for local scratch: no allocation, no reference counting.
 Processes that share the cache (test workers, `rhi reproduce`'s workers, `rhi warmup`'s) save into a function's index
 one at a time (`_save_locked`), and compile one kernel for one signature one at a time (`_compile_claimed`): a
-process that finds another compiling it waits, then loads what that one saved.
+process that finds another compiling it waits, then loads what that one saved. On a cold cache `compile_aside`
+compiles a kernel in a child process while this one goes on (e.g. a controller's whole tick while the first
+`Device.terms` compiles the chain dynamics): two cores share a cold start.
 """
 
 from __future__ import annotations
@@ -31,8 +33,12 @@ import copy
 import fcntl
 import functools
 import hashlib
+import os
+import pickle
 import re
+import subprocess
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -217,6 +223,79 @@ _HELD: set[str] = set()  # the claims this process holds (a second lock of one f
 
 
 _compile_claimed.__wrapped__ = _NUMBA_COMPILE  # type: ignore[attr-defined]
+
+
+def cached(kernel, args: tuple) -> bool:
+    """Whether `kernel` (a `jit` dispatcher) for the Numba argument types `args` is in this process or the disk cache."""
+    if tuple(args) in kernel.overloads:
+        return True
+    cache = kernel._cache
+    if not isinstance(cache, caching.Cache):
+        return False
+    try:
+        return cache._index_key(tuple(args), kernel.targetctx.codegen()) in cache._cache_file._load_index()
+    except (OSError, EOFError, pickle.UnpicklingError):
+        return False
+
+
+#: Whether `compile_aside` starts children (False in processes that are themselves one of several compiling).
+ASIDE = [True]
+_ASKED: set = set()  # (kernel, Numba types) `compile_aside` was asked for in this process: looked up once
+_CHILDREN: list[subprocess.Popen] = []  # the last child started: one at a time (one more process than compiling)
+
+
+def compile_aside(kernel, factory: str, factory_args: tuple | None, args: tuple) -> subprocess.Popen | None:
+    """Compile `kernel` for the Numba types `args` in a child process, unless it is cached; returns the child.
+
+    The child finds the kernel as `factory` (``"module:name"``), or makes it as ``factory(*factory_args)`` (e.g. a
+    closure's maker), compiles it and saves it into the cache this process uses (asked once per process and types).
+    Meanwhile this process goes on; when it needs the kernel, its compile waits on the child's claim
+    (`_compile_claimed`) and loads the child's work. The child dies with this process; a failed child only costs
+    the time: this process then compiles it itself.
+
+    Args:
+        kernel: the `jit` dispatcher (this process's).
+        factory: where the child finds it, ``"module:name"``.
+        factory_args: None: `factory` is the kernel; else the arguments the kernel is made with.
+        args: the Numba types to compile it for.
+
+    Returns:
+        The child process, or None (cached, asked before, not a Numba dispatcher (e.g. a wrapper), `ASIDE` off, or a
+        child of this process still compiling: one at a time).
+    """
+    if (not ASIDE[0] or not isinstance(kernel, dispatcher.Dispatcher) or (kernel, tuple(args)) in _ASKED
+            or any(c.poll() is None for c in _CHILDREN)):
+        return None
+    _ASKED.add((kernel, tuple(args)))
+    if cached(kernel, args):
+        return None
+    try:
+        path = os.pathsep.join([str(_ROOT.parent), *filter(None, [os.environ.get("PYTHONPATH")])])  # this rhi
+        child = subprocess.Popen([sys.executable, "-c", "from rhi.jit import _aside; _aside()"], stdin=subprocess.PIPE,
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 env={**os.environ, "PYTHONPATH": path})
+        assert child.stdin is not None
+        child.stdin.write(pickle.dumps((factory, factory_args, tuple(args), os.getpid())))
+        child.stdin.close()
+    except OSError:
+        return None
+    threading.Thread(target=child.wait, name="rhi.jit aside", daemon=True).start()  # reaped (and counted) when it ends
+    _CHILDREN[:] = [child]
+    return child
+
+
+def _aside() -> None:
+    """A `compile_aside` child: read (factory, its arguments, Numba types, parent's pid) on stdin and compile."""
+    import importlib
+
+    from rhi._lifetime import die_with_parent
+
+    factory, factory_args, args, parent = pickle.loads(sys.stdin.buffer.read())
+    die_with_parent(parent)
+    ASIDE[0] = False
+    module, name = factory.split(":")
+    kernel = getattr(importlib.import_module(module), name)
+    (kernel if factory_args is None else kernel(*factory_args)).compile(args)
 
 
 def install() -> None:

@@ -211,6 +211,9 @@ class KernelTick:
             #: the whole tick compiled for the parts this controller has (`rhi.control._compiled.whole.whole_for`)
             self.parts = _whole.Parts(*self._flags, bool(static or bars or jac), pas is not None)
             self._whole_fn: Callable[..., int] = _whole.whole_for(self.parts)
+            # a cold cache: its compile starts now in a child (the first tick then loads it)
+            _whole.compile_ahead(self.parts, (0.0, self._zero, self._zero, self._no_force, *self._chain, False, *self._mid,
+                                              self._x, self._buf, *self._out))
             # the compiled entry point of `_whole_fn` (`_entry`), found at the first call, and the dispatcher it is of
             self._call: Callable[..., int] | None = None
             self._call_of: Callable[..., int] | None = None

@@ -22,7 +22,7 @@ import math
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import types
+from numba import typeof, types
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
@@ -31,9 +31,9 @@ from rhi.control._compiled.objectives import objectives
 from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
 from rhi.devices._compiled.chain import chain_terms
 from rhi.devices._compiled.terms import assign, dot
-from rhi.jit import jit, stack_empty
+from rhi.jit import compile_aside, jit, stack_empty
 
-__all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "whole_for"]
+__all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "compile_ahead", "whole_for"]
 
 #: Primary laws the whole tick computes (code in law[LAW_KIND]).
 FORCE, SPRING, FREE = 1, 2, 3
@@ -240,6 +240,28 @@ def whole_for(parts: Parts):
     # (`rhi.jit.KernelRef`, Numba's own entry points) would be the other set's code.
     whole_parts.__qualname__ += "_" + "_".join(str(int(p)) for p in parts)
     return jit(whole_parts)
+
+
+_AHEAD: set[Parts] = set()  # the parts `compile_ahead` was asked for in this process
+
+
+def compile_ahead(parts: Parts, args: tuple) -> None:
+    """On a cold cache, compile `whole_for` (`parts`) for the types of `args` in a child process (`rhi.jit.compile_aside`).
+
+    A controller calls it when it is made, so that its first tick's compile runs beside whatever this process
+    compiles meanwhile (e.g. the first `Device.terms`: the child waits for the `chain_terms` it compiles, then loads it).
+
+    Asked once per process and set of parts (a later controller of the same parts on another device compiles its
+    own types at its first tick, as without this).
+
+    Args:
+        parts: the parts of the kernel.
+        args: the kernel's arguments, as its first call will pass them (their Numba types are compiled for).
+    """
+    if parts in _AHEAD:
+        return
+    _AHEAD.add(parts)
+    compile_aside(whole_for(parts), "rhi.control._compiled.whole:whole_for", (parts,), tuple(typeof(a) for a in args))
 
 
 @jit(inline=True)
