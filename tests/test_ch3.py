@@ -87,6 +87,9 @@ def test_reproduce_in_parallel_equals_one_after_the_other(tmp_path, monkeypatch)
     for jobs in (1, 2):
         reproduce(tmp_path / str(jobs), only="ch3", quick=True, jobs=jobs)
         out[jobs] = json.loads((tmp_path / str(jobs) / "results.json").read_text())
-        assert out[jobs]["meta"]["jobs"] == jobs
+        meta = out[jobs]["meta"]
+        assert meta["jobs"] == jobs
+        assert meta["cpu_seconds"] == pytest.approx(sum(meta["cpu_seconds_per_experiment"].values()), abs=0.1)
+        assert meta["cpu_seconds"] > 0
     assert [r["name"] for r in out[2]["results"]] == ["ch3.table_3_1", "ch3.sysid_table_3_2"]
     assert out[1]["results"] == out[2]["results"]

@@ -245,8 +245,9 @@ def reproduce(out: str | Path = "out", *, only: str | None = None, quick: bool =
         else:
             _parallel(steps, plans, quick, out, jobs, _previous_times(out, mode), finished, task_seconds, warmup)
     done: list[tuple[str, Result, dict]] = [(s.chapter, results[s.name], dict(figures[s.name])) for s in steps]
-    meta = {"mode": mode, "chapters": only or ", ".join(chapters()),
-            "seconds": round(time.perf_counter() - t0, 1), "python": platform.python_version(), "jobs": jobs,
+    meta = {"mode": mode, "chapters": only or ", ".join(chapters()), "seconds": round(time.perf_counter() - t0, 1),
+            "cpu_seconds": round(sum(cpu.values()), 1),  # with every pool's processes (time(1) misses orphaned ones)
+            "python": platform.python_version(), "jobs": jobs,
             "seconds_per_experiment": seconds, "cpu_seconds_per_experiment": cpu,
             "figure_seconds_per_experiment": drawing, "seconds_per_task": task_seconds,
             "warmup_seconds": warmup}
