@@ -292,7 +292,8 @@ class FastLoop:
         plant, kt = sess.plant, controller._kernel
         self.sess, self.ctrl, self.kt = sess, controller, kt
         m = plant.m
-        c = hand_constants(sess.hand, sess.physical, m)
+        fused = sess._compiled(sess.hand, sess.physical)  # the session's hand constants (supported: `why_not`)
+        c = hand_constants(sess.hand, sess.physical, m) if fused is None else fused[1]
         self._mj = sess._addr
         d = plant.data
         self._sens = (plant._ten, plant._tenv, d.sensordata, plant._R,
