@@ -379,8 +379,8 @@ class View:
     def close(self) -> None:
         """Stop the update thread and the server."""
         self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
+        if self._thread is not None:  # its update in flight ends before the server does: a daemon thread still
+            self._thread.join(timeout=10.0)  # drawing when the interpreter exits can crash it (SIGSEGV, not 143)
         if self._own_server:
             self.server.stop()
 
