@@ -9,6 +9,8 @@ compilation stay out of ``import rhi``).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from rhi.jit import jit, stack_empty
@@ -108,6 +110,12 @@ def dot(a, b):
     for i in range(a.shape[0]):
         s += a[i] * b[i]
     return s
+
+
+@jit
+def finite(v):
+    """Whether every entry of the vector v is finite (its squares' sum is: an overflow counts as not finite)."""
+    return math.isfinite(dot(v, v))
 
 
 @jit

@@ -25,7 +25,7 @@ import numpy as np
 
 from rhi.control._compiled import whole as _whole
 from rhi.devices._compiled.chain import chain_terms
-from rhi.devices._compiled.terms import dot
+from rhi.devices._compiled.terms import dot, finite
 from rhi.jit import jit
 from rhi.runtime._compiled.tdpa import P_GAIN, P_IN, P_OUT, book, correct, damp
 from rhi.sim._compiled.handle import PERIOD_NONFINITE, PERIOD_OK, PERIOD_UNSTABLE, hand_period
@@ -53,15 +53,6 @@ COLUMNS = (("t", 0), ("x_m", 1), ("x_s", 1), ("x_d", 1), ("drift", 1), ("F_m", 1
            ("W_hand", 0), ("W_env", 0), ("E_M_in", 0), ("E_M_out", 0), ("E_S_in", 0), ("E_S_out", 0), ("beta", 0),
            ("alpha", 0))
 
-
-
-@jit
-def _finite(v):
-    """Whether every entry of the vector v is finite."""
-    s = 0.0
-    for i in range(v.shape[0]):
-        s += v[i] * v[i]
-    return math.isfinite(s)
 
 
 @jit
@@ -112,7 +103,7 @@ def _tissue_period(model, data, sub, sd, idx, c, xfrc, st, vec, wn, bad, F, at):
             F[i] = -push * c[m + i]
             vec[V_MX, i], vec[V_MF, i] = sd[idx[i]], F[i]
         st[S_MET] = 1.0
-        if not _finite(F):
+        if not finite(F):
             at[0] = s
             return PERIOD_NONFINITE
         for i in range(m):
@@ -181,7 +172,7 @@ def ticks(count, k0, dt, mst, slv, chan, cfg, wargs, cs, whole, st, vec, lay, ro
         t = st[S_TM]
         sensors(sens_m[0], sens_m[1], sens_m[2], sens_m[3], sens_m[4], sens_m[5], read_m)
         q, dq = read_m[:n], read_m[n:2 * n]
-        if not (_finite(q) and _finite(dq)) or (lay[L_FT] != 0 and not _finite(read_m[2 * n:])):
+        if not (finite(q) and finite(dq)) or (lay[L_FT] != 0 and not finite(read_m[2 * n:])):
             lay[L_OUT] = PYTHON
             return
         # `Master.step`: book the last sample, damp the slave's force, send x_m and E_in, the controller's tick
@@ -203,8 +194,8 @@ def ticks(count, k0, dt, mst, slv, chan, cfg, wargs, cs, whole, st, vec, lay, ro
             vec[V_FORCE, r] = F[r]
             fwd[k, r] = x_m[r]
         fwd[k, m] = st[PM + P_IN]
-        status = whole(t, q, dq, F, *wargs) if _finite(F) else _whole.FALLBACK
-        if status != _whole.OK or res[_whole.R_DONE] == 0.0 or not _finite(tau):
+        status = whole(t, q, dq, F, *wargs) if finite(F) else _whole.FALLBACK
+        if status != _whole.OK or res[_whole.R_DONE] == 0.0 or not finite(tau):
             st[:], vec[:, :] = st0, vec0
             _copy(cs, saved)
             lay[L_OUT] = PYTHON
@@ -256,7 +247,7 @@ def ticks(count, k0, dt, mst, slv, chan, cfg, wargs, cs, whole, st, vec, lay, ro
             for r in range(m):
                 s += J[r * n_s + a] * Fpd[r]
             tau_s[a] = s + g[a]
-        if not _finite(tau_s):  # `Plant.apply` refuses it: the Python loop's tick raises
+        if not finite(tau_s):  # `Plant.apply` refuses it: the Python loop's tick raises
             st[:], vec[:, :] = st0, vec0
             _copy(cs, saved)
             lay[L_OUT] = PYTHON

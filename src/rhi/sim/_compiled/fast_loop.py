@@ -38,6 +38,7 @@ from rhi.control._compiled import intent as _intent, tank as _tank, whole as _wh
 from rhi.control._compiled.whole import B
 from rhi.control.controller import NullSpaceController
 from rhi.control.intent_control import IntentController
+from rhi.devices._compiled.terms import finite
 from rhi.devices.terms import layout
 from rhi.jit import KernelRef, jit
 from rhi.sim._compiled.handle import (
@@ -76,15 +77,6 @@ L_Q, L_WORK, L_SEQ, L_VIRTUAL, L_FORCE, L_FT, L_DONE, L_OUT, L_STATUS, L_TELE, L
 last: FastLoop | None = None
 #: Each controller's whole tick as `ticks` calls it, by its `KernelTick` (whose arguments are the same arrays every call).
 _refs: weakref.WeakKeyDictionary[Any, KernelRef] = weakref.WeakKeyDictionary()
-
-
-@jit
-def _finite(v):
-    """Whether every entry of the vector v is finite (its squares' sum is; overflow sends the tick to Python)."""
-    s = 0.0
-    for i in range(v.shape[0]):
-        s += v[i] * v[i]
-    return math.isfinite(s)
 
 
 @jit
@@ -157,7 +149,7 @@ def _ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st,
             else:
                 handle_state(kin[0], kin[1], kin[2], q, dq, kx)
         if lay[L_TELE] != 0:  # the slave follows the master's x of this tick (its torque now: its state is the tick's)
-            if not _finite(kx[0]) or not slave_torque(*pd, kx[0], tau_s, M_s):
+            if not finite(kx[0]) or not slave_torque(*pd, kx[0], tau_s, M_s):
                 lay[L_OUT] = PYTHON
                 return
             for o in slots:
@@ -177,15 +169,15 @@ def _ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st,
         cmd = zero_n
         if st[S_STOPPED] == 0.0:
             # the controller's input checks: a tick that fails one is the Python loop's
-            if not (_finite(q) and _finite(dq)) or (lay[L_FORCE] != 0 and not _finite(F_env)) or (
-                    lay[L_FT] != 0 and not _finite(ft)):
+            if not (finite(q) and finite(dq)) or (lay[L_FORCE] != 0 and not finite(F_env)) or (
+                    lay[L_FT] != 0 and not finite(ft)):
                 ist[:], ip[:] = ist0, ip0
                 lay[L_OUT] = PYTHON
                 return
             tr0[:], pc0[:], pos0[:], eff0[:], tau0[:], sat0[:] = tr, pc, pc_pos, pc_eff, tau, sat
             tk0[:], tq0[:], te0[:] = tank, tank_q, tank_e
             status = whole(t, q, dq, F_env, *wargs)
-            if status != _whole.OK or res[_whole.R_DONE] == 0.0 or not _finite(tau):  # the state as before the tick
+            if status != _whole.OK or res[_whole.R_DONE] == 0.0 or not finite(tau):  # the state as before the tick
                 tr[:], pc[:], pc_pos[:], pc_eff[:], tau[:], sat[:] = tr0, pc0, pos0, eff0, tau0, sat0
                 tank[:], tank_q[:], tank_e[:] = tk0, tq0, te0
                 ist[:], ip[:] = ist0, ip0
