@@ -352,7 +352,7 @@ def test_whole_tick_compiles_only_the_parts_its_controller_has(rhi4):
 
     assert k._whole_fn(*args) == whole.OK
     called = _typed_callees(k._whole_fn, args)
-    assert {"ascm", "fme_gradient", "vme_gradient", "tertiary_to", "held_torque"} <= called
+    assert {"ascm_into", "fme_gradient", "vme_gradient", "tertiary_to", "held_torque"} <= called
     assert not called & {"active_set", "active_set_start", "allocate_scaling", "blend", "direction", "objectives",
                          "apply"}
 

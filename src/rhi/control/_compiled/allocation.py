@@ -258,10 +258,18 @@ def allocate_scaling(a, b, lo, hi, sat):
 
 @jit
 def ascm(a, b, P, lo, hi, r, sat):
-    """ASCM (Algorithm 1) in projector form into sat; returns (τ, α, clipped, ok); ok False: use the basis form.
+    """ASCM (Algorithm 1) in projector form into sat; returns (τ, α, clipped, ok) (`ascm_into` on a new τ)."""
+    tau = np.empty(a.shape[0])
+    alpha, clipped, ok = ascm_into(a, b, P, lo, hi, r, sat, tau)
+    return tau, alpha, clipped, ok
 
-    A held set of r joints (no redundancy left) whose P[𝒮, 𝒮] is ill-conditioned is decided
-    with a basis Z of P instead (Z_𝒮 square: `square_rank`, `held_torque_square`).
+
+@jit
+def ascm_into(a, b, P, lo, hi, r, sat, tau):
+    """`ascm` with τ (n,) [N m] written into tau (another array than a and b): (α, clipped, ok).
+
+    ok False: use the basis form. A held set of r joints (no redundancy left) whose P[𝒮, 𝒮] is ill-conditioned
+    is decided with a basis Z of P instead (Z_𝒮 square: `square_rank`, `held_torque_square`).
     """
     n = a.shape[0]
     base = stack_empty(n, np.float64)  # a + b
@@ -270,7 +278,8 @@ def ascm(a, b, P, lo, hi, r, sat):
     S, S2 = stack_empty(n, np.int64), stack_empty(n, np.int64)  # held joints, sorted; the next set (swapped)
     k = np.int64(0)  # not the literal 0: one compiled version of held_torque
     held, ts, d, rr = stack_empty(n, np.bool_), stack_empty(n, np.float64), stack_empty(n, np.float64), stack_empty(n, np.float64)
-    tl, Z = base.copy(), stack_empty((n, r), np.float64)  # tl is returned: on the heap
+    tl, Z = tau, stack_empty((n, r), np.float64)  # τ with the held joints at their limits
+    assign(tl, base)
     held[:], ts[:], d[:], Z[:, :] = False, 0.0, 0.0, 0.0
     square = False  # S holds r joints: held torques from the basis Z
     for _ in range(n + 1):
@@ -292,7 +301,7 @@ def ascm(a, b, P, lo, hi, r, sat):
                 j, worst = i, o
         if j < 0:
             assign(sat, held)
-            return tl, 1.0, False, True
+            return 1.0, False, True
         if k + 1 > r:
             break
         for i in range(k):
@@ -304,11 +313,11 @@ def ascm(a, b, P, lo, hi, r, sat):
         S2[pos] = j
         if not well_conditioned(P, S2, k + 1):
             if k + 1 != r:
-                return tl, 1.0, False, False
+                return 1.0, False, False
             Z = basis(P, r)
             full = square_rank(Z, S2, r)
             if full < 0:
-                return tl, 1.0, False, False
+                return 1.0, False, False
             if full == 0:  # the reference's Z_𝒮 loses rank: scale with the joints held so far
                 break
             square = True
@@ -334,9 +343,13 @@ def ascm(a, b, P, lo, hi, r, sat):
         alpha = scaling_alpha(p, c, lo, hi, free)
         if alpha >= 0.0:
             assign(sat, held)
-            return clip(axpy(alpha, p, c), lo, hi), alpha, False, True
-    tau, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
-    return tau, alpha, clipped, True
+            for i in range(n):  # `axpy`'s arithmetic, then the box
+                tau[i] = alpha * p[i] + c[i]
+            clip_to(tau, lo, hi, tau)
+            return alpha, False, True
+    scaled, alpha, clipped = allocate_scaling(a, b, lo, hi, sat)
+    assign(tau, scaled)
+    return alpha, clipped, True
 
 
 @jit
@@ -400,8 +413,8 @@ def held_into(sat, S):
 
 
 @jit(inline=True)
-def safety_room(tau, b, delta, lo, hi):
-    """`rhi.control.safety.safety_room` (not skipped): (τ', γ)."""
+def safety_room(tau, b, delta, lo, hi, out):
+    """`rhi.control.safety.safety_room` (not skipped): (τ', γ), τ' tau itself or written into out (n,)."""
     if not max_abs(delta) > negligible(delta):
         return tau, 1.0
     n = tau.shape[0]
@@ -414,11 +427,14 @@ def safety_room(tau, b, delta, lo, hi):
     if gamma < 0.0:
         box = stack_empty(n, np.float64)
         clip_to(tau, lo, hi, box)
-        sigma = scaling_alpha(delta, box, lo, hi, every)
-        return axpy(max(sigma, 0.0), delta, tau), 1.0
+        sigma = max(scaling_alpha(delta, box, lo, hi, every), 0.0)
+        for i in range(n):  # `axpy`'s arithmetic
+            out[i] = sigma * delta[i] + tau[i]
+        return out, 1.0
     for i in range(n):  # `axpy`'s arithmetic, into d
         d[i] = gamma * d[i] + c[i]
-    return clip(d, lo, hi), gamma
+    clip_to(d, lo, hi, out)
+    return out, gamma
 
 
 @jit

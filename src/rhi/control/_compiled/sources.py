@@ -138,7 +138,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     if not ok:
         return FALLBACK
     sat = np.zeros(n, np.bool_)
-    ok, tau, alpha, clipped = allocate(prm[P_SATURATION], V, a, b, tau_m, P, lo, hi, r, sat)
+    ok, tau, alpha, clipped = allocate(prm[P_SATURATION], V, a, b, tau_m, P, lo, hi, r, sat, np.empty(n))
     if not ok:
         return FALLBACK
     if theta < 1.0 and any_true(sat) and not clipped:
@@ -152,7 +152,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     al0 = tau
     gamma = 1.0
     if prm[P_SAFE] != 0.0 and k > 0 and not clipped:
-        tau, gamma = safety_room(tau, b, _held(_null(tau_s, J, Jsharp, P, dynamic), P, S, k, r), lo, hi)
+        tau, gamma = safety_room(tau, b, _held(_null(tau_s, J, Jsharp, P, dynamic), P, S, k, r), lo, hi, np.empty(n))
     delta, beta, ok = tertiary(tau, sat, P, tau_to, _null(tau_to, J, Jsharp, P, dynamic), lo, hi, r)
     if not ok:
         return FALLBACK

@@ -26,10 +26,10 @@ from rhi.control._compiled.allocation import (
     allocate_scaling,
     any_nonzero,
     any_true,
-    ascm,
+    ascm_into,
     basis,
     blocks_all,
-    clip,
+    clip_to,
     held_into,
     held_set,
     held_torque,
@@ -42,7 +42,7 @@ from rhi.control._compiled.allocation import (
 )
 from rhi.control._compiled.lp import active_set, active_set_result, active_set_start
 from rhi.control._compiled.tank import TK_GATE, TK_ON, TK_THETA, _null, blend, direction, gate, gated, null_inertia
-from rhi.devices._compiled.terms import add, axpy, dot, inv as _inv, inv_to, mm, mtv, mv, sub
+from rhi.devices._compiled.terms import add, axpy, dot, inv as _inv, inv_to, mm, mtv, mv, shaped, sub
 from rhi.jit import jit, stack_empty
 
 #: Status of `tick`.
@@ -227,11 +227,12 @@ def _omega(tr, t):
 
 
 @jit(inline=True)
-def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat):
+def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat, out):
     """The allocation strategy `code` of τ_m = a + b (n,) [N m] in the box [lo, hi]: (ok, τ, α, clipped).
 
     ASCM and the active set keep τ_m while the ASO volume V > 0 (P, the null-space projector, is read only where
-    they act); ok is False where the reference must decide (the LP). sat (n,) is written with the held joints.
+    they act); ok is False where the reference must decide (the LP). sat (n,) is written with the held joints, out
+    (n,) with τ by ASCM and without a strategy (τ is out there).
     Inlined: where `code` is a compile-time constant (`rhi.control._compiled.whole.whole_for`) only its strategy
     is compiled.
     """
@@ -240,8 +241,8 @@ def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat):
         sat[:] = False
         return True, tau_m, 1.0, False
     if code == ASCM:
-        tau, alpha, clipped, ok = ascm(a, b, P, lo, hi, r, sat)
-        return ok, tau, alpha, clipped
+        alpha, clipped, ok = ascm_into(a, b, P, lo, hi, r, sat, out)
+        return ok, out, alpha, clipped
     if code == ACTIVE_SET:
         tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
         if clipped or not any_nonzero(a):
@@ -257,7 +258,8 @@ def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat):
         return True, tau, alpha, clipped
     for i in range(n):
         sat[i] = tau_m[i] > hi[i] or tau_m[i] < lo[i]
-    return True, clip(tau_m, lo, hi), 1.0, False
+    clip_to(tau_m, lo, hi, out)
+    return True, out, 1.0, False
 
 
 @jit(inline=True)
@@ -314,11 +316,11 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         (status, α, β, V, Ω, clipped).
     """
     n, m = dq.shape[0], F_r.shape[0]
-    J = terms[at[0]:at[0] + m * n].reshape((m, n))
-    dJ = terms[at[1]:at[1] + m * n * n].reshape((m, n, n))
+    J = shaped(terms[at[0]:at[0] + m * n], (m, n))
+    dJ = shaped(terms[at[1]:at[1] + m * n * n], (m, n, n))
     g = terms[at[3]:at[3] + n]
-    JMinv = terms[at[5]:at[5] + m * n].reshape((m, n))
-    Jsharp = terms[at[7]:at[7] + n * m].reshape((n, m))
+    JMinv = shaped(terms[at[5]:at[5] + m * n], (m, n))
+    Jsharp = shaped(terms[at[7]:at[7] + n * m], (n, m))
     Gx = terms[at[8]:at[8] + m]
     gravity = prm[P_GRAVITY] != 0.0 and dot(g, g) != 0.0
     a, b, tau_m = stack_empty(n, np.float64), stack_empty(n, np.float64), stack_empty(n, np.float64)
@@ -340,8 +342,8 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         omega = transition(tr, t, V, sch[SCH_DIST], sch[SCH_EPS1], sch[SCH_EPS2], sch[SCH_RHO])
         if sch[SCH_GAIN] > 0.0:
             w2 = sch[N_SCH:N_SCH + n]
-            free = sch[N_SCH + n:N_SCH + n + m * m].reshape((m, m))
-            stiff = sch[N_SCH + n + m * m:N_SCH + n + 2 * m * m].reshape((m, m))
+            free = shaped(sch[N_SCH + n:N_SCH + n + m * m], (m, m))
+            stiff = shaped(sch[N_SCH + n + m * m:N_SCH + n + 2 * m * m], (m, m))
             D = free
             if omega == 0.0:
                 D = stiff
@@ -381,7 +383,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         if not ok:
             return SINGULAR, 1.0, 0.0, V, omega, False
         have_P = True
-    ok, tau, alpha, clipped = allocate(code, V, a, b, tau_m, P, lo, hi, r, sat)
+    ok, tau, alpha, clipped = allocate(code, V, a, b, tau_m, P, lo, hi, r, sat, stack_empty(n, np.float64))
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
     g_null = stack_empty(n, np.float64)
@@ -392,7 +394,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     if gate_on:  # the redistribution spends only what the allocation's account holds (rhi.control.tank)
         tank[TK_THETA] = 1.0
         if any_true(sat) and not clipped:
-            Minv = terms[at[4]:at[4] + n * n].reshape((n, n))
+            Minv = shaped(terms[at[4]:at[4] + n * n], (n, n))
             theta = gate(tank, tank_q, tank_e, t, q, dq, Minv, sub(_null(J, Jsharp, tau, np.zeros(n)), g_null))
             tank[TK_THETA] = theta
             if theta < 1.0:
@@ -423,7 +425,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
                 rr[i] = Nsafe[S[i]]
             held_torque(P, S, k, rr, held)
         if not clipped:
-            tau, gamma = safety_room(tau, b, held, lo, hi)
+            tau, gamma = safety_room(tau, b, held, lo, hi, stack_empty(n, np.float64))
     if clipped_null:  # null_space="clipped": τ + N τ_to, each joint clipped at its limit (eqs. 6.2–6.6)
         for i in range(n):
             tau_out[i] = _clip1(tau[i] + Ntau[i], lo[i], hi[i])
@@ -451,9 +453,9 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
     S, k = held_set(sat)
-    M = terms[at[2]:at[2] + n * n].reshape((n, n))
+    M = shaped(terms[at[2]:at[2] + n * n], (n, n))
     d = direction(null_inertia(J, Jsharp, M), dq, S, k, tau)
-    Minv = terms[at[4]:at[4] + n * n].reshape((n, n))
+    Minv = shaped(terms[at[4]:at[4] + n * n], (n, n))
     tau_a = add(b, axpy(gamma, sub(tau_alloc, b), np.zeros(n))) if gate_on else tau  # the gate meters the redistribution
     blend(tank, tank_q, tank_e, t, q, dq, J, Jsharp, Minv, g_null, tau_a, add(tau, delta0) if beta0 != 0.0 else tau,
           tau1, d, lo, hi, tau_out)

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rhi.devices._compiled.terms import task_terms
+from rhi.devices._compiled.terms import shaped, task_terms
 from rhi.devices.batch import _ARM, _AX, _COM, _MASS, _P, _ROT, _T
 from rhi.jit import jit, stack_empty
 
@@ -190,10 +190,10 @@ def chain_dynamics_in(ints, joints, consts, th, dth, w):
     Z, p = _take(w, p, 6 * nt * nt)  # Z[i, k] = I^c_i (S_i × S_k)
     D, p = _take(w, p, nt * nt * nt)  # ∂M_jk/∂θ_i (D[i, j, k])
     C, p = _take(w, p, nt * nt)
-    oR, o, S, Ic = oR.reshape((nt, 3, 3)), o.reshape((nt, 3)), S.reshape((nt, 6)), Ic.reshape((nt, 6, 6))
-    RP, T, J6, F, M = RP.reshape((3, 3)), T.reshape((3, 3)), J6.reshape((6, nt)), F.reshape((nt, 6)), M.reshape((nt, nt))
-    X, Y, Z = X.reshape((nt, nt, 6)), Y.reshape((nt, nt, 6)), Z.reshape((nt, nt, 6))
-    D, C = D.reshape((nt, nt, nt)), C.reshape((nt, nt))
+    oR, o, S, Ic = shaped(oR, (nt, 3, 3)), shaped(o, (nt, 3)), shaped(S, (nt, 6)), shaped(Ic, (nt, 6, 6))
+    RP, T, J6, F, M = shaped(RP, (3, 3)), shaped(T, (3, 3)), shaped(J6, (6, nt)), shaped(F, (nt, 6)), shaped(M, (nt, nt))
+    X, Y, Z = shaped(X, (nt, nt, 6)), shaped(Y, (nt, nt, 6)), shaped(Z, (nt, nt, 6))
+    D, C = shaped(D, (nt, nt, nt)), shaped(C, (nt, nt))
     _forward(ints, joints, th, oR, o, S, Ic, RP, T)
     sup = stack_empty((nt, nt), np.bool_)  # sup[a, b]: joint a supports joint b (or is b)
     sup[:, :] = False

@@ -10,10 +10,68 @@ compilation stay out of ``import rhi``).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+from llvmlite import ir as llvm_ir
+from numba import types
+from numba.core import cgutils
+from numba.core.imputils import impl_ret_borrowed
+from numba.extending import intrinsic
+from numba.np.arrayobj import make_array, populate_array
 
 from rhi.jit import jit, stack_empty
+
+
+@intrinsic
+def _shaped(typingctx, x, shape):
+    """``shaped(x, shape)`` in compiled code: the contiguous 1-D array x viewed as a C array of `shape`.
+
+    NumPy's ``x.reshape(shape)`` for such an x, without Numba's general reshape (a call of its C helper
+    ``numba_attempt_nocopy_reshape`` and the shape's normalisation, each time): a few instructions. `shape` an int
+    or a tuple of ints; a size other than x's, or an x with gaps (layout "A"), raises ValueError.
+    """
+    if not (isinstance(x, types.Array) and x.ndim == 1 and x.layout in "CA"):
+        return None
+    if isinstance(shape, types.Integer):
+        nd = 1
+    elif isinstance(shape, types.BaseTuple) and all(isinstance(t, types.Integer) for t in shape.types):  # type: ignore[attr-defined]
+        nd = len(shape.types)  # type: ignore[attr-defined]
+    else:
+        return None
+    ret = x.copy(ndim=nd, layout="C")
+
+    def codegen(context, builder, sig, args):
+        shape_ty, intp = sig.args[1], context.get_value_type(types.intp)
+        if isinstance(shape_ty, types.Integer):
+            dims = [context.cast(builder, args[1], shape_ty, types.intp)]
+        else:
+            dims = [context.cast(builder, builder.extract_value(args[1], i), t, types.intp)
+                    for i, t in enumerate(shape_ty.types)]
+        src = make_array(sig.args[0])(context, builder, args[0])
+        total = llvm_ir.Constant(intp, 1)
+        for d in dims:
+            total = builder.mul(total, d)
+        bad = builder.icmp_signed("!=", total, builder.extract_value(src.shape, 0))
+        if sig.args[0].layout != "C":  # contiguous only
+            gaps = builder.icmp_signed("!=", builder.extract_value(src.strides, 0), src.itemsize)
+            bad = builder.or_(bad, builder.and_(gaps, builder.icmp_signed(">", total, llvm_ir.Constant(intp, 1))))
+        with cgutils.if_unlikely(builder, bad):
+            context.call_conv.return_user_exc(builder, ValueError, ("cannot reshape array: another size or gaps",))
+        strides: list = []
+        step = src.itemsize
+        for d in reversed(dims):
+            strides.insert(0, step)
+            step = builder.mul(step, d)
+        out = make_array(ret)(context, builder)
+        populate_array(out, data=src.data, shape=dims, strides=strides, itemsize=src.itemsize, meminfo=src.meminfo,
+                       parent=src.parent)
+        return impl_ret_borrowed(context, builder, ret, out._getvalue())
+
+    return ret(x, shape), codegen
+
+
+shaped: Any = _shaped  # as kernels call it: shaped(x, shape) (the intrinsic takes the typing context first)
 
 
 @jit
@@ -221,8 +279,8 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
                     for k in range(nt):
                         s += W[a, k] * A[k, c]
                     out[odJ + (i * n + a) * n + c] = s
-    Minv = out[oMi:oMi + n * n].reshape((n, n))
-    inv_to(out[oM:oM + n * n].reshape((n, n)), Minv)
+    Minv = shaped(out[oMi:oMi + n * n], (n, n))
+    inv_to(shaped(out[oM:oM + n * n], (n, n)), Minv)
     for i in range(m):  # J M⁻¹
         for c in range(n):
             s = 0.0
@@ -236,7 +294,7 @@ def task_terms(J6, Mt, gt, Ct, A, rows, armature, supports, identity, fill_lower
             for c in range(n):
                 s += out[oJMi + i * n + c] * out[oJ + j * n + c]
             L[i, j] = s
-    Lam = out[oL:oL + m * m].reshape((m, m))
+    Lam = shaped(out[oL:oL + m * m], (m, m))
     inv_to(L, Lam)
     for a in range(n):  # J# = (J M⁻¹)ᵀ Λ
         for j in range(m):
