@@ -279,8 +279,7 @@ class LogWriter:
 
     def row(self) -> np.ndarray:
         """The next row to fill: (width,) float64, NaN-filled."""
-        if self._k == len(self._buf):
-            self._flush()
+        self._room()
         r = self._buf[self._k]
         self._k += 1
         self.rows += 1
@@ -291,8 +290,7 @@ class LogWriter:
 
         The rows belong to the log once `commit` says how many were written (a compiled loop's block).
         """
-        if self._k == len(self._buf):
-            self._flush()
+        self._room()
         return self._buf[self._k: self._k + count]
 
     def commit(self, rows: int) -> None:
@@ -309,16 +307,23 @@ class LogWriter:
             self._ev.flush()
         return e
 
+    def _room(self) -> None:
+        """A next row in the buffer: the full buffer flushed, a new chunk where none is left (in memory)."""
+        if self._k == len(self._buf):
+            if self._k:
+                self._flush()
+            if not len(self._buf):
+                self._buf = np.full((self._chunk, self.width), np.nan)
+
     def _flush(self) -> None:
         block = self._buf[: self._k]
         if self._fh is not None:
             self._fh.write(np.ascontiguousarray(block, dtype="<f8").tobytes())
             self._fh.flush()
             self._buf.fill(np.nan)
-        else:  # in memory the rows stay where they are; the next go to the rest of the buffer, or to a new chunk
+        else:  # in memory the rows stay where they are; the next go to the rest of the buffer (a new chunk if none)
             self._chunks.append(block)
-            rest = self._buf[self._k:]
-            self._buf = rest if len(rest) else np.full((self._chunk, self.width), np.nan)
+            self._buf = self._buf[self._k:]
         self._k = 0
 
     def close(self) -> None:

@@ -38,7 +38,7 @@ from rhi.control._compiled import intent as _intent, tank as _tank, whole as _wh
 from rhi.control._compiled.whole import B
 from rhi.control.controller import NullSpaceController
 from rhi.control.intent_control import IntentController
-from rhi.devices._compiled.terms import finite
+from rhi.devices._compiled.terms import assign, finite
 from rhi.devices.terms import layout
 from rhi.jit import KernelRef, jit
 from rhi.sim._compiled.handle import (
@@ -142,7 +142,7 @@ def _ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st,
         q, dq, ft = read[:n], read[n:2 * n], read[2 * n:]
         if lay[L_VIRTUAL] != 0:
             handle_state(kin[0], kin[1], kin[2], q, dq, kout)
-            F_env[:] = kout[2]
+            assign(F_env, kout[2])
         if lay[L_TELE] != 0 or lay[L_INTENT] != 0:  # the handle's x and ẋ on the controller's model
             if lay[L_VIRTUAL] != 0:
                 kx[0], kx[1] = kout[0], kout[1]
@@ -157,7 +157,8 @@ def _ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st,
                     for k in range(m):
                         obj[o + i * m + k] = M_s[i, k]
         if lay[L_INTENT] != 0:  # `IntentController.step`: the estimate from F_h and ẋ, then its objectives' M(u)
-            ist0[:], ip0[:] = ist, ip
+            assign(ist0, ist)
+            assign(ip0, ip)
             for i in range(m):
                 Fi[i] = ft[irows[i]]
             _intent.update(kind, iprm, table, knots, ist, ip, Fi, kx[1], t)
@@ -174,8 +175,17 @@ def _ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st,
                 ist[:], ip[:] = ist0, ip0
                 lay[L_OUT] = PYTHON
                 return
-            tr0[:], pc0[:], pos0[:], eff0[:], tau0[:], sat0[:] = tr, pc, pc_pos, pc_eff, tau, sat
-            tk0[:], tq0[:], te0[:] = tank, tank_q, tank_e
+            # the controller's state before the tick: loops (a slice assignment's broadcasting code costs more)
+            assign(tr0, tr)
+            assign(pc0, pc)
+            assign(pos0, pc_pos)
+            assign(eff0, pc_eff)
+            assign(tau0, tau)
+            assign(sat0, sat)
+            assign(tk0, tank)
+            assign(tq0, tank_q)
+            for r in range(te0.shape[0]):
+                assign(te0[r], tank_e[r])
             status = whole(t, q, dq, F_env, *wargs)
             if status != _whole.OK or res[_whole.R_DONE] == 0.0 or not finite(tau):  # the state as before the tick
                 tr[:], pc[:], pc_pos[:], pc_eff[:], tau[:], sat[:] = tr0, pc0, pos0, eff0, tau0, sat0
@@ -192,13 +202,14 @@ def _ticks(count, k0, dt, sub, mj, sens, kin, hand, ctrl, F_hand, wargs, cs, st,
                 st[S_PC] += 1.0
             st[S_TICKS] += 1.0
             cmd = tau
-        ctrl[:] = cmd
-        xfrc[:] = 0.0
+        assign(ctrl, cmd)
+        for i in range(xfrc.shape[0]):
+            xfrc[i] = 0.0
         acc[0], acc[2] = st[S_WORK], 0.0
         status = hand_period(mj[0], mj[1], sub, t, sd, idx, c, F, xfrc, acc, wn, bad, at)
         st[S_WORK] = acc[0]
         if status == PERIOD_OK:
-            F_hand[:] = F
+            assign(F_hand, F)
             if lay[L_TELE] != 0:
                 failed = slave_period(mj_s[0], mj_s[1], sub_s, ctrl_s, xfrc_s, tau_s, wn_s, bad_s)
                 if failed >= 0:
