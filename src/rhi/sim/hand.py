@@ -197,8 +197,9 @@ class MinimumJerkPalpation:
     def reference(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Reference position (m,) [m] and velocity (m,) [m/s] at time t [s]."""
         tau = min(max(t / self.duration, 0.0), 1.0)
-        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
-        ds = 30.0 * tau**2 * (1.0 - tau) ** 2 / self.duration
+        t2, w = tau * tau, 1.0 - tau  # powers as products, in the order of the compiled hand (libm's pow rounds else)
+        s = t2 * tau * (10.0 - 15.0 * tau + 6.0 * t2)
+        ds = 30.0 * t2 * (w * w) / self.duration
         return self.start + self.depth * s * self.direction, self.depth * ds * self.direction
 
     def force(self, t: float, x: np.ndarray, xdot: np.ndarray) -> np.ndarray:

@@ -264,8 +264,9 @@ def hand_step(t, sd, idx, c, F, xfrc, acc):
     elif k == 0:  # `MinimumJerkPalpation.force`: s(τ) = 10τ³ − 15τ⁴ + 6τ⁵, τ = t / duration (speed holds the duration)
         depth = c[o]
         tau = min(max(t / speed, 0.0), 1.0)
-        sj = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau**2)
-        ds = 30.0 * tau**2 * (1.0 - tau) ** 2 / speed
+        t2, w = tau * tau, 1.0 - tau
+        sj = t2 * tau * (10.0 - 15.0 * tau + 6.0 * t2)
+        ds = 30.0 * t2 * (w * w) / speed
         for j in range(m):
             u = c[o + 1 + m + j]
             F[j] = K * ((c[o + 1 + j] + depth * sj * u) - sd[idx[j]]) + B * (depth * ds * u - sd[idx[m + j]])
