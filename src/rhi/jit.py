@@ -18,7 +18,8 @@ events: the first compile of an rhi kernel in a process (a cold cache) prints `C
 that a first use is not two minutes without a word. And it gives Numba's inliner one copy of an inlined
 function's scope for all its blocks (`_InlineCopy`: linear, not quadratic, in the function's size).
 `KernelRef` passes a compiled kernel to another as an argument (a function pointer), so that the caller
-is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick).
+is compiled once for all kernels of one signature (the compiled simulation loop, for every whole tick), and
+without the kernel's code (the whole tick and `chain_terms`: two processes compile them at once).
 `stack_empty` gives a kernel an array on its own stack for local scratch: no allocation, no reference counting.
 Processes that share the cache (test workers, `rhi reproduce`'s workers, `rhi warmup`'s) save into a function's index
 one at a time (`_save_locked`), and compile one kernel for one signature one at a time (`_compile_claimed`): a
@@ -44,10 +45,11 @@ from typing import Any
 
 from llvmlite import ir as llvm_ir
 from numba import njit
-from numba.core import caching, dispatcher, event, inline_closurecall, ir, sigutils, types
+from numba.core import caching, cgutils, dispatcher, event, inline_closurecall, ir, sigutils, types
 from numba.core.compiler_lock import global_compiler_lock
 from numba.core.typing.typeof import typeof_impl
-from numba.extending import intrinsic
+from numba.experimental.function_type import FunctionModel
+from numba.extending import NativeValue, intrinsic, register_model, unbox
 from numba.np.arrayobj import make_array, populate_array
 
 _ROOT = Path(__file__).resolve().parent
@@ -334,26 +336,74 @@ def jit(func=None, *, inline: bool = False):
     return deco if func is None else deco(func)
 
 
+class KernelType(types.FunctionType):
+    """A `KernelRef`'s Numba type: Numba's first-class function type, unboxed from the ref's address attribute."""
+
+
+register_model(KernelType)(FunctionModel)
+
+
+@unbox(KernelType)
+def _unbox_kernel_ref(typ, obj, c) -> NativeValue:
+    """A `KernelRef` passed to compiled code: the address of its C wrapper read from its ``_address``.
+
+    Numba's own unboxing of a first-class function imports a module, unpickles the signature and calls Python
+    twice: ~2.5 µs per call of the kernel it is passed to (a sixth of a controller tick). This reads one attribute.
+    """
+    builder, voidptr = c.builder, c.context.get_value_type(types.voidptr)
+    fn = cgutils.create_struct_proxy(typ)(c.context, builder)
+    address = c.pyapi.object_getattr_string(obj, "_address")  # NULL with an exception set where it failed
+    failed = cgutils.is_null(builder, address)
+    slot = cgutils.alloca_once_value(builder, llvm_ir.Constant(voidptr, None))
+    with builder.if_then(builder.not_(failed), likely=True):
+        builder.store(c.pyapi.long_as_voidptr(address), slot)
+        c.pyapi.decref(address)
+    fn.c_addr = builder.load(slot)
+    fn.py_addr = builder.ptrtoint(obj, voidptr)
+    fn.jit_addr = llvm_ir.Constant(voidptr, None)  # called through the C wrapper: no exception crosses
+    return NativeValue(fn._getvalue(), is_error=failed)
+
+
 class KernelRef(types.WrapperAddressProtocol):
     """A compiled kernel as an argument of another kernel: a pointer to it, typed by its signature.
 
     The caller is compiled (and cached) once for every kernel of this signature, where an argument that is the
-    dispatcher itself would compile the caller again for each kernel. The call goes through Numba's C wrapper
+    dispatcher itself would compile the caller again for each kernel; and the caller's code does not contain the
+    kernel's (its compile neither repeats nor waits for the kernel's). The call goes through Numba's C wrapper
     of the kernel, which no exception crosses: a kernel that raises prints the error and returns 0, so a
     caller must read the kernel's own sign of completion (e.g. `rhi.control._compiled.whole`'s R_DONE).
 
     Args:
-        kernel: a `jit` function (its dispatcher); compiled (or loaded from the cache) here for `args`.
+        kernel: a `jit` function (its dispatcher); compiled (or loaded from the cache) for `args` here, or where
+            `restype` is given at the first use of its address (a caller can be typed, and compiled elsewhere,
+            before the kernel is).
         args: the Numba types of its arguments, as the caller passes them.
+        restype: the Numba type the kernel returns for `args`, or None (found by compiling it now).
     """
 
-    def __init__(self, kernel, args: tuple) -> None:
-        kernel.compile(args)
-        cres = kernel.overloads[args]
-        self.kernel = kernel
+    def __init__(self, kernel, args: tuple, restype=None) -> None:
+        self.kernel, self._args = kernel, tuple(args)
+        if restype is None:
+            self._resolve()
+        else:
+            self._sig = restype(*self._args)
+            self._type = KernelType(self._sig)
+
+    def _resolve(self) -> None:
+        """Compile (or load) the kernel for its types; its signature and the address of its C wrapper."""
+        self.kernel.compile(self._args)
+        cres = self.kernel.overloads[self._args]
+        if getattr(self, "_sig", cres.signature) != cres.signature:
+            raise TypeError(f"{self.kernel.py_func.__qualname__}: declared {self._sig}, compiled {cres.signature}")
         self._sig = cres.signature
-        self._type = types.FunctionType(self._sig)
+        self._type = KernelType(self._sig)
         self._address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
+
+    def __getattr__(self, name: str):
+        if name != "_address":  # only the address is found late (a ref made with its restype)
+            raise AttributeError(name)
+        self._resolve()
+        return self._address
 
     def __wrapper_address__(self) -> int:
         return self._address
@@ -364,7 +414,7 @@ class KernelRef(types.WrapperAddressProtocol):
 
 
 @typeof_impl.register(KernelRef)
-def _typeof_kernel_ref(val: KernelRef, c) -> types.FunctionType:
+def _typeof_kernel_ref(val: KernelRef, c) -> KernelType:
     """A `KernelRef`'s Numba type, made once.
 
     Numba's own typeof of a function pointer builds it at every call of the kernel it is passed to: ~0.1 ms of
