@@ -51,3 +51,15 @@ def test_a_ref_whose_declared_return_type_is_wrong_raises_at_the_call():
     with pytest.raises(TypeError, match="declared"):
         caller(np.zeros(1), np.ones(1), ref)
 
+
+def test_the_whole_tick_gets_chain_terms_as_device_terms_compiles_it(rhi4):
+    """One compile of `chain_terms` serves `Device.terms` and the whole tick (which calls it by address)."""
+    from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
+    from rhi.devices._compiled.chain import chain_terms
+    from rhi.jit import KernelRef
+
+    ctrl = NullSpaceController(rhi4, ControllerConfig(ForceRendering(damping=0.01, passivity=None)))
+    ref = ctrl._kernel._chain[-1]
+    assert isinstance(ref, KernelRef) and ref.kernel is chain_terms
+    rhi4.terms(np.array([0.3, 0.5, 0.2, 0.4]), np.full(4, 0.1))
+    assert ref._args in chain_terms.overloads

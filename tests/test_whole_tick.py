@@ -265,7 +265,7 @@ def test_whole_tick_reuses_the_loops_terms(monkeypatch):
 
     def recording(parts):
         kernel = whole_for(parts)
-        return lambda *args: ready.append(args[13]) or kernel(*args)
+        return lambda *args: ready.append(args[14]) or kernel(*args)  # `ready`, after (t, q, dq, force) and the chain
 
     monkeypatch.setattr(whole, "whole_for", recording)
     devs = rhi.device("rhi4"), rhi.device("rhi4")

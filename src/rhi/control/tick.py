@@ -190,9 +190,10 @@ class KernelTick:
             self.live = [(_objectives.desired_slot(self._obj, n, m, i), c) for i, c in enumerate(live)]
             self.live += [(_objectives.fme_slot(self._obj, n, m, i), c) for i, c in live_fme]
             self._force = compiled_law.kind == "force"  # reads sensors["force"]
-            self._chain: tuple = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
-            self._no_force = np.zeros(m)
             self._x, self._buf = np.empty(m), np.empty(fast.size)
+            chain = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
+            self._chain: tuple = (*chain, _whole.terms_ref(chain, self._x, self._buf))
+            self._no_force = np.zeros(m)
             self._F = np.empty((2, m))
             self._res = np.zeros(_whole.N_RES)
             pas = getattr(cfg.primary, "passivity", None)

@@ -2,7 +2,7 @@
 
 The kernel of `whole_for` (one per set of `Parts` a controller has) runs, without returning to Python,
 what a `NullSpaceController` tick otherwise composes from four calls:
-`rhi.devices._compiled.chain.chain_terms` (every device term at (q, q̇)),
+`rhi.devices._compiled.chain.chain_terms` (every device term at (q, q̇), passed by address: `terms_ref`),
 the primary law's (F_render, F_extra) for the built-in laws (`ForceRendering`,
 `SpringPalpation`, `ImpedanceControl` without a desired inertia: eqs. 5.6, 6.21, 7.2, 7.20),
 `rhi.control._compiled.step.tick` and `rhi.control._compiled.passivity.apply`, with the static FME-matching
@@ -31,9 +31,9 @@ from rhi.control._compiled.objectives import objectives
 from rhi.control._compiled.step import FALLBACK, OK, SINGULAR, tick
 from rhi.devices._compiled.chain import chain_terms
 from rhi.devices._compiled.terms import assign, dot
-from rhi.jit import compile_aside, jit, stack_empty
+from rhi.jit import KernelRef, compile_aside, jit, stack_empty
 
-__all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "compile_ahead", "whole_for"]
+__all__ = ["FALLBACK", "OK", "SINGULAR", "Parts", "compile_ahead", "terms_ref", "whole_for"]
 
 #: Primary laws the whole tick computes (code in law[LAW_KIND]).
 FORCE, SPRING, FREE = 1, 2, 3
@@ -173,7 +173,7 @@ def whole_for(parts: Parts):
         parts: the parts the kernel has.
 
     Returns:
-        The kernel ``kernel(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready,
+        The kernel ``kernel(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, terms, ready,
         at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e, x, buf,
         F_r, F_x, tau_out, sat, res) -> status``, its arguments:
 
@@ -190,6 +190,8 @@ def whole_for(parts: Parts):
             armature: (n,) rotor inertia [kg m²].
             supports: (nθ, nθ) bool, chain joint k supports joint j.
             identity: A is the identity.
+            terms: `rhi.devices._compiled.chain.chain_terms` by address (`terms_ref`): the tick's code does not contain
+                it, so its compile neither repeats nor waits for the one of the first `Device.terms`.
             ready: x and buf already hold this state's terms (a `Device.terms` snapshot): not recomputed.
             at: (≥ 13,) int64 term offsets in buf (`rhi.devices.terms.layout`).
             law: the primary law's code and settings (LAW_* slots).
@@ -220,13 +222,13 @@ def whole_for(parts: Parts):
     code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on = (
         int(parts[0]), *(bool(p) for p in parts[1:]))
 
-    def whole_parts(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, ready, at, law,
-                    lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
+    def whole_parts(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, terms, ready,
+                    at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
                     x, buf, F_r, F_x, tau_out, sat, res):
         res[R_DONE] = 0.0
         # the arguments outlive the call: no reference counting of them (or their views) within it
         status = _whole(t, B(q), B(dq), B(force), (B(ints), B(joints), B(consts), B(A), B(b), B(rows), B(armature),
-                                                   B(supports), identity), ready,
+                                                   B(supports), identity, terms), ready,
                         B(at), B(law), B(lo), B(hi), B(prm), B(tr), B(sch), B(vme_D), B(vme_gain), B(obj),
                         (B(pc), B(pc_pos), B(pc_eff)), (B(tank), B(tank_q), B(tank_e)),
                         (B(x), B(buf), B(F_r), B(F_x), B(tau_out), B(sat), B(res)), code, scheduled, vme, safe,
@@ -240,6 +242,28 @@ def whole_for(parts: Parts):
     # (`rhi.jit.KernelRef`, Numba's own entry points) would be the other set's code.
     whole_parts.__qualname__ += "_" + "_".join(str(int(p)) for p in parts)
     return jit(whole_parts)
+
+
+def terms_ref(chain: tuple, x: np.ndarray, buf: np.ndarray) -> KernelRef:
+    """`chain_terms` as the whole tick calls it (its ``terms`` argument), for a device's constants and outputs.
+
+    Compiled (or loaded) at the first tick, not here: a whole tick can be typed and compiled (e.g. aside, in a
+    child) meanwhile. Its types are those of the device's own `Device.terms` call: one compile serves both.
+
+    Args:
+        chain: the device's chain constants (ints, joints, consts, A, b, rows, armature, supports, identity).
+        x: (m,) the whole tick's x.
+        buf: its terms buffer.
+    """
+    ints, joints, consts, A, _, rows, armature, supports, identity = chain
+    vec = types.float64[::1]  # θ (on the tick's stack) and q̇ (the tick's argument)
+    return _terms_ref(tuple(typeof(a) for a in (ints, joints, consts)) + (vec,)
+                      + tuple(typeof(a) for a in (A, rows, armature, supports, identity)) + (vec, typeof(x), typeof(buf)))
+
+
+@functools.cache
+def _terms_ref(args: tuple) -> KernelRef:
+    return KernelRef(chain_terms, args, types.none)
 
 
 _AHEAD: set[Parts] = set()  # the parts `compile_ahead` was asked for in this process
@@ -269,10 +293,10 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
            code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on):
     """The whole tick's body (inlined), with the `Parts` it has as its last eight arguments (constants: pruned).
 
-    `chain` is (ints, ..., identity), `pcs` (pc, pc_pos, pc_eff), `tanks` (tank, tank_q, tank_e) and `outs`
+    `chain` is (ints, ..., identity, terms), `pcs` (pc, pc_pos, pc_eff), `tanks` (tank, tank_q, tank_e) and `outs`
     (x, ..., res) of `whole_for`'s kernel's arguments (tuples: a call of more than 30 arguments is one Numba cannot inline).
     """
-    ints, joints, consts, A, b, rows, armature, supports, identity = chain
+    ints, joints, consts, A, b, rows, armature, supports, identity, terms = chain
     pc, pc_pos, pc_eff = pcs
     tank, tank_q, tank_e = tanks
     x, buf, F_r, F_x, tau_out, sat, res = outs
@@ -284,7 +308,7 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
             for j in range(n):
                 s += A[i, j] * q[j]
             th[i] = s + b[i]
-        chain_terms(ints, joints, consts, th, A, rows, armature, supports, identity, dq, x, buf)
+        terms(ints, joints, consts, th, A, rows, armature, supports, identity, dq, x, buf)
     J = buf[at[0]:at[0] + m * n].reshape((m, n))
     M = buf[at[2]:at[2] + n * n].reshape((n, n))
     g = buf[at[3]:at[3] + n]
