@@ -52,6 +52,24 @@ def test_a_ref_whose_declared_return_type_is_wrong_raises_at_the_call():
         caller(np.zeros(1), np.ones(1), ref)
 
 
+def test_a_ref_pickles_without_its_address_and_finds_it_again():
+    """Another process's address would be a pointer into nothing: a ref sent there resolves its kernel anew."""
+    import pickle
+
+    from numba import types
+
+    from rhi.devices._compiled.terms import dot
+    from rhi.jit import KernelRef
+
+    vec = types.float64[::1]
+    ref = KernelRef(dot, (vec, vec))
+    state = ref.__getstate__()
+    assert "_address" not in state and state["_sig"] == ref.signature()
+    copy = pickle.loads(pickle.dumps(ref))
+    assert copy.kernel is dot and "_address" not in copy.__dict__
+    assert copy._address == ref._address  # this process: the same compiled kernel
+
+
 def test_the_whole_tick_gets_chain_terms_as_device_terms_compiles_it(rhi4):
     """One compile of `chain_terms` serves `Device.terms` and the whole tick (which calls it by address)."""
     from rhi.control import ControllerConfig, ForceRendering, NullSpaceController

@@ -405,6 +405,10 @@ class KernelRef(types.WrapperAddressProtocol):
         self._resolve()
         return self._address
 
+    def __getstate__(self) -> dict:
+        """Pickled (to another process) without its address: found again there at its first use."""
+        return {k: v for k, v in self.__dict__.items() if k != "_address"}
+
     def __wrapper_address__(self) -> int:
         return self._address
 
