@@ -348,7 +348,8 @@ def _unbox_kernel_ref(typ, obj, c) -> NativeValue:
     """A `KernelRef` passed to compiled code: the address of its C wrapper read from its ``_address``.
 
     Numba's own unboxing of a first-class function imports a module, unpickles the signature and calls Python
-    twice: ~2.5 µs per call of the kernel it is passed to (a sixth of a controller tick). This reads one attribute.
+    twice: ~2.5 µs per call of the kernel it is passed to (a sixth of a controller tick). This reads one attribute;
+    where it is 0 (not found yet) a call of it asks the ref (`KernelRef.__wrapper_address__`) through Python.
     """
     builder, voidptr = c.builder, c.context.get_value_type(types.voidptr)
     fn = cgutils.create_struct_proxy(typ)(c.context, builder)
@@ -375,42 +376,46 @@ class KernelRef(types.WrapperAddressProtocol):
 
     Args:
         kernel: a `jit` function (its dispatcher); compiled (or loaded from the cache) for `args` here, or where
-            `restype` is given at the first use of its address (a caller can be typed, and compiled elsewhere,
-            before the kernel is).
+            `restype` is given at its first call or `resolve` (a caller can be typed, and compiled elsewhere,
+            before the kernel is; a caller that never calls it never compiles it).
         args: the Numba types of its arguments, as the caller passes them.
         restype: the Numba type the kernel returns for `args`, or None (found by compiling it now).
     """
 
     def __init__(self, kernel, args: tuple, restype=None) -> None:
         self.kernel, self._args = kernel, tuple(args)
+        self._address = 0  # not found yet: a compiled call then asks `__wrapper_address__` (Numba's own fallback)
         if restype is None:
-            self._resolve()
+            self.resolve()
         else:
             self._sig = restype(*self._args)
             self._type = KernelType(self._sig)
 
-    def _resolve(self) -> None:
-        """Compile (or load) the kernel for its types; its signature and the address of its C wrapper."""
-        self.kernel.compile(self._args)
-        cres = self.kernel.overloads[self._args]
-        if getattr(self, "_sig", cres.signature) != cres.signature:
-            raise TypeError(f"{self.kernel.py_func.__qualname__}: declared {self._sig}, compiled {cres.signature}")
-        self._sig = cres.signature
-        self._type = KernelType(self._sig)
-        self._address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
+    def resolve(self) -> int:
+        """The address of the kernel's C wrapper: compiled (or loaded) for its types here, unless done before.
 
-    def __getattr__(self, name: str):
-        if name != "_address":  # only the address is found late (a ref made with its restype)
-            raise AttributeError(name)
-        self._resolve()
+        A ref made with its `restype` does so at its first call, or here where its caller asks ahead (e.g. to
+        compile it while another process compiles the caller).
+
+        Raises:
+            TypeError: the kernel compiled returns another type than the `restype` declared.
+        """
+        if not self._address:
+            self.kernel.compile(self._args)
+            cres = self.kernel.overloads[self._args]
+            if getattr(self, "_sig", cres.signature) != cres.signature:
+                raise TypeError(f"{self.kernel.py_func.__qualname__}: declared {self._sig}, compiled {cres.signature}")
+            self._sig = cres.signature
+            self._type = KernelType(self._sig)
+            self._address = cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name)
         return self._address
 
     def __getstate__(self) -> dict:
         """Pickled (to another process) without its address: found again there at its first use."""
-        return {k: v for k, v in self.__dict__.items() if k != "_address"}
+        return {**self.__dict__, "_address": 0}
 
     def __wrapper_address__(self) -> int:
-        return self._address
+        return self.resolve()
 
     def signature(self):
         """The kernel's Numba signature (return type and argument types)."""
