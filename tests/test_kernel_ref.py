@@ -48,8 +48,10 @@ def test_a_ref_whose_declared_return_type_is_wrong_raises_at_the_call():
     add_first, caller = _kernels()
     vec = types.float64[::1]
     ref = KernelRef(add_first, (vec, vec), types.float64)  # it returns None
-    with pytest.raises(TypeError, match="declared"):
+    with pytest.raises(RuntimeError, match="address is null"):  # Numba's error where the ref gave no address
         caller(np.zeros(1), np.ones(1), ref)
+    with pytest.raises(TypeError, match=r"declared .* -> float64, compiled .* -> none"):
+        ref.resolve()
 
 
 def test_a_ref_pickles_without_its_address_and_finds_it_again():
@@ -64,20 +66,29 @@ def test_a_ref_pickles_without_its_address_and_finds_it_again():
     vec = types.float64[::1]
     ref = KernelRef(dot, (vec, vec))
     state = ref.__getstate__()
-    assert "_address" not in state and state["_sig"] == ref.signature()
+    assert state["_address"] == 0 and ref._address != 0 and state["_sig"] == ref.signature()
     copy = pickle.loads(pickle.dumps(ref))
-    assert copy.kernel is dot and "_address" not in copy.__dict__
-    assert copy._address == ref._address  # this process: the same compiled kernel
+    assert copy.kernel is dot and copy._address == 0
+    assert copy.resolve() == ref._address  # this process: the same compiled kernel
 
 
-def test_the_whole_tick_gets_chain_terms_as_device_terms_compiles_it(rhi4):
-    """One compile of `chain_terms` serves `Device.terms` and the whole tick (which calls it by address)."""
+def test_the_whole_tick_calls_chain_terms_and_ascm_by_address(rhi4):
+    """One compile of `chain_terms` serves `Device.terms` and the whole tick; ASCM's kernel is compiled at the first tick.
+
+    The controller compiles ASCM before it calls the whole tick (which a child compiles meanwhile, on a cold cache).
+    """
     from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
+    from rhi.control._compiled import ASCM, ascm
     from rhi.devices._compiled.chain import chain_terms
     from rhi.jit import KernelRef
 
     ctrl = NullSpaceController(rhi4, ControllerConfig(ForceRendering(damping=0.01, passivity=None)))
-    ref = ctrl._kernel._chain[-1]
-    assert isinstance(ref, KernelRef) and ref.kernel is chain_terms
-    rhi4.terms(np.array([0.3, 0.5, 0.2, 0.4]), np.full(4, 0.1))
-    assert ref._args in chain_terms.overloads
+    k = ctrl._kernel
+    assert k.whole_ok and k.parts.code == ASCM
+    refs = {r.kernel: r for r in k._chain if isinstance(r, KernelRef)}
+    assert set(refs) == {chain_terms, ascm} and refs[ascm] is k._ascm
+    q = np.array([0.3, 0.5, 0.2, 0.4])
+    rhi4.terms(q, np.full(4, 0.1))
+    assert refs[chain_terms]._args in chain_terms.overloads
+    ctrl.step(0.0, q, np.zeros(4), {"force": np.zeros(2)})
+    assert k._ascm._address != 0 and k._ascm._args in ascm.overloads
