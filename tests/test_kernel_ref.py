@@ -78,7 +78,8 @@ def test_the_whole_tick_calls_chain_terms_and_ascm_by_address(rhi4):
     The controller compiles ASCM before it calls the whole tick (which a child compiles meanwhile, on a cold cache).
     """
     from rhi.control import ControllerConfig, ForceRendering, NullSpaceController
-    from rhi.control._compiled import ASCM, ascm
+    from rhi.control._compiled import ASCM
+    from rhi.control._compiled.allocation import ascm_into
     from rhi.devices._compiled.chain import chain_terms
     from rhi.jit import KernelRef
 
@@ -86,9 +87,9 @@ def test_the_whole_tick_calls_chain_terms_and_ascm_by_address(rhi4):
     k = ctrl._kernel
     assert k.whole_ok and k.parts.code == ASCM
     refs = {r.kernel: r for r in k._chain if isinstance(r, KernelRef)}
-    assert set(refs) == {chain_terms, ascm} and refs[ascm] is k._ascm
+    assert set(refs) == {chain_terms, ascm_into} and refs[ascm_into] is k._ascm
     q = np.array([0.3, 0.5, 0.2, 0.4])
     rhi4.terms(q, np.full(4, 0.1))
     assert refs[chain_terms]._args in chain_terms.overloads
     ctrl.step(0.0, q, np.zeros(4), {"force": np.zeros(2)})
-    assert k._ascm._address != 0 and k._ascm._args in ascm.overloads
+    assert k._ascm._address != 0 and k._ascm._args in ascm_into.overloads

@@ -164,6 +164,7 @@ class KernelTick:
         self._zero = np.zeros(n)
         self._tau = np.empty(n)
         self._sat = np.zeros(n, bool)
+        self._ascm = kernels.ascm_ref(ctrl.lo, ctrl.hi, self._sat)  # `kernels.tick`'s ASCM, by address
         self._tr = np.zeros(4)
         self._tr_of: TransitionState | None = None  # the state object self._tr mirrors
         fast = dev._fast_maps
@@ -192,7 +193,7 @@ class KernelTick:
             self._force = compiled_law.kind == "force"  # reads sensors["force"]
             self._x, self._buf = np.empty(m), np.empty(fast.size)
             chain = (*fast.chain, dev.A, dev.b, fast.rows_idx, dev.armature, fast.supports, fast.identity)
-            self._chain: tuple = (*chain, _whole.terms_ref(chain, self._x, self._buf))
+            self._chain: tuple = (*chain, _whole.terms_ref(chain, self._x, self._buf), self._ascm)
             self._no_force = np.zeros(m)
             self._F = np.empty((2, m))
             self._res = np.zeros(_whole.N_RES)
@@ -301,7 +302,7 @@ class KernelTick:
         status, alpha, beta, V, omega, clipped = kernels.tick(
             t, buf, self._at, _f64(F_r), _f64(F_x), _f64(kin.q), _f64(kin.dq), ctrl.lo, ctrl.hi, self._prm, tr,
             self._sch, self._vme, self._vme_gain, _f64(tau_s), _f64(tau_to),
-            self._tank, self._tank_q, self._tank_e, self._tau, self._sat, *self._flags)
+            self._tank, self._tank_q, self._tank_e, self._tau, self._sat, self._ascm, *self._flags)
         if status != kernels.OK:
             self._tr_of = None  # the kernel may have advanced tr; the state did not
             if status == kernels.SINGULAR:
@@ -355,6 +356,8 @@ class KernelTick:
             ready, x, buf = False, self._x, self._buf
         fn = self._whole_fn
         call = self._call if self._call is not None and self._call_of is fn else fn
+        if call is fn and self.parts.code == kernels.ASCM:  # ASCM compiled here while a child compiles the tick
+            self._ascm.resolve()
         status = call(t, q, dq, F, *self._chain, ready, *self._mid, x, buf, *self._out)
         if call is fn and type(t) is float:  # loaded (or compiled) now: its entry point from the next tick on
             self._call, self._call_of = _entry(fn, (t, q, dq, F, *self._chain, ready, *self._mid, x, buf, *self._out)), fn

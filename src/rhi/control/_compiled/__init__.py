@@ -24,6 +24,7 @@ from rhi.control._compiled.step import (
     P_SATURATION,
     SCALING,
     SINGULAR,
+    ascm_ref,
     aso_volume,
     flags,
     schedule_vector,
@@ -33,5 +34,5 @@ from rhi.control._compiled.step import (
 __all__ = [
     "ACTIVE_SET", "ASCM", "FALLBACK", "N_PARAMS", "NONE", "OK", "P_ASO_S", "P_CLIPPED", "P_DAMPING", "P_DYNAMIC",
     "P_GRAVITY", "P_SAFE", "P_SATURATION", "SCALING", "SINGULAR", "active_set", "active_set_result", "active_set_start",
-    "ascm", "aso_volume", "flags", "schedule_vector", "tertiary", "tick",
+    "ascm", "ascm_ref", "aso_volume", "flags", "schedule_vector", "tertiary", "tick",
 ]

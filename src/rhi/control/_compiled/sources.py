@@ -15,6 +15,7 @@ import numpy as np
 
 from rhi.control._compiled.allocation import (
     any_true,
+    ascm_into,
     basis,
     blocks_all,
     clip,
@@ -138,7 +139,7 @@ def split(q, dq, terms, at, F_r, F_x, lo, hi, prm, obj, vme_D, vme_gain, tank_on
     if not ok:
         return FALLBACK
     sat = np.zeros(n, np.bool_)
-    ok, tau, alpha, clipped = allocate(prm[P_SATURATION], V, a, b, tau_m, P, lo, hi, r, sat, np.empty(n))
+    ok, tau, alpha, clipped = allocate(prm[P_SATURATION], V, a, b, tau_m, P, lo, hi, r, sat, np.empty(n), ascm_into)
     if not ok:
         return FALLBACK
     if theta < 1.0 and any_true(sat) and not clipped:

@@ -18,9 +18,11 @@ disk (`cache=True`), so only the first use on a machine pays the compilation.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
+from numba import typeof, types
 
 from rhi.control._compiled.allocation import (
     allocate_scaling,
@@ -43,7 +45,7 @@ from rhi.control._compiled.allocation import (
 from rhi.control._compiled.lp import active_set, active_set_result, active_set_start
 from rhi.control._compiled.tank import TK_GATE, TK_ON, TK_THETA, _null, blend, direction, gate, gated, null_inertia
 from rhi.devices._compiled.terms import add, axpy, dot, inv as _inv, inv_to, mm, mtv, mv, shaped, sub
-from rhi.jit import jit, stack_empty
+from rhi.jit import KernelRef, jit, stack_empty
 
 #: Status of `tick`.
 OK, FALLBACK, SINGULAR = 0, 1, 2
@@ -74,6 +76,22 @@ def schedule_vector(gain: float, w2: np.ndarray, free: np.ndarray, stiff: np.nda
 
 
 Flags = tuple[int, bool, bool, bool, bool, bool]
+
+
+def ascm_ref(lo: np.ndarray, hi: np.ndarray, sat: np.ndarray) -> KernelRef:
+    """`ascm_into` as `tick` calls it (its ``ascm_at``) for a controller's torque limits (n,) and held joints (n,) bool.
+
+    Compiled (or loaded) at its first call or `KernelRef.resolve`, not here: a tick can be compiled meanwhile
+    (`rhi.control._compiled.whole`: aside, in a child) without ASCM's code, and a tick that never allocates by
+    ASCM never compiles it.
+    """
+    vec = types.float64[::1]  # a, b and τ (on the tick's stack), then P
+    return _ascm_ref((vec, vec, types.float64[:, ::1], typeof(lo), typeof(hi), types.intp, typeof(sat), vec))
+
+
+@functools.cache
+def _ascm_ref(args: tuple) -> KernelRef:
+    return KernelRef(ascm_into, args, types.Tuple((types.float64, types.boolean, types.boolean)))
 
 
 def flags(prm: np.ndarray, sch: np.ndarray, vme_gain: np.ndarray, tank: np.ndarray) -> Flags:
@@ -227,8 +245,11 @@ def _omega(tr, t):
 
 
 @jit(inline=True)
-def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat, out):
+def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat, out, ascm_at):
     """The allocation strategy `code` of τ_m = a + b (n,) [N m] in the box [lo, hi]: (ok, τ, α, clipped).
+
+    `ascm_at` is `rhi.control._compiled.allocation.ascm_into`, or it by address (`ascm_ref`: a caller compiled
+    without its code, e.g. while another process compiles it).
 
     ASCM and the active set keep τ_m while the ASO volume V > 0 (P, the null-space projector, is read only where
     they act); ok is False where the reference must decide (the LP). sat (n,) is written with the held joints, out
@@ -241,7 +262,7 @@ def allocate(code, V, a, b, tau_m, P, lo, hi, r, sat, out):
         sat[:] = False
         return True, tau_m, 1.0, False
     if code == ASCM:
-        alpha, clipped, ok = ascm_into(a, b, P, lo, hi, r, sat, out)
+        alpha, clipped, ok = ascm_at(a, b, P, lo, hi, r, sat, out)
         return ok, out, alpha, clipped
     if code == ACTIVE_SET:
         tau, alpha, clipped = active_set_start(a, b, P, lo, hi, r, sat)
@@ -276,7 +297,7 @@ def transition(tr, t, V, distance, eps1, eps2, rho):
 
 @jit(inline=True)
 def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, tau_s_extra, tau_to_extra, tank, tank_q,
-         tank_e, tau_out, sat, code, scheduled, vme, safe, clipped_null, tank_on):
+         tank_e, tau_out, sat, ascm_at, code, scheduled, vme, safe, clipped_null, tank_on):
     """Steps 2–6 of one controller tick (see `rhi.control.controller`).
 
     The last six arguments say which parts the tick has (from the settings: `flags`). Where the caller passes
@@ -305,6 +326,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         tank_e: (2, n) its metered torques (objectives, allocation) of the previous tick, written.
         tau_out: (n,) the torque, written [N m].
         sat: (n,) bool, the held joints, written.
+        ascm_at: ASCM's kernel, by address (`ascm_ref`; called where code is ASCM).
         code: the allocation (NONE, SCALING, ASCM, ACTIVE_SET; = prm[P_SATURATION]).
         scheduled: there is an FME schedule (sch not empty).
         vme: there are VME-matching objectives (vme_gain not empty).
@@ -383,7 +405,7 @@ def tick(t, terms, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain, t
         if not ok:
             return SINGULAR, 1.0, 0.0, V, omega, False
         have_P = True
-    ok, tau, alpha, clipped = allocate(code, V, a, b, tau_m, P, lo, hi, r, sat, stack_empty(n, np.float64))
+    ok, tau, alpha, clipped = allocate(code, V, a, b, tau_m, P, lo, hi, r, sat, stack_empty(n, np.float64), ascm_at)
     if not ok:
         return FALLBACK, 1.0, 0.0, V, omega, False
     g_null = stack_empty(n, np.float64)

@@ -173,8 +173,8 @@ def whole_for(parts: Parts):
         parts: the parts the kernel has.
 
     Returns:
-        The kernel ``kernel(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, terms, ready,
-        at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e, x, buf,
+        The kernel ``kernel(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, terms,
+        ascm_at, ready, at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e, x, buf,
         F_r, F_x, tau_out, sat, res) -> status``, its arguments:
 
             t: time [s].
@@ -192,6 +192,8 @@ def whole_for(parts: Parts):
             identity: A is the identity.
             terms: `rhi.devices._compiled.chain.chain_terms` by address (`terms_ref`): the tick's code does not contain
                 it, so its compile neither repeats nor waits for the one of the first `Device.terms`.
+            ascm_at: `rhi.control._compiled.allocation.ascm` by address (`rhi.control._compiled.step.ascm_ref`): the
+                controller compiles it while a child compiles the tick (`compile_ahead`).
             ready: x and buf already hold this state's terms (a `Device.terms` snapshot): not recomputed.
             at: (≥ 13,) int64 term offsets in buf (`rhi.devices.terms.layout`).
             law: the primary law's code and settings (LAW_* slots).
@@ -222,13 +224,13 @@ def whole_for(parts: Parts):
     code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on = (
         int(parts[0]), *(bool(p) for p in parts[1:]))
 
-    def whole_parts(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, terms, ready,
-                    at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q, tank_e,
-                    x, buf, F_r, F_x, tau_out, sat, res):
+    def whole_parts(t, q, dq, force, ints, joints, consts, A, b, rows, armature, supports, identity, terms, ascm_at,
+                    ready, at, law, lo, hi, prm, tr, sch, vme_D, vme_gain, obj, pc, pc_pos, pc_eff, tank, tank_q,
+                    tank_e, x, buf, F_r, F_x, tau_out, sat, res):
         res[R_DONE] = 0.0
         # the arguments outlive the call: no reference counting of them (or their views) within it
         status = _whole(t, B(q), B(dq), B(force), (B(ints), B(joints), B(consts), B(A), B(b), B(rows), B(armature),
-                                                   B(supports), identity, terms), ready,
+                                                   B(supports), identity, terms, ascm_at), ready,
                         B(at), B(law), B(lo), B(hi), B(prm), B(tr), B(sch), B(vme_D), B(vme_gain), B(obj),
                         (B(pc), B(pc_pos), B(pc_eff)), (B(tank), B(tank_q), B(tank_e)),
                         (B(x), B(buf), B(F_r), B(F_x), B(tau_out), B(sat), B(res)), code, scheduled, vme, safe,
@@ -293,10 +295,10 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
            code, scheduled, vme, safe, clipped_null, tank_on, objectives_on, passivity_on):
     """The whole tick's body (inlined), with the `Parts` it has as its last eight arguments (constants: pruned).
 
-    `chain` is (ints, ..., identity, terms), `pcs` (pc, pc_pos, pc_eff), `tanks` (tank, tank_q, tank_e) and `outs`
+    `chain` is (ints, ..., identity, terms, ascm_at), `pcs` (pc, pc_pos, pc_eff), `tanks` (tank, tank_q, tank_e) and `outs`
     (x, ..., res) of `whole_for`'s kernel's arguments (tuples: a call of more than 30 arguments is one Numba cannot inline).
     """
-    ints, joints, consts, A, b, rows, armature, supports, identity, terms = chain
+    ints, joints, consts, A, b, rows, armature, supports, identity, terms, ascm_at = chain
     pc, pc_pos, pc_eff = pcs
     tank, tank_q, tank_e = tanks
     x, buf, F_r, F_x, tau_out, sat, res = outs
@@ -326,8 +328,8 @@ def _whole(t, q, dq, force, chain, ready, at, law, lo, hi, prm, tr, sch, vme_D, 
         objectives(obj, q, dq, J, buf[at[1]:at[1] + m * n * n].reshape((m, n, n)), tau_s, tau_to)
     tr0, tr1, tr2, tr3 = tr[0], tr[1], tr[2], tr[3]
     status, alpha, beta, V, omega, clipped = tick(t, buf, at, F_r, F_x, q, dq, lo, hi, prm, tr, sch, vme_D, vme_gain,
-                                                  tau_s, tau_to, tank, tank_q, tank_e, tau_out, sat, code, scheduled,
-                                                  vme, safe, clipped_null, tank_on)
+                                                  tau_s, tau_to, tank, tank_q, tank_e, tau_out, sat, ascm_at, code,
+                                                  scheduled, vme, safe, clipped_null, tank_on)
     res[R_ALPHA], res[R_BETA], res[R_V], res[R_OMEGA], res[R_CLIPPED] = alpha, beta, V, omega, 1.0 if clipped else 0.0
     res[R_PC] = 0.0
     res[R_TR] = 0.0 if tr[0] == tr0 and tr[1] == tr1 and tr[2] == tr2 and tr[3] == tr3 else 1.0
