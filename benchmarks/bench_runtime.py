@@ -102,8 +102,12 @@ class ReplayLink:
         _, first = np.unique(log.seq[ok], return_index=True)  # each reading once, as it first arrived
         idx = np.flatnonzero(ok)[np.sort(first)]
         status = int(Status.ENABLED | Status.SIMULATED)
-        self.readings = [Reading(float(log.t[i]), int(log.seq[i]), log.q[i].copy(), log.dq[i].copy(),
-                                 {"ft": log.ft[i].copy()}, status, int(log.seq[i]) - 1) for i in idx]
+        n = self.n
+        # each reading's q, q̇ and F/T views of one array, as `UDPLink`'s (`packed`: `run`'s compiled step takes them)
+        values = [np.concatenate([log.q[i], log.dq[i], log.ft[i]]) for i in idx]
+        self.readings = [Reading(float(log.t[i]), int(log.seq[i]), v[:n], v[n:2 * n], {"ft": v[2 * n:]}, status,
+                                 int(log.seq[i]) - 1) for i, v in zip(idx, values)]
+        self.packed = {"ft": slice(2 * n, 2 * n + 6)}
         self.k = 0
 
     def open(self) -> None:
@@ -264,7 +268,8 @@ def main() -> None:
         for rate, wait in ((r, w) for r in a.rates for w in a.wait):
             s, (b, asleep, spun) = one_rate(rate, wait, a, Path(tmp))
             print(f"\n{rate:g} Hz over UDP ({a.device} device, waiting {wait}): {s['ticks']} ticks in "
-                  f"{s['duration']:.1f} s, fault: {s['fault']}; readings lost {s['lost']}")
+                  f"{s['duration']:.1f} s, fault: {s['fault']}; readings lost {s['lost']}; step: {s['step']} "
+                  f"(back to back: {b['step']})")
             print(f"  step in the loop [µs]     {us(s['t_step'])}")
             print(f"  step back to back [µs]    {us(b['t_step'])}   ({b['ticks']} ticks, fault: {b['fault']})")
             pause = 1e6 * s["t_read"]["p50"]

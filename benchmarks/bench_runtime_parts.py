@@ -1,10 +1,10 @@
 """The parts of one tick of `rhi.runtime.run` inside the loop over UDP and back to back, each timed (issue 29).
 
 A copy of `run`'s tick body with `time.perf_counter_ns` between its parts: the link's read (datagram in hand
-→ `Reading`), the handle's kinematics and virtual force (`Kinematics.render`), the safety check, the
-controller step cut into its Python before the compiled whole tick, the compiled call itself and the
-Python after it, the safety filter, the write (a COMMAND datagram sent) and the log row. It runs
-bench_runtime's controller (the ch7 stack):
+→ `Reading`), the step (`rhi.runtime.step`: `--step compiled`, `FastStep`, one compiled call; `--step python`,
+`ReferenceStep`) cut into its Python before the compiled call (the step's kernel, or the controller's whole tick
+on the Python step), that call itself and the Python after it, the write (a COMMAND datagram sent) and the log
+row. It runs bench_runtime's controller (the ch7 stack):
 
 - in the loop: against kit/c's reference device over UDP at `--rate`, waiting asleep for each datagram
   (its datagrams are recorded);
@@ -12,11 +12,11 @@ bench_runtime's controller (the ch7 stack):
 - after an idle pause before each datagram (each of `--pauses` [µs]), asleep (`time.sleep`) or spinning
   on the clock: how the step's parts grow with the time the core spent on something else.
 
-Prints each part's median per mode [µs], the step's (kinematics to filter, `run`'s `t_step`) p50/p99/p99.9,
+Prints each part's median per mode [µs], the step's (pre + kernel + post, `run`'s `t_step`) p50/p99/p99.9,
 and the step's median over the back-to-back one.
 
     PYTHONPATH=src python benchmarks/bench_runtime_parts.py [--rate 1000] [--duration 4] [--pauses 100 300 900]
-        [--cpu 1] [--device-cpu 0] [--priority 50]
+        [--cpu 1] [--device-cpu 0] [--priority 50] [--step compiled|python]
 """
 
 from __future__ import annotations
@@ -39,21 +39,26 @@ import bench_runtime as b  # noqa: E402
 from rhi.runtime import protocol as P  # noqa: E402
 from rhi.runtime.realtime import realtime_thread  # noqa: E402
 from rhi.runtime.safety import Safety  # noqa: E402
+from rhi.runtime.step import FastStep, ReferenceStep  # noqa: E402
 from rhi.runtime.udp import UDPLink  # noqa: E402
 from rhi.sim.log import LogWriter, layout  # noqa: E402
 from rhi.sim.loop import Kinematics  # noqa: E402
 
-PARTS = ("read", "render", "check", "pre", "whole", "post", "filter", "write", "row")
-STEP = slice(1, 7)  # render .. filter: `run`'s t_step
+PARTS = ("read", "pre", "kernel", "post", "write", "row")
+STEP = slice(1, 4)  # pre .. post: `run`'s t_step
 ns = time.perf_counter_ns
 
 
-def ticks(link: UDPLink, N: int, before=None, record: list[bytes] | None = None) -> np.ndarray:
+def ticks(link: UDPLink, N: int, compiled: bool, before=None, record: list[bytes] | None = None) -> np.ndarray:
     """N ticks of a fresh controller on `link`: (N, len(PARTS)) durations [ns]; `before(i)` runs before tick i."""
     dev, ctrl, safety, wall, _ = b.setup(None)
     ctrl.warmup()
     guard, kin = Safety(dev, safety), Kinematics(dev, wall)
-    n, kernel = dev.n, ctrl._kernel
+    step = (FastStep if compiled else ReferenceStep)(guard, kin, ctrl)
+    step.attach(link)
+    n = dev.n
+    # the compiled call timed: the step's kernel (its entry point, found when it was made) or the whole tick's
+    owner: Any = step if compiled else ctrl._kernel
     w = LogWriter(layout(n, dev.m, 0), None)
     names = [name for name, _ in w.columns]
     at = int(np.cumsum([0] + [width for _, width in w.columns])[names.index("tau")])
@@ -62,15 +67,15 @@ def ticks(link: UDPLink, N: int, before=None, record: list[bytes] | None = None)
     sock: Any = link._sock
     inner: Any = None
 
-    def timed(*args):  # the compiled whole tick's entry point, timed
+    def timed(*args):
         stamp[0] = ns()
         status = inner(*args)
         stamp[1] = ns()
         return status
 
     for i in range(N):
-        if i == 1:  # the entry point is found at the first tick
-            inner, kernel._call = kernel._call, timed
+        if i == 1:  # (the whole tick's entry point is found at the first tick)
+            inner, owner._call = owner._call, timed
         if before is not None:
             before(i)
         select.select([sock], [], [], 0.05)
@@ -79,28 +84,21 @@ def ticks(link: UDPLink, N: int, before=None, record: list[bytes] | None = None)
         if record is not None:
             record.append(bytes(link._rx[:link._size]))
         t1 = ns()
-        _, xdot, F = kin.render(r.q, r.dq)
+        tau, _, _ = step(r, time.monotonic())
         t2 = ns()
-        guard.check(r, time.monotonic(), xdot)
-        t3 = ns()
-        sensors = dict(r.sensors)
-        sensors["force"] = F
-        tau = ctrl.step(r.t, r.q, r.dq, sensors)
-        t4 = ns()
-        tau = guard.filter(tau, r.t)
-        t5 = ns()
         link.write(tau, enable=guard.fault is None)
-        t6 = ns()
+        t3 = ns()
         row = w.row()
         row[0] = r.t
         row[at:at + n] = tau
-        t7 = ns()
-        if i == 0:
-            stamp[:] = [t3, t3]
-        out[i] = (t1 - t0, t2 - t1, t3 - t2, stamp[0] - t3, stamp[1] - stamp[0], t4 - stamp[1], t5 - t4, t6 - t5,
-                  t7 - t6)
+        t4 = ns()
+        if i == 0 or stamp[0] < t1:  # no compiled call this tick
+            stamp[:] = [t2, t2]
+        out[i] = (t1 - t0, stamp[0] - t1, stamp[1] - stamp[0], t2 - stamp[1], t3 - t2, t4 - t3)
     if inner is not None:
-        kernel._call = inner
+        owner._call = inner
+    if guard.fault is not None:
+        print(f"  (fault: {guard.fault})")
     return out
 
 
@@ -112,7 +110,7 @@ def in_loop(a, tmp: Path) -> tuple[np.ndarray, list[bytes], UDPLink]:
     try:
         with realtime_thread(a.cpu, a.priority):
             link.open()
-            out = ticks(link, int(a.duration * a.rate), record=record)
+            out = ticks(link, int(a.duration * a.rate), a.step == "compiled", record=record)
     finally:
         link.close()
         proc.terminate()
@@ -157,7 +155,7 @@ def replayed(a, record: list[bytes], device: UDPLink, pause: float, spin: bool) 
 
     try:
         with realtime_thread(a.cpu, a.priority):
-            return ticks(link, len(pkts), before)
+            return ticks(link, len(pkts), a.step == "compiled", before)
     finally:
         link.close()
         sock.close()
@@ -171,6 +169,8 @@ def main() -> None:
     ap.add_argument("--cpu", type=int, default=1, help="the host loop's CPU")
     ap.add_argument("--device-cpu", type=int, default=0, help="the device process's CPU")
     ap.add_argument("--priority", type=int, default=50, help="SCHED_FIFO priority of both loops (0: none)")
+    ap.add_argument("--step", choices=("compiled", "python"), default="compiled",
+                    help="run's step: FastStep (one compiled call) or ReferenceStep (Python around the whole tick)")
     a = ap.parse_args()
     a.priority = a.priority or None
     with tempfile.TemporaryDirectory() as tmp:
@@ -181,7 +181,7 @@ def main() -> None:
                  (f"{us:g} µs spinning", replayed(a, record, device, 1e-6 * us, True))]
     base = np.median(runs[1][1][:, STEP].sum(1))
     print(f"one tick's parts at {a.rate:g} Hz, p50 [µs] (cpu {a.cpu}, device cpu {a.device_cpu}, SCHED_FIFO "
-          f"{a.priority or 'off'}); step = render..filter")
+          f"{a.priority or 'off'}, {a.step} step); step = pre + kernel + post")
     print(f"  {'':18s}" + "".join(f"{p:>7s}" for p in PARTS) + f"{'step':>7s}{'p99':>7s}{'p99.9':>7s}{'/b2b':>7s}")
     for name, out in runs:
         step = out[:, STEP].sum(1)

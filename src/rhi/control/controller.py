@@ -314,6 +314,11 @@ class NullSpaceController:
             s.E_obs, s.alpha_pc = pc.state.energy, pc.state.alpha
         if not _finite(tau):  # e.g. a non-finite objective gradient at a singular configuration
             return self._stop(f"non-finite torque at t={t} (singular configuration?): {tau.tolist()}")
+        return self._record(t, tau, alpha, beta, sat, clipped)
+
+    def _record(self, t: float, tau: np.ndarray, alpha: float, beta: float, sat: np.ndarray, clipped: bool) -> np.ndarray:
+        """The state after a tick at t [s] that commanded the finite τ (n,) [N m]; returns τ."""
+        s = self.state
         s.t, s.alpha, s.beta, s.saturated, s.clipped, s.tau = t, alpha, beta, sat, clipped, tau
         s.ticks += 1
         return tau

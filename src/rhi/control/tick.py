@@ -216,7 +216,7 @@ class KernelTick:
             # a cold cache: its compile starts now in a child (the first tick then loads it)
             _whole.compile_ahead(self.parts, (0.0, self._zero, self._zero, self._no_force, *self._chain, False, *self._mid,
                                               self._x, self._buf, *self._out))
-            # the compiled entry point of `_whole_fn` (`_entry`), found at the first call, and the dispatcher it is of
+            # the compiled entry point of `_whole_fn` (`entry_point`), found at the first call, and the dispatcher it is of
             self._call: Callable[..., int] | None = None
             self._call_of: Callable[..., int] | None = None
 
@@ -330,26 +330,14 @@ class KernelTick:
             Singular: a rank-deficient Jacobian.
         """
         ctrl = self.ctrl
-        s = ctrl.state
         F = self._no_force
         if self._force:
             F = _f64(sensors["force"])
             if F.shape != self._no_force.shape:
                 raise InvalidInput(f"sensors['force']: expected shape {self._no_force.shape}, got {F.shape}")
-        if self._scheduled and s.transition is not self._tr_of:  # a fresh or replaced state: mirrored into tr
-            T = s.transition
-            self._tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
-            self._tr_of = T
-        ps = ctrl.passivity
-        if ps is not None and ps is not self._ps_of:
-            self._load_passivity(ps)
-        self._load_tank(s)
-        for slot, c in self.live:
-            if c.live is not None:
-                self._obj[slot:slot + self._F.shape[1] ** 2] = c.live().ravel()
+        self.mirror(ctrl.state)
         q, dq = _f64(q), _f64(dq)
-        dev = ctrl.device
-        last = dev.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already
+        last = ctrl.device.__dict__.get("_last_terms")  # a loop that read `Device.terms` at this state already
         if last is not None and last[1]._buf is not None and last[0] == (q.tobytes(), dq.tobytes()):
             ready, x, buf = True, last[1].x, last[1]._buf
         else:
@@ -360,12 +348,40 @@ class KernelTick:
             self._ascm.resolve()
         status = call(t, q, dq, F, *self._chain, ready, *self._mid, x, buf, *self._out)
         if call is fn and type(t) is float:  # loaded (or compiled) now: its entry point from the next tick on
-            self._call, self._call_of = _entry(fn, (t, q, dq, F, *self._chain, ready, *self._mid, x, buf, *self._out)), fn
+            self._call, self._call_of = entry_point(fn, (t, q, dq, F, *self._chain, ready, *self._mid, x, buf,
+                                                         *self._out)), fn
+        return self.settle(t, status, q, dq, x, buf)
+
+    def mirror(self, s: ControllerState) -> None:
+        """Before a whole tick: the state into the kernel's arrays where it changed, and the tick's live desireds.
+
+        The FME transition, the passivity layer's and the tank's state, each live desired ellipsoid.
+        """
+        if self._scheduled and s.transition is not self._tr_of:  # a fresh or replaced state: mirrored into tr
+            T = s.transition
+            self._tr[:] = (float(T.stiff), T.omega_start, T.t0, T.tf)
+            self._tr_of = T
+        ps = self.ctrl.passivity
+        if ps is not None and ps is not self._ps_of:
+            self._load_passivity(ps)
+        self._load_tank(s)
+        for slot, c in self.live:
+            if c.live is not None:
+                self._obj[slot:slot + self._F.shape[1] ** 2] = c.live().ravel()
+
+    def settle(self, t: float, status: int, q: np.ndarray, dq: np.ndarray, x: np.ndarray, buf: np.ndarray):
+        """After a whole tick at t [s] that returned `status`: the state advanced, and `whole`'s result.
+
+        A `Fallback` (on the terms x, buf at q, q̇) where the kernel did not decide.
+        """
+        ctrl = self.ctrl
+        s, ps = ctrl.state, ctrl.passivity
         alpha, beta, V, omega, clipped, pc_ran, tr_changed = self._res.tolist()[:_whole.R_DONE]
         if status != kernels.OK:
             self._tr_of = self._ps_of = None  # the kernel may have advanced tr; the states did not
             if status == kernels.SINGULAR:
                 raise Singular("J: rank-deficient Jacobian")
+            dev = ctrl.device
             kin = DeviceTerms.from_buffer(dev, q, dq, x.copy(), dev.A.dot(q) + dev.b, buf.copy(),
                                           dev._fast_maps.layout)
             return Fallback(kin, self._F[0].copy(), self._F[1].copy())
@@ -379,7 +395,7 @@ class KernelTick:
         return self._tau.copy(), alpha, beta, self._sat.copy(), clipped != 0.0
 
 
-def _entry(fn, args: tuple):
+def entry_point(fn, args: tuple):
     """The compiled entry point of the Numba dispatcher `fn` for the types of `args`, else `fn` itself.
 
     Calling it skips the dispatcher's per-call type resolution (about a microsecond for the whole tick's
@@ -394,4 +410,4 @@ def _entry(fn, args: tuple):
     return getattr(cres, "entry_point", None) or fn
 
 
-__all__ = ["KernelTick"]
+__all__ = ["KernelTick", "entry_point"]

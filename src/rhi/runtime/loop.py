@@ -28,6 +28,7 @@ from rhi.errors import InvalidInput, LinkError
 from rhi.runtime.link import DeviceLink, Status
 from rhi.runtime.realtime import check_realtime, realtime_thread, spin_rest, wait_until
 from rhi.runtime.safety import Safety, SafetyConfig
+from rhi.runtime.step import make_step
 from rhi.sim.environment import describe
 from rhi.sim.log import TIMING, Log, LogWriter, layout, nan_stats
 from rhi.sim.loop import Kinematics
@@ -46,7 +47,8 @@ class RunResult:
             skipped device readings (a link's readings superseded before a tick took them), p50/p99/p99.9/max of
             the tick time, of the read→write latency (reading in hand to command sent) and of the readings'
             round-trip age (`Reading.age`, where the link measures it) [s], clamp count, fault, every safety event,
-            the controller tick's ``route`` (`rhi.control.compiled.Route`; None for a controller without one).
+            the controller tick's ``route`` (`rhi.control.compiled.Route`; None for a controller without one), the
+            ``step``'s route (`rhi.runtime.step`: "compiled", or "python: why").
     """
 
     log: Log
@@ -155,6 +157,7 @@ def run(
     zero_m = np.zeros(m)
     # the handle's x and ẋ on the controller's model and the virtual force: one compiled call where it can
     kin = None if dev is None else Kinematics(dev, virtual)
+    step = make_step(guard, kin, controller)  # read → torque: one compiled call where it can (`rhi.runtime.step`)
     top = 0.0  # the largest τ_i / limit_i so far (`Safety.ratio`)
     stats = {"ticks": 0, "missed": 0, "skipped_slots": 0, "max_torque_ratio": 0.0}
     previous = _estop_on_signals(guard)
@@ -172,6 +175,7 @@ def run(
             if link.n != n:
                 raise InvalidInput(f"link: the device has {link.n} motors, the controller's model {n}")
             _check_sensors(link, controller)
+            step.attach(link)
             for msg in notes:
                 w.event(0.0, "info", msg)
             rest = spin_rest(spin)
@@ -194,19 +198,7 @@ def run(
                         ages.append(r.age)
                     if t_last <= r.t < math.inf:  # the log's time never runs backwards (`Safety.check` trips)
                         t_dev = t_last = r.t
-                    q, dq = r.q, r.dq
-                    if kin is not None and math.isfinite(float(q @ q + dq @ dq)):
-                        _, xdot, F_env = kin.render(q, dq)
-                    if guard.check(r, tr if realtime or r.arrival is not None else None, xdot):
-                        sensors = dict(r.sensors)
-                        sensors["force"] = F_env
-                        try:
-                            tau = controller.step(r.t, q, dq, sensors)
-                        except Exception as exc:  # noqa: BLE001 - any controller failure is a fault, not a crash
-                            guard.trip("controller", f"controller raised {type(exc).__name__} at t={r.t:.4f} s: {exc}")
-                        if state is not None and state.stopped:
-                            guard.trip("controller", f"controller stopped: {state.fault}")
-                    tau = guard.filter(tau, r.t)
+                    tau, xdot, F_env = step(r, tr if realtime or r.arrival is not None else None)
                 tc = time.monotonic()
                 ok = guard.fault is None
                 if not ok:
@@ -253,6 +245,7 @@ def run(
                 if not ok and stop_on_fault:
                     break
     finally:
+        step.close()
         for _ in range(3):  # zero torque, motors disabled; repeated against a lost packet
             with contextlib.suppress(Exception):
                 link.write(zero, enable=False)
@@ -270,6 +263,7 @@ def run(
     result_log = w.to_log()
     summary = _summary(result_log, stats, rate, guard, realtime, spin)
     summary["route"] = route
+    summary["step"] = step.route
     summary["round_trip"] = nan_stats(np.frombuffer(ages, dtype=float) if len(ages) else np.zeros(0))
     return RunResult(result_log, summary)
 

@@ -112,6 +112,7 @@ class Safety:
         clamped: number of ticks whose torque was clamped into the limits.
         ratio: the largest τ_i / limit_i of the last torque `filter` returned (≤ 1).
         events: [(kind, detail)] raised since the last `drain`.
+        resets: how many times `reset` ran.
 
     Raises:
         InvalidInput: non-finite or non-positive torque limits (torque limits are never infinite).
@@ -144,6 +145,7 @@ class Safety:
         self.clamped = 0
         self.ratio = 0.0
         self.events: list[tuple[str, str]] = []
+        self.resets = 0
         self._last_seq: int | None = None
         self._same = 0
         self._last_new: float | None = None
@@ -181,6 +183,7 @@ class Safety:
         self._same, self._last_new, self._last_t = 0, None, None
         self._joints = self._ft = None
         self._joints_same = self._ft_same = 0
+        self.resets += 1
 
     def drain(self) -> list[tuple[str, str]]:
         """The events since the last call."""

@@ -106,6 +106,11 @@ class UDPLink:
         self._tx = bytearray(P.COMMAND_SIZE)
         self._tx_tau = np.zeros(0)
 
+    @property
+    def packed(self) -> dict[str, slice]:
+        """Each sensor's slice of the one float64 array a reading's q ([:n]), q̇ ([n:2 n]) and sensors are views of."""
+        return dict(self._slices)
+
     @classmethod
     def from_url(cls, url: str, **kw) -> UDPLink:
         """A link to ``udp://HOST:PORT``; keywords as for the constructor."""
