@@ -3,8 +3,9 @@
 Ticks start at absolute deadlines t₀ + k/rate on the monotonic clock, so the rate does not
 drift; a tick that ends after its successor's deadline is a missed deadline, and the slots it
 overran are skipped rather than run in a burst. Garbage collection is frozen and disabled for
-the run. Each tick: read → safety check → virtual environment → controller → safety filter
-(clamp) → write → log row. A fault writes zero torque with the motors disabled, latched.
+the run. Each tick: read → virtual environment → safety check → controller → safety filter
+(clamp) → write → log row; the steps from the reading to the torque are `rhi.runtime.step`'s (one compiled call
+where it can). A fault writes zero torque with the motors disabled, latched.
 """
 
 from __future__ import annotations
