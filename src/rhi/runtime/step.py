@@ -115,27 +115,29 @@ class FastStep(ReferenceStep):
         self.k, self.kt, self.entry_point = k, controller._kernel, entry_point
         kt, n, m = self.kt, guard.n, kin.m
         cfg = guard.config
-        self._lim = np.concatenate([[cfg.stale_ticks, cfg.frozen_ticks, cfg.frozen_motion, cfg.silence, cfg.max_age,
-                                     cfg.max_handle_speed, FT_EXEMPT, _BAD_STATUS],
-                                    guard.q_lo, guard.q_hi, guard.max_dq, guard.lo, guard.hi]).astype(float)
-        self._sv = np.zeros(k.N_S + 3 * n + 6)
+        # the safety state (`_pull`), the limits and the output in one vector (`rhi.runtime._compiled.step`)
+        at, end = k.limits(n), k.output(n)
+        self._sv = np.zeros(end + 1)
+        self._lim, self._out = self._sv[at:end], self._sv[end:]
+        self._lim[:] = np.concatenate([[cfg.stale_ticks, cfg.frozen_ticks, cfg.frozen_motion, cfg.silence,
+                                        cfg.max_age, cfg.max_handle_speed, FT_EXEMPT, _BAD_STATUS],
+                                       guard.q_lo, guard.q_hi, guard.max_dq, guard.lo, guard.hi])
         self._kin = kin._compiled[1:]
-        self._kout, self._F, self._out = np.zeros((3, m)), np.zeros(m), np.zeros(1)
+        self._kout = np.zeros((4, m))
         self._fused = bool(kin._fused)
         wargs = (*kt._chain, False, *kt._mid, kt._x, kt._buf, *kt._out)
         vec = types.float64[::1]
-        self._whole = KernelRef(kt._whole_fn, (types.float64, vec, vec, vec, *(typeof(a) for a in wargs)))
+        ref = KernelRef(kt._whole_fn, (types.float64, vec, vec, vec, *(typeof(a) for a in wargs)))
+        if ref.signature().return_type != types.int64:  # (the kernel's `_whole_at` calls it so)
+            raise AssertionError(f"the whole tick returns {ref.signature().return_type}")  # pragma: no cover
+        self._ref, self._whole = ref, ref.__wrapper_address__()  # (the reference keeps its code alive)
         self._wargs = wargs
-        self._cs = (kt._tr, kt._pc, kt._pc_pos, kt._pc_eff, kt._tau, kt._sat, kt._res, kt._tank, kt._tank_q,
-                    kt._tank_e)
-        self._keep = tuple(a.copy() for i, a in enumerate(self._cs) if i != 6)
         self._own = False  # the kernel's sv holds the safety state (not the `Safety` object)
         self._resets = guard.resets
         self._ft_at, self._width = -1, -1  # where the F/T starts in a reading's array, its length (`attach`)
         # the kernel loaded (or compiled) now, on a reading it leaves to the reference (a bad status)
-        z = np.zeros(2 * n)
         self._call = k.step
-        self._step(0.0, 0, _BAD_STATUS, nan, nan, nan, z[:n], z[n:], z)
+        self._step(0.0, 0, _BAD_STATUS, nan, nan, nan, np.zeros(2 * n))
 
     def attach(self, link) -> None:
         """The layout of the link's readings (`packed`: sensor → its slice of the array, after q and q̇), once open."""
@@ -151,8 +153,7 @@ class FastStep(ReferenceStep):
         self._width = 2 * n + sum(s.stop - s.start for s in packed.values())
 
     def _step(self, *reading) -> int:
-        args = (*reading, self._ft_at, self._sv, self._lim, self._kin, self._kout, self._F, self._fused, self._wargs,
-                self._cs, self._keep, self._whole, self._out)
+        args = (*reading, self._ft_at, self._sv, self._kin, self._kout, self._fused, self._wargs, self._whole)
         call = self._call
         code = call(*args)
         if call is self.k.step:  # loaded now: its entry point from here on (the same types every call)
@@ -172,14 +173,15 @@ class FastStep(ReferenceStep):
         kt.mirror(s)
         t = float(r.t)
         code = self._step(t, int(r.seq), int(r.status), float(r.age), nan if r.arrival is None else float(r.arrival),
-                          nan if now is None else float(now), r.q, r.dq, v)
+                          nan if now is None else float(now), v)
         if code == k.NONE:
             self._release()
             return super().__call__(r, now)
         if self._sv[k.S_HT]:
             g._last_t = float(self._sv[k.S_T])
         xdot, F_env = self._kout[1].copy(), self._kout[2].copy()
-        if code == k.CHECKED:
+        if code == k.CHECKED:  # (the controller's arrays reloaded from its state where its kernel ran)
+            kt._tr_of = kt._ps_of = None
             return g.filter(self.control(r, F_env), t), xdot, F_env
         tau = self.controller._record(t, *kt.settle(t, k.OK, r.q, r.dq, kt._x, kt._buf))
         if code == k.STEPPED:
@@ -192,7 +194,7 @@ class FastStep(ReferenceStep):
         g, sv, n, k = self.guard, self._sv, self.guard.n, self.k
         if g._ft is not None and len(g._ft) != 6:
             return False
-        sv[:] = 0.0
+        sv[:k.limits(n)] = 0.0
         for slot, has, val in ((k.S_SEQ, k.S_HSEQ, g._last_seq), (k.S_NEW, k.S_HNEW, g._last_new),
                                (k.S_T, k.S_HT, g._last_t)):
             if val is not None:
@@ -204,7 +206,7 @@ class FastStep(ReferenceStep):
         if g._ft is not None:
             sv[k.S_HFT], sv[o + 2 * n:o + 2 * n + 6] = 1.0, g._ft
         if g._ft_q0 is not None:
-            sv[k.S_HFTQ0], sv[o + 2 * n + 6:] = 1.0, g._ft_q0
+            sv[k.S_HFTQ0], sv[o + 2 * n + 6:o + 3 * n + 6] = 1.0, g._ft_q0
         self._own, self._resets = True, g.resets
         return True
 
@@ -225,7 +227,7 @@ class FastStep(ReferenceStep):
         g._joints = (v[o:o + n], v[o + n:o + 2 * n]) if v[k.S_HJ] else None
         g._ft = v[o + 2 * n:o + 2 * n + 6] if v[k.S_HFT] else None
         g._ft_same = int(v[k.S_FTSAME])
-        g._ft_q0 = v[o + 2 * n + 6:] if v[k.S_HFTQ0] else None
+        g._ft_q0 = v[o + 2 * n + 6:o + 3 * n + 6] if v[k.S_HFTQ0] else None
 
     close = _release
 

@@ -2,7 +2,8 @@
 
 Between a reading and its command: the handle's kinematics and virtual force
 (`rhi.sim._compiled.handle.handle_state`), the safety layer's checks (`rhi.runtime.safety.Safety.check`),
-the controller's whole tick (its kernel of `rhi.control._compiled.whole.whole_for`, a `rhi.jit.KernelRef`)
+the controller's whole tick (its kernel of `rhi.control._compiled.whole.whole_for`, by the address of a
+`rhi.jit.KernelRef`)
 and the safety filter's box (`Safety.filter`). It decides only the ticks on which the safety layer does
 nothing: where a rule would trip, the controller's kernel does not decide, or the torque needs clamping,
 it returns the last stage it finished (`NONE`, `CHECKED`, `STEPPED`) with the state of the stages after
@@ -13,6 +14,10 @@ from __future__ import annotations
 
 import math
 
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
 from rhi.control._compiled import whole as _whole
 from rhi.jit import jit
 from rhi.sim._compiled.handle import handle_state
@@ -22,25 +27,61 @@ from rhi.sim._compiled.handle import handle_state
 NONE, CHECKED, STEPPED, DONE = 0, 1, 2, 3
 #: The whole tick's status where it decided (`rhi.control.tick.KernelTick.settle`).
 OK = _whole.OK
-#: Slots of the safety state `sv` (`Safety`'s per-tick attributes): the last sequence number, the ticks it
-#: repeated, the newest arrival [s], the last device time [s], the frozen rule's repeats of the joints and their
-#: start [s], the F/T repeats; whether each of _last_seq, _last_new, _last_t, _joints, _ft, _ft_q0 is set; then
-#: the last joints (q then q̇, 2 n), the last F/T (6) and the positions at its last change (n).
+#: Slots of the vector `sv`, the safety state (`Safety`'s per-tick attributes) then the limits and the output: the
+#: last sequence number, the ticks it repeated, the newest arrival [s], the last device time [s], the frozen rule's
+#: repeats of the joints and their start [s], the F/T repeats; whether each of _last_seq, _last_new, _last_t,
+#: _joints, _ft, _ft_q0 is set; then the last joints (q then q̇, 2 n), the last F/T (6) and the positions at its
+#: last change (n); from `limits(n)` on the limits, from `output(n)` on the filter's largest τ_i / limit_i.
 S_SEQ, S_SAME, S_NEW, S_T, S_JSAME, S_JT0, S_FTSAME, S_HSEQ, S_HNEW, S_HT, S_HJ, S_HFT, S_HFTQ0 = range(13)
 N_S = 13
-#: Slots of the limits `lim`: `SafetyConfig`'s stale_ticks, frozen_ticks, frozen_motion, silence, max_age,
-#: max_handle_speed, `rhi.runtime.safety.FT_EXEMPT` and the bad status bits; then q_lo, q_hi, max |q̇|, torque
-#: min and max ((n,) each).
+#: Slots of the limits (from `limits(n)` in sv): `SafetyConfig`'s stale_ticks, frozen_ticks, frozen_motion, silence,
+#: max_age, max_handle_speed, `rhi.runtime.safety.FT_EXEMPT` and the bad status bits; then q_lo, q_hi, max |q̇|,
+#: torque min and max ((n,) each).
 L_STALE, L_FROZEN, L_MOTION, L_SILENCE, L_AGE, L_SPEED, L_EXEMPT, L_BAD = range(8)
 N_L = 8
+
+
+@jit
+def limits(n):
+    """Where the limits start in sv, for n motors."""
+    return N_S + 3 * n + 6
+
+
+@jit
+def output(n):
+    """Where the output starts in sv (its length: `output(n) + 1`), for n motors."""
+    return limits(n) + N_L + 5 * n
+
+
 #: A handle speed within this relative distance of its limit is left to the reference (`math.hypot`'s rounding).
 SPEED_MARGIN = 1e-12
 
 
+@intrinsic
+def _whole_at(typingctx, address, wargs):
+    """The whole tick at `address` as a function of (t, q, dq, force, *wargs) → status, in compiled code.
+
+    `address`: its C wrapper's (`rhi.jit.KernelRef.__wrapper_address__`). An integer crosses from Python at no
+    cost, where a `KernelRef` argument is unboxed by Numba's Python helpers at every call (~8 µs, more than the
+    rest of a `run` tick's step).
+    """
+    vec = types.float64[::1]
+    fnty = types.FunctionType(types.int64(types.float64, vec, vec, vec, *wargs.types))
+
+    def codegen(context, builder, sig, args):
+        fn = cgutils.create_struct_proxy(fnty)(context, builder)
+        fn.c_addr = builder.inttoptr(args[0], cgutils.voidptr_t)
+        return fn._getvalue()  # (no Python object, no Numba entry point: calls go to the C wrapper)
+
+    return fnty(address, wargs), codegen
+
+
 @jit
-def step(t, seq, status, age, arrival, now, q, dq, v, ft_at, sv, lim, kin, kout, F, fused, wargs, cs, keep, whole,
-         out):
+def step(t, seq, status, age, arrival, now, v, ft_at, sv, kin, kout, fused, wargs, whole):
     """One tick's step; returns `NONE`, `CHECKED`, `STEPPED` or `DONE` (module docstring).
+
+    The controller's arrays are left as the kernel left them where it returns `CHECKED` after the whole
+    tick did not decide: the caller reloads them from the controller's state (as `KernelTick.settle` does).
 
     Args:
         t: the reading's device time [s].
@@ -49,23 +90,21 @@ def step(t, seq, status, age, arrival, now, q, dq, v, ft_at, sv, lim, kin, kout,
         age: its round-trip age [s] (NaN: not measured).
         arrival: its arrival [s] (NaN: a local link's).
         now: the host's time of the check [s] (NaN: no silence check).
-        q: (n,) the reading's joint positions [rad].
-        dq: (n,) its joint velocities [rad/s].
-        v: the float array q, q̇ and every sensor are views of.
+        v: (2 n + k,) the reading's one float array: q [rad], q̇ [rad/s], then every sensor.
         ft_at: where the F/T reading (6) starts in v (-1: none).
-        sv: the safety state (S_* slots), advanced where the reading passes.
-        lim: the limits (L_* slots).
+        sv: the safety state (S_* slots, advanced where the reading passes), the limits (L_* slots from
+            `limits(n)`) and the output (from `output(n)`: the filter's largest τ_i / limit_i where `DONE`).
         kin: `handle_state`'s (ints, joints, fc).
-        kout: (3, m) its output, x, ẋ and the virtual force (zero unless `fused`).
-        F: (m,) the force the controller reads [N].
+        kout: (4, m) x, ẋ, the virtual force (zero unless `fused`: the virtual environment is in fc) and the
+            force the controller reads [N].
         fused: the virtual environment is in fc.
-        wargs: the whole tick's arguments after (t, q, dq, force).
-        cs: the controller's arrays among them (tr, pc, pc_pos, pc_eff, τ, held, result, tank, tank_q, tank_e).
-        keep: copies of cs's state before the tick (all but the result).
-        whole: the whole tick (`rhi.jit.KernelRef`).
-        out: (1,) the filter's largest τ_i / limit_i where `DONE`.
+        wargs: the whole tick's arguments after (t, q, dq, force), ending in (…, τ, held, result).
+        whole: the whole tick's address (`_whole_at`).
     """
-    n = q.shape[0]
+    tau, res = wargs[-3], wargs[-1]
+    n = tau.shape[0]
+    q, dq = v[:n], v[n:2 * n]
+    lim = sv[limits(n):]
     if status & int(lim[L_BAD]) != 0 or not math.isfinite(t):
         return NONE
     for x in v:
@@ -143,7 +182,7 @@ def step(t, seq, status, age, arrival, now, q, dq, v, ft_at, sv, lim, kin, kout,
         return NONE
     m = kout.shape[1]
     if fused:
-        handle_state(kin[0], kin[1], kin[2], q, dq, kout)
+        handle_state(kin[0], kin[1], kin[2], q, dq, kout[:3])
     else:
         handle_state(kin[0], kin[1], kin[2], q, dq, kout[:2])
         kout[2, :] = 0.0
@@ -168,23 +207,17 @@ def step(t, seq, status, age, arrival, now, q, dq, v, ft_at, sv, lim, kin, kout,
                 sv[N_S + 2 * n + i] = v[ft_at + i]
             for i in range(n):
                 sv[N_S + 2 * n + 6 + i] = q[i]
-    # the controller's whole tick on a finite force; where it does not decide, its arrays as before
+    # the controller's whole tick on a finite force
+    F = kout[3]
     for i in range(m):
         F[i] = kout[2, i]
         if not math.isfinite(F[i]):
             return CHECKED
-    tr, pc, pc_pos, pc_eff, tau, sat, res, tank, tank_q, tank_e = cs
-    tr0, pc0, pos0, eff0, tau0, sat0, tk0, tq0, te0 = keep
-    tr0[:], pc0[:], pos0[:], eff0[:], tau0[:], sat0[:] = tr, pc, pc_pos, pc_eff, tau, sat
-    tk0[:], tq0[:], te0[:] = tank, tank_q, tank_e
-    ok = whole(t, q, dq, F, *wargs) == _whole.OK and res[_whole.R_DONE] != 0.0
+    if _whole_at(whole, wargs)(t, q, dq, F, *wargs) != _whole.OK or res[_whole.R_DONE] == 0.0:
+        return CHECKED
     for i in range(n):
         if not math.isfinite(tau[i]):
-            ok = False
-    if not ok:
-        tr[:], pc[:], pc_pos[:], pc_eff[:], tau[:], sat[:] = tr0, pc0, pos0, eff0, tau0, sat0
-        tank[:], tank_q[:], tank_e[:] = tk0, tq0, te0
-        return CHECKED
+            return CHECKED
     # the filter: τ inside the box, its largest τ_i / limit_i
     o = N_L + 3 * n
     top = 0.0
@@ -195,5 +228,5 @@ def step(t, seq, status, age, arrival, now, q, dq, v, ft_at, sv, lim, kin, kout,
         r = x / hi if x > 0.0 else x / lo
         if r > top:
             top = r
-    out[0] = top
+    sv[output(n)] = top
     return DONE
