@@ -13,6 +13,7 @@ it untouched, and the caller runs the rest in Python, the reference.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from numba import types
 from numba.core import cgutils
@@ -58,7 +59,7 @@ SPEED_MARGIN = 1e-12
 
 
 @intrinsic
-def _whole_at(typingctx, address, wargs):
+def _whole_intrinsic(typingctx, address, wargs):
     """The whole tick at `address` as a function of (t, q, dq, force, *wargs) → status, in compiled code.
 
     `address`: its C wrapper's (`rhi.jit.KernelRef.__wrapper_address__`). An integer crosses from Python at no
@@ -74,6 +75,9 @@ def _whole_at(typingctx, address, wargs):
         return fn._getvalue()  # (no Python object, no Numba entry point: calls go to the C wrapper)
 
     return fnty(address, wargs), codegen
+
+
+_whole_at: Any = _whole_intrinsic  # as the kernel calls it: _whole_at(address, wargs) (the typing context first)
 
 
 @jit
