@@ -19,9 +19,11 @@ Issue 29's target: ≤ 20 s wall from a fresh install to the first compiled tick
 
 ``--kernels K`` adds the K kernels whose cold compile took the most CPU, each split into Numba's front end
 (typing and lowering to LLVM IR), LLVM's function and module optimisation passes, and machine code
-generation (it wraps private methods of Numba's code library; benchmark only).
+generation (it wraps private methods of Numba's code library; benchmark only). ``--serial``: no child compiles aside
+(`rhi.jit.ASIDE` off), so that the kernel profile holds every kernel of the first tick and the stages' CPU all of
+their compile.
 
-    PYTHONPATH=src python benchmarks/bench_compile.py [--previous REV] [--repeat K] [--kernels K]
+    PYTHONPATH=src python benchmarks/bench_compile.py [--previous REV] [--repeat K] [--kernels K] [--serial]
 """
 
 from __future__ import annotations
@@ -86,7 +88,7 @@ def _profile_kernels() -> dict[str, dict[str, float]]:
     return rows
 
 
-def stages(kernels: bool) -> dict:
+def stages(kernels: bool, serial: bool) -> dict:
     """CPU and wall seconds of the three stages' first calls in this process, and the kernel profile."""
     rows = _profile_kernels() if kernels else {}
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -94,7 +96,10 @@ def stages(kernels: bool) -> dict:
     import bench_sim as bs
 
     import rhi
+    from rhi import jit
     from rhi.sim._compiled import fast_loop
+
+    jit.ASIDE[0] = not serial
 
     dev = rhi.device("rhi4")
     a = bc.ticks(3)[1]
@@ -112,11 +117,12 @@ def stages(kernels: bool) -> dict:
             "kernels": {k: dict(v) for k, v in rows.items()}}
 
 
-def measure(src: Path, cache: str, kernels: bool = False) -> dict | str:
+def measure(src: Path, cache: str, kernels: bool = False, serial: bool = False) -> dict | str:
     """`stages` for the package in `src` in a new process on the Numba cache folder `cache`, or why it failed."""
     env = {**os.environ, "PYTHONPATH": str(src), "NUMBA_CACHE_DIR": cache}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    out = subprocess.run([sys.executable, __file__, "--stages-only", *(["--kernels", "1"] if kernels else [])],
+    out = subprocess.run([sys.executable, __file__, "--stages-only", *(["--kernels", "1"] if kernels else []),
+                          *(["--serial"] if serial else [])],
                          capture_output=True, text=True, env=env)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if out.returncode != 0:
@@ -126,13 +132,13 @@ def measure(src: Path, cache: str, kernels: bool = False) -> dict | str:
     return res
 
 
-def cold_warm(src: Path, kernels: bool = False) -> tuple[dict, dict] | str:
+def cold_warm(src: Path, kernels: bool = False, serial: bool = False) -> tuple[dict, dict] | str:
     """(cold, warm) `stages` of the package in `src`: a fresh cache, then the same cache again."""
     with tempfile.TemporaryDirectory() as cache:
-        cold = measure(src, cache, kernels)
+        cold = measure(src, cache, kernels, serial)
         if isinstance(cold, str):
             return cold
-        warm = measure(src, cache)
+        warm = measure(src, cache, serial=serial)
         return (cold, warm) if not isinstance(warm, str) else warm
 
 
@@ -145,10 +151,11 @@ def main() -> None:
     ap.add_argument("--previous", help="git revision of an extra baseline (the package then), run the same way")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each (best kept)")
     ap.add_argument("--kernels", type=int, default=0, help="list the K costliest kernels of the cold compile")
+    ap.add_argument("--serial", action="store_true", help="no child compiles aside: one process compiles everything")
     ap.add_argument("--stages-only", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.stages_only:  # a child run (NUMBA_CACHE_DIR set by the parent)
-        print(json.dumps(stages(bool(a.kernels))))
+        print(json.dumps(stages(bool(a.kernels), a.serial)))
         return
     load = os.getloadavg()[0]
     trees = {"this tree": Path(__file__).resolve().parents[1] / "src"}
@@ -156,7 +163,7 @@ def main() -> None:
     for i in range(a.repeat):
         for label, src in trees.items():
             print(f"run {i + 1}/{a.repeat}: {label} ...", file=sys.stderr, flush=True)
-            m = cold_warm(src, kernels=a.kernels > 0 and i == 0)
+            m = cold_warm(src, kernels=a.kernels > 0 and i == 0, serial=a.serial)
             if isinstance(m, str):
                 sys.exit(f"{label} {m}")
             runs[label].append(m)
@@ -164,7 +171,7 @@ def main() -> None:
             print(f"run {i + 1}/{a.repeat}: @{a.previous} ...", file=sys.stderr, flush=True)
             try:
                 with source_at(a.previous) as src:
-                    m = cold_warm(src)
+                    m = cold_warm(src, serial=a.serial)
             except LookupError as exc:
                 m = f"skipped ({exc})"
             if isinstance(m, str):
