@@ -150,3 +150,41 @@ def test_a_kernel_compiled_aside_is_loaded_not_compiled(tmp_path: Path):
     assert worker.exitcode == 0
     # not cached before; the child ran to its end; asked once per process; cached after; no compile here
     assert out.get(timeout=10) == (False, 0, True, True, 0)
+
+
+_FOR_CALLERS = """
+import json, numpy as np
+from numba import types
+from rhi import jit
+from rhi.devices._compiled import terms
+a, m = types.Array(types.float64, 2, "C"), np.array([[2.0, 1.0], [1.0, 3.0]])
+def own():  # None: not in this process; False: compiled (or loaded) for callers only
+    o = terms.inv_to.overloads.get((a, a))
+    return None if o is None else not getattr(o.library, "_rhi_for_callers", False)
+misses = lambda: sum(terms.inv_to._cache_misses.values())
+np.testing.assert_allclose(terms.inv(m) @ m, np.eye(2), atol=1e-15)  # inv from Python; inv_to compiled for it
+before = [own(), jit.cached(terms.inv_to, (a, a)), misses()]
+out = np.empty((2, 2))
+terms.inv_to(m, out)  # a Python call: inv_to's own form
+np.testing.assert_allclose(out @ m, np.eye(2), atol=1e-15)
+print(json.dumps([before, [own(), jit.cached(terms.inv_to, (a, a)), misses()],
+                  len(terms.inv_to._cache._cache_file._load_index())]))
+"""
+
+
+def test_a_kernel_compiled_for_a_caller_is_not_what_python_calls(tmp_path: Path):
+    """A callee compiled for a compiled caller skips its own module passes; Python calls compile its own form.
+
+    Both forms are cached under their own keys; a later process loads each and compiles nothing.
+    """
+    import json
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    runs = [json.loads(subprocess.run([sys.executable, "-c", _FOR_CALLERS], env=env, check=True, capture_output=True,
+                                      text=True).stdout.splitlines()[-1]) for _ in range(2)]
+    # cold: inv_to compiled for inv only (its own form not cached), then its own form for the Python call
+    assert runs[0] == [[False, False, 1], [True, True, 2], 2]
+    assert runs[1] == [[None, True, 0], [True, True, 0], 2]  # warm: inv loaded whole (inv_to not needed); then loaded

@@ -25,7 +25,8 @@ Processes that share the cache (test workers, `rhi reproduce`'s workers, `rhi wa
 one at a time (`_save_locked`), and compile one kernel for one signature one at a time (`_compile_claimed`): a
 process that finds another compiling it waits, then loads what that one saved. On a cold cache `compile_aside`
 compiles a kernel in a child process while this one goes on (e.g. a controller's whole tick while the first
-`Device.terms` compiles the chain dynamics): two cores share a cold start.
+`Device.terms` compiles the chain dynamics): two cores share a cold start. A kernel compiled because a compiled
+caller calls it is compiled for callers only, without LLVM module passes of its own (`rhi._jit_callers`).
 """
 
 from __future__ import annotations
@@ -51,6 +52,8 @@ from numba.core.typing.typeof import typeof_impl
 from numba.experimental.function_type import FunctionModel
 from numba.extending import NativeValue, intrinsic, register_model, unbox
 from numba.np.arrayobj import make_array, populate_array
+
+from rhi import _jit_callers as callers
 
 _ROOT = Path(__file__).resolve().parent
 #: A module defines compiled functions when a line starts with one of these decorators.
@@ -160,8 +163,7 @@ class _InlineCopy:
         return getattr(copy, name)
 
 
-#: Numba's own `IndexDataCacheFile.save` (also where this module is imported again after `install`)
-_NUMBA_SAVE = getattr(caching.IndexDataCacheFile.save, "__wrapped__", caching.IndexDataCacheFile.save)
+_NUMBA_SAVE = callers.numba_own(caching.IndexDataCacheFile, "save")
 
 
 def _save_locked(self, key, data) -> None:
@@ -176,11 +178,7 @@ def _save_locked(self, key, data) -> None:
         _NUMBA_SAVE(self, key, data)
 
 
-_save_locked.__wrapped__ = _NUMBA_SAVE  # type: ignore[attr-defined]
-
-
-#: Numba's own `Dispatcher.compile` (also where this module is imported again after `install`)
-_NUMBA_COMPILE = getattr(dispatcher.Dispatcher.compile, "__wrapped__", dispatcher.Dispatcher.compile)
+_NUMBA_COMPILE = callers.numba_own(dispatcher.Dispatcher, "compile")
 
 
 def claim_path(cache: caching.Cache, args: tuple) -> str:
@@ -198,47 +196,62 @@ def _compile_claimed(self, sig):
     re-entrant and taken by every compile anyway: a thread never waits on a claim another thread of its process
     holds. The claims a process holds are its kernel and the callees it is compiling, taken in call order, so
     two processes cannot wait on each other. A process that dies releases its claims.
+
+    A compile a compiled caller asks for is for callers only (`rhi._jit_callers`) unless the kernel's own form is
+    cached; a Python call of a kernel compiled only for callers so far compiles (or loads) its own form.
     """
+    asked, callers.FOR_CALLERS[0] = callers.FOR_CALLERS[0], False  # by a compiled caller
     cache = self._cache
     if not isinstance(cache, caching.Cache) or not isinstance(cache._impl.locator, _PackageStamp):
-        return _NUMBA_COMPILE(self, sig)
+        return callers.compile_as(self, sig, False)
     with global_compiler_lock:
         args = tuple(sigutils.normalize_signature(sig)[0])
-        if args in self.overloads:
-            return _NUMBA_COMPILE(self, sig)
+        existing = self.overloads.get(args)
+        if existing is not None:
+            if asked or not callers.for_callers(existing):
+                return existing.entry_point
+            del self.overloads[args]  # a Python call: its own form now (Numba compiles or loads it, then lists it)
         path = claim_path(cache, args)
         if path in _HELD:  # a kernel whose compile reaches itself (recursion): this process holds its claim
-            return _NUMBA_COMPILE(self, sig)
+            return callers.compile_as(self, sig, asked)
         try:
             claim = open(path, "ab")
         except OSError:  # a read-only cache: Numba compiles in memory
-            return _NUMBA_COMPILE(self, sig)
+            return callers.compile_as(self, sig, asked)
         with claim:
             fcntl.flock(claim, fcntl.LOCK_EX)  # released when the file closes
             _HELD.add(path)
             try:
-                return _NUMBA_COMPILE(self, sig)
+                return callers.compile_as(self, sig, asked and not cached(self, args))
             finally:
                 _HELD.discard(path)
 
 
 _HELD: set[str] = set()  # the claims this process holds (a second lock of one file by one process would wait forever)
 
-
-_compile_claimed.__wrapped__ = _NUMBA_COMPILE  # type: ignore[attr-defined]
+#: What `install` replaces in Numba: (owner, name, rhi's, Numba's own)
+_PATCHES = ((caching.IndexDataCacheFile, "save", _save_locked, _NUMBA_SAVE),
+            (dispatcher.Dispatcher, "compile", _compile_claimed, _NUMBA_COMPILE), *callers.CALLER_PATCHES)
 
 
 def cached(kernel, args: tuple) -> bool:
-    """Whether `kernel` (a `jit` dispatcher) for the Numba argument types `args` is in this process or the disk cache."""
-    if tuple(args) in kernel.overloads:
+    """Whether `kernel` (a `jit` dispatcher) for the Numba argument types `args` is in this process or the disk cache.
+
+    Its own form: a compile for compiled callers only does not count.
+    """
+    existing = kernel.overloads.get(tuple(args))
+    if existing is not None and not callers.for_callers(existing):
         return True
     cache = kernel._cache
     if not isinstance(cache, caching.Cache):
         return False
+    callers.FOR.append(False)  # its own form's key
     try:
         return cache._index_key(tuple(args), kernel.targetctx.codegen()) in cache._cache_file._load_index()
     except (OSError, EOFError, pickle.UnpicklingError):
         return False
+    finally:
+        callers.FOR.pop()
 
 
 #: Whether `compile_aside` starts children (False in processes that are themselves one of several compiling).
@@ -302,7 +315,7 @@ def _aside() -> None:
 
 
 def install() -> None:
-    """Stamped locators, the first-compile listener, `_InlineCopy`, `_save_locked`, `_compile_claimed` (idempotent)."""
+    """Stamped locators, the first-compile listener, `_InlineCopy`, and `_PATCHES` (idempotent)."""
     classes = caching.CacheImpl._locator_classes
     if classes[:len(_LOCATORS)] != list(_LOCATORS):
         classes[:] = [*_LOCATORS, *(c for c in classes if c not in _LOCATORS)]
@@ -310,10 +323,10 @@ def install() -> None:
         event.register("numba:compile", _LISTENER)
     if not isinstance(inline_closurecall.copy, _InlineCopy):
         inline_closurecall.copy = _InlineCopy()  # type: ignore[assignment]
-    if caching.IndexDataCacheFile.save is not _save_locked:
-        caching.IndexDataCacheFile.save = _save_locked  # type: ignore[method-assign]
-    if dispatcher.Dispatcher.compile is not _compile_claimed:
-        dispatcher.Dispatcher.compile = _compile_claimed  # type: ignore[method-assign]
+    for owner, name, patch, numba in _PATCHES:
+        if getattr(owner, name) is not patch:
+            patch.__wrapped__ = numba  # type: ignore[union-attr]
+            setattr(owner, name, patch)
 
 
 install()  # before the decorator: the cache refreshes when any kernel source changes
