@@ -123,9 +123,12 @@ def play(b: browser.Browser, study: StudyProcess, observer, decisions: dict, pha
                 study.kill()
                 return "killed"
             t = view["trial"]
-            stiffer = bool(observer.answer(INDEX[view["participant"]], t["condition"], t["stimulus"]))
+            if (view["participant"], k) not in decisions:  # one answer per trial: one draw of the observer, which
+                # is given again where the session has not taken it yet (a slow session under load)
+                stiffer = bool(observer.answer(INDEX[view["participant"]], t["condition"], t["stimulus"]))
+                decisions[(view["participant"], k)] = (t["condition"], t["stimulus"], int(stiffer))
+            stiffer = bool(decisions[(view["participant"], k)][2])
             which = "first" if stiffer == t["comparison_first"] else "second"
-            decisions[(view["participant"], k)] = (t["condition"], t["stimulus"], int(stiffer))
             if k % 3 == 0:
                 key(b, "1" if which == "first" else "2")
             else:
