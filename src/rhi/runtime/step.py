@@ -128,9 +128,7 @@ class FastStep(ReferenceStep):
         wargs = (*kt._chain, False, *kt._mid, kt._x, kt._buf, *kt._out)
         vec = types.float64[::1]
         ref = KernelRef(kt._whole_fn, (types.float64, vec, vec, vec, *(typeof(a) for a in wargs)))
-        if ref.signature().return_type != types.int64:  # (the kernel's `_whole_at` calls it so)
-            raise AssertionError(f"the whole tick returns {ref.signature().return_type}")  # pragma: no cover
-        self._ref, self._whole = ref, ref.__wrapper_address__()  # (the reference keeps its code alive)
+        self._whole = ref
         self._wargs = wargs
         self._own = False  # the kernel's sv holds the safety state (not the `Safety` object)
         self._resets = guard.resets

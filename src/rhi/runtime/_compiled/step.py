@@ -13,11 +13,6 @@ it untouched, and the caller runs the rest in Python, the reference.
 from __future__ import annotations
 
 import math
-from typing import Any
-
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic
 
 from rhi.control._compiled import whole as _whole
 from rhi.jit import jit
@@ -58,28 +53,6 @@ def output(n):
 SPEED_MARGIN = 1e-12
 
 
-@intrinsic
-def _whole_intrinsic(typingctx, address, wargs):
-    """The whole tick at `address` as a function of (t, q, dq, force, *wargs) → status, in compiled code.
-
-    `address`: its C wrapper's (`rhi.jit.KernelRef.__wrapper_address__`). An integer crosses from Python at no
-    cost, where a `KernelRef` argument is unboxed by Numba's Python helpers at every call (~8 µs, more than the
-    rest of a `run` tick's step).
-    """
-    vec = types.float64[::1]
-    fnty = types.FunctionType(types.int64(types.float64, vec, vec, vec, *wargs.types))
-
-    def codegen(context, builder, sig, args):
-        fn = cgutils.create_struct_proxy(fnty)(context, builder)
-        fn.c_addr = builder.inttoptr(args[0], cgutils.voidptr_t)
-        return fn._getvalue()  # (no Python object, no Numba entry point: calls go to the C wrapper)
-
-    return fnty(address, wargs), codegen
-
-
-_whole_at: Any = _whole_intrinsic  # as the kernel calls it: _whole_at(address, wargs) (the typing context first)
-
-
 @jit
 def step(t, seq, status, age, arrival, now, v, ft_at, sv, kin, kout, fused, wargs, whole):
     """One tick's step; returns `NONE`, `CHECKED`, `STEPPED` or `DONE` (module docstring).
@@ -103,7 +76,7 @@ def step(t, seq, status, age, arrival, now, v, ft_at, sv, kin, kout, fused, warg
             force the controller reads [N].
         fused: the virtual environment is in fc.
         wargs: the whole tick's arguments after (t, q, dq, force), ending in (…, τ, held, result).
-        whole: the whole tick's address (`_whole_at`).
+        whole: the whole tick (a `rhi.jit.KernelRef`: a pointer to its kernel).
     """
     tau, res = wargs[-3], wargs[-1]
     n = tau.shape[0]
@@ -217,7 +190,7 @@ def step(t, seq, status, age, arrival, now, v, ft_at, sv, kin, kout, fused, warg
         F[i] = kout[2, i]
         if not math.isfinite(F[i]):
             return CHECKED
-    if _whole_at(whole, wargs)(t, q, dq, F, *wargs) != _whole.OK or res[_whole.R_DONE] == 0.0:
+    if whole(t, q, dq, F, *wargs) != _whole.OK or res[_whole.R_DONE] == 0.0:
         return CHECKED
     for i in range(n):
         if not math.isfinite(tau[i]):
