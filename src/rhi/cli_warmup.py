@@ -50,9 +50,15 @@ def _batch() -> None:
 
 def _controllers() -> None:
     from rhi.runtime.config import load_config, shipped_configs
+    from rhi.runtime.safety import Safety
+    from rhi.runtime.step import make_step
+    from rhi.sim.loop import Kinematics
 
     for name in shipped_configs():
-        load_config(name).controller().warmup()
+        cfg = load_config(name)
+        ctrl = cfg.controller()
+        ctrl.warmup()
+        make_step(Safety(cfg.device, cfg.safety), Kinematics(cfg.device, cfg.virtual), ctrl)  # `rhi run`'s step
 
 
 def _simulation() -> None:
