@@ -192,8 +192,8 @@ def whole_for(parts: Parts):
             identity: A is the identity.
             terms: `rhi.devices._compiled.chain.chain_terms` by address (`terms_ref`): the tick's code does not contain
                 it, so its compile neither repeats nor waits for the one of the first `Device.terms`.
-            ascm_at: `rhi.control._compiled.allocation.ascm` by address (`rhi.control._compiled.step.ascm_ref`): the
-                controller compiles it while a child compiles the tick (`compile_ahead`).
+            ascm_at: `rhi.control._compiled.allocation.ascm_into` by address (`rhi.control._compiled.step.ascm_ref`):
+                the controller compiles it while a child compiles the tick (`compile_ahead`).
             ready: x and buf already hold this state's terms (a `Device.terms` snapshot): not recomputed.
             at: (≥ 13,) int64 term offsets in buf (`rhi.devices.terms.layout`).
             law: the primary law's code and settings (LAW_* slots).
